@@ -1,0 +1,102 @@
+// The .vwz container: one compressed volume, memory-mappable, every byte checksummed.
+//
+// Layout (little-endian; offsets pinned by static_asserts in container.cpp):
+//   offset size  field
+//        0    8  magic "VOXWALLZ"
+//        8    4  u32 format version (kContainerVersion)
+//       12    4  u32 header bytes (128)
+//       16    4  u32 codec id (CodecId)
+//       20    4  u32 scalar type (ScalarType)
+//       24   12  u32 dims x, y, z
+//       36    4  u32 section count (<= kMaxSections)
+//       40   24  f64 spacing x, y, z
+//       64   16  f64 value min, value max
+//       80    8  u64 file bytes (the whole file)
+//       88   32  reserved, zero
+//      120    8  u64 xxHash64 (seed 0) of bytes 0..119
+//      128  32n  section table, one entry per section:
+//                  u32 section id, u32 reserved (0), u64 offset, u64 length, u64 xxHash64
+//   then the sections, each starting at a multiple of 64 bytes, in table order, not overlapping.
+// Section ids are the codec's (each codec documents its own); readers refuse a file whose
+// lengths or offsets do not fit in the file before they touch any section data.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+#include <voxwall/codec/volume.hpp>
+
+namespace voxwall::codec {
+
+inline constexpr std::uint32_t kContainerVersion = 1;
+inline constexpr std::uint32_t kMaxSections = 64;
+inline constexpr std::size_t kSectionAlignment = 64;
+
+// Codec ids stored in files: never reuse a value.
+enum class CodecId : std::uint32_t { Raw = 1, Svmm = 2, Vq = 3, SparseCoding = 4, Tvq = 5 };
+std::string_view codecName(CodecId id);
+CodecId parseCodecName(std::string_view name);  // throws std::invalid_argument
+
+// What the fixed header says about the volume.
+struct VolumeInfo {
+  CodecId codec = CodecId::Raw;
+  ScalarType type = ScalarType::UInt8;
+  glm::ivec3 dims{0, 0, 0};
+  glm::dvec3 spacing{1, 1, 1};
+  double valueMin = 0, valueMax = 0;
+  std::size_t voxelCount() const {
+    return std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z);
+  }
+};
+
+// Read-only access to a codec's sections by id, wherever they live (a mapped file or memory).
+// `source` names the file (or "<memory>") for error messages.
+struct SectionSet {
+  std::string source;
+  std::map<std::uint32_t, std::span<const std::byte>> sections;
+  // The section with this id; throws FormatError("<source>: missing section <name>").
+  std::span<const std::byte> get(std::uint32_t id, const char* name) const;
+};
+
+// A compressed volume held in memory: what an encoder returns and what writeContainer stores.
+struct CompressedVolume {
+  VolumeInfo info;
+  std::vector<std::pair<std::uint32_t, std::vector<std::byte>>> sections;  // (id, bytes)
+  SectionSet view(std::string source = "<memory>") const;
+  std::uint64_t payloadBytes() const;  // sum of section sizes
+};
+
+// Serializes to the .vwz layout above.
+std::vector<std::byte> serializeContainer(const CompressedVolume& volume);
+// Writes atomically (temporary file, then rename). Throws FormatError on I/O errors.
+void writeContainer(const CompressedVolume& volume, const std::string& path);
+
+// A .vwz file, memory-mapped and fully validated (header, table, bounds, every checksum) on
+// open. Section spans stay valid while the object lives. Move-only.
+class ContainerFile {
+ public:
+  // Throws FormatError("<path>: <what>") for any inconsistency; `path` need not exist as .vwz.
+  static ContainerFile open(const std::string& path);
+  // Validates bytes already in memory (used by tests and fuzzers); the bytes must outlive it.
+  static ContainerFile parse(std::span<const std::byte> bytes, const std::string& source);
+
+  const VolumeInfo& info() const { return info_; }
+  const SectionSet& sections() const { return sections_; }
+  std::uint64_t fileBytes() const { return bytes_.size(); }
+  const std::string& path() const { return sections_.source; }
+
+ private:
+  struct Mapping;
+  std::shared_ptr<Mapping> mapping_;
+  std::span<const std::byte> bytes_;
+  VolumeInfo info_;
+  SectionSet sections_;
+};
+
+// True when the file starts with the .vwz magic (reads 8 bytes; false if unreadable).
+bool isContainerFile(const std::string& path);
+
+}  // namespace voxwall::codec

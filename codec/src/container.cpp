@@ -1,0 +1,262 @@
+// The .vwz container; layout in container.hpp.
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <xxhash.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <voxwall/codec/bytes.hpp>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/errors.hpp>
+
+#include "file_util.hpp"
+
+namespace voxwall::codec {
+namespace {
+
+constexpr char kMagic[8] = {'V', 'O', 'X', 'W', 'A', 'L', 'L', 'Z'};
+// Field offsets of the fixed header, pinned so a change to the writer is deliberate.
+constexpr std::size_t kOffVersion = 8, kOffHeaderBytes = 12, kOffCodec = 16, kOffType = 20,
+                      kOffDims = 24, kOffSectionCount = 36, kOffSpacing = 40, kOffRange = 64,
+                      kOffFileBytes = 80, kOffReserved = 88, kOffHeaderHash = 120,
+                      kHeaderBytes = 128, kTableEntryBytes = 32;
+static_assert(kOffDims + 3 * 4 == kOffSectionCount);
+static_assert(kOffSectionCount + 4 == kOffSpacing);
+static_assert(kOffSpacing + 3 * 8 == kOffRange);
+static_assert(kOffRange + 2 * 8 == kOffFileBytes);
+static_assert(kOffFileBytes + 8 == kOffReserved);
+static_assert(kOffReserved + 32 == kOffHeaderHash);
+static_assert(kOffHeaderHash + 8 == kHeaderBytes);
+
+std::uint64_t hashBytes(std::span<const std::byte> bytes) {
+  return XXH64(bytes.data(), bytes.size(), 0);
+}
+
+std::size_t alignUp(std::size_t n) {
+  return (n + kSectionAlignment - 1) / kSectionAlignment * kSectionAlignment;
+}
+
+}  // namespace
+
+std::string_view codecName(CodecId id) {
+  switch (id) {
+    case CodecId::Raw:
+      return "raw";
+    case CodecId::Svmm:
+      return "svmm";
+    case CodecId::Vq:
+      return "vq";
+    case CodecId::SparseCoding:
+      return "sparse";
+    case CodecId::Tvq:
+      return "tvq";
+  }
+  return "unknown";
+}
+
+CodecId parseCodecName(std::string_view name) {
+  for (auto id : {CodecId::Raw, CodecId::Svmm, CodecId::Vq, CodecId::SparseCoding, CodecId::Tvq})
+    if (codecName(id) == name) return id;
+  throw std::invalid_argument("unknown codec '" + std::string(name) + "'");
+}
+
+std::span<const std::byte> SectionSet::get(std::uint32_t id, const char* name) const {
+  auto it = sections.find(id);
+  if (it == sections.end())
+    throw FormatError(source, std::string("missing section '") + name + "' (id " +
+                                  std::to_string(id) + ")");
+  return it->second;
+}
+
+SectionSet CompressedVolume::view(std::string source) const {
+  SectionSet set;
+  set.source = std::move(source);
+  for (auto& [id, bytes] : sections) set.sections[id] = bytes;
+  return set;
+}
+
+std::uint64_t CompressedVolume::payloadBytes() const {
+  std::uint64_t n = 0;
+  for (auto& s : sections) n += s.second.size();
+  return n;
+}
+
+std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
+  if (volume.sections.size() > kMaxSections)
+    throw std::invalid_argument("too many sections for a .vwz file");
+  // Lay out the sections first so the header can state the file size.
+  std::vector<std::size_t> offsets;
+  std::size_t end = alignUp(kHeaderBytes + kTableEntryBytes * volume.sections.size());
+  for (auto& s : volume.sections) {
+    offsets.push_back(end);
+    end = alignUp(end + s.second.size());
+  }
+  const std::size_t fileBytes = volume.sections.empty()
+                                    ? end
+                                    : offsets.back() + volume.sections.back().second.size();
+
+  std::vector<std::byte> out;
+  out.reserve(fileBytes);
+  ByteWriter w(out);
+  w.putBytes(std::as_bytes(std::span(kMagic)));
+  w.put<std::uint32_t>(kContainerVersion);
+  w.put<std::uint32_t>(kHeaderBytes);
+  w.put<std::uint32_t>(std::uint32_t(volume.info.codec));
+  w.put<std::uint32_t>(std::uint32_t(volume.info.type));
+  for (int i = 0; i < 3; ++i) w.put<std::uint32_t>(std::uint32_t(volume.info.dims[i]));
+  w.put<std::uint32_t>(std::uint32_t(volume.sections.size()));
+  for (int i = 0; i < 3; ++i) w.put<double>(volume.info.spacing[i]);
+  w.put<double>(volume.info.valueMin);
+  w.put<double>(volume.info.valueMax);
+  w.put<std::uint64_t>(fileBytes);
+  for (int i = 0; i < 4; ++i) w.put<std::uint64_t>(0);
+  w.put<std::uint64_t>(hashBytes(std::span(out).first(kOffHeaderHash)));
+  for (std::size_t i = 0; i < volume.sections.size(); ++i) {
+    auto& [id, bytes] = volume.sections[i];
+    w.put<std::uint32_t>(id);
+    w.put<std::uint32_t>(0);
+    w.put<std::uint64_t>(offsets[i]);
+    w.put<std::uint64_t>(bytes.size());
+    w.put<std::uint64_t>(hashBytes(bytes));
+  }
+  for (std::size_t i = 0; i < volume.sections.size(); ++i) {
+    out.resize(offsets[i]);
+    w.putBytes(volume.sections[i].second);
+  }
+  out.resize(fileBytes);
+  return out;
+}
+
+void writeContainer(const CompressedVolume& volume, const std::string& path) {
+  writeFileAtomically(path, serializeContainer(volume));
+}
+
+struct ContainerFile::Mapping {
+  void* address = nullptr;
+  std::size_t length = 0;
+  ~Mapping() {
+    if (address) munmap(address, length);
+  }
+};
+
+ContainerFile ContainerFile::open(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw FormatError(path, std::strerror(errno));
+  struct stat st {};
+  if (fstat(fd, &st) != 0) {
+    const int err = errno;
+    ::close(fd);
+    throw FormatError(path, std::strerror(err));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd);
+    throw FormatError(path, "not a regular file");
+  }
+  auto mapping = std::make_shared<Mapping>();
+  mapping->length = std::size_t(st.st_size);
+  if (mapping->length > 0) {
+    mapping->address = mmap(nullptr, mapping->length, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (mapping->address == MAP_FAILED) {
+      mapping->address = nullptr;
+      const int err = errno;
+      ::close(fd);
+      throw FormatError(path, std::string("cannot map file: ") + std::strerror(err));
+    }
+  }
+  ::close(fd);
+  auto bytes = std::span(static_cast<const std::byte*>(mapping->address), mapping->length);
+  ContainerFile file = parse(bytes, path);
+  file.mapping_ = std::move(mapping);
+  return file;
+}
+
+ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::string& source) {
+  ContainerFile file;
+  file.bytes_ = bytes;
+  file.sections_.source = source;
+  auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
+  if (bytes.size() < kHeaderBytes)
+    fail("not a .vwz file: " + std::to_string(bytes.size()) + " bytes is shorter than the " +
+         std::to_string(kHeaderBytes) + "-byte header");
+  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+    fail("not a .vwz file (bad magic)");
+  ByteReader r(bytes.first(kHeaderBytes), source, "header");
+  r.skip(8);
+  const auto version = r.get<std::uint32_t>();
+  if (version != kContainerVersion)
+    fail("unsupported .vwz format version " + std::to_string(version) + " (this build reads " +
+         std::to_string(kContainerVersion) + ")");
+  const auto headerBytes = r.get<std::uint32_t>();
+  if (headerBytes != kHeaderBytes) fail("header size " + std::to_string(headerBytes) + " is wrong");
+  const auto storedHeaderHash = [&] {
+    ByteReader h(bytes.subspan(kOffHeaderHash, 8), source, "header");
+    return h.get<std::uint64_t>();
+  }();
+  if (hashBytes(bytes.first(kOffHeaderHash)) != storedHeaderHash)
+    fail("header checksum mismatch (the file is corrupt)");
+
+  VolumeInfo& info = file.info_;
+  const auto codec = r.get<std::uint32_t>();
+  if (codec < 1 || codec > 5) fail("unknown codec id " + std::to_string(codec));
+  info.codec = CodecId(codec);
+  const auto type = r.get<std::uint32_t>();
+  if (type < 1 || type > 4) fail("unknown scalar type " + std::to_string(type));
+  info.type = ScalarType(type);
+  for (int i = 0; i < 3; ++i) {
+    const auto d = r.get<std::uint32_t>();
+    if (d == 0 || d > (1u << 24)) fail("invalid dimension " + std::to_string(d));
+    info.dims[i] = int(d);
+  }
+  checkDims(info.dims, source);
+  const auto sectionCount = r.get<std::uint32_t>();
+  if (sectionCount > kMaxSections) fail("section count " + std::to_string(sectionCount) + " is too large");
+  for (int i = 0; i < 3; ++i) {
+    info.spacing[i] = r.get<double>();
+    if (!(info.spacing[i] > 0) || !std::isfinite(info.spacing[i]))
+      fail("invalid voxel spacing");
+  }
+  info.valueMin = r.get<double>();
+  info.valueMax = r.get<double>();
+  if (!std::isfinite(info.valueMin) || !std::isfinite(info.valueMax) || info.valueMin > info.valueMax)
+    fail("invalid value range");
+  const auto fileBytes = r.get<std::uint64_t>();
+  if (fileBytes != bytes.size())
+    fail("file is " + std::to_string(bytes.size()) + " bytes but its header says " +
+         std::to_string(fileBytes) + (fileBytes > bytes.size() ? " (truncated)" : ""));
+
+  const std::size_t tableEnd = kHeaderBytes + kTableEntryBytes * sectionCount;
+  if (tableEnd > bytes.size()) fail("section table runs past the end of the file (truncated)");
+  ByteReader t(bytes.subspan(kHeaderBytes, tableEnd - kHeaderBytes), source, "section table");
+  std::uint64_t previousEnd = tableEnd;
+  for (std::uint32_t i = 0; i < sectionCount; ++i) {
+    const auto id = t.get<std::uint32_t>();
+    t.skip(4);
+    const auto offset = t.get<std::uint64_t>();
+    const auto length = t.get<std::uint64_t>();
+    const auto hash = t.get<std::uint64_t>();
+    const std::string name = "section " + std::to_string(i) + " (id " + std::to_string(id) + ")";
+    if (offset % kSectionAlignment) fail(name + ": offset " + std::to_string(offset) + " is not 64-byte aligned");
+    if (offset < previousEnd) fail(name + ": overlaps the table or the previous section");
+    if (offset > bytes.size() || length > bytes.size() - offset)
+      fail(name + ": " + std::to_string(length) + " bytes at offset " + std::to_string(offset) +
+           " run past the end of the file (truncated)");
+    auto data = bytes.subspan(offset, length);
+    if (hashBytes(data) != hash) fail(name + ": checksum mismatch (the file is corrupt)");
+    if (!file.sections_.sections.emplace(id, data).second) fail(name + ": duplicate section id");
+    previousEnd = offset + length;
+  }
+  return file;
+}
+
+bool isContainerFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  if (!in.read(magic, 8)) return false;
+  return std::memcmp(magic, kMagic, 8) == 0;
+}
+
+}  // namespace voxwall::codec

@@ -1,0 +1,152 @@
+// NIfTI-1 through nifticlib. Orientation (qform/sform) is not applied: voxels keep file order.
+#include <nifti1_io.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/volume_io.hpp>
+
+#include "../file_util.hpp"
+
+namespace voxwall::codec {
+namespace {
+
+struct NiftiDeleter {
+  void operator()(nifti_image* nim) const { nifti_image_free(nim); }
+};
+using NiftiPtr = std::unique_ptr<nifti_image, NiftiDeleter>;
+
+template <class Src, class Dst>
+void convert(const void* src, Volume& v, double slope, double inter) {
+  const Src* s = static_cast<const Src*>(src);
+  auto d = v.as<Dst>();
+  for (std::size_t i = 0; i < d.size(); ++i) d[i] = Dst(double(s[i]) * slope + inter);
+}
+
+}  // namespace
+
+Volume readNifti(const std::string& path) {
+  nifti_set_debug_level(0);  // we report errors ourselves, in one line
+  NiftiPtr header(nifti_image_read(path.c_str(), 0));
+  if (!header) throw FormatError(path, "not a readable NIfTI file");
+  const glm::ivec3 dims(int(header->nx), int(header->ny), int(header->nz));
+  for (int d = 4; d <= header->ndim && d <= 7; ++d)
+    if (header->dim[d] > 1)
+      throw FormatError(path, "has " + std::to_string(header->ndim) +
+                                  " dimensions; only single 3D volumes are supported");
+  checkDims(dims, path);
+  if (header->nbyper <= 0 || header->nbyper > 8)
+    throw FormatError(path, "unsupported NIfTI datatype " + std::to_string(header->datatype));
+  // For an uncompressed file we can check the size before reading; nifticlib finds truncated
+  // gzip streams itself.
+  if (!extensionOf(path).ends_with(".gz")) {
+    std::error_code ec;
+    const auto fileBytes = std::filesystem::file_size(path, ec);
+    const double need = double(header->iname_offset) + double(header->nvox) * header->nbyper;
+    if (!ec && double(fileBytes) < need)
+      throw FormatError(path, "truncated: " + std::to_string(fileBytes) + " bytes, header needs " +
+                                  std::to_string(std::uint64_t(need)));
+  }
+  header.reset();
+
+  NiftiPtr nim(nifti_image_read(path.c_str(), 1));
+  if (!nim || !nim->data) throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
+  glm::dvec3 spacing(std::abs(nim->dx), std::abs(nim->dy), std::abs(nim->dz));
+  for (int i = 0; i < 3; ++i)
+    if (!(spacing[i] > 0) || !std::isfinite(spacing[i])) spacing[i] = 1.0;
+
+  double slope = nim->scl_slope, inter = nim->scl_inter;
+  if (slope == 0 || !std::isfinite(slope)) slope = 1.0, inter = 0.0;
+  if (!std::isfinite(inter)) inter = 0.0;
+  const bool scaled = slope != 1.0 || inter != 0.0;
+
+  Volume v;
+  auto make = [&](ScalarType t) { v = Volume::allocate(dims, t, spacing); };
+  switch (nim->datatype) {
+    case DT_UINT8:
+      make(scaled ? ScalarType::Float32 : ScalarType::UInt8);
+      scaled ? convert<std::uint8_t, float>(nim->data, v, slope, inter)
+             : convert<std::uint8_t, std::uint8_t>(nim->data, v, 1, 0);
+      break;
+    case DT_INT8:
+      make(scaled ? ScalarType::Float32 : ScalarType::Int16);
+      scaled ? convert<std::int8_t, float>(nim->data, v, slope, inter)
+             : convert<std::int8_t, std::int16_t>(nim->data, v, 1, 0);
+      break;
+    case DT_UINT16:
+      make(scaled ? ScalarType::Float32 : ScalarType::UInt16);
+      scaled ? convert<std::uint16_t, float>(nim->data, v, slope, inter)
+             : convert<std::uint16_t, std::uint16_t>(nim->data, v, 1, 0);
+      break;
+    case DT_INT16:
+      make(scaled ? ScalarType::Float32 : ScalarType::Int16);
+      scaled ? convert<std::int16_t, float>(nim->data, v, slope, inter)
+             : convert<std::int16_t, std::int16_t>(nim->data, v, 1, 0);
+      break;
+    case DT_INT32:
+      make(ScalarType::Float32);
+      convert<std::int32_t, float>(nim->data, v, slope, inter);
+      break;
+    case DT_UINT32:
+      make(ScalarType::Float32);
+      convert<std::uint32_t, float>(nim->data, v, slope, inter);
+      break;
+    case DT_FLOAT32:
+      make(ScalarType::Float32);
+      convert<float, float>(nim->data, v, slope, inter);
+      break;
+    case DT_FLOAT64:
+      make(ScalarType::Float32);
+      convert<double, float>(nim->data, v, slope, inter);
+      break;
+    default:
+      throw FormatError(path, std::string("unsupported NIfTI datatype ") +
+                                  nifti_datatype_string(nim->datatype));
+  }
+  v.computeRange();
+  return v;
+}
+
+void writeNifti(const Volume& volume, const std::string& path) {
+  int datatype = DT_UINT8;
+  switch (volume.type) {
+    case ScalarType::UInt8:
+      datatype = DT_UINT8;
+      break;
+    case ScalarType::UInt16:
+      datatype = DT_UINT16;
+      break;
+    case ScalarType::Int16:
+      datatype = DT_INT16;
+      break;
+    case ScalarType::Float32:
+      datatype = DT_FLOAT32;
+      break;
+  }
+  int dims[8] = {3, volume.dims.x, volume.dims.y, volume.dims.z, 1, 1, 1, 1};
+  NiftiPtr nim(nifti_make_new_nim(dims, datatype, 1));
+  if (!nim) throw FormatError(path, "cannot create NIfTI image");
+  std::memcpy(nim->data, volume.data.data(), volume.data.size());
+  nim->dx = nim->pixdim[1] = float(volume.spacing.x);
+  nim->dy = nim->pixdim[2] = float(volume.spacing.y);
+  nim->dz = nim->pixdim[3] = float(volume.spacing.z);
+  nim->nifti_type = NIFTI_FTYPE_NIFTI1_1;
+  // The temporary keeps the extension so nifticlib picks the same (gzip or not) encoding.
+  const bool gz = extensionOf(path).ends_with(".gz");
+  const std::string tmp = temporaryNameFor(path) + (gz ? ".nii.gz" : ".nii");
+  std::filesystem::remove(tmp);
+  if (nifti_set_filenames(nim.get(), tmp.c_str(), 0, 1) != 0)
+    throw FormatError(path, "cannot set NIfTI file name");
+  nifti_image_write(nim.get());  // returns void: check the result on disk
+  std::error_code ec;
+  const auto written = std::filesystem::file_size(tmp, ec);
+  if (ec || written < 352) {
+    std::filesystem::remove(tmp, ec);
+    throw FormatError(path, "write failed");
+  }
+  commitTemporary(tmp, path);
+}
+
+}  // namespace voxwall::codec

@@ -1,0 +1,46 @@
+#include <filesystem>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/volume_io.hpp>
+
+#include "../file_util.hpp"
+
+namespace voxwall::codec {
+
+VolumeFormat volumeFormatOf(const std::string& path) {
+  if (std::filesystem::is_directory(path)) return VolumeFormat::SliceStack;
+  const std::string ext = extensionOf(path);
+  if (ext == "nii" || ext == "nii.gz") return VolumeFormat::Nifti;
+  if (ext == "nrrd" || ext == "nhdr") return VolumeFormat::Nrrd;
+  if (ext == "raw" || ext == "raw.gz" || ext == "bin" || ext == "dat") return VolumeFormat::Raw;
+  if (ext == "tif" || ext == "tiff") return VolumeFormat::SliceStack;
+  throw FormatError(path, "unknown volume format '." + ext +
+                              "' (expected .nii, .nii.gz, .nrrd, .nhdr, .raw, .tif/.tiff or a "
+                              "directory of slices)");
+}
+
+Volume readVolume(const std::string& path, const std::optional<RawLayout>& raw) {
+  if (!std::filesystem::exists(path)) throw FormatError(path, "no such file or directory");
+  // Raw dimensions given on the command line mean "read this as raw", whatever the name.
+  if (raw && raw->dims.x > 0) return readRaw(path, *raw);
+  switch (volumeFormatOf(path)) {
+    case VolumeFormat::Raw:
+      throw FormatError(path, "raw files need their dimensions and type (--dims X,Y,Z --type T)");
+    case VolumeFormat::Nifti:
+      return readNifti(path);
+    case VolumeFormat::Nrrd:
+      return readNrrd(path);
+    case VolumeFormat::SliceStack:
+      return readSliceStack(path);
+  }
+  throw FormatError(path, "unknown volume format");
+}
+
+void writeVolume(const Volume& volume, const std::string& path) {
+  const std::string ext = extensionOf(path);
+  if (ext == "raw") return writeRaw(volume, path);
+  if (ext == "nrrd" || ext == "nhdr") return writeNrrd(volume, path);
+  if (ext == "nii" || ext == "nii.gz") return writeNifti(volume, path);
+  throw FormatError(path, "cannot write '." + ext + "' (expected .raw, .nrrd, .nhdr, .nii or .nii.gz)");
+}
+
+}  // namespace voxwall::codec

@@ -1,0 +1,140 @@
+// The raw codec; section layout in raw_codec.hpp.
+#include <algorithm>
+#include <cstring>
+#include <voxwall/codec/bytes.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/parallel.hpp>
+#include <voxwall/codec/raw_codec.hpp>
+
+namespace voxwall::codec::raw {
+namespace {
+
+int shiftFor(int brickVoxels) {
+  for (int s = 2; s <= 6; ++s)
+    if ((1 << s) == brickVoxels) return s;
+  throw std::invalid_argument("raw codec: brick size must be 4, 8, 16, 32 or 64 voxels, not " +
+                              std::to_string(brickVoxels));
+}
+
+}  // namespace
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress) {
+  const int shift = shiftFor(params.brickVoxels);
+  const int b = 1 << shift;
+  const glm::ivec3 bricks = (volume.dims + b - 1) / b;
+  const std::size_t brickCount = std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
+  const std::size_t brickScalars = std::size_t(1) << (3 * shift);
+  const std::size_t scalar = scalarBytes(volume.type);
+
+  CompressedVolume out;
+  out.info.codec = CodecId::Raw;
+  out.info.type = volume.type;
+  out.info.dims = volume.dims;
+  out.info.spacing = volume.spacing;
+  out.info.valueMin = volume.valueMin;
+  out.info.valueMax = volume.valueMax;
+
+  std::vector<std::byte> paramBytes;
+  ByteWriter pw(paramBytes);
+  pw.put<std::uint32_t>(std::uint32_t(shift));
+  pw.put<std::uint32_t>(0);
+
+  std::vector<std::byte> brickBytes(brickCount * brickScalars * scalar);
+  progress.begin("bricking", brickCount);
+  dispatchScalar(volume.type, [&](auto t) {
+    using T = decltype(t);
+    auto src = volume.as<T>();
+    T* dst = reinterpret_cast<T*>(brickBytes.data());
+    parallelFor(brickCount, 0, [&](std::size_t brick) {
+      const int bx = int(brick % std::size_t(bricks.x));
+      const int by = int(brick / std::size_t(bricks.x) % std::size_t(bricks.y));
+      const int bz = int(brick / (std::size_t(bricks.x) * std::size_t(bricks.y)));
+      T* out = dst + brick * brickScalars;
+      for (int z = 0; z < b; ++z)
+        for (int y = 0; y < b; ++y)
+          for (int x = 0; x < b; ++x) {
+            const int vx = std::min(bx * b + x, volume.dims.x - 1);
+            const int vy = std::min(by * b + y, volume.dims.y - 1);
+            const int vz = std::min(bz * b + z, volume.dims.z - 1);
+            *out++ = src[volume.index(vx, vy, vz)];
+          }
+      progress.advance();
+    });
+  });
+  progress.end();
+
+  const RangeGrid grid = computeRangeGrid(volume, b);
+  std::vector<std::byte> rangeBytes;
+  rangeBytes.reserve(brickCount * 8);
+  ByteWriter rw(rangeBytes);
+  for (std::size_t i = 0; i < brickCount; ++i) {
+    rw.put<float>(grid.lo[i]);
+    rw.put<float>(grid.hi[i]);
+  }
+
+  out.sections.emplace_back(kParams, std::move(paramBytes));
+  out.sections.emplace_back(kRanges, std::move(rangeBytes));
+  out.sections.emplace_back(kBricks, std::move(brickBytes));
+  return out;
+}
+
+Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
+  ByteReader p(sections.get(kParams, "params"), sections.source, "raw codec section 'params'");
+  const auto shift = p.get<std::uint32_t>();
+  if (shift < 2 || shift > 6) p.fail("brick shift " + std::to_string(shift) + " is not in 2..6");
+  brickShift_ = int(shift);
+  const int b = 1 << brickShift_;
+  bricks_ = (info.dims + b - 1) / b;
+  const std::size_t brickCount = std::size_t(bricks_.x) * std::size_t(bricks_.y) * std::size_t(bricks_.z);
+  rangeBytes_ = sections.get(kRanges, "ranges");
+  if (rangeBytes_.size() != brickCount * 8)
+    throw FormatError(sections.source, "raw codec section 'ranges': " +
+                                           std::to_string(rangeBytes_.size()) + " bytes, expected " +
+                                           std::to_string(brickCount * 8));
+  brickBytes_ = sections.get(kBricks, "bricks");
+  const std::size_t expected = brickCount * (std::size_t(1) << (3 * brickShift_)) * scalarBytes(info.type);
+  if (brickBytes_.size() != expected)
+    throw FormatError(sections.source, "raw codec section 'bricks': " +
+                                           std::to_string(brickBytes_.size()) + " bytes, expected " +
+                                           std::to_string(expected) + " for " +
+                                           std::to_string(info.dims.x) + "x" + std::to_string(info.dims.y) +
+                                           "x" + std::to_string(info.dims.z) + " " +
+                                           std::string(scalarName(info.type)));
+  if (reinterpret_cast<std::uintptr_t>(brickBytes_.data()) % scalarBytes(info.type))
+    throw FormatError(sections.source, "raw codec section 'bricks' is misaligned");
+}
+
+RangeGrid Layout::rangeGrid() const {
+  RangeGrid grid;
+  grid.cellVoxels = 1 << brickShift_;
+  grid.cells = bricks_;
+  const std::size_t n = grid.cellCount();
+  grid.lo.resize(n);
+  grid.hi.resize(n);
+  ByteReader r(rangeBytes_, "", "ranges");
+  for (std::size_t i = 0; i < n; ++i) {
+    grid.lo[i] = r.get<float>();
+    grid.hi[i] = r.get<float>();
+  }
+  return grid;
+}
+
+Volume decode(const VolumeInfo& info, const SectionSet& sections) {
+  const Layout layout(info, sections);
+  Volume v = Volume::allocate(info.dims, info.type, info.spacing);
+  v.valueMin = info.valueMin;
+  v.valueMax = info.valueMax;
+  dispatchScalar(info.type, [&](auto t) {
+    using T = decltype(t);
+    const auto view = layout.view<T>();
+    auto dst = v.as<T>();
+    parallelFor(std::size_t(info.dims.z), 0, [&](std::size_t z) {
+      for (int y = 0; y < info.dims.y; ++y)
+        for (int x = 0; x < info.dims.x; ++x)
+          dst[v.index(x, y, int(z))] = T(view.voxel(x, y, int(z)));
+    });
+  });
+  return v;
+}
+
+}  // namespace voxwall::codec::raw

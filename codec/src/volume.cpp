@@ -1,0 +1,98 @@
+#include <algorithm>
+#include <limits>
+#include <stdexcept>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/progress.hpp>
+#include <voxwall/codec/volume.hpp>
+
+namespace voxwall::codec {
+
+std::size_t scalarBytes(ScalarType type) {
+  return dispatchScalar(type, [](auto t) { return sizeof(t); });
+}
+
+std::string_view scalarName(ScalarType type) {
+  switch (type) {
+    case ScalarType::UInt8:
+      return "uint8";
+    case ScalarType::UInt16:
+      return "uint16";
+    case ScalarType::Int16:
+      return "int16";
+    case ScalarType::Float32:
+      return "float32";
+  }
+  return "unknown";
+}
+
+ScalarType parseScalarType(std::string_view name) {
+  for (auto t : {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Int16, ScalarType::Float32})
+    if (scalarName(t) == name) return t;
+  throw std::invalid_argument("unknown scalar type '" + std::string(name) +
+                              "' (expected uint8, uint16, int16 or float32)");
+}
+
+void checkDims(glm::ivec3 dims, const std::string& file) {
+  if (dims.x <= 0 || dims.y <= 0 || dims.z <= 0)
+    throw FormatError(file, "invalid dimensions " + std::to_string(dims.x) + "x" +
+                                std::to_string(dims.y) + "x" + std::to_string(dims.z));
+  const double voxels = double(dims.x) * double(dims.y) * double(dims.z);
+  if (voxels > double(kMaxVoxels))
+    throw FormatError(file, "dimensions " + std::to_string(dims.x) + "x" + std::to_string(dims.y) +
+                                "x" + std::to_string(dims.z) + " exceed the limit of " +
+                                std::to_string(kMaxVoxels) + " voxels");
+}
+
+Volume Volume::allocate(glm::ivec3 dims, ScalarType type, glm::dvec3 spacing) {
+  if (dims.x <= 0 || dims.y <= 0 || dims.z <= 0)
+    throw std::invalid_argument("volume dimensions must be positive");
+  Volume v;
+  v.dims = dims;
+  v.type = type;
+  v.spacing = spacing;
+  v.data.resize(v.voxelCount() * scalarBytes(type));
+  return v;
+}
+
+double Volume::valueAt(std::size_t i) const {
+  return dispatchScalar(type, [&](auto t) { return double(as<decltype(t)>()[i]); });
+}
+
+void Volume::computeRange() {
+  dispatchScalar(type, [&](auto t) {
+    using T = decltype(t);
+    auto values = as<T>();
+    if (values.empty()) {
+      valueMin = valueMax = 0;
+      return;
+    }
+    auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+    valueMin = double(*lo);
+    valueMax = double(*hi);
+  });
+}
+
+void Progress::begin(std::string stage, std::uint64_t total) {
+  std::lock_guard lock(mutex_);
+  stage_ = std::move(stage);
+  total_ = total;
+  done_ = lastReported_ = 0;
+  if (cb_) cb_(stage_, 0, total_);
+}
+
+void Progress::advance(std::uint64_t n) {
+  std::lock_guard lock(mutex_);
+  done_ += n;
+  if (cb_ && (done_ - lastReported_) * 200 >= std::max<std::uint64_t>(total_, 1)) {
+    lastReported_ = done_;
+    cb_(stage_, std::min(done_, total_), total_);
+  }
+}
+
+void Progress::end() {
+  std::lock_guard lock(mutex_);
+  if (cb_ && lastReported_ != total_) cb_(stage_, total_, total_);
+  lastReported_ = total_;
+}
+
+}  // namespace voxwall::codec

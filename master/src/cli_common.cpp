@@ -1,0 +1,128 @@
+#include "cli_common.hpp"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/generators.hpp>
+
+namespace voxwall::cli {
+
+void RawInputOptions::addTo(CLI::App& app) {
+  app.add_option("--dims", dims, "Raw input only: voxels per axis, X,Y,Z (x fastest in the file)");
+  app.add_option("--type", type, "Raw input only: scalar type: uint8, uint16, int16 or float32")
+      ->capture_default_str();
+  app.add_option("--spacing", spacing,
+                 "Voxel spacing X,Y,Z in world units (mm); overrides the file's for any input");
+  app.add_flag("--big-endian", bigEndian, "Raw input only: multi-byte values are big-endian");
+  app.add_option("--header-bytes", headerBytes, "Raw input only: bytes to skip before the voxels");
+}
+
+std::optional<codec::RawLayout> RawInputOptions::layout() const {
+  if (dims.empty()) return std::nullopt;
+  codec::RawLayout l;
+  l.dims = parseDims(dims, "--dims");
+  l.type = codec::parseScalarType(type);
+  if (!spacing.empty()) l.spacing = parseSpacing(spacing, "--spacing");
+  l.bigEndian = bigEndian;
+  l.headerBytes = headerBytes;
+  return l;
+}
+
+std::vector<double> parseNumbers(const std::string& text, const std::string& option) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      std::size_t used = 0;
+      const double v = std::stod(item, &used);
+      if (used != item.size() || !std::isfinite(v)) throw std::invalid_argument(item);
+      out.push_back(v);
+    } catch (const std::exception&) {
+      throw std::invalid_argument(option + ": '" + text + "' is not a comma-separated list of numbers");
+    }
+  }
+  return out;
+}
+
+glm::ivec3 parseDims(const std::string& text, const std::string& option) {
+  const auto v = parseNumbers(text, option);
+  if (v.size() != 3) throw std::invalid_argument(option + ": expected X,Y,Z, got '" + text + "'");
+  glm::ivec3 d;
+  for (int i = 0; i < 3; ++i) {
+    if (v[i] < 1 || v[i] != std::floor(v[i]) || v[i] > (1 << 24))
+      throw std::invalid_argument(option + ": '" + text + "' must be three positive integers");
+    d[i] = int(v[i]);
+  }
+  return d;
+}
+
+glm::dvec3 parseSpacing(const std::string& text, const std::string& option) {
+  const auto v = parseNumbers(text, option);
+  if (v.size() != 3 || !(v[0] > 0 && v[1] > 0 && v[2] > 0))
+    throw std::invalid_argument(option + ": expected three positive numbers X,Y,Z, got '" + text + "'");
+  return {v[0], v[1], v[2]};
+}
+
+std::pair<int, int> parseSize(const std::string& text, const std::string& option) {
+  int w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') ||
+      w < 1 || h < 1 || w > 65536 || h > 65536)
+    throw std::invalid_argument(option + ": expected WIDTHxHEIGHT (e.g. 1920x1080), got '" + text + "'");
+  return {w, h};
+}
+
+codec::Volume loadVolume(const std::string& spec, const std::optional<codec::RawLayout>& raw) {
+  if (spec.rfind("generated:", 0) == 0) {
+    std::stringstream ss(spec.substr(10));
+    std::string kind, param;
+    std::getline(ss, kind, ':');
+    std::getline(ss, param);
+    int n = 0;
+    try {
+      n = param.empty() ? 0 : std::stoi(param);
+    } catch (const std::exception&) {
+      throw std::invalid_argument("'" + spec + "': size must be an integer");
+    }
+    if (kind == "menger") return codec::generateMenger(n ? n : 4);
+    if (kind == "marschner-lobb") return codec::generateMarschnerLobb(n ? n : 64);
+    if (kind == "shepp-logan") return codec::generateSheppLogan(n ? n : 256);
+    throw std::invalid_argument("'" + spec +
+                                "': expected generated:menger:LEVEL, generated:marschner-lobb:N or "
+                                "generated:shepp-logan:N");
+  }
+  return codec::readVolume(spec, raw);
+}
+
+codec::Progress makeProgress(bool quiet) {
+  if (quiet) return codec::Progress{};
+  const bool tty = ::isatty(2);
+  return codec::Progress([tty](const std::string& stage, std::uint64_t done, std::uint64_t total) {
+    const int percent = total ? int(100 * done / total) : 100;
+    if (tty) {
+      const int width = 30, filled = percent * width / 100;
+      std::fprintf(stderr, "\r%-12s [%s%s] %3d%%", stage.c_str(), std::string(std::size_t(filled), '#').c_str(),
+                   std::string(std::size_t(width - filled), '.').c_str(), percent);
+      if (done >= total) std::fputc('\n', stderr);
+    } else if (done >= total) {
+      std::fprintf(stderr, "%s: done\n", stage.c_str());
+    }
+    std::fflush(stderr);
+  });
+}
+
+std::string humanBytes(double bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, u ? "%.1f %s" : "%.0f %s", bytes, units[u]);
+  return buf;
+}
+
+}  // namespace voxwall::cli

@@ -1,0 +1,38 @@
+// Pieces shared by the voxwall subcommands: option parsing, volume input, progress bars.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <optional>
+#include <string>
+#include <voxwall/codec/progress.hpp>
+#include <voxwall/codec/volume_io.hpp>
+
+namespace voxwall::cli {
+
+// Options that describe a headerless raw input file, attached to any command that reads volumes.
+struct RawInputOptions {
+  std::string dims, type = "uint8", spacing;
+  bool bigEndian = false;
+  std::uint64_t headerBytes = 0;
+  void addTo(CLI::App& app);
+  // The layout when --dims was given; throws std::invalid_argument on malformed values.
+  std::optional<codec::RawLayout> layout() const;
+};
+
+// "X,Y,Z" with positive integers / positive reals; "WxH". Throw std::invalid_argument naming
+// the option.
+glm::ivec3 parseDims(const std::string& text, const std::string& option);
+glm::dvec3 parseSpacing(const std::string& text, const std::string& option);
+std::pair<int, int> parseSize(const std::string& text, const std::string& option);
+std::vector<double> parseNumbers(const std::string& text, const std::string& option);
+
+// Reads a volume named on the command line: a file, a directory of slices, or
+// "generated:<menger|marschner-lobb|shepp-logan>:<size or level>".
+codec::Volume loadVolume(const std::string& spec, const std::optional<codec::RawLayout>& raw);
+
+// Prints a progress bar on stderr when it is a terminal, one line per stage otherwise.
+codec::Progress makeProgress(bool quiet);
+
+std::string humanBytes(double bytes);
+
+}  // namespace voxwall::cli

@@ -1,0 +1,67 @@
+#include <cstdio>
+#include <memory>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/raw_codec.hpp>
+
+#include "../cli_common.hpp"
+#include "commands.hpp"
+
+namespace voxwall::cli {
+namespace {
+
+struct InfoOptions {
+  std::string input;
+  RawInputOptions raw;
+};
+
+void printVolumeLines(glm::ivec3 dims, codec::ScalarType type, glm::dvec3 spacing, double lo, double hi) {
+  std::printf("dims        %d x %d x %d (%zu voxels)\n", dims.x, dims.y, dims.z,
+              std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z));
+  std::printf("type        %s\n", std::string(codec::scalarName(type)).c_str());
+  std::printf("spacing     %g x %g x %g\n", spacing.x, spacing.y, spacing.z);
+  std::printf("values      %g .. %g\n", lo, hi);
+}
+
+void runInfo(const InfoOptions& o) {
+  if (o.raw.dims.empty() && codec::isContainerFile(o.input)) {
+    const auto file = codec::ContainerFile::open(o.input);
+    const auto& info = file.info();
+    const double rawBytes = double(info.voxelCount()) * double(codec::scalarBytes(info.type));
+    std::printf("file        %s\n", o.input.c_str());
+    std::printf("container   .vwz version %u, %zu sections, checksums ok\n", codec::kContainerVersion,
+                file.sections().sections.size());
+    std::printf("codec       %s\n", std::string(codec::codecName(info.codec)).c_str());
+    printVolumeLines(info.dims, info.type, info.spacing, info.valueMin, info.valueMax);
+    std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
+                (unsigned long long)file.fileBytes());
+    std::printf("bits/voxel  %.3f\n", 8.0 * double(file.fileBytes()) / double(info.voxelCount()));
+    std::printf("ratio       %.3f : 1 (uncompressed %s)\n", rawBytes / double(file.fileBytes()),
+                humanBytes(rawBytes).c_str());
+    if (info.codec == codec::CodecId::Raw) {
+      const codec::raw::Layout layout(info, file.sections());
+      std::printf("bricks      %d x %d x %d of %d^3 voxels\n", layout.bricks().x, layout.bricks().y,
+                  layout.bricks().z, 1 << layout.brickShift());
+    }
+    return;
+  }
+  codec::Volume v = loadVolume(o.input, o.raw.layout());
+  if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
+  std::printf("file        %s\n", o.input.c_str());
+  printVolumeLines(v.dims, v.type, v.spacing, v.valueMin, v.valueMax);
+  std::printf("size        %s uncompressed\n", humanBytes(double(v.data.size())).c_str());
+}
+
+}  // namespace
+
+void addInfoCommand(CLI::App& app) {
+  auto o = std::make_shared<InfoOptions>();
+  auto* cmd = app.add_subcommand(
+      "info", "Describe a .vwz file (codec, dims, type, size, bits per voxel, ratio; verifies every "
+              "checksum) or any readable volume");
+  cmd->add_option("input", o->input, ".vwz file or any volume input")->required();
+  o->raw.addTo(*cmd);
+  cmd->callback([o] { runInfo(*o); });
+}
+
+}  // namespace voxwall::cli

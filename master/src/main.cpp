@@ -1,0 +1,36 @@
+// voxwall: compress, inspect and render large scalar volumes.
+// Errors reach the user as one line, "voxwall: <file>: <what is wrong>", and exit status 1.
+#include <cstdio>
+#include <exception>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/node/renderer.hpp>
+
+#include "commands/commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "voxwall renders large scalar volumes (CT, MRI, microscopy, simulation) from compressed\n"
+      "files onto display walls and into image sequences."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "voxwall 0.1.0");
+  voxwall::cli::addGenerateCommand(app);
+  voxwall::cli::addCompressCommand(app);
+  voxwall::cli::addDecompressCommand(app);
+  voxwall::cli::addInfoCommand(app);
+  voxwall::cli::addRenderCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const voxwall::FormatError& e) {
+    std::fprintf(stderr, "voxwall: %s\n", e.what());
+    return 1;
+  } catch (const voxwall::node::CudaError& e) {
+    std::fprintf(stderr, "voxwall: cuda: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "voxwall: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,186 @@
+// The per-ray code shared by the CPU and CUDA backends: ray generation for a pixel of the virtual
+// screen, ray/box entry, fixed-step sampling, transfer-function lookup, Blinn-Phong shading,
+// front-to-back compositing with early termination, and empty-space skipping.
+//
+// Spaces: world space is voxel index x spacing with the volume centred at the origin; the ray is
+// marched in *index space* (voxel centres on integers, the volume box [-0.5, dims - 0.5]) with
+// the ray parameter t measured in world units, so a step of `stepWorld` is the same physical
+// length along every ray whatever the spacing.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <glm/geometric.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <type_traits>
+#include <voxwall/codec/kernels/host_device.hpp>
+#include <voxwall/node/kernels/transfer_lut.hpp>
+
+namespace voxwall::node::kernels {
+
+// Cells of 2^cellShift voxels whose transfer-function opacity is zero everywhere (empty[c] = 1),
+// cells x fastest. A null `empty` disables skipping.
+struct SkipGrid {
+  const std::uint8_t* empty = nullptr;
+  int cellsX = 0, cellsY = 0, cellsZ = 0;
+  int cellShift = 3;
+};
+
+// Everything a ray needs that is the same for every pixel of a frame.
+struct RayFrame {
+  glm::vec3 eyeWorld{0.0f};
+  glm::vec3 forward{0.0f};  // unit view direction
+  glm::vec3 right{0.0f};    // unit right vector times tan(fovX / 2)
+  glm::vec3 up{0.0f};       // unit up vector times tan(fovY / 2)
+  glm::ivec2 screen{0, 0};  // full virtual screen in pixels
+  glm::vec3 invSpacing{1.0f};
+  glm::vec3 centerIndex{0.0f};  // index-space position of the world origin: (dims - 1) / 2
+  glm::vec3 boxMax{0.0f};       // dims - 0.5 (the box minimum is -0.5)
+  float stepWorld = 0.25f;      // step length in world units
+  float earlyTermination = 0.995f;
+  bool shading = false;
+  float ambient = 0.1f, diffuse = 0.7f, specular = 0.2f, shininess = 10.0f;
+};
+static_assert(std::is_trivially_copyable_v<RayFrame>);
+static_assert(std::is_trivially_copyable_v<SkipGrid>);
+
+struct PixelResult {
+  glm::vec4 rgba{0.0f};  // premultiplied colour and opacity
+  std::uint32_t samples = 0;
+};
+
+// Intersects o + t d with the box [lo, hi]; returns false when it misses. d may have zeros.
+VOXWALL_HD_INLINE bool rayBox(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo,
+                              const glm::vec3& hi, float& tEnter, float& tExit) {
+  float t0 = -INFINITY, t1 = INFINITY;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0f) {
+      if (o[a] < lo[a] || o[a] > hi[a]) return false;
+      continue;
+    }
+    const float inv = 1.0f / d[a];
+    float tn = (lo[a] - o[a]) * inv, tf = (hi[a] - o[a]) * inv;
+    if (tn > tf) {
+      const float s = tn;
+      tn = tf, tf = s;
+    }
+    t0 = tn > t0 ? tn : t0;
+    t1 = tf < t1 ? tf : t1;
+  }
+  tEnter = t0, tExit = t1;
+  return t0 <= t1;
+}
+
+// Front-to-back "over" of a straight-colour sample with opacity alpha onto premultiplied acc.
+VOXWALL_HD_INLINE void compositeOver(glm::vec4& acc, const glm::vec3& color, float alpha) {
+  const float w = (1.0f - acc.a) * alpha;
+  acc.r += w * color.r;
+  acc.g += w * color.g;
+  acc.b += w * color.b;
+  acc.a += w;
+}
+
+// Blinn-Phong with a headlight (light and viewer along -dir), two-sided, white specular.
+VOXWALL_HD_INLINE glm::vec3 shade(const glm::vec3& color, const glm::vec3& gradientWorld,
+                                  const glm::vec3& dir, const RayFrame& f) {
+  const float len = glm::length(gradientWorld);
+  if (!(len > 1e-12f)) return color * (f.ambient + f.diffuse);  // homogeneous: unshaded
+  const glm::vec3 n = gradientWorld / len;
+  const float nl = fabsf(glm::dot(n, dir));  // light = viewer, so halfway vector = light
+  const float spec = f.specular * powf(nl, f.shininess);
+  const glm::vec3 c = color * (f.ambient + f.diffuse * nl) + glm::vec3(spec);
+  return glm::min(c, glm::vec3(1.0f));
+}
+
+// Unit world-space direction of the ray through the centre of pixel (px, py) of the virtual
+// screen. Tiles use the same global pixel coordinates, so a tile's rays are the full render's.
+VOXWALL_HD_INLINE glm::vec3 pixelDirection(const RayFrame& f, int px, int py) {
+  const float sx = (float(px) + 0.5f) / float(f.screen.x) * 2.0f - 1.0f;
+  const float sy = 1.0f - (float(py) + 0.5f) / float(f.screen.y) * 2.0f;
+  return glm::normalize(f.forward + sx * f.right + sy * f.up);
+}
+
+// Ray parameter where o + t d leaves the box [lo, hi) it is inside of (index space).
+VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo,
+                                const glm::vec3& hi) {
+  float t = INFINITY;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] > 0.0f) t = fminf(t, (hi[a] - o[a]) / d[a]);
+    if (d[a] < 0.0f) t = fminf(t, (lo[a] - o[a]) / d[a]);
+  }
+  return t;
+}
+
+// Renders one pixel of the virtual screen. `View` answers sample(x, y, z) (trilinear, index
+// space); its values are looked up in `lut`. Samples sit at t = tEnter + (k + 1/2) * stepWorld,
+// so skipping an empty cell jumps k and leaves every later sample exactly where it would be.
+template <class View>
+VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
+                                           const TransferLut& lut, const SkipGrid& skip, int px,
+                                           int py) {
+  PixelResult out;
+  const glm::vec3 dir = pixelDirection(f, px, py);
+  const glm::vec3 o = f.eyeWorld * f.invSpacing + f.centerIndex;
+  const glm::vec3 d = dir * f.invSpacing;
+  float tEnter, tExit;
+  if (!rayBox(o, d, glm::vec3(-0.5f), f.boxMax, tEnter, tExit)) return out;
+  tEnter = tEnter > 0.0f ? tEnter : 0.0f;
+  if (tExit <= tEnter) return out;
+  const int steps = int((tExit - tEnter) / f.stepWorld);
+  const glm::vec3 g = 0.5f * f.invSpacing;  // central difference over two voxels, in world units
+  glm::vec4 acc(0.0f);
+  for (int k = 0; k < steps; ++k) {
+    const float t = tEnter + (float(k) + 0.5f) * f.stepWorld;
+    const glm::vec3 p = o + t * d;
+    if (skip.empty) {
+      // The cell of the lower trilinear corner; its range covers every voxel the sample reads.
+      const int vx = p.x < 0.0f ? 0 : int(p.x), vy = p.y < 0.0f ? 0 : int(p.y),
+                vz = p.z < 0.0f ? 0 : int(p.z);
+      const int cx = vx >> skip.cellShift, cy = vy >> skip.cellShift, cz = vz >> skip.cellShift;
+      if (cx < skip.cellsX && cy < skip.cellsY && cz < skip.cellsZ &&
+          skip.empty[(std::size_t(cz) * std::size_t(skip.cellsY) + std::size_t(cy)) *
+                         std::size_t(skip.cellsX) +
+                     std::size_t(cx)]) {
+        const float size = float(1 << skip.cellShift);
+        // Cell 0 also holds positions in [-0.5, 0): extend its lower bound.
+        const glm::vec3 lo(cx ? float(cx) * size : -1.0f, cy ? float(cy) * size : -1.0f,
+                           cz ? float(cz) * size : -1.0f);
+        const glm::vec3 hi(float(cx + 1) * size, float(cy + 1) * size, float(cz + 1) * size);
+        const float tCell = boxExit(o, d, lo, hi);
+        // First sample index at or past the cell exit; at least the next sample.
+        const float kNext = ceilf((tCell - tEnter) / f.stepWorld - 0.5f);
+        if (kNext > float(k + 1)) k = int(fminf(kNext, float(steps))) - 1;
+        continue;
+      }
+    }
+    const float value = view.sample(p.x, p.y, p.z);
+    ++out.samples;
+    const glm::vec4 c = lut.lookup(value);
+    if (c.a <= 0.0f) continue;
+    glm::vec3 color(c.r, c.g, c.b);
+    if (f.shading) {
+      const glm::vec3 grad(
+          (view.sample(p.x + 1.0f, p.y, p.z) - view.sample(p.x - 1.0f, p.y, p.z)) * g.x,
+          (view.sample(p.x, p.y + 1.0f, p.z) - view.sample(p.x, p.y - 1.0f, p.z)) * g.y,
+          (view.sample(p.x, p.y, p.z + 1.0f) - view.sample(p.x, p.y, p.z - 1.0f)) * g.z);
+      color = shade(color, grad, dir, f);
+    }
+    compositeOver(acc, color, c.a);
+    if (acc.a >= f.earlyTermination) break;
+  }
+  out.rgba = acc;
+  return out;
+}
+
+// Premultiplied float RGBA to 8-bit, rounding to nearest.
+VOXWALL_HD_INLINE std::uint32_t packRgba8(const glm::vec4& c) {
+  auto q = [](float v) {
+    v = v < 0.0f ? 0.0f : (v > 1.0f ? 1.0f : v);
+    return std::uint32_t(v * 255.0f + 0.5f);
+  };
+  return q(c.r) | (q(c.g) << 8) | (q(c.b) << 16) | (q(c.a) << 24);
+}
+
+}  // namespace voxwall::node::kernels

@@ -1,0 +1,55 @@
+// A volume ready to render: a compressed volume (mapped .vwz or made in memory), its views for
+// the per-ray code and its coarse value ranges for empty-space skipping.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/kernels/raw_view.hpp>
+#include <voxwall/codec/range_grid.hpp>
+#include <voxwall/codec/volume_io.hpp>
+
+namespace voxwall::node {
+
+// Every view type the raycaster is instantiated for (one per codec and scalar type).
+using ViewVariant =
+    std::variant<codec::kernels::RawView<std::uint8_t>, codec::kernels::RawView<std::uint16_t>,
+                 codec::kernels::RawView<std::int16_t>, codec::kernels::RawView<float>>;
+
+class RenderVolume {
+ public:
+  // Opens a .vwz file (memory-mapped) or reads any volume file and bricks it in memory with
+  // the raw codec. Throws FormatError("<path>: ...").
+  static RenderVolume open(const std::string& path,
+                           const std::optional<codec::RawLayout>& raw = std::nullopt);
+  static RenderVolume fromContainer(codec::ContainerFile file);
+  static RenderVolume fromVolume(const codec::Volume& volume, int brickVoxels = 8);
+
+  const codec::VolumeInfo& info() const { return info_; }
+  const codec::RangeGrid& ranges() const { return ranges_; }
+  // Bytes of the compressed representation a backend has to hold (file size for a .vwz).
+  std::uint64_t storedBytes() const { return storedBytes_; }
+  // The voxel payload a device backend uploads, and the view with its data at `base`
+  // (host memory when null).
+  std::span<const std::byte> payload() const;
+  ViewVariant view(const std::byte* base = nullptr) const;
+  const std::string& source() const { return source_; }
+
+ private:
+  RenderVolume() = default;
+  void init();
+  std::shared_ptr<codec::ContainerFile> file_;
+  std::shared_ptr<codec::CompressedVolume> memory_;
+  codec::SectionSet sections_;
+  codec::VolumeInfo info_;
+  codec::RangeGrid ranges_;
+  std::uint64_t storedBytes_ = 0;
+  std::string source_;
+};
+
+// World-space radius of the volume's bounding sphere (for placing cameras).
+double boundingRadius(const codec::VolumeInfo& info);
+
+}  // namespace voxwall::node

@@ -1,0 +1,68 @@
+// Frame preparation and the rendering backends (CPU threads, CUDA).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <voxwall/node/camera.hpp>
+#include <voxwall/node/image.hpp>
+#include <voxwall/node/kernels/raycast.hpp>
+#include <voxwall/node/render_volume.hpp>
+#include <voxwall/node/transfer_function.hpp>
+
+namespace voxwall::node {
+
+struct RenderSettings {
+  double stepVoxels = 0.25;  // ray step in voxels (of the smallest spacing); Guthe & Goesele: 1/4
+  bool shading = false;      // Blinn-Phong from central-difference gradients
+  bool emptySpaceSkipping = true;
+  double earlyTerminationOpacity = 0.995;
+  int lutEntries = 4096;
+};
+
+// Everything a backend needs for one frame, built once on the host and shared by all tiles.
+struct FramePlan {
+  kernels::RayFrame ray;
+  HostLut lut;
+  std::vector<std::uint8_t> emptyCells;  // 1 = transfer function is zero over the whole cell
+  kernels::SkipGrid skip;                // points into emptyCells (host)
+  double emptyFraction = 0.0;            // share of cells skipped
+};
+
+// `tfDomain` is the data-value range the LUT covers (usually the TF's own domain).
+// Throws std::invalid_argument for a non-positive step or screen size.
+FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screenWidth,
+                    int screenHeight, const TransferFunction& tf, const RenderSettings& settings);
+
+struct TileStats {
+  double seconds = 0.0;
+  std::uint64_t samples = 0;  // transfer-function samples taken (empty-space skips excluded)
+};
+
+enum class BackendKind { Cpu, Cuda };
+
+// CUDA failures: the call, the error string and where.
+class CudaError : public std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Renders rectangles of the virtual screen. Not thread-safe: one frame at a time.
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual std::string name() const = 0;
+  // Renders `tile` of the virtual screen into `out` (resized to the tile).
+  virtual TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
+                           Image& out) = 0;
+};
+
+// threads: CPU worker threads (0 = all cores). Cuda throws CudaError when no device is usable.
+std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0);
+std::unique_ptr<Backend> makeCpuBackend(int threads);
+std::unique_ptr<Backend> makeCudaBackend();
+// Whether the CUDA backend can run here; otherwise `reason` says why (not built, no device...).
+bool cudaAvailable(std::string* reason = nullptr);
+
+}  // namespace voxwall::node

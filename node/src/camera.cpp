@@ -1,0 +1,32 @@
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <voxwall/node/camera.hpp>
+
+namespace voxwall::node {
+
+Camera orbitCamera(const Orbit& orbit, double boundingRadius) {
+  const double d2r = std::numbers::pi / 180.0;
+  const double az = orbit.azimuthDeg * d2r, el = orbit.elevationDeg * d2r;
+  Camera c;
+  c.center = {0, 0, 0};
+  const double r = orbit.distance * boundingRadius;
+  c.eye = {r * std::cos(el) * std::cos(az), r * std::cos(el) * std::sin(az), r * std::sin(el)};
+  // Straight up or down, +z is parallel to the view: use the azimuth direction instead.
+  c.up = std::abs(std::cos(el)) < 1e-6 ? glm::dvec3(-std::cos(az), -std::sin(az), 0) : glm::dvec3(0, 0, 1);
+  c.fovYDeg = orbit.fovYDeg;
+  return c;
+}
+
+Frustum tileFrustum(const Camera& camera, int screenWidth, int screenHeight, const Rect& tile,
+                    double nearDist, double farDist) {
+  if (tile.width <= 0 || tile.height <= 0 || screenWidth <= 0 || screenHeight <= 0)
+    throw std::invalid_argument("tileFrustum: empty tile or screen");
+  const double tanY = std::tan(camera.fovYDeg * std::numbers::pi / 360.0);
+  const double tanX = tanY * double(screenWidth) / double(screenHeight);
+  auto sx = [&](int px) { return (double(px) / screenWidth * 2.0 - 1.0) * tanX * nearDist; };
+  auto sy = [&](int py) { return (1.0 - double(py) / screenHeight * 2.0) * tanY * nearDist; };
+  return {sx(tile.x), sx(tile.x + tile.width), sy(tile.y + tile.height), sy(tile.y), nearDist, farDist};
+}
+
+}  // namespace voxwall::node

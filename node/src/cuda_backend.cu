@@ -1,0 +1,156 @@
+// The CUDA backend: uploads the compressed volume once, the transfer-function table and the
+// skip grid per frame, and launches one thread per pixel running the same raycastPixel as the
+// CPU backend. Only allocation, upload, launch and download live here (DESIGN.md).
+#include <cuda_runtime.h>
+
+#include <chrono>
+#include <string>
+#include <voxwall/node/renderer.hpp>
+
+#define VOXWALL_CUDA_CHECK(call) ::voxwall::node::cudaCheck((call), #call, __FILE__, __LINE__)
+
+namespace voxwall::node {
+namespace {
+
+void cudaCheck(cudaError_t error, const char* call, const char* file, int line) {
+  if (error != cudaSuccess)
+    throw CudaError(std::string(call) + ": " + cudaGetErrorString(error) + " (" + file + ":" +
+                    std::to_string(line) + ")");
+}
+
+// Device memory owned by one object; grows, never shrinks.
+class DeviceBuffer {
+ public:
+  DeviceBuffer() = default;
+  DeviceBuffer(const DeviceBuffer&) = delete;
+  DeviceBuffer& operator=(const DeviceBuffer&) = delete;
+  ~DeviceBuffer() {
+    if (ptr_) cudaFree(ptr_);
+  }
+  void reserve(std::size_t bytes) {
+    if (bytes <= capacity_) return;
+    if (ptr_) VOXWALL_CUDA_CHECK(cudaFree(ptr_));
+    ptr_ = nullptr;
+    capacity_ = 0;
+    VOXWALL_CUDA_CHECK(cudaMalloc(&ptr_, bytes ? bytes : 1));
+    capacity_ = bytes;
+  }
+  void upload(const void* src, std::size_t bytes) {
+    reserve(bytes);
+    if (bytes) VOXWALL_CUDA_CHECK(cudaMemcpy(ptr_, src, bytes, cudaMemcpyHostToDevice));
+  }
+  template <class T>
+  T* as() const {
+    return static_cast<T*>(ptr_);
+  }
+
+ private:
+  void* ptr_ = nullptr;
+  std::size_t capacity_ = 0;
+};
+
+template <class View>
+__global__ void raycastKernel(View view, kernels::RayFrame frame, kernels::TransferLut lut,
+                              kernels::SkipGrid skip, int tileX, int tileY, int tileW, int tileH,
+                              std::uint32_t* out, unsigned long long* samples) {
+  const int x = int(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = int(blockIdx.y * blockDim.y + threadIdx.y);
+  unsigned count = 0;
+  if (x < tileW && y < tileH) {
+    const auto r = kernels::raycastPixel(view, frame, lut, skip, tileX + x, tileY + y);
+    out[std::size_t(y) * std::size_t(tileW) + std::size_t(x)] = kernels::packRgba8(r.rgba);
+    count = r.samples;
+  }
+  // One atomic per warp instead of one per pixel.
+  count = __reduce_add_sync(0xffffffffu, count);
+  if ((threadIdx.x + threadIdx.y * blockDim.x) % 32 == 0) atomicAdd(samples, (unsigned long long)count);
+}
+
+class CudaBackend final : public Backend {
+ public:
+  CudaBackend() {
+    int device = 0;
+    VOXWALL_CUDA_CHECK(cudaGetDevice(&device));
+    cudaDeviceProp prop{};
+    VOXWALL_CUDA_CHECK(cudaGetDeviceProperties(&prop, device));
+    name_ = std::string("cuda (") + prop.name + ")";
+    VOXWALL_CUDA_CHECK(cudaMalloc(&samples_, sizeof(unsigned long long)));
+  }
+  ~CudaBackend() override {
+    if (samples_) cudaFree(samples_);
+  }
+  std::string name() const override { return name_; }
+
+  TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
+                   Image& out) override {
+    if (tile.width <= 0 || tile.height <= 0) throw std::invalid_argument("empty tile");
+    const auto start = std::chrono::steady_clock::now();
+    const auto payload = volume.payload();
+    if (payload.data() != uploadedFrom_ || payload.size() != uploadedBytes_) {
+      volumeBytes_.upload(payload.data(), payload.size());
+      uploadedFrom_ = payload.data();
+      uploadedBytes_ = payload.size();
+    }
+    lut_.upload(plan.lut.entries.data(), plan.lut.entries.size() * sizeof(glm::vec4));
+    kernels::SkipGrid skip = plan.skip;
+    if (skip.empty) {
+      skipCells_.upload(plan.emptyCells.data(), plan.emptyCells.size());
+      skip.empty = skipCells_.as<std::uint8_t>();
+    }
+    const std::size_t pixels = std::size_t(tile.width) * std::size_t(tile.height);
+    image_.reserve(pixels * sizeof(std::uint32_t));
+    VOXWALL_CUDA_CHECK(cudaMemset(samples_, 0, sizeof(unsigned long long)));
+    const dim3 block(16, 8);
+    const dim3 grid((tile.width + 15) / 16, (tile.height + 7) / 8);
+    const auto lut = plan.lut.view(lut_.as<glm::vec4>());
+    std::visit(
+        [&](const auto& hostView) {
+          using View = std::decay_t<decltype(hostView)>;
+          const View view = std::get<View>(volume.view(volumeBytes_.as<std::byte>()));
+          raycastKernel<<<grid, block>>>(view, plan.ray, lut, skip, tile.x, tile.y, tile.width,
+                                         tile.height, image_.as<std::uint32_t>(), samples_);
+        },
+        volume.view());
+    VOXWALL_CUDA_CHECK(cudaGetLastError());
+    out = Image(tile.width, tile.height);
+    VOXWALL_CUDA_CHECK(cudaMemcpy(out.pixels.data(), image_.as<std::uint32_t>(),
+                                  pixels * sizeof(std::uint32_t), cudaMemcpyDeviceToHost));
+    unsigned long long samples = 0;
+    VOXWALL_CUDA_CHECK(cudaMemcpy(&samples, samples_, sizeof samples, cudaMemcpyDeviceToHost));
+    TileStats stats;
+    stats.samples = samples;
+    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return stats;
+  }
+
+ private:
+  std::string name_;
+  DeviceBuffer volumeBytes_, lut_, skipCells_, image_;
+  const std::byte* uploadedFrom_ = nullptr;
+  std::size_t uploadedBytes_ = 0;
+  unsigned long long* samples_ = nullptr;
+};
+
+}  // namespace
+
+bool cudaAvailable(std::string* reason) {
+  int count = 0;
+  const cudaError_t error = cudaGetDeviceCount(&count);
+  if (error != cudaSuccess) {
+    if (reason) *reason = std::string("no usable CUDA device: ") + cudaGetErrorString(error);
+    return false;
+  }
+  if (count == 0) {
+    if (reason) *reason = "no CUDA device found";
+    return false;
+  }
+  return true;
+}
+
+std::unique_ptr<Backend> makeCudaBackend() {
+  std::string reason;
+  if (!cudaAvailable(&reason)) throw CudaError(reason);
+  return std::make_unique<CudaBackend>();
+}
+
+}  // namespace voxwall::node

@@ -1,0 +1,106 @@
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/node/image.hpp>
+
+namespace voxwall::node {
+
+void Image::paste(const Image& tile, const Rect& rect) {
+  if (rect.x < 0 || rect.y < 0 || rect.x + rect.width > width || rect.y + rect.height > height ||
+      tile.width != rect.width || tile.height != rect.height)
+    throw std::invalid_argument("Image::paste: tile does not fit");
+  for (int y = 0; y < rect.height; ++y)
+    std::copy_n(tile.pixels.begin() + std::ptrdiff_t(y) * tile.width, tile.width,
+                pixels.begin() + std::ptrdiff_t(rect.y + y) * width + rect.x);
+}
+
+Image Image::crop(const Rect& rect) const {
+  if (rect.x < 0 || rect.y < 0 || rect.width <= 0 || rect.height <= 0 ||
+      rect.x + rect.width > width || rect.y + rect.height > height)
+    throw std::invalid_argument("Image::crop: rectangle outside the image");
+  Image out(rect.width, rect.height);
+  for (int y = 0; y < rect.height; ++y)
+    std::copy_n(pixels.begin() + std::ptrdiff_t(rect.y + y) * width + rect.x, rect.width,
+                out.pixels.begin() + std::ptrdiff_t(y) * rect.width);
+  return out;
+}
+
+void writeImage(const Image& image, const std::string& path,
+                const std::optional<glm::dvec3>& background) {
+  // Float channels straight from the premultiplied bytes; OIIO converts to the file's type.
+  std::vector<float> rgba(image.pixels.size() * 4);
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    const std::uint32_t p = image.pixels[i];
+    float c[4] = {float(p & 255) / 255.f, float((p >> 8) & 255) / 255.f,
+                  float((p >> 16) & 255) / 255.f, float(p >> 24) / 255.f};
+    if (background) {
+      for (int k = 0; k < 3; ++k) c[k] += (1.0f - c[3]) * float((*background)[k]);
+      c[3] = 1.0f;
+    } else if (c[3] > 0.0f) {
+      for (int k = 0; k < 3; ++k) c[k] = std::min(1.0f, c[k] / c[3]);
+    }
+    std::copy(c, c + 4, rgba.begin() + std::ptrdiff_t(i * 4));
+  }
+  // The temporary keeps the extension: OpenImageIO picks the format from it.
+  const auto dot = path.rfind('.');
+  const std::string ext = dot == std::string::npos ? ".png" : path.substr(dot);
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + ext;
+  auto out = OIIO::ImageOutput::create(tmp);
+  if (!out) throw FormatError(path, "cannot write images of this type: " + OIIO::geterror());
+  const bool exr = out->format_name() == std::string("openexr");
+  OIIO::ImageSpec spec(image.width, image.height, 4, exr ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
+  if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) || !out->close()) {
+    const std::string err = out->geterror();
+    std::remove(tmp.c_str());
+    throw FormatError(path, "cannot write image: " + err);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw FormatError(path, "cannot rename the finished image into place");
+  }
+}
+
+Image readImage(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw FormatError(path, "cannot open image: " + OIIO::geterror());
+  const auto& spec = in->spec();
+  if (spec.nchannels < 3) throw FormatError(path, "not an RGB(A) image");
+  std::vector<float> data(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(spec.nchannels));
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, data.data()))
+    throw FormatError(path, "cannot read image: " + in->geterror());
+  Image img(spec.width, spec.height);
+  const int n = spec.nchannels;
+  auto q = [](float v) { return std::uint32_t(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f)); };
+  for (std::size_t i = 0; i < img.pixels.size(); ++i) {
+    const float* c = &data[i * std::size_t(n)];
+    const float a = n >= 4 ? c[3] : 1.0f;
+    img.pixels[i] = q(c[0] * a) | (q(c[1] * a) << 8) | (q(c[2] * a) << 16) | (q(a) << 24);
+  }
+  return img;
+}
+
+ImageDiff compareImages(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height)
+    throw std::invalid_argument("compareImages: sizes differ");
+  ImageDiff d;
+  double sum = 0, sq = 0;
+  for (std::size_t i = 0; i < a.pixels.size(); ++i)
+    for (int c = 0; c < 4; ++c) {
+      const int va = int((a.pixels[i] >> (8 * c)) & 255), vb = int((b.pixels[i] >> (8 * c)) & 255);
+      const int diff = std::abs(va - vb);
+      d.maxAbs = std::max(d.maxAbs, diff);
+      sum += diff;
+      sq += double(diff) * diff;
+    }
+  const double n = double(a.pixels.size()) * 4.0;
+  d.meanAbs = n > 0 ? sum / n : 0.0;
+  d.psnrDb = sq == 0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(255.0 * 255.0 / (sq / n));
+  return d;
+}
+
+}  // namespace voxwall::node

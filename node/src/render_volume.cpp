@@ -1,0 +1,65 @@
+#include <glm/geometric.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/node/render_volume.hpp>
+
+namespace voxwall::node {
+
+RenderVolume RenderVolume::open(const std::string& path, const std::optional<codec::RawLayout>& raw) {
+  if ((!raw || raw->dims.x <= 0) && codec::isContainerFile(path))
+    return fromContainer(codec::ContainerFile::open(path));
+  RenderVolume v = fromVolume(codec::readVolume(path, raw));
+  v.source_ = path;
+  return v;
+}
+
+RenderVolume RenderVolume::fromContainer(codec::ContainerFile file) {
+  RenderVolume v;
+  v.file_ = std::make_shared<codec::ContainerFile>(std::move(file));
+  v.sections_ = v.file_->sections();
+  v.info_ = v.file_->info();
+  v.storedBytes_ = v.file_->fileBytes();
+  v.source_ = v.file_->path();
+  v.init();
+  return v;
+}
+
+RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxels) {
+  codec::Progress quiet;
+  RenderVolume v;
+  v.memory_ = std::make_shared<codec::CompressedVolume>(codec::raw::encode(volume, {brickVoxels}, quiet));
+  v.sections_ = v.memory_->view();
+  v.info_ = v.memory_->info;
+  v.storedBytes_ = v.memory_->payloadBytes();
+  v.source_ = "<memory>";
+  v.init();
+  return v;
+}
+
+void RenderVolume::init() {
+  switch (info_.codec) {
+    case codec::CodecId::Raw:
+      ranges_ = codec::raw::Layout(info_, sections_).rangeGrid();
+      return;
+    default:
+      throw FormatError(sections_.source, "codec '" + std::string(codec::codecName(info_.codec)) +
+                                              "' cannot be rendered by this build");
+  }
+}
+
+std::span<const std::byte> RenderVolume::payload() const {
+  return codec::raw::Layout(info_, sections_).brickBytes();
+}
+
+ViewVariant RenderVolume::view(const std::byte* base) const {
+  const codec::raw::Layout layout(info_, sections_);
+  return codec::dispatchScalar(info_.type, [&](auto t) -> ViewVariant {
+    return layout.view<decltype(t)>(base);
+  });
+}
+
+double boundingRadius(const codec::VolumeInfo& info) {
+  return 0.5 * glm::length(glm::dvec3(info.dims) * info.spacing);
+}
+
+}  // namespace voxwall::node

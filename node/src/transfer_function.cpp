@@ -1,0 +1,247 @@
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/node/transfer_function.hpp>
+
+namespace voxwall::node {
+namespace {
+
+struct Preset {
+  const char* name;
+  std::vector<ColorPoint> colors;
+  std::vector<OpacityPoint> opacities;
+};
+
+const std::vector<Preset>& presets() {
+  static const std::vector<Preset> kPresets = {
+      // Grey, transparent below 30% of the range: brain-extracted MRI and similar.
+      {"mri", {{0, 0, 0, 0}, {1, 1, 1, 1}}, {{0, 0}, {0.3, 0}, {1, 0.8}}},
+      {"grey", {{0, 0, 0, 0}, {1, 1, 1, 1}}, {{0, 0}, {1, 1}}},
+      // Bone above ~45% of a CT range, soft tissue faint.
+      {"ct-bone",
+       {{0, 0, 0, 0}, {0.3, 0.55, 0.25, 0.15}, {0.5, 0.88, 0.6, 0.29}, {1, 1, 0.94, 0.95}},
+       {{0, 0}, {0.45, 0}, {0.6, 0.6}, {1, 0.9}}},
+      {"ct-soft",
+       {{0, 0, 0, 0}, {0.35, 0.73, 0.25, 0.30}, {0.55, 0.9, 0.82, 0.56}, {1, 1, 1, 1}},
+       {{0, 0}, {0.3, 0}, {0.4, 0.15}, {0.6, 0.3}, {1, 0.8}}},
+      {"hot",
+       {{0, 0, 0, 0}, {0.4, 0.9, 0, 0}, {0.8, 1, 0.9, 0}, {1, 1, 1, 1}},
+       {{0, 0}, {1, 1}}},
+      // Moreland's cool-warm end points, interpolated in RGB.
+      {"cool-warm",
+       {{0, 0.23, 0.299, 0.754}, {0.5, 0.865, 0.865, 0.865}, {1, 0.706, 0.016, 0.150}},
+       {{0, 0}, {1, 0.5}}},
+  };
+  return kPresets;
+}
+
+// One segment of ParaView's/VTK's piecewise function between v1 and v2 at t in [0, 1].
+double opacitySegment(double v1, double v2, double t, double midpoint, double sharpness) {
+  midpoint = std::clamp(midpoint, 1e-5, 1.0 - 1e-5);
+  t = t < midpoint ? 0.5 * t / midpoint : 0.5 + 0.5 * (t - midpoint) / (1.0 - midpoint);
+  if (sharpness > 0.99) return t < 0.5 ? v1 : v2;
+  if (sharpness < 0.01) return v1 + t * (v2 - v1);
+  // Squeeze t towards the midpoint, then a Hermite curve whose end slopes shrink as sharpness
+  // grows (the shape ParaView's opacity editor draws).
+  if (t < 0.5)
+    t = 0.5 * std::pow(t * 2.0, 1.0 + 10.0 * sharpness);
+  else if (t > 0.5)
+    t = 1.0 - 0.5 * std::pow((1.0 - t) * 2.0, 1.0 + 10.0 * sharpness);
+  const double t2 = t * t, t3 = t2 * t;
+  const double h1 = 2 * t3 - 3 * t2 + 1, h2 = -2 * t3 + 3 * t2, h3 = t3 - 2 * t2 + t, h4 = t3 - t2;
+  const double slope = (1.0 - sharpness) * (v2 - v1);
+  const double v = h1 * v1 + h2 * v2 + h3 * slope + h4 * slope;
+  return std::clamp(v, std::min(v1, v2), std::max(v1, v2));
+}
+
+[[noreturn]] void bad(const std::string& source, const std::string& what) {
+  throw FormatError(source, what);
+}
+
+std::vector<double> numbers(const nlohmann::json& j, const char* key, std::size_t group,
+                            const std::string& source) {
+  const auto& a = j.at(key);
+  if (!a.is_array()) bad(source, std::string("'") + key + "' is not an array");
+  if (a.empty() || a.size() % group)
+    bad(source, std::string("'") + key + "' must hold groups of " + std::to_string(group) +
+                    " numbers, has " + std::to_string(a.size()));
+  std::vector<double> out;
+  for (auto& v : a) {
+    if (!v.is_number()) bad(source, std::string("'") + key + "' holds a non-number");
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) bad(source, std::string("'") + key + "' holds a non-finite number");
+    out.push_back(d);
+  }
+  for (std::size_t i = group; i < out.size(); i += group)
+    if (out[i] < out[i - group])
+      bad(source, std::string("'") + key + "' positions are not in increasing order");
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::string> TransferFunction::presetNames() {
+  std::vector<std::string> names;
+  for (auto& p : presets()) names.emplace_back(p.name);
+  return names;
+}
+
+TransferFunction TransferFunction::preset(const std::string& name) {
+  for (auto& p : presets())
+    if (name == p.name) {
+      TransferFunction tf;
+      tf.name = p.name;
+      tf.colors = p.colors;
+      tf.opacities = p.opacities;
+      return tf;
+    }
+  std::string list;
+  for (auto& n : presetNames()) list += (list.empty() ? "" : ", ") + n;
+  throw std::invalid_argument("unknown transfer-function preset '" + name + "' (built-in: " + list +
+                              "; or a ParaView .json file)");
+}
+
+TransferFunction TransferFunction::fromParaViewJson(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw FormatError(path, "cannot open transfer-function file");
+  std::stringstream text;
+  text << in.rdbuf();
+  return fromParaViewJsonText(text.str(), path);
+}
+
+TransferFunction TransferFunction::fromParaViewJsonText(const std::string& text,
+                                                        const std::string& source) {
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    bad(source, std::string("not valid JSON: ") + e.what());
+  }
+  const nlohmann::json* preset = nullptr;
+  if (doc.is_array()) {
+    for (auto& p : doc)
+      if (p.is_object() && p.contains("RGBPoints")) {
+        preset = &p;
+        break;
+      }
+  } else if (doc.is_object() && doc.contains("RGBPoints")) {
+    preset = &doc;
+  }
+  if (!preset) bad(source, "no ParaView preset with 'RGBPoints' found");
+  TransferFunction tf;
+  tf.name = preset->value("Name", "custom");
+  if (preset->contains("Name") && !(*preset)["Name"].is_string()) tf.name = "custom";
+  const auto rgb = numbers(*preset, "RGBPoints", 4, source);
+  for (std::size_t i = 0; i < rgb.size(); i += 4) {
+    for (int c = 1; c <= 3; ++c)
+      if (rgb[i + c] < 0 || rgb[i + c] > 1) bad(source, "'RGBPoints' colours must be in [0, 1]");
+    tf.colors.push_back({rgb[i], rgb[i + 1], rgb[i + 2], rgb[i + 3]});
+  }
+  if (preset->contains("Points")) {
+    const auto pts = numbers(*preset, "Points", 4, source);
+    for (std::size_t i = 0; i < pts.size(); i += 4) {
+      if (pts[i + 1] < 0 || pts[i + 1] > 1) bad(source, "'Points' opacities must be in [0, 1]");
+      tf.opacities.push_back({pts[i], pts[i + 1], pts[i + 2], pts[i + 3]});
+    }
+  } else {
+    tf.opacities = {{tf.colors.front().x, 0.0}, {tf.colors.back().x, 1.0}};
+    tf.warnings.push_back("preset has no opacity 'Points': using a linear ramp from 0 to 1");
+  }
+  const std::string space = preset->contains("ColorSpace") && (*preset)["ColorSpace"].is_string()
+                                ? (*preset)["ColorSpace"].get<std::string>()
+                                : "RGB";
+  if (space != "RGB")
+    tf.warnings.push_back("colour space '" + space + "' is interpolated in RGB");
+  return tf;
+}
+
+double TransferFunction::domainMin() const {
+  double lo = INFINITY;
+  for (auto& c : colors) lo = std::min(lo, c.x);
+  for (auto& o : opacities) lo = std::min(lo, o.x);
+  return lo;
+}
+
+double TransferFunction::domainMax() const {
+  double hi = -INFINITY;
+  for (auto& c : colors) hi = std::max(hi, c.x);
+  for (auto& o : opacities) hi = std::max(hi, o.x);
+  return hi;
+}
+
+TransferFunction TransferFunction::rescaled(double lo, double hi) const {
+  const double a = domainMin(), b = domainMax();
+  const double scale = b > a ? (hi - lo) / (b - a) : 0.0;
+  TransferFunction tf = *this;
+  for (auto& c : tf.colors) c.x = lo + (c.x - a) * scale;
+  for (auto& o : tf.opacities) o.x = lo + (o.x - a) * scale;
+  return tf;
+}
+
+void TransferFunction::evaluate(double x, double rgba[4]) const {
+  if (colors.empty()) {
+    rgba[0] = rgba[1] = rgba[2] = 1.0;
+  } else if (x <= colors.front().x) {
+    rgba[0] = colors.front().r, rgba[1] = colors.front().g, rgba[2] = colors.front().b;
+  } else if (x >= colors.back().x) {
+    rgba[0] = colors.back().r, rgba[1] = colors.back().g, rgba[2] = colors.back().b;
+  } else {
+    auto it = std::upper_bound(colors.begin(), colors.end(), x,
+                               [](double v, const ColorPoint& p) { return v < p.x; });
+    const ColorPoint& b = *it;
+    const ColorPoint& a = *(it - 1);
+    const double t = b.x > a.x ? (x - a.x) / (b.x - a.x) : 1.0;
+    rgba[0] = a.r + t * (b.r - a.r);
+    rgba[1] = a.g + t * (b.g - a.g);
+    rgba[2] = a.b + t * (b.b - a.b);
+  }
+  if (opacities.empty()) {
+    rgba[3] = 1.0;
+  } else if (x <= opacities.front().x) {
+    rgba[3] = opacities.front().opacity;
+  } else if (x >= opacities.back().x) {
+    rgba[3] = opacities.back().opacity;
+  } else {
+    auto it = std::upper_bound(opacities.begin(), opacities.end(), x,
+                               [](double v, const OpacityPoint& p) { return v < p.x; });
+    const OpacityPoint& b = *it;
+    const OpacityPoint& a = *(it - 1);
+    const double t = b.x > a.x ? (x - a.x) / (b.x - a.x) : 1.0;
+    rgba[3] = opacitySegment(a.opacity, b.opacity, t, a.midpoint, a.sharpness);
+  }
+}
+
+HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entries) const {
+  if (entries < 2) throw std::invalid_argument("a transfer-function table needs 2 or more entries");
+  if (!(stepVoxels > 0)) throw std::invalid_argument("the ray step must be positive");
+  if (!(hi > lo)) hi = lo + 1.0;
+  HostLut lut;
+  lut.lo = float(lo);
+  lut.hi = float(hi);
+  lut.entries.resize(std::size_t(entries));
+  for (int i = 0; i < entries; ++i) {
+    double rgba[4];
+    evaluate(lo + (hi - lo) * i / (entries - 1), rgba);
+    const double alpha = rgba[3] >= 1.0 ? 1.0 : 1.0 - std::pow(1.0 - rgba[3], stepVoxels);
+    lut.entries[std::size_t(i)] = glm::vec4(float(rgba[0]), float(rgba[1]), float(rgba[2]), float(alpha));
+  }
+  return lut;
+}
+
+float HostLut::maxOpacity(float a, float b) const {
+  const auto lut = view();
+  const float last = float(entries.size() - 1);
+  const float fa = std::clamp(lut.coordinate(a), 0.0f, last);
+  const float fb = std::clamp(lut.coordinate(b), 0.0f, last);
+  const auto i0 = std::size_t(std::floor(std::min(fa, fb)));
+  const auto i1 = std::size_t(std::ceil(std::max(fa, fb)));
+  float m = 0.0f;
+  for (std::size_t i = i0; i <= i1 && i < entries.size(); ++i) m = std::max(m, entries[i].a);
+  return m;
+}
+
+}  // namespace voxwall::node
