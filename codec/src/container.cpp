@@ -22,14 +22,15 @@ constexpr char kMagic[8] = {'V', 'O', 'X', 'W', 'A', 'L', 'L', 'Z'};
 // Field offsets of the fixed header, pinned so a change to the writer is deliberate.
 constexpr std::size_t kOffVersion = 8, kOffHeaderBytes = 12, kOffCodec = 16, kOffType = 20,
                       kOffDims = 24, kOffSectionCount = 36, kOffSpacing = 40, kOffRange = 64,
-                      kOffFileBytes = 80, kOffReserved = 88, kOffHeaderHash = 120,
+                      kOffFileBytes = 80, kOffTableHash = 88, kOffReserved = 96, kOffHeaderHash = 120,
                       kHeaderBytes = 128, kTableEntryBytes = 32;
 static_assert(kOffDims + 3 * 4 == kOffSectionCount);
 static_assert(kOffSectionCount + 4 == kOffSpacing);
 static_assert(kOffSpacing + 3 * 8 == kOffRange);
 static_assert(kOffRange + 2 * 8 == kOffFileBytes);
-static_assert(kOffFileBytes + 8 == kOffReserved);
-static_assert(kOffReserved + 32 == kOffHeaderHash);
+static_assert(kOffFileBytes + 8 == kOffTableHash);
+static_assert(kOffTableHash + 8 == kOffReserved);
+static_assert(kOffReserved + 24 == kOffHeaderHash);
 static_assert(kOffHeaderHash + 8 == kHeaderBytes);
 
 std::uint64_t hashBytes(std::span<const std::byte> bytes) {
@@ -113,16 +114,21 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
   w.put<double>(volume.info.valueMin);
   w.put<double>(volume.info.valueMax);
   w.put<std::uint64_t>(fileBytes);
-  for (int i = 0; i < 4; ++i) w.put<std::uint64_t>(0);
-  w.put<std::uint64_t>(hashBytes(std::span(out).first(kOffHeaderHash)));
+  // The table comes after the header but its hash sits in it: write the table aside first.
+  std::vector<std::byte> table;
+  ByteWriter tw(table);
   for (std::size_t i = 0; i < volume.sections.size(); ++i) {
     auto& [id, bytes] = volume.sections[i];
-    w.put<std::uint32_t>(id);
-    w.put<std::uint32_t>(0);
-    w.put<std::uint64_t>(offsets[i]);
-    w.put<std::uint64_t>(bytes.size());
-    w.put<std::uint64_t>(hashBytes(bytes));
+    tw.put<std::uint32_t>(id);
+    tw.put<std::uint32_t>(0);
+    tw.put<std::uint64_t>(offsets[i]);
+    tw.put<std::uint64_t>(bytes.size());
+    tw.put<std::uint64_t>(hashBytes(bytes));
   }
+  w.put<std::uint64_t>(hashBytes(table));
+  for (int i = 0; i < 3; ++i) w.put<std::uint64_t>(0);
+  w.put<std::uint64_t>(hashBytes(std::span(out).first(kOffHeaderHash)));
+  w.putBytes(table);
   for (std::size_t i = 0; i < volume.sections.size(); ++i) {
     out.resize(offsets[i]);
     w.putBytes(volume.sections[i].second);
@@ -230,7 +236,9 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
 
   const std::size_t tableEnd = kHeaderBytes + kTableEntryBytes * sectionCount;
   if (tableEnd > bytes.size()) fail("section table runs past the end of the file (truncated)");
-  ByteReader t(bytes.subspan(kHeaderBytes, tableEnd - kHeaderBytes), source, "section table");
+  const auto table = bytes.subspan(kHeaderBytes, tableEnd - kHeaderBytes);
+  if (hashBytes(table) != r.get<std::uint64_t>()) fail("section table checksum mismatch (the file is corrupt)");
+  ByteReader t(table, source, "section table");
   std::uint64_t previousEnd = tableEnd;
   for (std::uint32_t i = 0; i < sectionCount; ++i) {
     const auto id = t.get<std::uint32_t>();

@@ -1,5 +1,6 @@
 // NIfTI-1 through nifticlib. Orientation (qform/sform) is not applied: voxels keep file order.
 #include <nifti1_io.h>
+#include <zlib.h>
 
 #include <cmath>
 #include <cstring>
@@ -25,6 +26,30 @@ void convert(const void* src, Volume& v, double slope, double inter) {
   for (std::size_t i = 0; i < d.size(); ++i) d[i] = Dst(double(s[i]) * slope + inter);
 }
 
+// Decompresses a whole gzip stream and returns its length; throws when the stream is truncated
+// or corrupt. nifticlib reads a truncated .nii.gz without complaint, so we check first.
+std::uint64_t gzipLength(const std::string& path) {
+  gzFile f = gzopen(path.c_str(), "rb");
+  if (!f) throw FormatError(path, "cannot open");
+  std::vector<char> buffer(1 << 20);
+  std::uint64_t total = 0;
+  for (;;) {
+    const int n = gzread(f, buffer.data(), unsigned(buffer.size()));
+    if (n < 0) {
+      int code = 0;
+      const std::string message = gzerror(f, &code);
+      gzclose_r(f);
+      throw FormatError(path, "corrupt gzip stream: " + message);
+    }
+    if (n == 0) break;
+    total += std::uint64_t(n);
+  }
+  // gzread stops quietly at a truncated end; gzclose_r then reports Z_BUF_ERROR.
+  const int closed = gzclose_r(f);
+  if (closed != Z_OK) throw FormatError(path, "truncated or corrupt gzip stream");
+  return total;
+}
+
 }  // namespace
 
 Volume readNifti(const std::string& path) {
@@ -39,16 +64,19 @@ Volume readNifti(const std::string& path) {
   checkDims(dims, path);
   if (header->nbyper <= 0 || header->nbyper > 8)
     throw FormatError(path, "unsupported NIfTI datatype " + std::to_string(header->datatype));
-  // For an uncompressed file we can check the size before reading; nifticlib finds truncated
-  // gzip streams itself.
-  if (!extensionOf(path).ends_with(".gz")) {
+  // Check the data is all there before nifticlib reads it.
+  const double need = double(header->iname_offset) + double(header->nvox) * header->nbyper;
+  std::uint64_t have = 0;
+  if (extensionOf(path).ends_with(".gz")) {
+    have = gzipLength(path);
+  } else {
     std::error_code ec;
-    const auto fileBytes = std::filesystem::file_size(path, ec);
-    const double need = double(header->iname_offset) + double(header->nvox) * header->nbyper;
-    if (!ec && double(fileBytes) < need)
-      throw FormatError(path, "truncated: " + std::to_string(fileBytes) + " bytes, header needs " +
-                                  std::to_string(std::uint64_t(need)));
+    have = std::filesystem::file_size(path, ec);
+    if (ec) throw FormatError(path, ec.message());
   }
+  if (double(have) < need)
+    throw FormatError(path, "truncated: " + std::to_string(have) + " bytes of data, the header needs " +
+                                std::to_string(std::uint64_t(need)));
   header.reset();
 
   NiftiPtr nim(nifti_image_read(path.c_str(), 1));
@@ -142,7 +170,7 @@ void writeNifti(const Volume& volume, const std::string& path) {
   nifti_image_write(nim.get());  // returns void: check the result on disk
   std::error_code ec;
   const auto written = std::filesystem::file_size(tmp, ec);
-  if (ec || written < 352) {
+  if (ec || written == 0) {
     std::filesystem::remove(tmp, ec);
     throw FormatError(path, "write failed");
   }

@@ -12,7 +12,8 @@
 //       40   24  f64 spacing x, y, z
 //       64   16  f64 value min, value max
 //       80    8  u64 file bytes (the whole file)
-//       88   32  reserved, zero
+//       88    8  u64 xxHash64 (seed 0) of the section table
+//       96   24  reserved, zero
 //      120    8  u64 xxHash64 (seed 0) of bytes 0..119
 //      128  32n  section table, one entry per section:
 //                  u32 section id, u32 reserved (0), u64 offset, u64 length, u64 xxHash64

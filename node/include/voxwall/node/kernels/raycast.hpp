@@ -128,7 +128,8 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
   if (!rayBox(o, d, glm::vec3(-0.5f), f.boxMax, tEnter, tExit)) return out;
   tEnter = tEnter > 0.0f ? tEnter : 0.0f;
   if (tExit <= tEnter) return out;
-  const int steps = int((tExit - tEnter) / f.stepWorld);
+  // Samples at (k + 1/2) steps that lie inside [tEnter, tExit); robust to rounding at the exit.
+  const int steps = int(ceilf((tExit - tEnter) / f.stepWorld - 0.5f));
   const glm::vec3 g = 0.5f * f.invSpacing;  // central difference over two voxels, in world units
   glm::vec4 acc(0.0f);
   for (int k = 0; k < steps; ++k) {

@@ -1,0 +1,162 @@
+#include <gtest/gtest.h>
+#include <xxhash.h>
+
+#include <cstring>
+
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/raw_codec.hpp>
+
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+using namespace voxwall::codec;
+
+namespace {
+
+CompressedVolume sample() {
+  Volume v = generateMarschnerLobb(11, ScalarType::UInt16);
+  Progress quiet;
+  return raw::encode(v, {4}, quiet);
+}
+
+std::string parseError(const std::vector<std::byte>& bytes) {
+  try {
+    ContainerFile::parse(bytes, "test.vwz");
+  } catch (const FormatError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Recomputes the table and header checksums, so a test can forge a file whose checksums are
+// right but whose fields are not.
+void reseal(std::vector<std::byte>& bytes) {
+  std::uint32_t sections;
+  std::memcpy(&sections, bytes.data() + 36, 4);
+  const std::uint64_t table = XXH64(bytes.data() + 128, 32 * std::size_t(sections), 0);
+  std::memcpy(bytes.data() + 88, &table, 8);
+  const std::uint64_t header = XXH64(bytes.data(), 120, 0);
+  std::memcpy(bytes.data() + 120, &header, 8);
+}
+
+}  // namespace
+
+TEST(Container, RoundTripsHeaderAndSections) {
+  const auto c = sample();
+  const auto bytes = serializeContainer(c);
+  const auto file = ContainerFile::parse(bytes, "mem");
+  EXPECT_EQ(file.info().dims, c.info.dims);
+  EXPECT_EQ(file.info().type, ScalarType::UInt16);
+  EXPECT_EQ(file.info().codec, CodecId::Raw);
+  EXPECT_EQ(file.info().valueMax, c.info.valueMax);
+  ASSERT_EQ(file.sections().sections.size(), c.sections.size());
+  for (auto& [id, data] : c.sections) {
+    auto s = file.sections().get(id, "x");
+    EXPECT_EQ(std::vector<std::byte>(s.begin(), s.end()), data);
+    EXPECT_EQ(std::size_t(s.data() - bytes.data()) % kSectionAlignment, 0u);
+  }
+}
+
+TEST(Container, FileRoundTripIsMemoryMapped) {
+  test::TempDir dir;
+  const auto c = sample();
+  writeContainer(c, dir.path("a.vwz"));
+  EXPECT_TRUE(isContainerFile(dir.path("a.vwz")));
+  const auto file = ContainerFile::open(dir.path("a.vwz"));
+  EXPECT_EQ(file.fileBytes(), serializeContainer(c).size());
+  const Volume back = raw::decode(file.info(), file.sections());
+  EXPECT_EQ(back.dims, c.info.dims);
+}
+
+TEST(Container, DetectsAFlippedByteAnywhere) {
+  const auto good = serializeContainer(sample());
+  // Every byte of the header and table, and a byte in every section.
+  std::vector<std::size_t> positions;
+  for (std::size_t i = 0; i < 128 + 32 * 3; ++i) positions.push_back(i);
+  const auto file = ContainerFile::parse(good, "mem");
+  for (auto& [id, span] : file.sections().sections) {
+    const std::size_t off = std::size_t(span.data() - good.data());
+    positions.push_back(off);
+    positions.push_back(off + span.size() / 2);
+    positions.push_back(off + span.size() - 1);
+  }
+  for (std::size_t pos : positions) {
+    auto bad = good;
+    bad[pos] ^= std::byte{0x10};
+    const std::string err = parseError(bad);
+    EXPECT_FALSE(err.empty()) << "flipped byte at " << pos << " went unnoticed";
+    EXPECT_EQ(err.rfind("test.vwz: ", 0), 0u) << err;
+  }
+}
+
+TEST(Container, RefusesEveryTruncation) {
+  const auto good = serializeContainer(sample());
+  for (std::size_t n = 0; n < good.size(); n += (n < 300 ? 1 : 97)) {
+    std::vector<std::byte> cut(good.begin(), good.begin() + std::ptrdiff_t(n));
+    EXPECT_FALSE(parseError(cut).empty()) << "truncated to " << n;
+  }
+  EXPECT_NE(parseError({good.begin(), good.end() - 1}).find("truncated"), std::string::npos);
+}
+
+TEST(Container, RefusesOtherVersionsAndMagic) {
+  auto bytes = serializeContainer(sample());
+  for (std::uint32_t version : {0u, kContainerVersion + 1, 0xffffffffu}) {
+    auto bad = bytes;
+    std::memcpy(bad.data() + 8, &version, 4);
+    reseal(bad);  // only the version is wrong
+    EXPECT_NE(parseError(bad).find("version"), std::string::npos) << version;
+  }
+  auto bad = bytes;
+  bad[0] = std::byte{'X'};
+  EXPECT_NE(parseError(bad).find("magic"), std::string::npos);
+}
+
+TEST(Container, RefusesASectionLengthPastTheEnd) {
+  auto bytes = serializeContainer(sample());
+  const std::uint64_t huge = 1ull << 62;
+  std::memcpy(bytes.data() + 128 + 32 * 2 + 16, &huge, 8);  // length of the third section
+  reseal(bytes);
+  EXPECT_NE(parseError(bytes).find("past the end"), std::string::npos) << parseError(bytes);
+}
+
+TEST(Container, RefusesOverlappingAndMisalignedSections) {
+  const auto good = serializeContainer(sample());
+  auto overlap = good;
+  std::uint64_t offset;
+  std::memcpy(&offset, good.data() + 128 + 8, 8);  // first section's offset
+  std::memcpy(overlap.data() + 128 + 32 + 8, &offset, 8);  // second section starts there too
+  reseal(overlap);
+  EXPECT_NE(parseError(overlap).find("overlaps"), std::string::npos) << parseError(overlap);
+  auto misaligned = good;
+  offset += 8;
+  std::memcpy(misaligned.data() + 128 + 8, &offset, 8);
+  reseal(misaligned);
+  EXPECT_NE(parseError(misaligned).find("aligned"), std::string::npos) << parseError(misaligned);
+  auto many = good;
+  const std::uint32_t count = 1000;
+  std::memcpy(many.data() + 36, &count, 4);
+  const std::uint64_t header = XXH64(many.data(), 120, 0);
+  std::memcpy(many.data() + 120, &header, 8);
+  EXPECT_NE(parseError(many).find("section count"), std::string::npos) << parseError(many);
+}
+
+TEST(Container, MissingFileGivesOneLine) {
+  try {
+    ContainerFile::open("/nonexistent/x.vwz");
+    FAIL();
+  } catch (const FormatError& e) {
+    EXPECT_EQ(std::string(e.what()), "/nonexistent/x.vwz: No such file or directory");
+  }
+}
+
+// The bytes of a small raw-coded file are pinned: a change to the layout must be deliberate
+// (bump kContainerVersion and update this checksum).
+TEST(Container, GoldenChecksumOfASmallFile) {
+  const auto bytes = serializeContainer(sample());
+  // 128-byte header + 3 table entries -> 256; params (8) -> 320; 27 brick ranges (216) -> 576;
+  // 27 bricks of 4^3 uint16 (3456) -> 4032.
+  EXPECT_EQ(bytes.size(), 4032u);
+  EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0xebc84d5c364b2c52ull) << std::hex << XXH64(bytes.data(), bytes.size(), 0);
+}

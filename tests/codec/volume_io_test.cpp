@@ -1,0 +1,214 @@
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <filesystem>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/volume_io.hpp>
+
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+using namespace voxwall::codec;
+using voxwall::test::TempDir;
+
+namespace {
+
+// A volume whose every voxel differs from its neighbours, with a size that is no block multiple.
+Volume patterned(ScalarType type, glm::ivec3 dims = {13, 7, 5}) {
+  Volume v = Volume::allocate(dims, type, {0.5, 0.75, 1.25});
+  dispatchScalar(type, [&](auto t) {
+    using T = decltype(t);
+    auto out = v.as<T>();
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      if constexpr (std::is_same_v<T, float>)
+        out[i] = float(i) * 0.37f - 11.0f;
+      else if constexpr (std::is_same_v<T, std::int16_t>)
+        out[i] = T(int(i * 97 % 60000) - 30000);
+      else
+        out[i] = T(i * 131 + 7);
+    }
+  });
+  v.computeRange();
+  return v;
+}
+
+void expectSameVoxels(const Volume& a, const Volume& b) {
+  ASSERT_EQ(a.dims, b.dims);
+  ASSERT_EQ(a.type, b.type);
+  EXPECT_EQ(a.data, b.data);
+  EXPECT_EQ(a.valueMin, b.valueMin);
+  EXPECT_EQ(a.valueMax, b.valueMax);
+}
+
+// Expects f() to throw FormatError whose message starts with the file name and has one line.
+template <class F>
+void expectFormatError(F&& f, const std::string& file, const std::string& fragment = "") {
+  try {
+    f();
+    ADD_FAILURE() << "no error for " << file;
+  } catch (const FormatError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(file + ": ", 0), 0u) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    if (!fragment.empty()) {
+      EXPECT_NE(what.find(fragment), std::string::npos) << what;
+    }
+  }
+}
+
+const ScalarType kTypes[] = {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Int16, ScalarType::Float32};
+
+}  // namespace
+
+TEST(VolumeIo, RawRoundTripsEveryType) {
+  TempDir dir;
+  for (auto type : kTypes) {
+    const Volume v = patterned(type);
+    const auto path = dir.path(std::string(scalarName(type)) + ".raw");
+    writeVolume(v, path);
+    RawLayout layout{v.dims, type, v.spacing};
+    const Volume back = readVolume(path, layout);
+    expectSameVoxels(v, back);
+    EXPECT_EQ(back.spacing, v.spacing);
+  }
+}
+
+TEST(VolumeIo, RawReadsBigEndianAndSkipsHeader) {
+  TempDir dir;
+  std::string bytes = "HDR!";
+  for (int i = 0; i < 8; ++i) bytes += {char(0x12), char(i)};
+  test::writeFile(dir.path("be.raw"), bytes);
+  RawLayout layout{{2, 2, 2}, ScalarType::UInt16};
+  layout.bigEndian = true;
+  layout.headerBytes = 4;
+  const Volume v = readRaw(dir.path("be.raw"), layout);
+  for (int i = 0; i < 8; ++i) EXPECT_EQ(v.as<std::uint16_t>()[std::size_t(i)], 0x1200 + i);
+}
+
+TEST(VolumeIo, RawRejectsTruncatedAndOversizedFiles) {
+  TempDir dir;
+  const Volume v = patterned(ScalarType::UInt16);
+  writeVolume(v, dir.path("v.raw"));
+  std::string bytes = test::readFile(dir.path("v.raw"));
+  test::writeFile(dir.path("short.raw"), bytes.substr(0, bytes.size() - 1));
+  test::writeFile(dir.path("long.raw"), bytes + "x");
+  RawLayout layout{v.dims, v.type};
+  expectFormatError([&] { readRaw(dir.path("short.raw"), layout); }, dir.path("short.raw"), "truncated");
+  expectFormatError([&] { readRaw(dir.path("long.raw"), layout); }, dir.path("long.raw"), "--header-bytes");
+  expectFormatError([&] { readVolume(dir.path("v.raw")); }, dir.path("v.raw"), "--dims");
+}
+
+TEST(VolumeIo, NrrdRoundTripsEveryTypeAttachedAndDetached) {
+  TempDir dir;
+  for (auto type : kTypes)
+    for (const char* ext : {".nrrd", ".nhdr"}) {
+      const Volume v = patterned(type);
+      const auto path = dir.path(std::string(scalarName(type)) + ext);
+      writeVolume(v, path);
+      const Volume back = readVolume(path);
+      expectSameVoxels(v, back);
+      EXPECT_DOUBLE_EQ(back.spacing.x, 0.5);
+      EXPECT_DOUBLE_EQ(back.spacing.z, 1.25);
+    }
+}
+
+TEST(VolumeIo, NiftiRoundTripsEveryTypePlainAndGzipped) {
+  TempDir dir;
+  for (auto type : kTypes)
+    for (const char* ext : {".nii", ".nii.gz"}) {
+      const Volume v = patterned(type);
+      const auto path = dir.path(std::string(scalarName(type)) + ext);
+      writeVolume(v, path);
+      const Volume back = readVolume(path);
+      expectSameVoxels(v, back);
+      EXPECT_NEAR(back.spacing.y, 0.75, 1e-6);
+    }
+}
+
+TEST(VolumeIo, TruncatedFilesAreRefusedWithOneLine) {
+  TempDir dir;
+  const Volume v = patterned(ScalarType::UInt16, {32, 32, 16});
+  for (const char* name : {"v.nrrd", "v.nii", "v.nii.gz"}) {
+    const auto path = dir.path(name);
+    writeVolume(v, path);
+    const std::string bytes = test::readFile(path);
+    for (double keep : {0.1, 0.5, 0.95}) {
+      const auto cut = dir.path(std::string("cut-") + name);
+      test::writeFile(cut, bytes.substr(0, std::size_t(double(bytes.size()) * keep)));
+      expectFormatError([&] { readVolume(cut); }, cut);
+    }
+  }
+}
+
+TEST(VolumeIo, GarbageAndUnknownFilesAreRefused) {
+  TempDir dir;
+  test::writeFile(dir.path("junk.nii"), std::string(400, 'x'));
+  test::writeFile(dir.path("junk.nrrd"), "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 100000 100000 100000\nencoding: raw\n\nabc");
+  test::writeFile(dir.path("junk.xyz"), "hello");
+  expectFormatError([&] { readVolume(dir.path("junk.nii")); }, dir.path("junk.nii"));
+  expectFormatError([&] { readVolume(dir.path("junk.nrrd")); }, dir.path("junk.nrrd"));
+  expectFormatError([&] { readVolume(dir.path("junk.xyz")); }, dir.path("junk.xyz"), "unknown volume format");
+  expectFormatError([&] { readVolume(dir.path("missing.nii")); }, dir.path("missing.nii"));
+}
+
+TEST(VolumeIo, SliceDirectoryReadsInNaturalOrder) {
+  TempDir dir;
+  const Volume v = patterned(ScalarType::UInt16, {9, 6, 12});
+  std::filesystem::create_directories(dir.path("slices"));
+  for (int z = 0; z < v.dims.z; ++z) {
+    // Names whose plain sort order is wrong: slice2 after slice10.
+    auto out = OIIO::ImageOutput::create("x.png");
+    const auto path = dir.path("slices/slice" + std::to_string(z) + ".png");
+    OIIO::ImageSpec spec(v.dims.x, v.dims.y, 1, OIIO::TypeDesc::UINT16);
+    ASSERT_TRUE(out->open(path, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT16, v.as<std::uint16_t>().data() + std::size_t(z) * 54));
+    out->close();
+  }
+  const Volume back = readVolume(dir.path("slices"));
+  expectSameVoxels(v, back);
+}
+
+TEST(VolumeIo, MultiPageTiffReadsAsAStack) {
+  TempDir dir;
+  const Volume v = patterned(ScalarType::UInt8, {10, 4, 3});
+  const auto path = dir.path("stack.tif");
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out->supports("multiimage"));
+  std::vector<OIIO::ImageSpec> specs(3, OIIO::ImageSpec(10, 4, 1, OIIO::TypeDesc::UINT8));
+  ASSERT_TRUE(out->open(path, 3, specs.data()));
+  for (int z = 0; z < 3; ++z) {
+    if (z) {
+      ASSERT_TRUE(out->open(path, specs[0], OIIO::ImageOutput::AppendSubimage));
+    }
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, v.as<std::uint8_t>().data() + z * 40));
+  }
+  out->close();
+  expectSameVoxels(v, readVolume(path));
+}
+
+TEST(VolumeIo, SlicesOfDifferentSizesAreRefused) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path("s"));
+  for (int z = 0; z < 2; ++z) {
+    auto out = OIIO::ImageOutput::create("x.png");
+    OIIO::ImageSpec spec(8 + z, 8, 1, OIIO::TypeDesc::UINT8);
+    std::vector<unsigned char> px(std::size_t(spec.width) * 8, 1);
+    ASSERT_TRUE(out->open(dir.path("s/" + std::to_string(z) + ".png"), spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+  }
+  expectFormatError([&] { readVolume(dir.path("s")); }, dir.path("s/1.png"), "first slice");
+}
+
+TEST(VolumeIo, DefaultMriTemplateReadsWhenInstalled) {
+  const std::string path = "/usr/share/mricron/templates/ch2better.nii.gz";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not installed (Debian mricron-data)";
+  const Volume v = readVolume(path);
+  EXPECT_EQ(v.dims, glm::ivec3(301, 370, 316));
+  EXPECT_EQ(v.type, ScalarType::UInt8);
+  EXPECT_NEAR(v.spacing.x, 0.5, 1e-6);
+  EXPECT_EQ(v.valueMin, 0);
+  EXPECT_GT(v.valueMax, 100);
+}

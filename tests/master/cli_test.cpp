@@ -1,0 +1,123 @@
+// The voxwall program as a user meets it: commands, files, and one-line errors.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/volume_io.hpp>
+#include <voxwall/node/image.hpp>
+
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+
+namespace {
+
+struct CliRun {
+  int status = -1;
+  std::string out;  // stdout and stderr together
+};
+
+CliRun runVoxwall(const std::string& args) {
+  CliRun r;
+  const std::string cmd = std::string(VOXWALL_BINARY) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  std::size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+// The error contract: exit status 1 and exactly one line "voxwall: <file>: ...".
+void expectOneLineError(const CliRun& r, const std::string& prefix) {
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_EQ(r.out.rfind(prefix, 0), 0u) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+}
+
+}  // namespace
+
+TEST(Cli, HelpListsEverySubcommand) {
+  const CliRun r = runVoxwall("--help");
+  EXPECT_EQ(r.status, 0);
+  for (const char* sub : {"generate", "compress", "decompress", "info", "render"})
+    EXPECT_NE(r.out.find(sub), std::string::npos) << sub;
+  const CliRun render = runVoxwall("render --help");
+  for (const char* opt : {"--size", "--tf", "--camera", "--frames", "--out", "--backend", "--shading"})
+    EXPECT_NE(render.out.find(opt), std::string::npos) << opt;
+}
+
+TEST(Cli, GenerateCompressInfoDecompressRoundTrip) {
+  test::TempDir dir;
+  const auto nrrd = dir.path("ml.nrrd"), vwz = dir.path("ml.vwz");
+  ASSERT_EQ(runVoxwall("generate marschner-lobb --size 21 --type uint16 -o " + nrrd).status, 0);
+  const CliRun c = runVoxwall("compress " + nrrd + " -o " + vwz + " --brick 4 -q");
+  ASSERT_EQ(c.status, 0) << c.out;
+  EXPECT_NE(c.out.find("bits/voxel"), std::string::npos);
+  const CliRun info = runVoxwall("info " + vwz);
+  ASSERT_EQ(info.status, 0) << info.out;
+  for (const char* field : {"codec       raw", "21 x 21 x 21", "uint16", "bits/voxel", "ratio", "checksums ok"})
+    EXPECT_NE(info.out.find(field), std::string::npos) << field << "\n" << info.out;
+  const auto original = codec::readVolume(nrrd);
+  for (const char* ext : {".raw", ".nrrd", ".nii.gz"}) {
+    const auto out = dir.path(std::string("back") + ext);
+    ASSERT_EQ(runVoxwall("decompress " + vwz + " -o " + out).status, 0) << ext;
+    codec::RawLayout layout{original.dims, original.type};
+    const auto back = std::string(ext) == ".raw" ? codec::readVolume(out, layout) : codec::readVolume(out);
+    EXPECT_EQ(back.data, original.data) << ext;
+  }
+}
+
+TEST(Cli, CompressReadsRawInputWithItsLayout) {
+  test::TempDir dir;
+  test::writeFile(dir.path("v.raw"), std::string(4 * 3 * 2 * 2, '\x01'));
+  const CliRun ok = runVoxwall("compress " + dir.path("v.raw") + " --dims 4,3,2 --type uint16 -q -o " + dir.path("v.vwz"));
+  EXPECT_EQ(ok.status, 0) << ok.out;
+  expectOneLineError(runVoxwall("compress " + dir.path("v.raw") + " --dims 4,3,3 --type uint16 -o " + dir.path("w.vwz")),
+                     "voxwall: " + dir.path("v.raw") + ": truncated");
+}
+
+TEST(Cli, RenderWritesPngFrames) {
+  test::TempDir dir;
+  const CliRun r = runVoxwall("render generated:shepp-logan:40 --size 48x32 --frames 2 --shading --out " + dir.path("f"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* f : {"f/frame_00000.png", "f/frame_00001.png"}) {
+    const auto img = node::readImage(dir.path(f));
+    EXPECT_EQ(img.width, 48);
+    EXPECT_EQ(img.height, 32);
+  }
+  EXPECT_NE(r.out.find("Msamples/s"), std::string::npos);
+}
+
+TEST(Cli, CorruptVwzFailsWithOneLine) {
+  test::TempDir dir;
+  const auto vwz = dir.path("m.vwz");
+  ASSERT_EQ(runVoxwall("generate menger --level 2 -o " + vwz).status, 0);
+  std::string bytes = test::readFile(vwz);
+  bytes[bytes.size() - 10] ^= 0x40;
+  test::writeFile(dir.path("bad.vwz"), bytes);
+  expectOneLineError(runVoxwall("info " + dir.path("bad.vwz")), "voxwall: " + dir.path("bad.vwz") + ": section");
+  expectOneLineError(runVoxwall("render " + dir.path("bad.vwz") + " --out " + dir.path("f")),
+                     "voxwall: " + dir.path("bad.vwz") + ": section");
+  test::writeFile(dir.path("short.vwz"), bytes.substr(0, 200));
+  expectOneLineError(runVoxwall("info " + dir.path("short.vwz")), "voxwall: " + dir.path("short.vwz") + ": ");
+  EXPECT_FALSE(std::filesystem::exists(dir.path("f/frame_00000.png")));
+}
+
+TEST(Cli, BadArgumentsGiveOneLine) {
+  expectOneLineError(runVoxwall("render generated:menger:2 --size 12by9"), "voxwall: --size");
+  expectOneLineError(runVoxwall("render generated:menger:2 --tf nosuchpreset"), "voxwall: unknown transfer-function preset");
+  expectOneLineError(runVoxwall("render /nonexistent.nii"), "voxwall: /nonexistent.nii: no such file");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --codec vq -o /tmp/x.vwz"), "voxwall: codec 'vq' is not implemented");
+  EXPECT_NE(runVoxwall("render --no-such-flag").status, 0);
+}
+
+TEST(Cli, CudaBackendWithoutADeviceFailsCleanly) {
+  const CliRun r = runVoxwall("render generated:menger:2 --size 8x8 --no-write --backend cuda");
+  if (r.status == 0) GTEST_SKIP() << "a CUDA device is present";
+  expectOneLineError(r, "voxwall: cuda: ");
+}

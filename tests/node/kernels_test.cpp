@@ -1,0 +1,118 @@
+// The per-ray code against hand-computed values.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/node/renderer.hpp>
+
+using namespace voxwall;
+using namespace voxwall::node;
+using codec::kernels::RawView;
+
+TEST(RayBox, HitsAlongAnAxis) {
+  float t0, t1;
+  ASSERT_TRUE(kernels::rayBox({-5, 0.2f, 0.3f}, {1, 0, 0}, glm::vec3(-0.5f), glm::vec3(9.5f), t0, t1));
+  EXPECT_FLOAT_EQ(t0, 4.5f);
+  EXPECT_FLOAT_EQ(t1, 14.5f);
+}
+
+TEST(RayBox, MissesParallelOutsideAndBehindCounts) {
+  float t0, t1;
+  EXPECT_FALSE(kernels::rayBox({-5, 20, 0}, {1, 0, 0}, glm::vec3(-0.5f), glm::vec3(9.5f), t0, t1));
+  EXPECT_FALSE(kernels::rayBox({-5, -5, 0}, {1, -1, 0}, glm::vec3(-0.5f), glm::vec3(9.5f), t0, t1));
+  // Origin inside: entry is behind the origin.
+  ASSERT_TRUE(kernels::rayBox({1, 1, 1}, {0, 0, -2}, glm::vec3(0), glm::vec3(4), t0, t1));
+  EXPECT_FLOAT_EQ(t0, -1.5f);
+  EXPECT_FLOAT_EQ(t1, 0.5f);
+}
+
+TEST(RayBox, DiagonalThroughACube) {
+  float t0, t1;
+  const glm::vec3 d = glm::normalize(glm::vec3(1, 1, 1));
+  ASSERT_TRUE(kernels::rayBox({-1, -1, -1}, d, glm::vec3(0), glm::vec3(1), t0, t1));
+  EXPECT_NEAR(t0, std::sqrt(3.0f), 1e-5f);
+  EXPECT_NEAR(t1, 2 * std::sqrt(3.0f), 1e-5f);
+}
+
+TEST(Compositing, FrontToBackOverByHand) {
+  glm::vec4 acc(0.0f);
+  kernels::compositeOver(acc, {1, 0, 0}, 0.5f);
+  kernels::compositeOver(acc, {0, 1, 0}, 0.5f);
+  // First red at 0.5, then green through the remaining 0.5 at 0.5: 0.25.
+  EXPECT_FLOAT_EQ(acc.r, 0.5f);
+  EXPECT_FLOAT_EQ(acc.g, 0.25f);
+  EXPECT_FLOAT_EQ(acc.b, 0.0f);
+  EXPECT_FLOAT_EQ(acc.a, 0.75f);
+}
+
+TEST(TransferLut, InterpolatesAndClamps) {
+  HostLut lut;
+  lut.entries = {glm::vec4(0), glm::vec4(1, 0, 0, 0.5f), glm::vec4(0, 0, 1, 1)};
+  lut.lo = 10.0f;
+  lut.hi = 30.0f;
+  const auto v = lut.view();
+  EXPECT_FLOAT_EQ(v.lookup(15.0f).a, 0.25f);
+  EXPECT_FLOAT_EQ(v.lookup(25.0f).b, 0.5f);
+  EXPECT_FLOAT_EQ(v.lookup(-100.0f).a, 0.0f);
+  EXPECT_FLOAT_EQ(v.lookup(100.0f).a, 1.0f);
+  EXPECT_FLOAT_EQ(lut.maxOpacity(0.0f, 10.0f), 0.0f);
+  EXPECT_FLOAT_EQ(lut.maxOpacity(0.0f, 10.5f), 0.5f);  // reaches into the ramp
+  EXPECT_FLOAT_EQ(lut.maxOpacity(21.0f, 22.0f), 1.0f);
+}
+
+namespace {
+
+// A constant slab seen straight along x through the centre pixel of a 3x3 screen.
+glm::vec4 slabPixel(glm::dvec3 spacing, float opacityPerVoxel, float stepVoxels) {
+  codec::Volume v = codec::Volume::allocate({16, 5, 5}, codec::ScalarType::UInt8, spacing);
+  for (auto& x : v.as<std::uint8_t>()) x = 100;
+  v.computeRange();
+  const auto volume = RenderVolume::fromVolume(v, 4);
+  TransferFunction tf;
+  tf.colors = {{0, 1, 0.5, 0.25}, {255, 1, 0.5, 0.25}};
+  tf.opacities = {{0, opacityPerVoxel}, {255, opacityPerVoxel}};
+  Orbit orbit;
+  orbit.azimuthDeg = 0, orbit.elevationDeg = 0, orbit.distance = 3;
+  RenderSettings settings;
+  settings.stepVoxels = stepVoxels;
+  const auto plan = planFrame(volume, orbitCamera(orbit, boundingRadius(volume.info())), 3, 3, tf, settings);
+  const auto view = std::get<RawView<std::uint8_t>>(volume.view());
+  return kernels::raycastPixel(view, plan.ray, plan.lut.view(), plan.skip, 1, 1).rgba;
+}
+
+}  // namespace
+
+TEST(Raycast, ConstantSlabOpacityIsOneMinusExpMinusTauL) {
+  const float a = 0.05f;
+  const double tau = -std::log(1.0 - a);  // per voxel
+  for (float step : {1.0f, 0.25f, 0.1f}) {
+    const glm::vec4 c = slabPixel({1, 1, 1}, a, step);
+    const double expected = 1.0 - std::exp(-tau * 16.0);
+    EXPECT_NEAR(c.a, expected, 2e-4) << "step " << step;
+    EXPECT_NEAR(c.r, expected * 1.0, 2e-4);  // premultiplied colour
+    EXPECT_NEAR(c.g, expected * 0.5, 2e-4);
+    EXPECT_NEAR(c.b, expected * 0.25, 2e-4);
+  }
+  // Twice the spacing along the ray: twice the physical length, twice the optical depth
+  // (opacity is per voxel of the smallest spacing).
+  const glm::vec4 stretched = slabPixel({2, 1, 1}, a, 0.25f);
+  EXPECT_NEAR(stretched.a, 1.0 - std::exp(-tau * 32.0), 2e-4);
+}
+
+TEST(Raycast, EarlyTerminationStopsAtTheThreshold) {
+  const glm::vec4 c = slabPixel({1, 1, 1}, 0.9f, 0.25f);
+  EXPECT_GE(c.a, 0.995f);
+  EXPECT_LT(c.a, 1.0f);  // stopped, not run to saturation
+}
+
+TEST(Shading, HeadlightOnAFacingSurfaceIsAmbientDiffuseSpecular) {
+  kernels::RayFrame f;
+  const glm::vec3 dir(0, 0, -1);
+  const glm::vec3 c = kernels::shade({0.5f, 0.5f, 0.5f}, {0, 0, 3}, dir, f);
+  EXPECT_NEAR(c.r, 0.5f * (0.1f + 0.7f) + 0.2f, 1e-6f);
+  // Grazing light: ambient only.
+  const glm::vec3 g = kernels::shade({0.5f, 0.5f, 0.5f}, {3, 0, 0}, dir, f);
+  EXPECT_NEAR(g.r, 0.05f, 1e-6f);
+  // No gradient: unshaded (ambient + diffuse).
+  EXPECT_NEAR(kernels::shade({0.5f, 0.5f, 0.5f}, {0, 0, 0}, dir, f).r, 0.4f, 1e-6f);
+}

@@ -1,0 +1,171 @@
+// Whole-image properties of the CPU backend.
+#include <gtest/gtest.h>
+
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/node/renderer.hpp>
+
+#include "support/image_expect.hpp"
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+using namespace voxwall::node;
+
+namespace {
+
+Image renderTiles(const RenderVolume& volume, const Camera& camera, int w, int h,
+                  const TransferFunction& tf, const RenderSettings& settings, int threads,
+                  const std::vector<Rect>& tiles, std::uint64_t* samples = nullptr) {
+  auto backend = makeCpuBackend(threads);
+  const auto plan = planFrame(volume, camera, w, h, tf, settings);
+  Image full(w, h), tile;
+  std::uint64_t total = 0;
+  for (auto& r : tiles) {
+    total += backend->render(volume, plan, r, tile).samples;
+    full.paste(tile, r);
+  }
+  if (samples) *samples = total;
+  return full;
+}
+
+Image render(const RenderVolume& volume, const Camera& camera, int w, int h,
+             const TransferFunction& tf, const RenderSettings& settings = {}, int threads = 2,
+             std::uint64_t* samples = nullptr) {
+  return renderTiles(volume, camera, w, h, tf, settings, threads, {{0, 0, w, h}}, samples);
+}
+
+const RenderVolume& phantom() {
+  static const RenderVolume v = RenderVolume::fromVolume(codec::generateSheppLogan(48), 8);
+  return v;
+}
+
+TransferFunction phantomTf() { return TransferFunction::preset("ct-soft").rescaled(0, 255); }
+
+Camera threeQuarter() {
+  Orbit o;
+  o.azimuthDeg = 35, o.elevationDeg = 25;
+  return orbitCamera(o, boundingRadius(phantom().info()));
+}
+
+std::vector<Rect> grid(int w, int h, int tx, int ty) {
+  std::vector<Rect> tiles;
+  for (int j = 0; j < ty; ++j)
+    for (int i = 0; i < tx; ++i)
+      tiles.push_back({w * i / tx, h * j / ty, w * (i + 1) / tx - w * i / tx, h * (j + 1) / ty - h * j / ty});
+  return tiles;
+}
+
+int opaquePixels(const Image& img) {
+  int n = 0;
+  for (auto p : img.pixels) n += (p >> 24) > 0;
+  return n;
+}
+
+}  // namespace
+
+TEST(Render, ThePhantomIsVisible) {
+  const Image img = render(phantom(), threeQuarter(), 64, 48, phantomTf());
+  EXPECT_GT(opaquePixels(img), 64 * 48 / 5);
+  EXPECT_EQ(img.at(0, 0) >> 24, 0u);  // the corner misses the head
+}
+
+TEST(Render, AMirrorSymmetricVolumeRendersAMirrorSymmetricImage) {
+  // Symmetric under x -> -x only; the camera looks along +y with +x to the right.
+  codec::Volume v = codec::Volume::allocate({31, 24, 20}, codec::ScalarType::UInt8);
+  for (int z = 0; z < 20; ++z)
+    for (int y = 0; y < 24; ++y)
+      for (int x = 0; x < 31; ++x) {
+        const double dx = (x - 15) / 12.0, dy = (y - 9) / 10.0, dz = (z - 12) / 6.0;
+        const double r = dx * dx + dy * dy + dz * dz + 0.3 * (y / 24.0);
+        v.as<std::uint8_t>()[v.index(x, y, z)] = std::uint8_t(r < 1 ? 200 * (1 - r) + 40 : 0);
+      }
+  v.computeRange();
+  const auto volume = RenderVolume::fromVolume(v, 8);
+  Orbit o;
+  o.azimuthDeg = -90, o.elevationDeg = 0;
+  const Camera cam = orbitCamera(o, boundingRadius(volume.info()));
+  for (bool shading : {false, true}) {
+    RenderSettings s;
+    s.shading = shading;
+    const Image img = render(volume, cam, 64, 40, TransferFunction::preset("hot").rescaled(0, 240), s);
+    Image mirrored(img.width, img.height);
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) mirrored.at(x, y) = img.at(img.width - 1 - x, y);
+    EXPECT_GT(opaquePixels(img), 200);
+    test::expectImagesNear(img, mirrored, 1, 0, shading ? "shaded" : "unshaded");
+  }
+}
+
+TEST(Render, TilesEqualTheFullRenderPixelForPixel) {
+  RenderSettings s;
+  s.shading = true;
+  const int w = 67, h = 45;  // odd sizes: tiles of unequal width
+  const Image full = render(phantom(), threeQuarter(), w, h, phantomTf(), s);
+  for (auto [tx, ty] : {std::pair{2, 2}, std::pair{3, 2}, std::pair{1, 5}}) {
+    const Image tiled = renderTiles(phantom(), threeQuarter(), w, h, phantomTf(), s, 2,
+                                    grid(w, h, tx, ty));
+    EXPECT_EQ(tiled.pixels, full.pixels) << tx << "x" << ty << " tiles";
+  }
+}
+
+TEST(Render, CpuOutputDoesNotDependOnThreadCount) {
+  RenderSettings s;
+  s.shading = true;
+  const Image one = render(phantom(), threeQuarter(), 50, 40, phantomTf(), s, 1);
+  for (int threads : {2, 3, 8}) {
+    const Image many = render(phantom(), threeQuarter(), 50, 40, phantomTf(), s, threads);
+    EXPECT_EQ(many.pixels, one.pixels) << threads << " threads";
+  }
+}
+
+TEST(Render, EmptySpaceSkippingChangesNothingButTheWork) {
+  // A TF that hides everything below 60% of the range leaves many cells empty.
+  TransferFunction tf;
+  tf.colors = {{0, 1, 1, 1}, {255, 1, 0.8, 0.6}};
+  tf.opacities = {{0, 0}, {150, 0}, {255, 0.6}};
+  RenderSettings on, off;
+  off.emptySpaceSkipping = false;
+  std::uint64_t samplesOn = 0, samplesOff = 0;
+  const Image a = render(phantom(), threeQuarter(), 64, 48, tf, on, 2, &samplesOn);
+  const Image b = render(phantom(), threeQuarter(), 64, 48, tf, off, 2, &samplesOff);
+  EXPECT_GT(opaquePixels(a), 100);
+  test::expectImagesNear(b, a, 0);
+  // The phantom's skull reaches into most 8^3 cells, so only about 40% of them are empty.
+  EXPECT_LT(double(samplesOn), 0.75 * double(samplesOff));
+  const auto plan = planFrame(phantom(), threeQuarter(), 64, 48, tf, on);
+  EXPECT_GT(plan.emptyFraction, 0.3);
+}
+
+TEST(Render, AVwzFileRendersLikeTheVolumeItCameFrom) {
+  test::TempDir dir;
+  const codec::Volume v = codec::generateMarschnerLobb(40);
+  codec::Progress quiet;
+  codec::writeContainer(codec::raw::encode(v, {16}, quiet), dir.path("ml.vwz"));
+  const auto fromFile = RenderVolume::open(dir.path("ml.vwz"));
+  const auto fromMemory = RenderVolume::fromVolume(v, 8);  // other brick size, same voxels
+  Orbit o;
+  const Camera cam = orbitCamera(o, boundingRadius(fromFile.info()));
+  const auto tf = TransferFunction::preset("cool-warm").rescaled(0, 255);
+  RenderSettings s;
+  s.shading = true;
+  test::expectImagesNear(render(fromMemory, cam, 48, 48, tf, s), render(fromFile, cam, 48, 48, tf, s), 0);
+}
+
+TEST(Render, ACameraInsideTheVolumeStillRenders) {
+  Orbit o;
+  o.distance = 0.2;  // inside the bounding sphere
+  const Camera cam = orbitCamera(o, boundingRadius(phantom().info()));
+  const Image img = render(phantom(), cam, 32, 32, phantomTf());
+  EXPECT_GT(opaquePixels(img), 0);
+}
+
+TEST(Render, ATransferFunctionOutsideTheDataShowsNothing) {
+  TransferFunction tf;
+  tf.colors = {{1000, 1, 1, 1}, {2000, 1, 1, 1}};
+  tf.opacities = {{1000, 0}, {1001, 1}, {2000, 1}};
+  std::uint64_t samples = 1;
+  const Image img = render(phantom(), threeQuarter(), 32, 32, tf, {}, 2, &samples);
+  EXPECT_EQ(opaquePixels(img), 0);
+  EXPECT_EQ(samples, 0u);  // every cell skipped
+}
