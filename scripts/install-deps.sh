@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   # build
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git clang-format
   # libraries (see ../shared/PLATFORM.md for how CMake finds each)
   libopenmpi-dev openmpi-bin
   libglm-dev

@@ -22,8 +22,8 @@ constexpr char kMagic[8] = {'V', 'O', 'X', 'W', 'A', 'L', 'L', 'Z'};
 // Field offsets of the fixed header, pinned so a change to the writer is deliberate.
 constexpr std::size_t kOffVersion = 8, kOffHeaderBytes = 12, kOffCodec = 16, kOffType = 20,
                       kOffDims = 24, kOffSectionCount = 36, kOffSpacing = 40, kOffRange = 64,
-                      kOffFileBytes = 80, kOffTableHash = 88, kOffReserved = 96, kOffHeaderHash = 120,
-                      kHeaderBytes = 128, kTableEntryBytes = 32;
+                      kOffFileBytes = 80, kOffTableHash = 88, kOffReserved = 96,
+                      kOffHeaderHash = 120, kHeaderBytes = 128, kTableEntryBytes = 32;
 static_assert(kOffDims + 3 * 4 == kOffSectionCount);
 static_assert(kOffSectionCount + 4 == kOffSpacing);
 static_assert(kOffSpacing + 3 * 8 == kOffRange);
@@ -68,8 +68,8 @@ CodecId parseCodecName(std::string_view name) {
 std::span<const std::byte> SectionSet::get(std::uint32_t id, const char* name) const {
   auto it = sections.find(id);
   if (it == sections.end())
-    throw FormatError(source, std::string("missing section '") + name + "' (id " +
-                                  std::to_string(id) + ")");
+    throw FormatError(
+        source, std::string("missing section '") + name + "' (id " + std::to_string(id) + ")");
   return it->second;
 }
 
@@ -96,9 +96,8 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
     offsets.push_back(end);
     end = alignUp(end + s.second.size());
   }
-  const std::size_t fileBytes = volume.sections.empty()
-                                    ? end
-                                    : offsets.back() + volume.sections.back().second.size();
+  const std::size_t fileBytes =
+      volume.sections.empty() ? end : offsets.back() + volume.sections.back().second.size();
 
   std::vector<std::byte> out;
   out.reserve(fileBytes);
@@ -188,8 +187,7 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   if (bytes.size() < kHeaderBytes)
     fail("not a .vwz file: " + std::to_string(bytes.size()) + " bytes is shorter than the " +
          std::to_string(kHeaderBytes) + "-byte header");
-  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
-    fail("not a .vwz file (bad magic)");
+  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) fail("not a .vwz file (bad magic)");
   ByteReader r(bytes.first(kHeaderBytes), source, "header");
   r.skip(8);
   const auto version = r.get<std::uint32_t>();
@@ -219,15 +217,16 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   }
   checkDims(info.dims, source);
   const auto sectionCount = r.get<std::uint32_t>();
-  if (sectionCount > kMaxSections) fail("section count " + std::to_string(sectionCount) + " is too large");
+  if (sectionCount > kMaxSections)
+    fail("section count " + std::to_string(sectionCount) + " is too large");
   for (int i = 0; i < 3; ++i) {
     info.spacing[i] = r.get<double>();
-    if (!(info.spacing[i] > 0) || !std::isfinite(info.spacing[i]))
-      fail("invalid voxel spacing");
+    if (!(info.spacing[i] > 0) || !std::isfinite(info.spacing[i])) fail("invalid voxel spacing");
   }
   info.valueMin = r.get<double>();
   info.valueMax = r.get<double>();
-  if (!std::isfinite(info.valueMin) || !std::isfinite(info.valueMax) || info.valueMin > info.valueMax)
+  if (!std::isfinite(info.valueMin) || !std::isfinite(info.valueMax) ||
+      info.valueMin > info.valueMax)
     fail("invalid value range");
   const auto fileBytes = r.get<std::uint64_t>();
   if (fileBytes != bytes.size())
@@ -237,7 +236,8 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   const std::size_t tableEnd = kHeaderBytes + kTableEntryBytes * sectionCount;
   if (tableEnd > bytes.size()) fail("section table runs past the end of the file (truncated)");
   const auto table = bytes.subspan(kHeaderBytes, tableEnd - kHeaderBytes);
-  if (hashBytes(table) != r.get<std::uint64_t>()) fail("section table checksum mismatch (the file is corrupt)");
+  if (hashBytes(table) != r.get<std::uint64_t>())
+    fail("section table checksum mismatch (the file is corrupt)");
   ByteReader t(table, source, "section table");
   std::uint64_t previousEnd = tableEnd;
   for (std::uint32_t i = 0; i < sectionCount; ++i) {
@@ -247,7 +247,8 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     const auto length = t.get<std::uint64_t>();
     const auto hash = t.get<std::uint64_t>();
     const std::string name = "section " + std::to_string(i) + " (id " + std::to_string(id) + ")";
-    if (offset % kSectionAlignment) fail(name + ": offset " + std::to_string(offset) + " is not 64-byte aligned");
+    if (offset % kSectionAlignment)
+      fail(name + ": offset " + std::to_string(offset) + " is not 64-byte aligned");
     if (offset < previousEnd) fail(name + ": overlaps the table or the previous section");
     if (offset > bytes.size() || length > bytes.size() - offset)
       fail(name + ": " + std::to_string(length) + " bytes at offset " + std::to_string(offset) +

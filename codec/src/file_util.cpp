@@ -41,7 +41,8 @@ void writeFileAtomically(const std::string& path, std::span<const std::byte> byt
 
 std::string extensionOf(const std::string& path) {
   std::string name = std::filesystem::path(path).filename().string();
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  std::transform(name.begin(), name.end(), name.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
   bool gz = false;
   if (name.size() > 3 && name.ends_with(".gz")) {
     gz = true;

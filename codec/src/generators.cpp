@@ -15,7 +15,8 @@ Volume sampleUnitCube(int n, ScalarType type, F&& f) {
   dispatchScalar(type, [&](auto t) {
     using T = decltype(t);
     auto out = v.as<T>();
-    const double scale = std::is_same_v<T, float> ? 1.0 : (std::is_same_v<T, std::uint8_t> ? 255.0 : 65535.0);
+    const double scale =
+        std::is_same_v<T, float> ? 1.0 : (std::is_same_v<T, std::uint8_t> ? 255.0 : 65535.0);
     const double s = std::is_same_v<T, std::int16_t> ? 32767.0 : scale;
     parallelFor(std::size_t(n), 0, [&](std::size_t zi) {
       const double z = -1.0 + 2.0 * double(zi) / (n - 1);
@@ -24,7 +25,8 @@ Volume sampleUnitCube(int n, ScalarType type, F&& f) {
         for (int xi = 0; xi < n; ++xi) {
           const double x = -1.0 + 2.0 * xi / (n - 1);
           const double value = std::clamp(f(x, y, z), 0.0, 1.0);
-          out[v.index(xi, yi, int(zi))] = std::is_same_v<T, float> ? T(value) : T(std::lround(value * s));
+          out[v.index(xi, yi, int(zi))] =
+              std::is_same_v<T, float> ? T(value) : T(std::lround(value * s));
         }
       }
     });
@@ -89,9 +91,15 @@ Volume generateSheppLogan(int n, ScalarType type) {
     const double cphi = std::cos(phi), sphi = std::sin(phi), cth = std::cos(theta),
                  sth = std::sin(theta), cpsi = std::cos(psi), spsi = std::sin(psi);
     Ellipsoid el{e[0], e[1], e[2], e[3], e[4], e[5], e[6], {}};
-    const double r[9] = {cpsi * cphi - cth * sphi * spsi, cpsi * sphi + cth * cphi * spsi, spsi * sth,
-                         -spsi * cphi - cth * sphi * cpsi, -spsi * sphi + cth * cphi * cpsi, cpsi * sth,
-                         sth * sphi, -sth * cphi, cth};
+    const double r[9] = {cpsi * cphi - cth * sphi * spsi,
+                         cpsi * sphi + cth * cphi * spsi,
+                         spsi * sth,
+                         -spsi * cphi - cth * sphi * cpsi,
+                         -spsi * sphi + cth * cphi * cpsi,
+                         cpsi * sth,
+                         sth * sphi,
+                         -sth * cphi,
+                         cth};
     std::copy(r, r + 9, el.r);
     ellipsoids.push_back(el);
   }

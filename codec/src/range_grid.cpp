@@ -17,11 +17,15 @@ RangeGrid computeRangeGrid(const Volume& volume, int cellVoxels) {
     auto values = volume.as<T>();
     const glm::ivec3 d = volume.dims;
     parallelFor(std::size_t(grid.cells.z) * std::size_t(grid.cells.y), 0, [&](std::size_t row) {
-      const int cz = int(row / std::size_t(grid.cells.y)), cy = int(row % std::size_t(grid.cells.y));
-      const int z0 = std::max(0, cz * cellVoxels - 1), z1 = std::min(d.z, (cz + 1) * cellVoxels + 1);
-      const int y0 = std::max(0, cy * cellVoxels - 1), y1 = std::min(d.y, (cy + 1) * cellVoxels + 1);
+      const int cz = int(row / std::size_t(grid.cells.y)),
+                cy = int(row % std::size_t(grid.cells.y));
+      const int z0 = std::max(0, cz * cellVoxels - 1),
+                z1 = std::min(d.z, (cz + 1) * cellVoxels + 1);
+      const int y0 = std::max(0, cy * cellVoxels - 1),
+                y1 = std::min(d.y, (cy + 1) * cellVoxels + 1);
       for (int cx = 0; cx < grid.cells.x; ++cx) {
-        const int x0 = std::max(0, cx * cellVoxels - 1), x1 = std::min(d.x, (cx + 1) * cellVoxels + 1);
+        const int x0 = std::max(0, cx * cellVoxels - 1),
+                  x1 = std::min(d.x, (cx + 1) * cellVoxels + 1);
         float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
         for (int z = z0; z < z1; ++z)
           for (int y = y0; y < y1; ++y) {

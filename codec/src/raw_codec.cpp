@@ -22,7 +22,8 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   const int shift = shiftFor(params.brickVoxels);
   const int b = 1 << shift;
   const glm::ivec3 bricks = (volume.dims + b - 1) / b;
-  const std::size_t brickCount = std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
+  const std::size_t brickCount =
+      std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
   const std::size_t brickScalars = std::size_t(1) << (3 * shift);
   const std::size_t scalar = scalarBytes(volume.type);
 
@@ -85,21 +86,22 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   brickShift_ = int(shift);
   const int b = 1 << brickShift_;
   bricks_ = (info.dims + b - 1) / b;
-  const std::size_t brickCount = std::size_t(bricks_.x) * std::size_t(bricks_.y) * std::size_t(bricks_.z);
+  const std::size_t brickCount =
+      std::size_t(bricks_.x) * std::size_t(bricks_.y) * std::size_t(bricks_.z);
   rangeBytes_ = sections.get(kRanges, "ranges");
   if (rangeBytes_.size() != brickCount * 8)
-    throw FormatError(sections.source, "raw codec section 'ranges': " +
-                                           std::to_string(rangeBytes_.size()) + " bytes, expected " +
-                                           std::to_string(brickCount * 8));
+    throw FormatError(sections.source,
+                      "raw codec section 'ranges': " + std::to_string(rangeBytes_.size()) +
+                          " bytes, expected " + std::to_string(brickCount * 8));
   brickBytes_ = sections.get(kBricks, "bricks");
-  const std::size_t expected = brickCount * (std::size_t(1) << (3 * brickShift_)) * scalarBytes(info.type);
+  const std::size_t expected =
+      brickCount * (std::size_t(1) << (3 * brickShift_)) * scalarBytes(info.type);
   if (brickBytes_.size() != expected)
-    throw FormatError(sections.source, "raw codec section 'bricks': " +
-                                           std::to_string(brickBytes_.size()) + " bytes, expected " +
-                                           std::to_string(expected) + " for " +
-                                           std::to_string(info.dims.x) + "x" + std::to_string(info.dims.y) +
-                                           "x" + std::to_string(info.dims.z) + " " +
-                                           std::string(scalarName(info.type)));
+    throw FormatError(sections.source,
+                      "raw codec section 'bricks': " + std::to_string(brickBytes_.size()) +
+                          " bytes, expected " + std::to_string(expected) + " for " +
+                          std::to_string(info.dims.x) + "x" + std::to_string(info.dims.y) + "x" +
+                          std::to_string(info.dims.z) + " " + std::string(scalarName(info.type)));
   if (reinterpret_cast<std::uintptr_t>(brickBytes_.data()) % scalarBytes(info.type))
     throw FormatError(sections.source, "raw codec section 'bricks' is misaligned");
 }

@@ -43,7 +43,8 @@ std::vector<double> parseNumbers(const std::string& text, const std::string& opt
       if (used != item.size() || !std::isfinite(v)) throw std::invalid_argument(item);
       out.push_back(v);
     } catch (const std::exception&) {
-      throw std::invalid_argument(option + ": '" + text + "' is not a comma-separated list of numbers");
+      throw std::invalid_argument(option + ": '" + text +
+                                  "' is not a comma-separated list of numbers");
     }
   }
   return out;
@@ -64,7 +65,8 @@ glm::ivec3 parseDims(const std::string& text, const std::string& option) {
 glm::dvec3 parseSpacing(const std::string& text, const std::string& option) {
   const auto v = parseNumbers(text, option);
   if (v.size() != 3 || !(v[0] > 0 && v[1] > 0 && v[2] > 0))
-    throw std::invalid_argument(option + ": expected three positive numbers X,Y,Z, got '" + text + "'");
+    throw std::invalid_argument(option + ": expected three positive numbers X,Y,Z, got '" + text +
+                                "'");
   return {v[0], v[1], v[2]};
 }
 
@@ -73,7 +75,8 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& option
   char x = 0, extra = 0;
   if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') ||
       w < 1 || h < 1 || w > 65536 || h > 65536)
-    throw std::invalid_argument(option + ": expected WIDTHxHEIGHT (e.g. 1920x1080), got '" + text + "'");
+    throw std::invalid_argument(option + ": expected WIDTHxHEIGHT (e.g. 1920x1080), got '" + text +
+                                "'");
   return {w, h};
 }
 
@@ -106,7 +109,8 @@ codec::Progress makeProgress(bool quiet) {
     const int percent = total ? int(100 * done / total) : 100;
     if (tty) {
       const int width = 30, filled = percent * width / 100;
-      std::fprintf(stderr, "\r%-12s [%s%s] %3d%%", stage.c_str(), std::string(std::size_t(filled), '#').c_str(),
+      std::fprintf(stderr, "\r%-12s [%s%s] %3d%%", stage.c_str(),
+                   std::string(std::size_t(filled), '#').c_str(),
                    std::string(std::size_t(width - filled), '.').c_str(), percent);
       if (done >= total) std::fputc('\n', stderr);
     } else if (done >= total) {

@@ -1,6 +1,6 @@
 #include <chrono>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <stdexcept>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/master/default_data.hpp>
@@ -14,14 +14,16 @@ std::string defaultVolumeSpec() {
 
 std::vector<node::Rect> gridTiles(int width, int height, int tilesX, int tilesY) {
   if (tilesX < 1 || tilesY < 1 || tilesX > width || tilesY > height)
-    throw std::invalid_argument("tile grid " + std::to_string(tilesX) + "x" + std::to_string(tilesY) +
-                                " does not fit a " + std::to_string(width) + "x" +
-                                std::to_string(height) + " screen");
+    throw std::invalid_argument("tile grid " + std::to_string(tilesX) + "x" +
+                                std::to_string(tilesY) + " does not fit a " +
+                                std::to_string(width) + "x" + std::to_string(height) + " screen");
   std::vector<node::Rect> tiles;
   for (int j = 0; j < tilesY; ++j)
     for (int i = 0; i < tilesX; ++i) {
-      const int x0 = int((long long)width * i / tilesX), x1 = int((long long)width * (i + 1) / tilesX);
-      const int y0 = int((long long)height * j / tilesY), y1 = int((long long)height * (j + 1) / tilesY);
+      const int x0 = int((long long)width * i / tilesX),
+                x1 = int((long long)width * (i + 1) / tilesX);
+      const int y0 = int((long long)height * j / tilesY),
+                y1 = int((long long)height * (j + 1) / tilesY);
       tiles.push_back({x0, y0, x1 - x0, y1 - y0});
     }
   return tiles;
@@ -66,7 +68,8 @@ void renderSequence(node::Backend& backend, const node::RenderVolume& volume,
       report.path = (std::filesystem::path(seq.outDir) / name).string();
       const auto start = std::chrono::steady_clock::now();
       node::writeImage(image, report.path, seq.background);
-      report.writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      report.writeSeconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
     if (onFrame) onFrame(report);
   }

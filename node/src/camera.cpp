@@ -13,7 +13,8 @@ Camera orbitCamera(const Orbit& orbit, double boundingRadius) {
   const double r = orbit.distance * boundingRadius;
   c.eye = {r * std::cos(el) * std::cos(az), r * std::cos(el) * std::sin(az), r * std::sin(el)};
   // Straight up or down, +z is parallel to the view: use the azimuth direction instead.
-  c.up = std::abs(std::cos(el)) < 1e-6 ? glm::dvec3(-std::cos(az), -std::sin(az), 0) : glm::dvec3(0, 0, 1);
+  c.up = std::abs(std::cos(el)) < 1e-6 ? glm::dvec3(-std::cos(az), -std::sin(az), 0)
+                                       : glm::dvec3(0, 0, 1);
   c.fovYDeg = orbit.fovYDeg;
   return c;
 }
@@ -26,7 +27,8 @@ Frustum tileFrustum(const Camera& camera, int screenWidth, int screenHeight, con
   const double tanX = tanY * double(screenWidth) / double(screenHeight);
   auto sx = [&](int px) { return (double(px) / screenWidth * 2.0 - 1.0) * tanX * nearDist; };
   auto sy = [&](int py) { return (1.0 - double(py) / screenHeight * 2.0) * tanY * nearDist; };
-  return {sx(tile.x), sx(tile.x + tile.width), sy(tile.y + tile.height), sy(tile.y), nearDist, farDist};
+  return {sx(tile.x), sx(tile.x + tile.width), sy(tile.y + tile.height), sy(tile.y), nearDist,
+          farDist};
 }
 
 }  // namespace voxwall::node

@@ -34,7 +34,8 @@ class CpuBackend final : public Backend {
             std::uint64_t local = 0;
             for (int y = y0; y < y1; ++y)
               for (int x = x0; x < x1; ++x) {
-                const auto px = kernels::raycastPixel(view, plan.ray, lut, plan.skip, tile.x + x, tile.y + y);
+                const auto px =
+                    kernels::raycastPixel(view, plan.ray, lut, plan.skip, tile.x + x, tile.y + y);
                 out.at(x, y) = kernels::packRgba8(px.rgba);
                 local += px.samples;
               }
@@ -54,7 +55,9 @@ class CpuBackend final : public Backend {
 
 }  // namespace
 
-std::unique_ptr<Backend> makeCpuBackend(int threads) { return std::make_unique<CpuBackend>(threads); }
+std::unique_ptr<Backend> makeCpuBackend(int threads) {
+  return std::make_unique<CpuBackend>(threads);
+}
 
 std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads) {
   if (kind == BackendKind::Cuda) return makeCudaBackend();

@@ -63,7 +63,8 @@ __global__ void raycastKernel(View view, kernels::RayFrame frame, kernels::Trans
   }
   // One atomic per warp instead of one per pixel.
   count = __reduce_add_sync(0xffffffffu, count);
-  if ((threadIdx.x + threadIdx.y * blockDim.x) % 32 == 0) atomicAdd(samples, (unsigned long long)count);
+  if ((threadIdx.x + threadIdx.y * blockDim.x) % 32 == 0)
+    atomicAdd(samples, (unsigned long long)count);
 }
 
 class CudaBackend final : public Backend {

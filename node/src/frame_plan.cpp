@@ -9,14 +9,16 @@ namespace voxwall::node {
 
 FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screenWidth,
                     int screenHeight, const TransferFunction& tf, const RenderSettings& settings) {
-  if (screenWidth <= 0 || screenHeight <= 0) throw std::invalid_argument("screen size must be positive");
+  if (screenWidth <= 0 || screenHeight <= 0)
+    throw std::invalid_argument("screen size must be positive");
   if (!(settings.stepVoxels > 0)) throw std::invalid_argument("ray step must be positive");
   const auto& info = volume.info();
   FramePlan plan;
   auto& r = plan.ray;
   const glm::dvec3 forward = glm::normalize(camera.center - camera.eye);
   glm::dvec3 right = glm::cross(forward, camera.up);
-  if (glm::length(right) < 1e-12) throw std::invalid_argument("camera up vector is parallel to the view");
+  if (glm::length(right) < 1e-12)
+    throw std::invalid_argument("camera up vector is parallel to the view");
   right = glm::normalize(right);
   const glm::dvec3 up = glm::cross(right, forward);
   const double tanY = std::tan(camera.fovYDeg * std::numbers::pi / 360.0);

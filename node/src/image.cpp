@@ -53,8 +53,10 @@ void writeImage(const Image& image, const std::string& path,
   auto out = OIIO::ImageOutput::create(tmp);
   if (!out) throw FormatError(path, "cannot write images of this type: " + OIIO::geterror());
   const bool exr = out->format_name() == std::string("openexr");
-  OIIO::ImageSpec spec(image.width, image.height, 4, exr ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
-  if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) || !out->close()) {
+  OIIO::ImageSpec spec(image.width, image.height, 4,
+                       exr ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
+  if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) ||
+      !out->close()) {
     const std::string err = out->geterror();
     std::remove(tmp.c_str());
     throw FormatError(path, "cannot write image: " + err);
@@ -70,7 +72,8 @@ Image readImage(const std::string& path) {
   if (!in) throw FormatError(path, "cannot open image: " + OIIO::geterror());
   const auto& spec = in->spec();
   if (spec.nchannels < 3) throw FormatError(path, "not an RGB(A) image");
-  std::vector<float> data(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(spec.nchannels));
+  std::vector<float> data(std::size_t(spec.width) * std::size_t(spec.height) *
+                          std::size_t(spec.nchannels));
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, data.data()))
     throw FormatError(path, "cannot read image: " + in->geterror());
   Image img(spec.width, spec.height);
@@ -99,7 +102,8 @@ ImageDiff compareImages(const Image& a, const Image& b) {
     }
   const double n = double(a.pixels.size()) * 4.0;
   d.meanAbs = n > 0 ? sum / n : 0.0;
-  d.psnrDb = sq == 0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(255.0 * 255.0 / (sq / n));
+  d.psnrDb = sq == 0 ? std::numeric_limits<double>::infinity()
+                     : 10.0 * std::log10(255.0 * 255.0 / (sq / n));
   return d;
 }
 

@@ -5,7 +5,8 @@
 
 namespace voxwall::node {
 
-RenderVolume RenderVolume::open(const std::string& path, const std::optional<codec::RawLayout>& raw) {
+RenderVolume RenderVolume::open(const std::string& path,
+                                const std::optional<codec::RawLayout>& raw) {
   if ((!raw || raw->dims.x <= 0) && codec::isContainerFile(path))
     return fromContainer(codec::ContainerFile::open(path));
   RenderVolume v = fromVolume(codec::readVolume(path, raw));
@@ -27,7 +28,8 @@ RenderVolume RenderVolume::fromContainer(codec::ContainerFile file) {
 RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxels) {
   codec::Progress quiet;
   RenderVolume v;
-  v.memory_ = std::make_shared<codec::CompressedVolume>(codec::raw::encode(volume, {brickVoxels}, quiet));
+  v.memory_ =
+      std::make_shared<codec::CompressedVolume>(codec::raw::encode(volume, {brickVoxels}, quiet));
   v.sections_ = v.memory_->view();
   v.info_ = v.memory_->info;
   v.storedBytes_ = v.memory_->payloadBytes();
@@ -53,9 +55,8 @@ std::span<const std::byte> RenderVolume::payload() const {
 
 ViewVariant RenderVolume::view(const std::byte* base) const {
   const codec::raw::Layout layout(info_, sections_);
-  return codec::dispatchScalar(info_.type, [&](auto t) -> ViewVariant {
-    return layout.view<decltype(t)>(base);
-  });
+  return codec::dispatchScalar(
+      info_.type, [&](auto t) -> ViewVariant { return layout.view<decltype(t)>(base); });
 }
 
 double boundingRadius(const codec::VolumeInfo& info) {

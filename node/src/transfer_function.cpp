@@ -28,9 +28,7 @@ const std::vector<Preset>& presets() {
       {"ct-soft",
        {{0, 0, 0, 0}, {0.35, 0.73, 0.25, 0.30}, {0.55, 0.9, 0.82, 0.56}, {1, 1, 1, 1}},
        {{0, 0}, {0.3, 0}, {0.4, 0.15}, {0.6, 0.3}, {1, 0.8}}},
-      {"hot",
-       {{0, 0, 0, 0}, {0.4, 0.9, 0, 0}, {0.8, 1, 0.9, 0}, {1, 1, 1, 1}},
-       {{0, 0}, {1, 1}}},
+      {"hot", {{0, 0, 0, 0}, {0.4, 0.9, 0, 0}, {0.8, 1, 0.9, 0}, {1, 1, 1, 1}}, {{0, 0}, {1, 1}}},
       // Moreland's cool-warm end points, interpolated in RGB.
       {"cool-warm",
        {{0, 0.23, 0.299, 0.754}, {0.5, 0.865, 0.865, 0.865}, {1, 0.706, 0.016, 0.150}},
@@ -154,8 +152,7 @@ TransferFunction TransferFunction::fromParaViewJsonText(const std::string& text,
   const std::string space = preset->contains("ColorSpace") && (*preset)["ColorSpace"].is_string()
                                 ? (*preset)["ColorSpace"].get<std::string>()
                                 : "RGB";
-  if (space != "RGB")
-    tf.warnings.push_back("colour space '" + space + "' is interpolated in RGB");
+  if (space != "RGB") tf.warnings.push_back("colour space '" + space + "' is interpolated in RGB");
   return tf;
 }
 
@@ -227,7 +224,8 @@ HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entr
     double rgba[4];
     evaluate(lo + (hi - lo) * i / (entries - 1), rgba);
     const double alpha = rgba[3] >= 1.0 ? 1.0 : 1.0 - std::pow(1.0 - rgba[3], stepVoxels);
-    lut.entries[std::size_t(i)] = glm::vec4(float(rgba[0]), float(rgba[1]), float(rgba[2]), float(alpha));
+    lut.entries[std::size_t(i)] =
+        glm::vec4(float(rgba[0]), float(rgba[1]), float(rgba[2]), float(alpha));
   }
   return lut;
 }

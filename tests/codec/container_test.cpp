@@ -2,7 +2,6 @@
 #include <xxhash.h>
 
 #include <cstring>
-
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
@@ -125,7 +124,7 @@ TEST(Container, RefusesOverlappingAndMisalignedSections) {
   const auto good = serializeContainer(sample());
   auto overlap = good;
   std::uint64_t offset;
-  std::memcpy(&offset, good.data() + 128 + 8, 8);  // first section's offset
+  std::memcpy(&offset, good.data() + 128 + 8, 8);          // first section's offset
   std::memcpy(overlap.data() + 128 + 32 + 8, &offset, 8);  // second section starts there too
   reseal(overlap);
   EXPECT_NE(parseError(overlap).find("overlaps"), std::string::npos) << parseError(overlap);
@@ -158,5 +157,6 @@ TEST(Container, GoldenChecksumOfASmallFile) {
   // 128-byte header + 3 table entries -> 256; params (8) -> 320; 27 brick ranges (216) -> 576;
   // 27 bricks of 4^3 uint16 (3456) -> 4032.
   EXPECT_EQ(bytes.size(), 4032u);
-  EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0xebc84d5c364b2c52ull) << std::hex << XXH64(bytes.data(), bytes.size(), 0);
+  EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0xebc84d5c364b2c52ull)
+      << std::hex << XXH64(bytes.data(), bytes.size(), 0);
 }

@@ -50,14 +50,16 @@ TEST_P(RawCodecRoundTrip, EveryVoxelSurvivesAtOddSizes) {
           for (int x = 0; x < dims.x; ++x)
             ASSERT_EQ(view.voxel(x, y, z), float(v.as<T>()[v.index(x, y, z)]));
       EXPECT_EQ(view.voxel(-3, 0, 0), view.voxel(0, 0, 0));
-      EXPECT_EQ(view.voxel(dims.x + 5, dims.y, dims.z), view.voxel(dims.x - 1, dims.y - 1, dims.z - 1));
+      EXPECT_EQ(view.voxel(dims.x + 5, dims.y, dims.z),
+                view.voxel(dims.x - 1, dims.y - 1, dims.z - 1));
     });
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(TypesAndBricks, RawCodecRoundTrip,
                          ::testing::Combine(::testing::Values(ScalarType::UInt8, ScalarType::UInt16,
-                                                              ScalarType::Int16, ScalarType::Float32),
+                                                              ScalarType::Int16,
+                                                              ScalarType::Float32),
                                             ::testing::Values(4, 8)));
 
 TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {

@@ -1,6 +1,5 @@
-#include <gtest/gtest.h>
-
 #include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <voxwall/codec/errors.hpp>
@@ -58,7 +57,8 @@ void expectFormatError(F&& f, const std::string& file, const std::string& fragme
   }
 }
 
-const ScalarType kTypes[] = {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Int16, ScalarType::Float32};
+const ScalarType kTypes[] = {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Int16,
+                             ScalarType::Float32};
 
 }  // namespace
 
@@ -95,8 +95,10 @@ TEST(VolumeIo, RawRejectsTruncatedAndOversizedFiles) {
   test::writeFile(dir.path("short.raw"), bytes.substr(0, bytes.size() - 1));
   test::writeFile(dir.path("long.raw"), bytes + "x");
   RawLayout layout{v.dims, v.type};
-  expectFormatError([&] { readRaw(dir.path("short.raw"), layout); }, dir.path("short.raw"), "truncated");
-  expectFormatError([&] { readRaw(dir.path("long.raw"), layout); }, dir.path("long.raw"), "--header-bytes");
+  expectFormatError([&] { readRaw(dir.path("short.raw"), layout); }, dir.path("short.raw"),
+                    "truncated");
+  expectFormatError([&] { readRaw(dir.path("long.raw"), layout); }, dir.path("long.raw"),
+                    "--header-bytes");
   expectFormatError([&] { readVolume(dir.path("v.raw")); }, dir.path("v.raw"), "--dims");
 }
 
@@ -145,12 +147,25 @@ TEST(VolumeIo, TruncatedFilesAreRefusedWithOneLine) {
 TEST(VolumeIo, GarbageAndUnknownFilesAreRefused) {
   TempDir dir;
   test::writeFile(dir.path("junk.nii"), std::string(400, 'x'));
-  test::writeFile(dir.path("junk.nrrd"), "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 100000 100000 100000\nencoding: raw\n\nabc");
+  test::writeFile(
+      dir.path("junk.nrrd"),
+      "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 100000 100000 100000\nencoding: raw\n\nabc");
   test::writeFile(dir.path("junk.xyz"), "hello");
   expectFormatError([&] { readVolume(dir.path("junk.nii")); }, dir.path("junk.nii"));
-  expectFormatError([&] { readVolume(dir.path("junk.nrrd")); }, dir.path("junk.nrrd"));
-  expectFormatError([&] { readVolume(dir.path("junk.xyz")); }, dir.path("junk.xyz"), "unknown volume format");
+  expectFormatError([&] { readVolume(dir.path("junk.nrrd")); }, dir.path("junk.nrrd"),
+                    "over the limit");
+  expectFormatError([&] { readVolume(dir.path("junk.xyz")); }, dir.path("junk.xyz"),
+                    "unknown volume format");
   expectFormatError([&] { readVolume(dir.path("missing.nii")); }, dir.path("missing.nii"));
+}
+
+TEST(VolumeIo, NrrdHeaderAskingForMoreThanTheFileHoldsIsRefusedBeforeAllocating) {
+  TempDir dir;
+  // 2^30 voxels claimed, 3 bytes present, raw encoding.
+  test::writeFile(
+      dir.path("big.nrrd"),
+      "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 1024 1024 1024\nencoding: raw\n\nabc");
+  expectFormatError([&] { readVolume(dir.path("big.nrrd")); }, dir.path("big.nrrd"), "truncated");
 }
 
 TEST(VolumeIo, SliceDirectoryReadsInNaturalOrder) {
@@ -163,7 +178,8 @@ TEST(VolumeIo, SliceDirectoryReadsInNaturalOrder) {
     const auto path = dir.path("slices/slice" + std::to_string(z) + ".png");
     OIIO::ImageSpec spec(v.dims.x, v.dims.y, 1, OIIO::TypeDesc::UINT16);
     ASSERT_TRUE(out->open(path, spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT16, v.as<std::uint16_t>().data() + std::size_t(z) * 54));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT16,
+                                 v.as<std::uint16_t>().data() + std::size_t(z) * 54));
     out->close();
   }
   const Volume back = readVolume(dir.path("slices"));
@@ -204,7 +220,8 @@ TEST(VolumeIo, SlicesOfDifferentSizesAreRefused) {
 
 TEST(VolumeIo, DefaultMriTemplateReadsWhenInstalled) {
   const std::string path = "/usr/share/mricron/templates/ch2better.nii.gz";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not installed (Debian mricron-data)";
+  if (!std::filesystem::exists(path))
+    GTEST_SKIP() << path << " not installed (Debian mricron-data)";
   const Volume v = readVolume(path);
   EXPECT_EQ(v.dims, glm::ivec3(301, 370, 316));
   EXPECT_EQ(v.type, ScalarType::UInt8);

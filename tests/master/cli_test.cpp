@@ -47,7 +47,8 @@ TEST(Cli, HelpListsEverySubcommand) {
   for (const char* sub : {"generate", "compress", "decompress", "info", "render"})
     EXPECT_NE(r.out.find(sub), std::string::npos) << sub;
   const CliRun render = runVoxwall("render --help");
-  for (const char* opt : {"--size", "--tf", "--camera", "--frames", "--out", "--backend", "--shading"})
+  for (const char* opt :
+       {"--size", "--tf", "--camera", "--frames", "--out", "--backend", "--shading"})
     EXPECT_NE(render.out.find(opt), std::string::npos) << opt;
 }
 
@@ -60,14 +61,16 @@ TEST(Cli, GenerateCompressInfoDecompressRoundTrip) {
   EXPECT_NE(c.out.find("bits/voxel"), std::string::npos);
   const CliRun info = runVoxwall("info " + vwz);
   ASSERT_EQ(info.status, 0) << info.out;
-  for (const char* field : {"codec       raw", "21 x 21 x 21", "uint16", "bits/voxel", "ratio", "checksums ok"})
+  for (const char* field :
+       {"codec       raw", "21 x 21 x 21", "uint16", "bits/voxel", "ratio", "checksums ok"})
     EXPECT_NE(info.out.find(field), std::string::npos) << field << "\n" << info.out;
   const auto original = codec::readVolume(nrrd);
   for (const char* ext : {".raw", ".nrrd", ".nii.gz"}) {
     const auto out = dir.path(std::string("back") + ext);
     ASSERT_EQ(runVoxwall("decompress " + vwz + " -o " + out).status, 0) << ext;
     codec::RawLayout layout{original.dims, original.type};
-    const auto back = std::string(ext) == ".raw" ? codec::readVolume(out, layout) : codec::readVolume(out);
+    const auto back =
+        std::string(ext) == ".raw" ? codec::readVolume(out, layout) : codec::readVolume(out);
     EXPECT_EQ(back.data, original.data) << ext;
   }
 }
@@ -75,15 +78,18 @@ TEST(Cli, GenerateCompressInfoDecompressRoundTrip) {
 TEST(Cli, CompressReadsRawInputWithItsLayout) {
   test::TempDir dir;
   test::writeFile(dir.path("v.raw"), std::string(4 * 3 * 2 * 2, '\x01'));
-  const CliRun ok = runVoxwall("compress " + dir.path("v.raw") + " --dims 4,3,2 --type uint16 -q -o " + dir.path("v.vwz"));
+  const CliRun ok = runVoxwall("compress " + dir.path("v.raw") +
+                               " --dims 4,3,2 --type uint16 -q -o " + dir.path("v.vwz"));
   EXPECT_EQ(ok.status, 0) << ok.out;
-  expectOneLineError(runVoxwall("compress " + dir.path("v.raw") + " --dims 4,3,3 --type uint16 -o " + dir.path("w.vwz")),
+  expectOneLineError(runVoxwall("compress " + dir.path("v.raw") +
+                                " --dims 4,3,3 --type uint16 -o " + dir.path("w.vwz")),
                      "voxwall: " + dir.path("v.raw") + ": truncated");
 }
 
 TEST(Cli, RenderWritesPngFrames) {
   test::TempDir dir;
-  const CliRun r = runVoxwall("render generated:shepp-logan:40 --size 48x32 --frames 2 --shading --out " + dir.path("f"));
+  const CliRun r = runVoxwall(
+      "render generated:shepp-logan:40 --size 48x32 --frames 2 --shading --out " + dir.path("f"));
   ASSERT_EQ(r.status, 0) << r.out;
   for (const char* f : {"f/frame_00000.png", "f/frame_00001.png"}) {
     const auto img = node::readImage(dir.path(f));
@@ -100,19 +106,24 @@ TEST(Cli, CorruptVwzFailsWithOneLine) {
   std::string bytes = test::readFile(vwz);
   bytes[bytes.size() - 10] ^= 0x40;
   test::writeFile(dir.path("bad.vwz"), bytes);
-  expectOneLineError(runVoxwall("info " + dir.path("bad.vwz")), "voxwall: " + dir.path("bad.vwz") + ": section");
+  expectOneLineError(runVoxwall("info " + dir.path("bad.vwz")),
+                     "voxwall: " + dir.path("bad.vwz") + ": section");
   expectOneLineError(runVoxwall("render " + dir.path("bad.vwz") + " --out " + dir.path("f")),
                      "voxwall: " + dir.path("bad.vwz") + ": section");
   test::writeFile(dir.path("short.vwz"), bytes.substr(0, 200));
-  expectOneLineError(runVoxwall("info " + dir.path("short.vwz")), "voxwall: " + dir.path("short.vwz") + ": ");
+  expectOneLineError(runVoxwall("info " + dir.path("short.vwz")),
+                     "voxwall: " + dir.path("short.vwz") + ": ");
   EXPECT_FALSE(std::filesystem::exists(dir.path("f/frame_00000.png")));
 }
 
 TEST(Cli, BadArgumentsGiveOneLine) {
   expectOneLineError(runVoxwall("render generated:menger:2 --size 12by9"), "voxwall: --size");
-  expectOneLineError(runVoxwall("render generated:menger:2 --tf nosuchpreset"), "voxwall: unknown transfer-function preset");
-  expectOneLineError(runVoxwall("render /nonexistent.nii"), "voxwall: /nonexistent.nii: no such file");
-  expectOneLineError(runVoxwall("compress generated:menger:2 --codec vq -o /tmp/x.vwz"), "voxwall: codec 'vq' is not implemented");
+  expectOneLineError(runVoxwall("render generated:menger:2 --tf nosuchpreset"),
+                     "voxwall: unknown transfer-function preset");
+  expectOneLineError(runVoxwall("render /nonexistent.nii"),
+                     "voxwall: /nonexistent.nii: no such file");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --codec vq -o /tmp/x.vwz"),
+                     "voxwall: codec 'vq' is not implemented");
   EXPECT_NE(runVoxwall("render --no-such-flag").status, 0);
 }
 

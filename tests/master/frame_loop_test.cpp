@@ -18,7 +18,8 @@ TEST(GridTiles, CoverTheScreenExactlyOnce) {
       ASSERT_GT(r.width, 0);
       ASSERT_GT(r.height, 0);
       for (int y = r.y; y < r.y + r.height; ++y)
-        for (int x = r.x; x < r.x + r.width; ++x) covered[std::size_t(y) * std::size_t(w) + std::size_t(x)]++;
+        for (int x = r.x; x < r.x + r.width; ++x)
+          covered[std::size_t(y) * std::size_t(w) + std::size_t(x)]++;
     }
     for (int c : covered) ASSERT_EQ(c, 1) << w << "x" << h << " in " << tx << "x" << ty;
   }
@@ -34,12 +35,13 @@ TEST(RenderSequence, WritesOneFilePerFrameAndOrbits) {
   seq.outDir = dir.path("frames");
   auto backend = node::makeCpuBackend(2);
   std::vector<master::FrameReport> reports;
-  master::renderSequence(*backend, volume, node::TransferFunction::preset("grey").rescaled(0, 255), {}, seq,
-                         [&](const master::FrameReport& r) { reports.push_back(r); });
+  master::renderSequence(*backend, volume, node::TransferFunction::preset("grey").rescaled(0, 255),
+                         {}, seq, [&](const master::FrameReport& r) { reports.push_back(r); });
   ASSERT_EQ(reports.size(), 3u);
   for (int f = 0; f < 3; ++f) {
     EXPECT_TRUE(std::filesystem::exists(reports[std::size_t(f)].path));
-    EXPECT_NE(reports[std::size_t(f)].path.find("frame_0000" + std::to_string(f) + ".png"), std::string::npos);
+    EXPECT_NE(reports[std::size_t(f)].path.find("frame_0000" + std::to_string(f) + ".png"),
+              std::string::npos);
     EXPECT_GT(reports[std::size_t(f)].samples, 0u);
   }
   // Frames differ because the camera moved.

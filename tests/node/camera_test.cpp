@@ -33,7 +33,8 @@ TEST(Camera, TileFrustumsPartitionTheFullFrustum) {
 }
 
 TEST(Camera, PixelRaysLieInsideTheirTilesFrustum) {
-  voxwall::codec::Volume v = voxwall::codec::Volume::allocate({4, 4, 4}, voxwall::codec::ScalarType::UInt8);
+  voxwall::codec::Volume v =
+      voxwall::codec::Volume::allocate({4, 4, 4}, voxwall::codec::ScalarType::UInt8);
   const auto volume = RenderVolume::fromVolume(v, 4);
   Camera c = orbitCamera({}, 1.0);
   const auto plan = planFrame(volume, c, 64, 48, TransferFunction::preset("grey"), {});

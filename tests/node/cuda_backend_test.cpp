@@ -18,7 +18,8 @@ TEST_P(BackendEquivalence, CudaMatchesCpu) {
   const auto volume = RenderVolume::fromVolume(codec::generateSheppLogan(64, GetParam()), 8);
   Orbit o;
   const Camera cam = orbitCamera(o, boundingRadius(volume.info()));
-  const auto tf = TransferFunction::preset("ct-soft").rescaled(volume.info().valueMin, volume.info().valueMax);
+  const auto tf =
+      TransferFunction::preset("ct-soft").rescaled(volume.info().valueMin, volume.info().valueMax);
   for (bool shading : {false, true}) {
     RenderSettings s;
     s.shading = shading;
@@ -27,16 +28,20 @@ TEST_P(BackendEquivalence, CudaMatchesCpu) {
     const Rect tile{8, 4, 80, 56};
     const auto cpuStats = makeCpuBackend(2)->render(volume, plan, tile, cpu);
     const auto gpuStats = makeCudaBackend()->render(volume, plan, tile, gpu);
-    // Same per-ray code; fused multiply-adds on the device may move a sample across a rounding edge.
+    // Same per-ray code; fused multiply-adds on the device may move a sample across a rounding
+    // edge.
     test::expectImagesNear(cpu, gpu, 3, 45.0, shading ? "shaded" : "unshaded");
-    EXPECT_NEAR(double(gpuStats.samples), double(cpuStats.samples), 0.01 * double(cpuStats.samples));
+    EXPECT_NEAR(double(gpuStats.samples), double(cpuStats.samples),
+                0.01 * double(cpuStats.samples));
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(ScalarTypes, BackendEquivalence,
                          ::testing::Values(codec::ScalarType::UInt8, codec::ScalarType::UInt16,
                                            codec::ScalarType::Float32),
-                         [](const auto& info) { return std::string(codec::scalarName(info.param)); });
+                         [](const auto& info) {
+                           return std::string(codec::scalarName(info.param));
+                         });
 
 TEST(CudaBackend, WithoutADeviceItRefusesWithAReason) {
   std::string reason;

@@ -11,7 +11,8 @@ using codec::kernels::RawView;
 
 TEST(RayBox, HitsAlongAnAxis) {
   float t0, t1;
-  ASSERT_TRUE(kernels::rayBox({-5, 0.2f, 0.3f}, {1, 0, 0}, glm::vec3(-0.5f), glm::vec3(9.5f), t0, t1));
+  ASSERT_TRUE(
+      kernels::rayBox({-5, 0.2f, 0.3f}, {1, 0, 0}, glm::vec3(-0.5f), glm::vec3(9.5f), t0, t1));
   EXPECT_FLOAT_EQ(t0, 4.5f);
   EXPECT_FLOAT_EQ(t1, 14.5f);
 }
@@ -75,7 +76,8 @@ glm::vec4 slabPixel(glm::dvec3 spacing, float opacityPerVoxel, float stepVoxels)
   orbit.azimuthDeg = 0, orbit.elevationDeg = 0, orbit.distance = 3;
   RenderSettings settings;
   settings.stepVoxels = stepVoxels;
-  const auto plan = planFrame(volume, orbitCamera(orbit, boundingRadius(volume.info())), 3, 3, tf, settings);
+  const auto plan =
+      planFrame(volume, orbitCamera(orbit, boundingRadius(volume.info())), 3, 3, tf, settings);
   const auto view = std::get<RawView<std::uint8_t>>(volume.view());
   return kernels::raycastPixel(view, plan.ray, plan.lut.view(), plan.skip, 1, 1).rgba;
 }

@@ -52,7 +52,8 @@ std::vector<Rect> grid(int w, int h, int tx, int ty) {
   std::vector<Rect> tiles;
   for (int j = 0; j < ty; ++j)
     for (int i = 0; i < tx; ++i)
-      tiles.push_back({w * i / tx, h * j / ty, w * (i + 1) / tx - w * i / tx, h * (j + 1) / ty - h * j / ty});
+      tiles.push_back(
+          {w * i / tx, h * j / ty, w * (i + 1) / tx - w * i / tx, h * (j + 1) / ty - h * j / ty});
   return tiles;
 }
 
@@ -88,7 +89,8 @@ TEST(Render, AMirrorSymmetricVolumeRendersAMirrorSymmetricImage) {
   for (bool shading : {false, true}) {
     RenderSettings s;
     s.shading = shading;
-    const Image img = render(volume, cam, 64, 40, TransferFunction::preset("hot").rescaled(0, 240), s);
+    const Image img =
+        render(volume, cam, 64, 40, TransferFunction::preset("hot").rescaled(0, 240), s);
     Image mirrored(img.width, img.height);
     for (int y = 0; y < img.height; ++y)
       for (int x = 0; x < img.width; ++x) mirrored.at(x, y) = img.at(img.width - 1 - x, y);
@@ -103,8 +105,8 @@ TEST(Render, TilesEqualTheFullRenderPixelForPixel) {
   const int w = 67, h = 45;  // odd sizes: tiles of unequal width
   const Image full = render(phantom(), threeQuarter(), w, h, phantomTf(), s);
   for (auto [tx, ty] : {std::pair{2, 2}, std::pair{3, 2}, std::pair{1, 5}}) {
-    const Image tiled = renderTiles(phantom(), threeQuarter(), w, h, phantomTf(), s, 2,
-                                    grid(w, h, tx, ty));
+    const Image tiled =
+        renderTiles(phantom(), threeQuarter(), w, h, phantomTf(), s, 2, grid(w, h, tx, ty));
     EXPECT_EQ(tiled.pixels, full.pixels) << tx << "x" << ty << " tiles";
   }
 }
@@ -149,7 +151,8 @@ TEST(Render, AVwzFileRendersLikeTheVolumeItCameFrom) {
   const auto tf = TransferFunction::preset("cool-warm").rescaled(0, 255);
   RenderSettings s;
   s.shading = true;
-  test::expectImagesNear(render(fromMemory, cam, 48, 48, tf, s), render(fromFile, cam, 48, 48, tf, s), 0);
+  test::expectImagesNear(render(fromMemory, cam, 48, 48, tf, s),
+                         render(fromFile, cam, 48, 48, tf, s), 0);
 }
 
 TEST(Render, ACameraInsideTheVolumeStillRenders) {

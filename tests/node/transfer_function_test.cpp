@@ -11,7 +11,8 @@ TEST(TransferFunction, ReadsAParaViewPresetArray) {
     {"Name": "Other", "Points": [0, 0, 0.5, 0]},
     {"Name": "Bone", "ColorSpace": "RGB",
      "RGBPoints": [0, 0, 0, 0,  100, 1, 0.5, 0.25,  200, 1, 1, 1],
-     "Points": [0, 0, 0.5, 0,  50, 0, 0.5, 0,  200, 0.8, 0.5, 0]}])", "bone.json");
+     "Points": [0, 0, 0.5, 0,  50, 0, 0.5, 0,  200, 0.8, 0.5, 0]}])",
+                                                         "bone.json");
   EXPECT_EQ(tf.name, "Bone");
   ASSERT_EQ(tf.colors.size(), 3u);
   ASSERT_EQ(tf.opacities.size(), 3u);

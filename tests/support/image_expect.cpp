@@ -17,7 +17,8 @@ void expectImagesNear(const node::Image& baseline, const node::Image& rendered, 
                   << minPsnrDb << ")";
   if (ok) return;
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  std::string name = std::string(info->test_suite_name()) + "." + info->name() + (label.empty() ? "" : "-" + label);
+  std::string name = std::string(info->test_suite_name()) + "." + info->name() +
+                     (label.empty() ? "" : "-" + label);
   for (auto& c : name)
     if (c == '/' || c == ' ') c = '_';
   const std::filesystem::path dir = VOXWALL_TEST_OUTPUT_DIR;
@@ -26,7 +27,8 @@ void expectImagesNear(const node::Image& baseline, const node::Image& rendered, 
   for (std::size_t i = 0; i < d.pixels.size(); ++i) {
     std::uint32_t out = 0xff000000u;
     for (int c = 0; c < 3; ++c) {
-      const int a = int((baseline.pixels[i] >> (8 * c)) & 255), b = int((rendered.pixels[i] >> (8 * c)) & 255);
+      const int a = int((baseline.pixels[i] >> (8 * c)) & 255),
+                b = int((rendered.pixels[i] >> (8 * c)) & 255);
       out |= std::uint32_t(std::min(255, 8 * std::abs(a - b))) << (8 * c);
     }
     d.pixels[i] = out;

@@ -15,8 +15,8 @@ TempDir::TempDir() {
   std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "voxwall";
   for (auto& c : name)
     if (c == '/') c = '_';
-  root_ = std::filesystem::temp_directory_path() /
-          ("voxwall-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++) + "-" + name);
+  root_ = std::filesystem::temp_directory_path() / ("voxwall-test-" + std::to_string(::getpid()) +
+                                                    "-" + std::to_string(counter++) + "-" + name);
   std::filesystem::create_directories(root_);
 }
 

@@ -75,12 +75,14 @@ Volume readNifti(const std::string& path) {
     if (ec) throw FormatError(path, ec.message());
   }
   if (double(have) < need)
-    throw FormatError(path, "truncated: " + std::to_string(have) + " bytes of data, the header needs " +
+    throw FormatError(path, "truncated: " + std::to_string(have) +
+                                " bytes of data, the header needs " +
                                 std::to_string(std::uint64_t(need)));
   header.reset();
 
   NiftiPtr nim(nifti_image_read(path.c_str(), 1));
-  if (!nim || !nim->data) throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
+  if (!nim || !nim->data)
+    throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
   glm::dvec3 spacing(std::abs(nim->dx), std::abs(nim->dy), std::abs(nim->dz));
   for (int i = 0; i < 3; ++i)
     if (!(spacing[i] > 0) || !std::isfinite(spacing[i])) spacing[i] = 1.0;
@@ -130,8 +132,8 @@ Volume readNifti(const std::string& path) {
       convert<double, float>(nim->data, v, slope, inter);
       break;
     default:
-      throw FormatError(path, std::string("unsupported NIfTI datatype ") +
-                                  nifti_datatype_string(nim->datatype));
+      throw FormatError(
+          path, std::string("unsupported NIfTI datatype ") + nifti_datatype_string(nim->datatype));
   }
   v.computeRange();
   return v;

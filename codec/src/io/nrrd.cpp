@@ -46,9 +46,47 @@ void convert(const void* src, Volume& v) {
   for (std::size_t i = 0; i < d.size(); ++i) d[i] = Dst(s[i]);
 }
 
+// Reads only the header and refuses a file whose header asks for more than the file can hold
+// (or more than kMaxVoxels), before teem allocates anything for the data.
+void checkNrrdHeader(const std::string& path) {
+  std::unique_ptr<Nrrd, NrrdNuker> header(nrrdNew());
+  std::unique_ptr<NrrdIoState, IoStateDeleter> io(nrrdIoStateNew());
+  io->skipData = AIR_TRUE;
+  if (nrrdLoad(header.get(), path.c_str(), io.get())) throw FormatError(path, teemError());
+  double elements = 1;
+  for (unsigned a = 0; a < header->dim; ++a) elements *= double(header->axis[a].size);
+  if (elements > double(kMaxVoxels))
+    throw FormatError(path, "header asks for " + std::to_string(elements) +
+                                " values, over the limit of " + std::to_string(kMaxVoxels));
+  const double need = elements * double(nrrdElementSize(header.get()));
+  // What is on disk: the detached data files (relative to the header), or this file.
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  double onDisk = 0;
+  if (io->dataFNArr && io->dataFNArr->len > 0) {
+    for (unsigned i = 0; i < io->dataFNArr->len; ++i) {
+      fs::path data = io->dataFN[i];
+      if (data.is_relative()) data = fs::path(path).parent_path() / data;
+      const auto bytes = fs::file_size(data, ec);
+      if (ec) return;  // teem reports a missing data file in its own words
+      onDisk += double(bytes);
+    }
+  } else {
+    onDisk = double(fs::file_size(path, ec));
+    if (ec) return;
+  }
+  // gzip and bzip2 expand at most about 1000:1.
+  const double bound = io->encoding && io->encoding->isCompression ? 1100.0 * onDisk : onDisk;
+  if (need > bound)
+    throw FormatError(path, "truncated: the header needs " + std::to_string(std::uint64_t(need)) +
+                                " bytes of data, the file holds " +
+                                std::to_string(std::uint64_t(onDisk)));
+}
+
 }  // namespace
 
 Volume readNrrd(const std::string& path) {
+  checkNrrdHeader(path);
   std::unique_ptr<Nrrd, NrrdNuker> nin(nrrdNew());
   if (nrrdLoad(nin.get(), path.c_str(), nullptr)) throw FormatError(path, teemError());
   unsigned first = 0;

@@ -21,18 +21,17 @@ Volume readRaw(const std::string& path, const RawLayout& layout) {
   Volume v = Volume::allocate(layout.dims, layout.type, layout.spacing);
   const std::uint64_t need = layout.headerBytes + v.data.size();
   if (fileBytes < need)
-    throw FormatError(path, "truncated: " + std::to_string(fileBytes) + " bytes, but " +
-                                std::to_string(layout.dims.x) + "x" + std::to_string(layout.dims.y) +
-                                "x" + std::to_string(layout.dims.z) + " " +
-                                std::string(scalarName(layout.type)) + " needs " +
-                                std::to_string(need));
+    throw FormatError(
+        path, "truncated: " + std::to_string(fileBytes) + " bytes, but " +
+                  std::to_string(layout.dims.x) + "x" + std::to_string(layout.dims.y) + "x" +
+                  std::to_string(layout.dims.z) + " " + std::string(scalarName(layout.type)) +
+                  " needs " + std::to_string(need));
   if (fileBytes > need)
-    throw FormatError(path, std::to_string(fileBytes) + " bytes, but " +
-                                std::to_string(layout.dims.x) + "x" + std::to_string(layout.dims.y) +
-                                "x" + std::to_string(layout.dims.z) + " " +
-                                std::string(scalarName(layout.type)) + " needs " +
-                                std::to_string(need) +
-                                " (wrong dimensions or type, or give --header-bytes)");
+    throw FormatError(
+        path, std::to_string(fileBytes) + " bytes, but " + std::to_string(layout.dims.x) + "x" +
+                  std::to_string(layout.dims.y) + "x" + std::to_string(layout.dims.z) + " " +
+                  std::string(scalarName(layout.type)) + " needs " + std::to_string(need) +
+                  " (wrong dimensions or type, or give --header-bytes)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FormatError(path, std::strerror(errno));
   in.seekg(std::streamoff(layout.headerBytes));

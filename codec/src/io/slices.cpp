@@ -84,9 +84,11 @@ Volume readSliceStack(const std::string& path) {
   std::vector<std::string> files;
   if (fs::is_directory(path)) {
     for (auto& entry : fs::directory_iterator(path))
-      if (entry.is_regular_file() && isSliceImage(entry.path())) files.push_back(entry.path().string());
+      if (entry.is_regular_file() && isSliceImage(entry.path()))
+        files.push_back(entry.path().string());
     std::sort(files.begin(), files.end(), naturalLess);
-    if (files.empty()) throw FormatError(path, "directory holds no .tif/.tiff/.png/.pgm/.exr slices");
+    if (files.empty())
+      throw FormatError(path, "directory holds no .tif/.tiff/.png/.pgm/.exr slices");
   } else {
     files.push_back(path);
   }
@@ -112,7 +114,8 @@ Volume readSliceStack(const std::string& path) {
     }
   } else {
     for (int z = 0; z < depth; ++z) {
-      if (!first->seek_subimage(z, 0)) throw FormatError(path, "cannot seek to page " + std::to_string(z));
+      if (!first->seek_subimage(z, 0))
+        throw FormatError(path, "cannot seek to page " + std::to_string(z));
       readSlice(*first, path + " page " + std::to_string(z), z, v, z);
     }
   }

@@ -40,7 +40,8 @@ void writeVolume(const Volume& volume, const std::string& path) {
   if (ext == "raw") return writeRaw(volume, path);
   if (ext == "nrrd" || ext == "nhdr") return writeNrrd(volume, path);
   if (ext == "nii" || ext == "nii.gz") return writeNifti(volume, path);
-  throw FormatError(path, "cannot write '." + ext + "' (expected .raw, .nrrd, .nhdr, .nii or .nii.gz)");
+  throw FormatError(path,
+                    "cannot write '." + ext + "' (expected .raw, .nrrd, .nhdr, .nii or .nii.gz)");
 }
 
 }  // namespace voxwall::codec

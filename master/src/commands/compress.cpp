@@ -28,7 +28,8 @@ void runCompress(const CompressOptions& o) {
   codec::Progress progress = makeProgress(o.quiet);
   const auto compressed = codec::raw::encode(v, {o.brick}, progress);
   codec::writeContainer(compressed, o.output);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const auto fileBytes = codec::serializeContainer(compressed).size();
   std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs\n", o.output.c_str(), v.dims.x,
               v.dims.y, v.dims.z, std::string(codec::scalarName(v.type)).c_str(), o.codec.c_str(),

@@ -54,8 +54,9 @@ void addGenerateCommand(CLI::App& app) {
   cmd->add_option("--level", o->level, "Menger sponge level (0-7)")->capture_default_str();
   cmd->add_option("--size", o->size,
                   "Voxels per side for marschner-lobb (default 64) and shepp-logan (default 256)");
-  cmd->add_option("--type", o->type, "Scalar type for marschner-lobb and shepp-logan: uint8, "
-                                     "uint16, int16 or float32")
+  cmd->add_option("--type", o->type,
+                  "Scalar type for marschner-lobb and shepp-logan: uint8, "
+                  "uint16, int16 or float32")
       ->capture_default_str();
   cmd->callback([o] { runGenerate(*o); });
 }

@@ -15,7 +15,8 @@ struct InfoOptions {
   RawInputOptions raw;
 };
 
-void printVolumeLines(glm::ivec3 dims, codec::ScalarType type, glm::dvec3 spacing, double lo, double hi) {
+void printVolumeLines(glm::ivec3 dims, codec::ScalarType type, glm::dvec3 spacing, double lo,
+                      double hi) {
   std::printf("dims        %d x %d x %d (%zu voxels)\n", dims.x, dims.y, dims.z,
               std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z));
   std::printf("type        %s\n", std::string(codec::scalarName(type)).c_str());
@@ -29,8 +30,8 @@ void runInfo(const InfoOptions& o) {
     const auto& info = file.info();
     const double rawBytes = double(info.voxelCount()) * double(codec::scalarBytes(info.type));
     std::printf("file        %s\n", o.input.c_str());
-    std::printf("container   .vwz version %u, %zu sections, checksums ok\n", codec::kContainerVersion,
-                file.sections().sections.size());
+    std::printf("container   .vwz version %u, %zu sections, checksums ok\n",
+                codec::kContainerVersion, file.sections().sections.size());
     std::printf("codec       %s\n", std::string(codec::codecName(info.codec)).c_str());
     printVolumeLines(info.dims, info.type, info.spacing, info.valueMin, info.valueMax);
     std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
@@ -57,8 +58,9 @@ void runInfo(const InfoOptions& o) {
 void addInfoCommand(CLI::App& app) {
   auto o = std::make_shared<InfoOptions>();
   auto* cmd = app.add_subcommand(
-      "info", "Describe a .vwz file (codec, dims, type, size, bits per voxel, ratio; verifies every "
-              "checksum) or any readable volume");
+      "info",
+      "Describe a .vwz file (codec, dims, type, size, bits per voxel, ratio; verifies every "
+      "checksum) or any readable volume");
   cmd->add_option("input", o->input, ".vwz file or any volume input")->required();
   o->raw.addTo(*cmd);
   cmd->callback([o] { runInfo(*o); });

@@ -42,7 +42,9 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
     return tf.rescaled(r[0], r[1]);
   }
   // Built-in presets are defined on [0, 1]: stretch them over the data. Files are in data values.
-  return file ? tf : tf.rescaled(info.valueMin, info.valueMax > info.valueMin ? info.valueMax : info.valueMin + 1);
+  return file ? tf
+              : tf.rescaled(info.valueMin,
+                            info.valueMax > info.valueMin ? info.valueMax : info.valueMin + 1);
 }
 
 void runRender(const RenderOptions& o) {
@@ -62,7 +64,8 @@ void runRender(const RenderOptions& o) {
   seq.frames = o.frames;
   seq.orbitStepDeg = o.orbitDeg != 0 ? o.orbitDeg : 360.0 / o.frames;
   seq.outDir = o.noWrite ? "" : o.out;
-  if (o.format != "png" && o.format != "exr") throw std::invalid_argument("--format: expected png or exr");
+  if (o.format != "png" && o.format != "exr")
+    throw std::invalid_argument("--format: expected png or exr");
   seq.format = o.format;
   seq.background = parseBackground(o.background);
   if (!(o.step > 0 && o.step <= 8)) throw std::invalid_argument("--step must be in (0, 8] voxels");
@@ -89,14 +92,15 @@ void runRender(const RenderOptions& o) {
   const auto tf = loadTransferFunction(o, volume.info());
   if (o.backend != "cpu" && o.backend != "cuda")
     throw std::invalid_argument("--backend: expected cpu or cuda");
-  auto backend = node::makeBackend(o.backend == "cuda" ? node::BackendKind::Cuda : node::BackendKind::Cpu,
-                                   o.threads);
+  auto backend = node::makeBackend(
+      o.backend == "cuda" ? node::BackendKind::Cuda : node::BackendKind::Cpu, o.threads);
   const auto& info = volume.info();
   if (!o.quiet)
     std::fprintf(stderr, "voxwall: %s: %dx%dx%d %s (%s), %dx%d, %d frame(s), %s\n", input.c_str(),
-                 info.dims.x, info.dims.y, info.dims.z, std::string(codec::scalarName(info.type)).c_str(),
-                 std::string(codec::codecName(info.codec)).c_str(), seq.width, seq.height, seq.frames,
-                 backend->name().c_str());
+                 info.dims.x, info.dims.y, info.dims.z,
+                 std::string(codec::scalarName(info.type)).c_str(),
+                 std::string(codec::codecName(info.codec)).c_str(), seq.width, seq.height,
+                 seq.frames, backend->name().c_str());
   double total = 0;
   std::uint64_t samples = 0;
   master::renderSequence(*backend, volume, tf, render, seq, [&](const master::FrameReport& r) {
@@ -124,7 +128,8 @@ void addRenderCommand(CLI::App& app) {
                   "A .vwz file or any volume input (.nii/.nii.gz, .nrrd/.nhdr, .raw with --dims, "
                   ".tif, a slice directory, generated:KIND:SIZE). Default: the MRI template from "
                   "Debian's mricron-data if installed, else a generated Shepp-Logan phantom");
-  cmd->add_option("--size", o->size, "Virtual screen size in pixels, WIDTHxHEIGHT")->capture_default_str();
+  cmd->add_option("--size", o->size, "Virtual screen size in pixels, WIDTHxHEIGHT")
+      ->capture_default_str();
   cmd->add_option("--tiles", o->tiles,
                   "Render the screen as a grid of COLSxROWS tiles (same pixels as one tile)")
       ->capture_default_str();
@@ -142,13 +147,17 @@ void addRenderCommand(CLI::App& app) {
   cmd->add_option("--frames", o->frames, "Number of frames")->capture_default_str();
   cmd->add_option("--orbit-deg", o->orbitDeg,
                   "Azimuth step per frame in degrees (default: one full turn over --frames)");
-  cmd->add_option("--step", o->step, "Ray step in voxels (of the smallest spacing)")->capture_default_str();
+  cmd->add_option("--step", o->step, "Ray step in voxels (of the smallest spacing)")
+      ->capture_default_str();
   cmd->add_flag("--shading", o->shading, "Blinn-Phong shading from central-difference gradients");
   cmd->add_flag("--no-skip", o->noSkip, "Disable empty-space skipping (for measurements)");
   cmd->add_option("--backend", o->backend, "cpu or cuda")->capture_default_str();
-  cmd->add_option("--threads", o->threads, "CPU backend threads (0 = all cores)")->capture_default_str();
-  cmd->add_option("--out", o->out, "Directory for frame_NNNNN.<format> files")->capture_default_str();
-  cmd->add_option("--format", o->format, "Frame file format: png (8-bit) or exr (half float, keeps alpha)")
+  cmd->add_option("--threads", o->threads, "CPU backend threads (0 = all cores)")
+      ->capture_default_str();
+  cmd->add_option("--out", o->out, "Directory for frame_NNNNN.<format> files")
+      ->capture_default_str();
+  cmd->add_option("--format", o->format,
+                  "Frame file format: png (8-bit) or exr (half float, keeps alpha)")
       ->capture_default_str();
   cmd->add_option("--background", o->background,
                   "Composite onto black, white, R,G,B in [0,1], or none (straight alpha in files)")

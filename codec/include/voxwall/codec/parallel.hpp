@@ -21,7 +21,8 @@ inline int resolveThreads(int requested) {
 // The first exception thrown by fn is rethrown on the caller after all workers stop.
 template <class Fn>
 void parallelFor(std::size_t count, int threads, Fn&& fn) {
-  threads = std::max(1, std::min<int>(resolveThreads(threads), int(std::max<std::size_t>(count, 1))));
+  threads =
+      std::max(1, std::min<int>(resolveThreads(threads), int(std::max<std::size_t>(count, 1))));
   if (threads == 1) {
     for (std::size_t i = 0; i < count; ++i) fn(i);
     return;

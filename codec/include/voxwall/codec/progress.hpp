@@ -12,8 +12,8 @@ namespace voxwall::codec {
 // from worker threads; the callback runs under a lock, at most about 200 times per stage.
 class Progress {
  public:
-  using Callback = std::function<void(const std::string& stage, std::uint64_t done,
-                                      std::uint64_t total)>;
+  using Callback =
+      std::function<void(const std::string& stage, std::uint64_t done, std::uint64_t total)>;
   Progress() = default;
   explicit Progress(Callback cb) : cb_(std::move(cb)) {}
 

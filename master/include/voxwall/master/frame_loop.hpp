@@ -13,11 +13,11 @@ namespace voxwall::master {
 struct SequenceSettings {
   int width = 1920, height = 1080;
   int frames = 1;
-  node::Orbit orbit;          // camera of frame 0
-  double orbitStepDeg = 5.0;  // azimuth added per frame
-  int tilesX = 1, tilesY = 1; // the screen cut into a grid of tiles (the same pixels either way)
-  std::string outDir;         // empty: render without writing
-  std::string format = "png"; // file extension for frames: png or exr
+  node::Orbit orbit;           // camera of frame 0
+  double orbitStepDeg = 5.0;   // azimuth added per frame
+  int tilesX = 1, tilesY = 1;  // the screen cut into a grid of tiles (the same pixels either way)
+  std::string outDir;          // empty: render without writing
+  std::string format = "png";  // file extension for frames: png or exr
   std::optional<glm::dvec3> background;  // none: transparent, straight alpha in files
 };
 

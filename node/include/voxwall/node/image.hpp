@@ -2,10 +2,10 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/vec3.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-#include <glm/vec3.hpp>
 #include <voxwall/node/camera.hpp>
 
 namespace voxwall::node {
@@ -17,7 +17,9 @@ struct Image {
 
   Image() = default;
   Image(int w, int h) : width(w), height(h), pixels(std::size_t(w) * std::size_t(h), 0u) {}
-  std::uint32_t& at(int x, int y) { return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)]; }
+  std::uint32_t& at(int x, int y) {
+    return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)];
+  }
   std::uint32_t at(int x, int y) const {
     return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)];
   }

@@ -22,8 +22,8 @@ struct OpacityPoint {
 class TransferFunction {
  public:
   std::string name;
-  std::vector<ColorPoint> colors;      // sorted by x
-  std::vector<OpacityPoint> opacities; // sorted by x
+  std::vector<ColorPoint> colors;       // sorted by x
+  std::vector<OpacityPoint> opacities;  // sorted by x
   // ParaView presets with "ColorSpace" other than RGB are interpolated in RGB; the reader notes
   // that here so the program can warn once.
   std::vector<std::string> warnings;

@@ -1,0 +1,200 @@
+#!/usr/bin/python3
+"""voxwall's CPU raycaster next to VTK's vtkFixedPointVolumeRayCastMapper, in one run.
+
+Same volume, image size, step (1/4 voxel), transfer function (bench/data/vtk-comparison-tf.json:
+grey, opacity 0 at value 40 -> 0.8 at 255, opacity per voxel), camera (3/4 view: azimuth 30,
+elevation 20, 2.6 bounding radii, 30 degree vertical field of view) and orbit (5 degrees per frame).
+Prints a markdown table of ms/frame and ms x cores per frame, and writes both first frames and a
+side-by-side picture to --out.
+
+Needs Debian's python3-vtk9 and an X server for VTK's window: run it under `xvfb-run -a`.
+Use Debian's /usr/bin/python3 (numpy, vtk); see ../shared/PLATFORM.md.
+"""
+import argparse
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+
+import numpy as np
+import vtk
+from vtk.util import numpy_support
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TF_FILE = os.path.join(HERE, "data", "vtk-comparison-tf.json")
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--voxwall", default=os.path.join(HERE, "..", "build", "master", "voxwall"))
+    p.add_argument("--volume", default="/usr/share/mricron/templates/ch2better.nii.gz")
+    p.add_argument("--size", default="1920x1080")
+    p.add_argument("--frames", type=int, default=5)
+    p.add_argument("--threads", default="1,2", help="comma-separated thread counts to measure")
+    p.add_argument("--out", default="bench-out/vtk")
+    return p.parse_args()
+
+
+def run_voxwall(args, threads, out_dir):
+    cmd = [args.voxwall, "render", args.volume, "--size", args.size, "--tf", TF_FILE,
+           "--camera", "30,20,2.6", "--fov", "30", "--orbit-deg", "5", "--frames", str(args.frames),
+           "--threads", str(threads), "--step", "0.25", "--background", "black", "--out", out_dir]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        sys.exit("voxwall failed: " + res.stdout + res.stderr)
+    ms = [float(m) for m in re.findall(r"render ([0-9.]+) ms", res.stdout)]
+    rate = [float(m) for m in re.findall(r"([0-9.]+) Msamples/s", res.stdout)]
+    return ms, rate[-1] if rate else float("nan")
+
+
+def vtk_scene(args):
+    reader = vtk.vtkNIFTIImageReader()
+    reader.SetFileName(args.volume)
+    reader.Update()
+    image = reader.GetOutput()
+    spacing = image.GetSpacing()
+    dims = image.GetDimensions()
+    bounds = image.GetBounds()
+    center = [(bounds[0] + bounds[1]) / 2, (bounds[2] + bounds[3]) / 2, (bounds[4] + bounds[5]) / 2]
+    # voxwall's bounding radius: half the diagonal of dims x spacing.
+    radius = 0.5 * math.sqrt(sum((d * s) ** 2 for d, s in zip(dims, spacing)))
+
+    color = vtk.vtkColorTransferFunction()
+    color.AddRGBPoint(0, 0, 0, 0)
+    color.AddRGBPoint(255, 1, 1, 1)
+    opacity = vtk.vtkPiecewiseFunction()
+    opacity.AddPoint(0, 0)
+    opacity.AddPoint(40, 0)
+    opacity.AddPoint(255, 0.8)
+    prop = vtk.vtkVolumeProperty()
+    prop.SetColor(color)
+    prop.SetScalarOpacity(opacity)
+    prop.SetInterpolationTypeToLinear()
+    prop.ShadeOff()
+    prop.SetScalarOpacityUnitDistance(min(spacing))  # opacity per voxel, as voxwall's
+
+    mapper = vtk.vtkFixedPointVolumeRayCastMapper()
+    mapper.SetInputConnection(reader.GetOutputPort())
+    mapper.SetAutoAdjustSampleDistances(0)
+    mapper.SetLockSampleDistanceToInputSpacing(0)
+    mapper.SetSampleDistance(0.25 * min(spacing))
+    mapper.SetInteractiveSampleDistance(0.25 * min(spacing))
+    mapper.SetImageSampleDistance(1.0)
+    volume = vtk.vtkVolume()
+    volume.SetMapper(mapper)
+    volume.SetProperty(prop)
+
+    renderer = vtk.vtkRenderer()
+    renderer.AddVolume(volume)
+    renderer.SetBackground(0, 0, 0)
+    window = vtk.vtkRenderWindow()
+    window.SetOffScreenRendering(1)
+    w, h = (int(v) for v in args.size.split("x"))
+    window.SetSize(w, h)
+    window.AddRenderer(renderer)
+    return window, renderer, center, radius
+
+
+def place_camera(renderer, center, radius, azimuth_deg):
+    az, el = math.radians(azimuth_deg), math.radians(20.0)
+    d = 2.6 * radius
+    cam = renderer.GetActiveCamera()
+    cam.SetFocalPoint(*center)
+    cam.SetPosition(center[0] + d * math.cos(el) * math.cos(az), center[1] + d * math.cos(el) * math.sin(az),
+                    center[2] + d * math.sin(el))
+    cam.SetViewUp(0, 0, 1)
+    cam.SetViewAngle(30)
+    renderer.ResetCameraClippingRange()
+
+
+def grab(window):
+    f = vtk.vtkWindowToImageFilter()
+    f.SetInput(window)
+    f.ReadFrontBufferOff()
+    f.SetInputBufferTypeToRGB()
+    f.Update()
+    img = f.GetOutput()
+    w, h, _ = img.GetDimensions()
+    arr = numpy_support.vtk_to_numpy(img.GetPointData().GetScalars()).reshape(h, w, 3)
+    return arr[::-1].copy()  # VTK's rows start at the bottom
+
+
+def run_vtk(args, threads, out_dir):
+    vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(threads)
+    window, renderer, center, radius = vtk_scene(args)
+    times, first = [], None
+    for f in range(args.frames + 1):  # frame 0 twice: the first render also uploads and sets up
+        place_camera(renderer, center, radius, 30.0 + 5.0 * max(f - 1, 0))
+        t0 = time.perf_counter()
+        window.Render()
+        dt = (time.perf_counter() - t0) * 1e3
+        if f == 0:
+            continue
+        times.append(dt)
+        if f == 1:
+            first = grab(window)
+    os.makedirs(out_dir, exist_ok=True)
+    write_png(os.path.join(out_dir, "frame_00000.png"), first)
+    return times, first
+
+
+def write_png(path, rgb):
+    h, w, _ = rgb.shape
+    data = vtk.vtkUnsignedCharArray()
+    data.SetNumberOfComponents(3)
+    data.SetVoidArray(np.ascontiguousarray(rgb[::-1]).ravel(), rgb.size, 1)
+    img = vtk.vtkImageData()
+    img.SetDimensions(w, h, 1)
+    img.GetPointData().SetScalars(data)
+    writer = vtk.vtkPNGWriter()
+    writer.SetFileName(path)
+    writer.SetInputData(img)
+    writer.Write()
+
+
+def read_png(path):
+    r = vtk.vtkPNGReader()
+    r.SetFileName(path)
+    r.Update()
+    img = r.GetOutput()
+    w, h, _ = img.GetDimensions()
+    n = img.GetPointData().GetScalars().GetNumberOfComponents()
+    arr = numpy_support.vtk_to_numpy(img.GetPointData().GetScalars()).reshape(h, w, n)
+    return arr[::-1, :, :3].copy()
+
+
+def psnr(a, b):
+    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
+    return float("inf") if mse == 0 else 10 * math.log10(255.0 ** 2 / mse)
+
+
+def main():
+    args = parse_args()
+    if not os.path.exists(args.volume):
+        sys.exit(f"{args.volume} not found (install Debian's mricron-data)")
+    rows = []
+    for threads in [int(t) for t in args.threads.split(",")]:
+        vdir = os.path.join(args.out, f"voxwall-t{threads}")
+        tdir = os.path.join(args.out, f"vtk-t{threads}")
+        vox_ms, vox_rate = run_voxwall(args, threads, vdir)
+        vtk_ms, _ = run_vtk(args, threads, tdir)
+        vox_img = read_png(os.path.join(vdir, "frame_00000.png"))
+        vtk_img = read_png(os.path.join(tdir, "frame_00000.png"))
+        rows.append((threads, np.mean(vox_ms), np.mean(vtk_ms), vox_rate, psnr(vox_img, vtk_img)))
+        both = np.concatenate([vox_img, vtk_img], axis=1)
+        write_png(os.path.join(args.out, f"side-by-side-t{threads}.png"), both)
+
+    print(f"\nvolume {args.volume}, {args.size}, step 1/4 voxel, {args.frames} frames orbiting 5 deg/frame, "
+          f"{os.cpu_count()} cores\n")
+    print("| threads | voxwall ms/frame | VTK ms/frame | voxwall Msamples/s | speed-up | "
+          "voxwall ms x threads | VTK ms x threads | PSNR voxwall vs VTK (dB) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for t, vox, vt, rate, p in rows:
+        print(f"| {t} | {vox:.0f} | {vt:.0f} | {rate:.1f} | {vt / vox:.2f}x | {vox * t:.0f} | {vt * t:.0f} | {p:.1f} |")
+    print(f"\nimages: {os.path.abspath(args.out)}/side-by-side-t*.png (left voxwall, right VTK)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Installs what voxwall needs, checks formatting, builds everything (with the CUDA backend when
+# nvcc is present: its tests skip without a GPU), runs the whole test suite, then builds and runs
+# it again under AddressSanitizer + UndefinedBehaviorSanitizer.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh
+
+echo "== formatting (clang-format --dry-run)"
+git ls-files '*.cpp' '*.hpp' '*.cu' | xargs clang-format --dry-run --Werror
+
+echo "== release build and tests"
+bash scripts/build.sh
+ctest --test-dir build --output-on-failure -j "$(nproc)"
+
+echo "== sanitizer build and tests (ASan + UBSan, CPU only)"
+VOXWALL_BUILD_DIR=build-asan bash scripts/build.sh -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DVOXWALL_SANITIZE=ON -DVOXWALL_CUDA=OFF -DVOXWALL_BUILD_BENCH=OFF
+ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan --output-on-failure -j "$(nproc)"

@@ -1,0 +1,18 @@
+// Writes a few valid .vwz files as the fuzzer's seed corpus: make_seeds DIR
+#include <string>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/raw_codec.hpp>
+
+int main(int argc, char** argv) {
+  using namespace voxwall::codec;
+  if (argc != 2) return 2;
+  const std::string dir = argv[1];
+  Progress quiet;
+  writeContainer(raw::encode(generateMenger(1), {4}, quiet), dir + "/menger1.vwz");
+  writeContainer(raw::encode(generateMarschnerLobb(5, ScalarType::Float32), {4}, quiet),
+                 dir + "/ml5.vwz");
+  writeContainer(raw::encode(generateSheppLogan(6, ScalarType::Int16), {8}, quiet),
+                 dir + "/sl6.vwz");
+  return 0;
+}
