@@ -9,22 +9,25 @@
 namespace voxwall::codec::raw {
 namespace {
 
-int shiftFor(int brickVoxels) {
-  for (int s = 2; s <= 6; ++s)
-    if ((1 << s) == brickVoxels) return s;
-  throw std::invalid_argument("raw codec: brick size must be 4, 8, 16, 32 or 64 voxels, not " +
-                              std::to_string(brickVoxels));
+int shiftFor(int voxels, int minShift, const char* what) {
+  for (int s = minShift; s <= 6; ++s)
+    if ((1 << s) == voxels) return s;
+  throw std::invalid_argument(std::string("raw codec: ") + what + " must be a power of two from " +
+                              std::to_string(1 << minShift) + " to 64 voxels, not " +
+                              std::to_string(voxels));
 }
 
 }  // namespace
 
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress) {
-  const int shift = shiftFor(params.brickVoxels);
+  const int shift = shiftFor(params.brickVoxels, 2, "brick size");
+  const int rangeShift = shiftFor(params.rangeCellVoxels, 1, "range cell size");
   const int b = 1 << shift;
   const glm::ivec3 bricks = (volume.dims + b - 1) / b;
   const std::size_t brickCount =
       std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
-  const std::size_t brickScalars = std::size_t(1) << (3 * shift);
+  const std::size_t edge = std::size_t(b) + 1;  // brick plus its apron
+  const std::size_t brickScalars = edge * edge * edge;
   const std::size_t scalar = scalarBytes(volume.type);
 
   CompressedVolume out;
@@ -38,7 +41,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   std::vector<std::byte> paramBytes;
   ByteWriter pw(paramBytes);
   pw.put<std::uint32_t>(std::uint32_t(shift));
-  pw.put<std::uint32_t>(0);
+  pw.put<std::uint32_t>(std::uint32_t(rangeShift));
 
   std::vector<std::byte> brickBytes(brickCount * brickScalars * scalar);
   progress.begin("bricking", brickCount);
@@ -51,9 +54,9 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
       const int by = int(brick / std::size_t(bricks.x) % std::size_t(bricks.y));
       const int bz = int(brick / (std::size_t(bricks.x) * std::size_t(bricks.y)));
       T* out = dst + brick * brickScalars;
-      for (int z = 0; z < b; ++z)
-        for (int y = 0; y < b; ++y)
-          for (int x = 0; x < b; ++x) {
+      for (int z = 0; z <= b; ++z)
+        for (int y = 0; y <= b; ++y)
+          for (int x = 0; x <= b; ++x) {
             const int vx = std::min(bx * b + x, volume.dims.x - 1);
             const int vy = std::min(by * b + y, volume.dims.y - 1);
             const int vz = std::min(bz * b + z, volume.dims.z - 1);
@@ -64,11 +67,11 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   });
   progress.end();
 
-  const RangeGrid grid = computeRangeGrid(volume, b);
+  const RangeGrid grid = computeRangeGrid(volume, 1 << rangeShift);
   std::vector<std::byte> rangeBytes;
-  rangeBytes.reserve(brickCount * 8);
+  rangeBytes.reserve(grid.cellCount() * 8);
   ByteWriter rw(rangeBytes);
-  for (std::size_t i = 0; i < brickCount; ++i) {
+  for (std::size_t i = 0; i < grid.cellCount(); ++i) {
     rw.put<float>(grid.lo[i]);
     rw.put<float>(grid.hi[i]);
   }
@@ -84,18 +87,25 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const auto shift = p.get<std::uint32_t>();
   if (shift < 2 || shift > 6) p.fail("brick shift " + std::to_string(shift) + " is not in 2..6");
   brickShift_ = int(shift);
+  const auto rangeShift = p.get<std::uint32_t>();
+  if (rangeShift < 1 || rangeShift > 6)
+    p.fail("range cell shift " + std::to_string(rangeShift) + " is not in 1..6");
+  rangeShift_ = int(rangeShift);
+  rangeCells_ = (info.dims + (1 << rangeShift_) - 1) >> rangeShift_;
+  const std::size_t cellCount =
+      std::size_t(rangeCells_.x) * std::size_t(rangeCells_.y) * std::size_t(rangeCells_.z);
   const int b = 1 << brickShift_;
   bricks_ = (info.dims + b - 1) / b;
   const std::size_t brickCount =
       std::size_t(bricks_.x) * std::size_t(bricks_.y) * std::size_t(bricks_.z);
   rangeBytes_ = sections.get(kRanges, "ranges");
-  if (rangeBytes_.size() != brickCount * 8)
+  if (rangeBytes_.size() != cellCount * 8)
     throw FormatError(sections.source,
                       "raw codec section 'ranges': " + std::to_string(rangeBytes_.size()) +
-                          " bytes, expected " + std::to_string(brickCount * 8));
+                          " bytes, expected " + std::to_string(cellCount * 8));
   brickBytes_ = sections.get(kBricks, "bricks");
   const std::size_t expected =
-      brickCount * (std::size_t(1) << (3 * brickShift_)) * scalarBytes(info.type);
+      brickCount * std::size_t((b + 1) * (b + 1) * (b + 1)) * scalarBytes(info.type);
   if (brickBytes_.size() != expected)
     throw FormatError(sections.source,
                       "raw codec section 'bricks': " + std::to_string(brickBytes_.size()) +
@@ -108,8 +118,8 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
 
 RangeGrid Layout::rangeGrid() const {
   RangeGrid grid;
-  grid.cellVoxels = 1 << brickShift_;
-  grid.cells = bricks_;
+  grid.cellVoxels = 1 << rangeShift_;
+  grid.cells = rangeCells_;
   const std::size_t n = grid.cellCount();
   grid.lo.resize(n);
   grid.hi.resize(n);

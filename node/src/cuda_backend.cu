@@ -98,6 +98,10 @@ class CudaBackend final : public Backend {
       skipCells_.upload(plan.emptyCells.data(), plan.emptyCells.size());
       skip.empty = skipCells_.as<std::uint8_t>();
     }
+    if (skip.fineEmpty) {
+      fineSkipCells_.upload(plan.fineEmptyCells.data(), plan.fineEmptyCells.size());
+      skip.fineEmpty = fineSkipCells_.as<std::uint8_t>();
+    }
     const std::size_t pixels = std::size_t(tile.width) * std::size_t(tile.height);
     image_.reserve(pixels * sizeof(std::uint32_t));
     VOXWALL_CUDA_CHECK(cudaMemset(samples_, 0, sizeof(unsigned long long)));
@@ -126,7 +130,7 @@ class CudaBackend final : public Backend {
 
  private:
   std::string name_;
-  DeviceBuffer volumeBytes_, lut_, skipCells_, image_;
+  DeviceBuffer volumeBytes_, lut_, skipCells_, fineSkipCells_, image_;
   const std::byte* uploadedFrom_ = nullptr;
   std::size_t uploadedBytes_ = 0;
   unsigned long long* samples_ = nullptr;

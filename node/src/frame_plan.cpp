@@ -42,18 +42,49 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
   int shift = 0;
   while ((1 << shift) < ranges.cellVoxels) ++shift;
   if (settings.emptySpaceSkipping && (1 << shift) == ranges.cellVoxels && ranges.cellCount() > 0) {
-    plan.emptyCells.resize(ranges.cellCount());
-    std::size_t empty = 0;
-    for (std::size_t c = 0; c < ranges.cellCount(); ++c) {
-      plan.emptyCells[c] = plan.lut.maxOpacity(ranges.lo[c], ranges.hi[c]) <= 0.0f;
-      empty += plan.emptyCells[c];
+    int factorShift = 0;
+    while ((1 << factorShift) < settings.coarseCellFactor) ++factorShift;
+    if ((1 << factorShift) != settings.coarseCellFactor)
+      throw std::invalid_argument("coarse skip cell factor must be a power of two");
+    // Fine cells straight from the codec's ranges.
+    const std::size_t fineCount = ranges.cellCount();
+    plan.fineEmptyCells.resize(fineCount);
+    std::size_t fineEmpty = 0;
+    for (std::size_t c = 0; c < fineCount; ++c) {
+      plan.fineEmptyCells[c] = plan.lut.maxOpacity(ranges.lo[c], ranges.hi[c]) <= 0.0f;
+      fineEmpty += plan.fineEmptyCells[c];
     }
-    plan.emptyFraction = double(empty) / double(ranges.cellCount());
+    // A coarse cell is empty when all its fine cells are.
+    const glm::ivec3 coarse = (ranges.cells + (1 << factorShift) - 1) >> factorShift;
+    const std::size_t coarseCount =
+        std::size_t(coarse.x) * std::size_t(coarse.y) * std::size_t(coarse.z);
+    plan.emptyCells.assign(coarseCount, 1);
+    for (int z = 0; z < ranges.cells.z; ++z)
+      for (int y = 0; y < ranges.cells.y; ++y)
+        for (int x = 0; x < ranges.cells.x; ++x) {
+          const std::size_t fine = (std::size_t(z) * std::size_t(ranges.cells.y) + std::size_t(y)) *
+                                       std::size_t(ranges.cells.x) +
+                                   std::size_t(x);
+          const std::size_t c = (std::size_t(z >> factorShift) * std::size_t(coarse.y) +
+                                 std::size_t(y >> factorShift)) *
+                                    std::size_t(coarse.x) +
+                                std::size_t(x >> factorShift);
+          plan.emptyCells[c] &= plan.fineEmptyCells[fine];
+        }
+    std::size_t empty = 0;
+    for (auto e : plan.emptyCells) empty += e;
+    plan.emptyFraction = double(empty) / double(coarseCount);
+    plan.fineEmptyFraction = double(fineEmpty) / double(fineCount);
     plan.skip.empty = plan.emptyCells.data();
-    plan.skip.cellsX = ranges.cells.x;
-    plan.skip.cellsY = ranges.cells.y;
-    plan.skip.cellsZ = ranges.cells.z;
-    plan.skip.cellShift = shift;
+    plan.skip.cellsX = coarse.x;
+    plan.skip.cellsY = coarse.y;
+    plan.skip.cellsZ = coarse.z;
+    plan.skip.cellShift = shift + factorShift;
+    plan.skip.fineEmpty = plan.fineEmptyCells.data();
+    plan.skip.fineX = ranges.cells.x;
+    plan.skip.fineY = ranges.cells.y;
+    plan.skip.fineZ = ranges.cells.z;
+    plan.skip.fineShift = shift;
   }
   return plan;
 }

@@ -219,7 +219,7 @@ HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entr
   HostLut lut;
   lut.lo = float(lo);
   lut.hi = float(hi);
-  lut.entries.resize(std::size_t(entries));
+  lut.entries.resize(std::size_t(entries) + 1);
   for (int i = 0; i < entries; ++i) {
     double rgba[4];
     evaluate(lo + (hi - lo) * i / (entries - 1), rgba);
@@ -230,16 +230,36 @@ HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entr
   return lut;
 }
 
+void HostLut::buildRangeMax() {
+  rangeMax_.clear();
+  std::vector<float> level(entries.size());
+  for (std::size_t i = 0; i < entries.size(); ++i) level[i] = entries[i].a;
+  rangeMax_.push_back(level);
+  for (std::size_t width = 2; width <= entries.size(); width *= 2) {
+    const auto& prev = rangeMax_.back();
+    std::vector<float> next(entries.size() - width + 1);
+    for (std::size_t i = 0; i < next.size(); ++i) next[i] = std::max(prev[i], prev[i + width / 2]);
+    rangeMax_.push_back(std::move(next));
+  }
+}
+
 float HostLut::maxOpacity(float a, float b) const {
   const auto lut = view();
-  const float last = float(entries.size() - 1);
-  const float fa = std::clamp(lut.coordinate(a), 0.0f, last);
-  const float fb = std::clamp(lut.coordinate(b), 0.0f, last);
-  const auto i0 = std::size_t(std::floor(std::min(fa, fb)));
-  const auto i1 = std::size_t(std::ceil(std::max(fa, fb)));
-  float m = 0.0f;
-  for (std::size_t i = i0; i <= i1 && i < entries.size(); ++i) m = std::max(m, entries[i].a);
-  return m;
+  const float fa = std::clamp(lut.coordinate(std::min(a, b)), 0.0f, lut.last);
+  const float fb = std::clamp(lut.coordinate(std::max(a, b)), 0.0f, lut.last);
+  const auto i0 = std::size_t(std::floor(fa));
+  const auto i1 = std::min(std::size_t(std::ceil(fb)), entries.size() - 1);
+  if (rangeMax_.empty()) {
+    float m = 0.0f;
+    for (std::size_t i = i0; i <= i1; ++i) m = std::max(m, entries[i].a);
+    return m;
+  }
+  // Two overlapping power-of-two windows cover [i0, i1].
+  const std::size_t n = i1 - i0 + 1;
+  std::size_t level = 0;
+  while ((std::size_t(2) << level) <= n) ++level;
+  const auto& row = rangeMax_[level];
+  return std::max(row[i0], row[i1 + 1 - (std::size_t(1) << level)]);
 }
 
 }  // namespace voxwall::node

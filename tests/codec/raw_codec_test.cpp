@@ -65,7 +65,7 @@ INSTANTIATE_TEST_SUITE_P(TypesAndBricks, RawCodecRoundTrip,
 TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
   const Volume v = noise(ScalarType::UInt8, {19, 10, 9}, 3);
   Progress quiet;
-  const auto c = raw::encode(v, {4}, quiet);
+  const auto c = raw::encode(v, {8, 4}, quiet);  // range cells independent of the brick size
   const RangeGrid grid = raw::Layout(c.info, c.view()).rangeGrid();
   ASSERT_EQ(grid.cells, glm::ivec3(5, 3, 3));
   // Brute force: the range of each cell grown by one voxel, clamped.
@@ -89,6 +89,7 @@ TEST(RawCodec, RejectsBadBrickSizes) {
   const Volume v = noise(ScalarType::UInt8, {4, 4, 4}, 1);
   Progress quiet;
   for (int b : {0, 3, 6, 128}) EXPECT_THROW(raw::encode(v, {b}, quiet), std::invalid_argument);
+  for (int r : {0, 1, 3, 128}) EXPECT_THROW(raw::encode(v, {8, r}, quiet), std::invalid_argument);
 }
 
 TEST(RawCodec, CorruptSectionsAreRefusedByName) {

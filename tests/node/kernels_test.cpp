@@ -48,7 +48,9 @@ TEST(Compositing, FrontToBackOverByHand) {
 
 TEST(TransferLut, InterpolatesAndClamps) {
   HostLut lut;
-  lut.entries = {glm::vec4(0), glm::vec4(1, 0, 0, 0.5f), glm::vec4(0, 0, 1, 1)};
+  // Three entries and the guard entry repeating the last.
+  lut.entries = {glm::vec4(0), glm::vec4(1, 0, 0, 0.5f), glm::vec4(0, 0, 1, 1),
+                 glm::vec4(0, 0, 1, 1)};
   lut.lo = 10.0f;
   lut.hi = 30.0f;
   const auto v = lut.view();
@@ -117,4 +119,25 @@ TEST(Shading, HeadlightOnAFacingSurfaceIsAmbientDiffuseSpecular) {
   EXPECT_NEAR(g.r, 0.05f, 1e-6f);
   // No gradient: unshaded (ambient + diffuse).
   EXPECT_NEAR(kernels::shade({0.5f, 0.5f, 0.5f}, {0, 0, 0}, dir, f).r, 0.4f, 1e-6f);
+}
+
+TEST(TransferLut, RangeMaxTableAgreesWithAScan) {
+  std::uint32_t seed = 12345;
+  auto next = [&] { return (seed = seed * 1664525u + 1013904223u) >> 8; };
+  for (int size : {2, 3, 17, 1000, 4096}) {
+    HostLut scan;
+    for (int i = 0; i < size; ++i)
+      scan.entries.push_back(glm::vec4(0, 0, 0, float(next() % 100) / 100.0f));
+    scan.entries.push_back(scan.entries.back());  // guard
+    scan.lo = -5.0f;
+    scan.hi = 20.0f;
+    HostLut table = scan;
+    table.buildRangeMax();
+    for (int q = 0; q < 500; ++q) {
+      const float a = -8.0f + float(next() % 3000) / 100.0f,
+                  b = -8.0f + float(next() % 3000) / 100.0f;
+      ASSERT_EQ(table.maxOpacity(a, b), scan.maxOpacity(a, b))
+          << size << " [" << a << ", " << b << "]";
+    }
+  }
 }

@@ -85,7 +85,7 @@ TEST(TransferFunction, PresetsRescaleOntoTheData) {
     const auto tf = TransferFunction::preset(name).rescaled(-1000, 3000);
     EXPECT_DOUBLE_EQ(tf.domainMin(), -1000) << name;
     EXPECT_DOUBLE_EQ(tf.domainMax(), 3000) << name;
-    EXPECT_EQ(tf.bake(-1000, 3000, 0.25).entries.size(), 4096u);
+    EXPECT_EQ(tf.bake(-1000, 3000, 0.25).view().size, 4096);
   }
   EXPECT_THROW(TransferFunction::preset("nope"), std::invalid_argument);
 }

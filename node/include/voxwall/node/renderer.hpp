@@ -18,6 +18,7 @@ struct RenderSettings {
   double stepVoxels = 0.25;  // ray step in voxels (of the smallest spacing); Guthe & Goesele: 1/4
   bool shading = false;      // Blinn-Phong from central-difference gradients
   bool emptySpaceSkipping = true;
+  int coarseCellFactor = 4;  // coarse skip cells are this many fine (codec range) cells per side
   double earlyTerminationOpacity = 0.995;
   int lutEntries = 4096;
 };
@@ -26,9 +27,11 @@ struct RenderSettings {
 struct FramePlan {
   kernels::RayFrame ray;
   HostLut lut;
-  std::vector<std::uint8_t> emptyCells;  // 1 = transfer function is zero over the whole cell
-  kernels::SkipGrid skip;                // points into emptyCells (host)
-  double emptyFraction = 0.0;            // share of cells skipped
+  std::vector<std::uint8_t> emptyCells;      // coarse cells: 1 = TF zero over the whole cell
+  std::vector<std::uint8_t> fineEmptyCells;  // fine cells (the codec's range grid), likewise
+  kernels::SkipGrid skip;                    // points into the two vectors (host)
+  double emptyFraction = 0.0;                // share of coarse cells skipped
+  double fineEmptyFraction = 0.0;            // share of fine cells skipped
 };
 
 // `tfDomain` is the data-value range the LUT covers (usually the TF's own domain).

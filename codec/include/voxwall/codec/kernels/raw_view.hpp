@@ -8,29 +8,69 @@
 
 namespace voxwall::codec::kernels {
 
-// Bricks of (1 << brickShift)^3 voxels, bricks x fastest, voxels in a brick x fastest; border
-// bricks are padded. `bricks` points into host or device memory and is not owned.
+// Bricks of B = 2^brickShift voxels per side, each stored with a one-voxel apron on its high
+// side: (B + 1)^3 scalars holding voxels [b B, b B + B] per axis (x fastest), bricks x fastest;
+// voxels past the volume's edge repeat the edge voxel. Every trilinear neighbourhood therefore
+// lies inside one brick. `bricks` points into host or device memory and is not owned.
 template <class T>
 struct RawView {
   const T* bricks = nullptr;
   int dimX = 0, dimY = 0, dimZ = 0;
-  int bricksX = 0, bricksY = 0;
-  int brickShift = 3;
+  int brickShift = 4;
+  int mask = 15;                       // B - 1
+  int rowStride = 17;                  // B + 1: scalars between rows of a brick
+  int sliceStride = 289;               // (B + 1)^2
+  std::size_t brickStrideX = 0;        // (B + 1)^3: scalars from one brick to the next along x
+  std::size_t brickStrideY = 0;        // bricksX * brickStrideX
+  std::size_t brickStrideZ = 0;        // bricksY * brickStrideY
+  float maxX = 0, maxY = 0, maxZ = 0;  // dim - 1, as floats for clamping positions
+
+  static RawView make(const T* bricks, int dimX, int dimY, int dimZ, int bricksX, int bricksY,
+                      int brickShift) {
+    RawView v;
+    v.bricks = bricks;
+    v.dimX = dimX, v.dimY = dimY, v.dimZ = dimZ;
+    v.brickShift = brickShift;
+    v.mask = (1 << brickShift) - 1;
+    v.rowStride = (1 << brickShift) + 1;
+    v.sliceStride = v.rowStride * v.rowStride;
+    v.brickStrideX = std::size_t(v.sliceStride) * std::size_t(v.rowStride);
+    v.brickStrideY = std::size_t(bricksX) * v.brickStrideX;
+    v.brickStrideZ = std::size_t(bricksY) * v.brickStrideY;
+    v.maxX = float(dimX - 1), v.maxY = float(dimY - 1), v.maxZ = float(dimZ - 1);
+    return v;
+  }
+
+  // Address of voxel (x, y, z), 0 <= x < dimX etc., in the brick that holds it in its core.
+  VOXWALL_HD_INLINE std::size_t offset(int x, int y, int z) const {
+    return std::size_t(x >> brickShift) * brickStrideX +
+           std::size_t(y >> brickShift) * brickStrideY +
+           std::size_t(z >> brickShift) * brickStrideZ +
+           std::size_t((x & mask) + (y & mask) * rowStride + (z & mask) * sliceStride);
+  }
 
   VOXWALL_HD_INLINE float voxel(int x, int y, int z) const {
-    x = clampIndex(x, dimX), y = clampIndex(y, dimY), z = clampIndex(z, dimZ);
-    const int mask = (1 << brickShift) - 1;
-    const std::size_t brick =
-        (std::size_t(z >> brickShift) * std::size_t(bricksY) + std::size_t(y >> brickShift)) *
-            std::size_t(bricksX) +
-        std::size_t(x >> brickShift);
-    const std::size_t inBrick =
-        (((std::size_t(z & mask) << brickShift) | std::size_t(y & mask)) << brickShift) |
-        std::size_t(x & mask);
-    return float(bricks[(brick << (3 * brickShift)) | inBrick]);
+    return float(bricks[offset(clampIndex(x, dimX), clampIndex(y, dimY), clampIndex(z, dimZ))]);
   }
+
+  // Trilinear sample with clamp-to-edge. Clamping the position to [0, dim - 1] gives the same
+  // value as clamping the corner indices, and makes the floor a plain truncation.
   VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
-    return trilinear(*this, x, y, z);
+    x = x < 0.0f ? 0.0f : (x > maxX ? maxX : x);
+    y = y < 0.0f ? 0.0f : (y > maxY ? maxY : y);
+    z = z < 0.0f ? 0.0f : (z > maxZ ? maxZ : z);
+    const int ix = int(x), iy = int(y), iz = int(z);
+    const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
+    const T* p = bricks + offset(ix, iy, iz);  // corner (ix + 1, ...) is in the apron
+    const int sy = rowStride, sz = sliceStride;
+    const float c000 = float(p[0]), c100 = float(p[1]);
+    const float c010 = float(p[sy]), c110 = float(p[sy + 1]);
+    const float c001 = float(p[sz]), c101 = float(p[sz + 1]);
+    const float c011 = float(p[sz + sy]), c111 = float(p[sz + sy + 1]);
+    const float c00 = c000 + tx * (c100 - c000), c10 = c010 + tx * (c110 - c010);
+    const float c01 = c001 + tx * (c101 - c001), c11 = c011 + tx * (c111 - c011);
+    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+    return c0 + tz * (c1 - c0);
   }
 };
 

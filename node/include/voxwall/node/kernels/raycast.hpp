@@ -16,16 +16,23 @@
 #include <glm/vec4.hpp>
 #include <type_traits>
 #include <voxwall/codec/kernels/host_device.hpp>
+#include <voxwall/codec/kernels/trilinear.hpp>
 #include <voxwall/node/kernels/transfer_lut.hpp>
 
 namespace voxwall::node::kernels {
 
-// Cells of 2^cellShift voxels whose transfer-function opacity is zero everywhere (empty[c] = 1),
-// cells x fastest. A null `empty` disables skipping.
+// Empty-space skipping in two levels, both x fastest, 1 = the transfer function is zero over
+// the cell's value range (grown by one voxel): coarse cells of 2^cellShift voxels, which rays
+// jump over, and fine cells of 2^fineShift voxels, checked per sample inside non-empty coarse
+// cells so a transparent sample costs a byte load instead of a trilinear fetch. A null pointer
+// disables its level.
 struct SkipGrid {
   const std::uint8_t* empty = nullptr;
   int cellsX = 0, cellsY = 0, cellsZ = 0;
   int cellShift = 3;
+  const std::uint8_t* fineEmpty = nullptr;
+  int fineX = 0, fineY = 0, fineZ = 0;
+  int fineShift = 2;
 };
 
 // Everything a ray needs that is the same for every pixel of a frame.
@@ -102,20 +109,45 @@ VOXWALL_HD_INLINE glm::vec3 pixelDirection(const RayFrame& f, int px, int py) {
   return glm::normalize(f.forward + sx * f.right + sy * f.up);
 }
 
-// Ray parameter where o + t d leaves the box [lo, hi) it is inside of (index space).
-VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo,
+// Ray parameter where o + t invD^-1 leaves the box [lo, hi) it is inside of (index space);
+// invD holds 1/d per axis (+-inf where d is 0, which never wins the minimum).
+VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& invD, const glm::vec3& lo,
                                 const glm::vec3& hi) {
   float t = INFINITY;
   for (int a = 0; a < 3; ++a) {
-    if (d[a] > 0.0f) t = fminf(t, (hi[a] - o[a]) / d[a]);
-    if (d[a] < 0.0f) t = fminf(t, (lo[a] - o[a]) / d[a]);
+    const float ta = ((invD[a] > 0.0f ? hi[a] : lo[a]) - o[a]) * invD[a];
+    t = ta < t ? ta : t;
   }
   return t;
 }
 
+// Composites one sample at index-space position p; returns true when the ray is opaque enough
+// to stop.
+template <class View>
+VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, const RayFrame& f,
+                                         const TransferLut& lut, const glm::vec3& p,
+                                         const glm::vec3& dir, glm::vec4& acc) {
+  const glm::vec4 c = lut.lookup(view.sample(p.x, p.y, p.z));
+  glm::vec3 color(c.r, c.g, c.b);
+  // A transparent sample composites nothing; only the (costly) shading branches on it.
+  if (f.shading && c.a > 0.0f) {
+    const glm::vec3 g = 0.5f * f.invSpacing;  // central differences over two voxels, world units
+    const glm::vec3 grad(
+        (view.sample(p.x + 1.0f, p.y, p.z) - view.sample(p.x - 1.0f, p.y, p.z)) * g.x,
+        (view.sample(p.x, p.y + 1.0f, p.z) - view.sample(p.x, p.y - 1.0f, p.z)) * g.y,
+        (view.sample(p.x, p.y, p.z + 1.0f) - view.sample(p.x, p.y, p.z - 1.0f)) * g.z);
+    color = shade(color, grad, dir, f);
+  }
+  compositeOver(acc, color, c.a);
+  return acc.a >= f.earlyTermination;
+}
+
 // Renders one pixel of the virtual screen. `View` answers sample(x, y, z) (trilinear, index
-// space); its values are looked up in `lut`. Samples sit at t = tEnter + (k + 1/2) * stepWorld,
-// so skipping an empty cell jumps k and leaves every later sample exactly where it would be.
+// space); its values are looked up in `lut`. Samples sit at t = tEnter + (k + 1/2) * stepWorld.
+// With a skip grid the ray walks cell by cell: a cell's emptiness is looked up once per
+// crossing, an empty cell is jumped over (its samples would all be fully transparent), and the
+// samples of a non-empty cell are taken without further checks. Because positions are computed
+// from k, never accumulated, the image is the same with and without skipping.
 template <class View>
 VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
                                            const TransferLut& lut, const SkipGrid& skip, int px,
@@ -130,46 +162,55 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
   if (tExit <= tEnter) return out;
   // Samples at (k + 1/2) steps that lie inside [tEnter, tExit); robust to rounding at the exit.
   const int steps = int(ceilf((tExit - tEnter) / f.stepWorld - 0.5f));
-  const glm::vec3 g = 0.5f * f.invSpacing;  // central difference over two voxels, in world units
+  const float invStep = 1.0f / f.stepWorld;
+  const glm::vec3 invD(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
   glm::vec4 acc(0.0f);
-  for (int k = 0; k < steps; ++k) {
-    const float t = tEnter + (float(k) + 0.5f) * f.stepWorld;
-    const glm::vec3 p = o + t * d;
+  int k = 0;
+  while (k < steps) {
+    int kEnd = steps;
     if (skip.empty) {
-      // The cell of the lower trilinear corner; its range covers every voxel the sample reads.
+      const glm::vec3 p = o + (tEnter + (float(k) + 0.5f) * f.stepWorld) * d;
+      // The cell of the sample's lower trilinear corner: its range covers every voxel it reads.
       const int vx = p.x < 0.0f ? 0 : int(p.x), vy = p.y < 0.0f ? 0 : int(p.y),
                 vz = p.z < 0.0f ? 0 : int(p.z);
       const int cx = vx >> skip.cellShift, cy = vy >> skip.cellShift, cz = vz >> skip.cellShift;
-      if (cx < skip.cellsX && cy < skip.cellsY && cz < skip.cellsZ &&
-          skip.empty[(std::size_t(cz) * std::size_t(skip.cellsY) + std::size_t(cy)) *
-                         std::size_t(skip.cellsX) +
-                     std::size_t(cx)]) {
-        const float size = float(1 << skip.cellShift);
-        // Cell 0 also holds positions in [-0.5, 0): extend its lower bound.
-        const glm::vec3 lo(cx ? float(cx) * size : -1.0f, cy ? float(cy) * size : -1.0f,
-                           cz ? float(cz) * size : -1.0f);
-        const glm::vec3 hi(float(cx + 1) * size, float(cy + 1) * size, float(cz + 1) * size);
-        const float tCell = boxExit(o, d, lo, hi);
-        // First sample index at or past the cell exit; at least the next sample.
-        const float kNext = ceilf((tCell - tEnter) / f.stepWorld - 0.5f);
-        if (kNext > float(k + 1)) k = int(fminf(kNext, float(steps))) - 1;
+      const float size = float(1 << skip.cellShift);
+      // Cell 0 also holds positions in [-0.5, 0): extend its lower bound.
+      const glm::vec3 lo(cx ? float(cx) * size : -1.0f, cy ? float(cy) * size : -1.0f,
+                         cz ? float(cz) * size : -1.0f);
+      const glm::vec3 hi(float(cx + 1) * size, float(cy + 1) * size, float(cz + 1) * size);
+      // First sample index at or past the cell's exit; at least the next one.
+      const float kCell = (boxExit(o, invD, lo, hi) - tEnter) * invStep - 0.5f;
+      kEnd = kCell >= float(steps) ? steps : codec::kernels::ceilToInt(kCell);
+      kEnd = kEnd > k + 1 ? kEnd : k + 1;
+      const bool inside = cx < skip.cellsX && cy < skip.cellsY && cz < skip.cellsZ;
+      if (inside && skip.empty[(std::size_t(cz) * std::size_t(skip.cellsY) + std::size_t(cy)) *
+                                   std::size_t(skip.cellsX) +
+                               std::size_t(cx)]) {
+        k = kEnd;
         continue;
       }
     }
-    const float value = view.sample(p.x, p.y, p.z);
-    ++out.samples;
-    const glm::vec4 c = lut.lookup(value);
-    if (c.a <= 0.0f) continue;
-    glm::vec3 color(c.r, c.g, c.b);
-    if (f.shading) {
-      const glm::vec3 grad(
-          (view.sample(p.x + 1.0f, p.y, p.z) - view.sample(p.x - 1.0f, p.y, p.z)) * g.x,
-          (view.sample(p.x, p.y + 1.0f, p.z) - view.sample(p.x, p.y - 1.0f, p.z)) * g.y,
-          (view.sample(p.x, p.y, p.z + 1.0f) - view.sample(p.x, p.y, p.z - 1.0f)) * g.z);
-      color = shade(color, grad, dir, f);
+    for (; k < kEnd; ++k) {
+      const glm::vec3 p = o + (tEnter + (float(k) + 0.5f) * f.stepWorld) * d;
+      if (skip.fineEmpty) {
+        int fx = (p.x < 0.0f ? 0 : int(p.x)) >> skip.fineShift;
+        int fy = (p.y < 0.0f ? 0 : int(p.y)) >> skip.fineShift;
+        int fz = (p.z < 0.0f ? 0 : int(p.z)) >> skip.fineShift;
+        fx = fx < skip.fineX ? fx : skip.fineX - 1;
+        fy = fy < skip.fineY ? fy : skip.fineY - 1;
+        fz = fz < skip.fineZ ? fz : skip.fineZ - 1;
+        if (skip.fineEmpty[(std::size_t(fz) * std::size_t(skip.fineY) + std::size_t(fy)) *
+                               std::size_t(skip.fineX) +
+                           std::size_t(fx)])
+          continue;
+      }
+      ++out.samples;
+      if (shadeAndComposite(view, f, lut, p, dir, acc)) {
+        out.rgba = acc;
+        return out;
+      }
     }
-    compositeOver(acc, color, c.a);
-    if (acc.a >= f.earlyTermination) break;
   }
   out.rgba = acc;
   return out;

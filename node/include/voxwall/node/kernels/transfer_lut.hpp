@@ -17,14 +17,15 @@ struct TransferLut {
   int size = 0;
   float lo = 0.0f;
   float scale = 0.0f;  // entries per data unit
+  float last = 0.0f;   // size - 1, as a float
+  // entries[size] repeats entries[size - 1], so the upper neighbour needs no clamp.
 
   VOXWALL_HD_INLINE glm::vec4 lookup(float value) const {
     float f = (value - lo) * scale;
-    f = f < 0.0f ? 0.0f : (f > float(size - 1) ? float(size - 1) : f);
+    f = f < 0.0f ? 0.0f : (f > last ? last : f);
     const int i = int(f);
-    const int j = i + 1 < size ? i + 1 : i;
     const float t = f - float(i);
-    const glm::vec4 a = entries[i], b = entries[j];
+    const glm::vec4 a = entries[i], b = entries[i + 1];
     return a + t * (b - a);
   }
   // Continuous LUT coordinate of a value, unclamped (for range queries on the host).
@@ -34,20 +35,28 @@ static_assert(std::is_trivially_copyable_v<TransferLut>);
 
 }  // namespace kernels
 
-// Owns the entries of a TransferLut on the host.
+// Owns the entries of a TransferLut on the host: the table plus one guard entry repeating the
+// last (see TransferLut::lookup).
 struct HostLut {
-  std::vector<glm::vec4> entries;
+  std::vector<glm::vec4> entries;  // size() = table size + 1
   float lo = 0.0f, hi = 1.0f;
   kernels::TransferLut view(const glm::vec4* base = nullptr) const {
     kernels::TransferLut lut;
     lut.entries = base ? base : entries.data();
-    lut.size = int(entries.size());
+    lut.size = int(entries.size()) - 1;
     lut.lo = lo;
-    lut.scale = hi > lo ? float(entries.size() - 1) / (hi - lo) : 0.0f;
+    lut.scale = hi > lo ? float(lut.size - 1) / (hi - lo) : 0.0f;
+    lut.last = float(lut.size - 1);
     return lut;
   }
   // Largest opacity any value in [a, b] can get (exact for the linear interpolation above).
+  // O(1) once buildRangeMax() has run (bake() runs it), a scan of the table otherwise.
   float maxOpacity(float a, float b) const;
+  // Builds the sparse table behind maxOpacity(): level l holds the max over 2^l entries.
+  void buildRangeMax();
+
+ private:
+  std::vector<std::vector<float>> rangeMax_;
 };
 
 }  // namespace voxwall::node
