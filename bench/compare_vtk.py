@@ -7,7 +7,9 @@ elevation 20, 2.6 bounding radii, 30 degree vertical field of view) and orbit (5
 Prints a markdown table of ms/frame and ms x cores per frame, and writes both first frames and a
 side-by-side picture to --out.
 
-Needs Debian's python3-vtk9 and an X server for VTK's window: run it under `xvfb-run -a`.
+Needs Debian's python3-vtk9 and an X server for VTK's window: run it under `xvfb-run -a` with a
+screen larger than the image (`-s "-screen 0 3000x2000x24"`): pixels of a window that does not fit
+the screen are undefined.
 Use Debian's /usr/bin/python3 (numpy, vtk); see ../shared/PLATFORM.md.
 """
 import argparse

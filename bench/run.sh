@@ -7,4 +7,4 @@ build=${VOXWALL_BUILD_DIR:-build}
 echo "== Google Benchmark: CPU raycaster, 1920x1080, 1/4-voxel step"
 "$build/bench/voxwall_bench_raycast" --benchmark_counters_tabular=true
 echo "== voxwall vs VTK vtkFixedPointVolumeRayCastMapper"
-xvfb-run -a -s "-screen 0 1920x1080x24" /usr/bin/python3 bench/compare_vtk.py --voxwall "$build/master/voxwall" "$@"
+xvfb-run -a -s "-screen 0 3000x2000x24" /usr/bin/python3 bench/compare_vtk.py --voxwall "$build/master/voxwall" "$@"
