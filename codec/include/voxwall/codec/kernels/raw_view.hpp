@@ -53,22 +53,37 @@ struct RawView {
     return float(bricks[offset(clampIndex(x, dimX), clampIndex(y, dimY), clampIndex(z, dimZ))]);
   }
 
+  // Per-ray state for sample(x, y, z, cache): the eight corners of the last voxel cell. At a
+  // 1/4-voxel step most consecutive samples fall in the same cell and reuse them.
+  struct RayCache {
+    int ix = -1, iy = -1, iz = -1;
+    float c[8] = {};
+  };
+
   // Trilinear sample with clamp-to-edge. Clamping the position to [0, dim - 1] gives the same
   // value as clamping the corner indices, and makes the floor a plain truncation.
   VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
+    RayCache cache;
+    return sample(x, y, z, cache);
+  }
+
+  VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& cache) const {
     x = x < 0.0f ? 0.0f : (x > maxX ? maxX : x);
     y = y < 0.0f ? 0.0f : (y > maxY ? maxY : y);
     z = z < 0.0f ? 0.0f : (z > maxZ ? maxZ : z);
     const int ix = int(x), iy = int(y), iz = int(z);
     const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
-    const T* p = bricks + offset(ix, iy, iz);  // corner (ix + 1, ...) is in the apron
-    const int sy = rowStride, sz = sliceStride;
-    const float c000 = float(p[0]), c100 = float(p[1]);
-    const float c010 = float(p[sy]), c110 = float(p[sy + 1]);
-    const float c001 = float(p[sz]), c101 = float(p[sz + 1]);
-    const float c011 = float(p[sz + sy]), c111 = float(p[sz + sy + 1]);
-    const float c00 = c000 + tx * (c100 - c000), c10 = c010 + tx * (c110 - c010);
-    const float c01 = c001 + tx * (c101 - c001), c11 = c011 + tx * (c111 - c011);
+    float* c = cache.c;
+    if (ix != cache.ix || iy != cache.iy || iz != cache.iz) {
+      const T* p = bricks + offset(ix, iy, iz);  // corner (ix + 1, ...) is in the apron
+      const int sy = rowStride, sz = sliceStride;
+      c[0] = float(p[0]), c[1] = float(p[1]), c[2] = float(p[sy]), c[3] = float(p[sy + 1]);
+      c[4] = float(p[sz]), c[5] = float(p[sz + 1]), c[6] = float(p[sz + sy]);
+      c[7] = float(p[sz + sy + 1]);
+      cache.ix = ix, cache.iy = iy, cache.iz = iz;
+    }
+    const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
+    const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
     const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
     return c0 + tz * (c1 - c0);
   }

@@ -124,10 +124,11 @@ VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& invD, const
 // Composites one sample at index-space position p; returns true when the ray is opaque enough
 // to stop. `transparent` tells whether the sample's opacity was zero.
 template <class View>
-VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, const RayFrame& f,
-                                         const TransferLut& lut, const glm::vec3& p,
-                                         const glm::vec3& dir, glm::vec4& acc, bool& transparent) {
-  const glm::vec4 c = lut.lookup(view.sample(p.x, p.y, p.z));
+VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCache& cache,
+                                         const RayFrame& f, const TransferLut& lut,
+                                         const glm::vec3& p, const glm::vec3& dir, glm::vec4& acc,
+                                         bool& transparent) {
+  const glm::vec4 c = lut.lookup(view.sample(p.x, p.y, p.z, cache));
   transparent = c.a <= 0.0f;
   glm::vec3 color(c.r, c.g, c.b);
   // A transparent sample composites nothing; only the (costly) shading branches on it.
@@ -143,12 +144,14 @@ VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, const RayFrame& f,
   return acc.a >= f.earlyTermination;
 }
 
-// Renders one pixel of the virtual screen. `View` answers sample(x, y, z) (trilinear, index
-// space); its values are looked up in `lut`. Samples sit at t = tEnter + (k + 1/2) * stepWorld.
-// With a skip grid the ray walks cell by cell: a cell's emptiness is looked up once per
-// crossing, an empty cell is jumped over (its samples would all be fully transparent), and the
-// samples of a non-empty cell are taken without further checks. Because positions are computed
-// from k, never accumulated, the image is the same with and without skipping.
+// Renders one pixel of the virtual screen. `View` answers sample(x, y, z) and
+// sample(x, y, z, View::RayCache&) (trilinear, index space; the cache is per-ray state the view
+// may use to reuse work between consecutive samples); its values are looked up in `lut`. Samples
+// sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid the ray walks cell by cell: a cell's
+// emptiness is looked up once per crossing, an empty cell is jumped over (its samples would all be
+// fully transparent), and the samples of a non-empty cell are taken without further checks. Because
+// positions are computed from k, never accumulated, the image is the same with and without
+// skipping.
 template <class View>
 VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
                                            const TransferLut& lut, const SkipGrid& skip, int px,
@@ -166,7 +169,8 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
   const float invStep = 1.0f / f.stepWorld;
   const glm::vec3 invD(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
   glm::vec4 acc(0.0f);
-  bool transparent = true;  // was the last sample fully transparent?
+  bool transparent = true;        // was the last sample fully transparent?
+  typename View::RayCache cache;  // the view's per-ray state (e.g. the last cell's corners)
   int k = 0;
   while (k < steps) {
     int kEnd = steps;
@@ -210,7 +214,7 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
           continue;
       }
       ++out.samples;
-      if (shadeAndComposite(view, f, lut, p, dir, acc, transparent)) {
+      if (shadeAndComposite(view, cache, f, lut, p, dir, acc, transparent)) {
         out.rgba = acc;
         return out;
       }
