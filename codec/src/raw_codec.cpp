@@ -68,13 +68,17 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   progress.end();
 
   const RangeGrid grid = computeRangeGrid(volume, 1 << rangeShift);
+  // Stored in the volume's own type: the extremes are voxel values, so this is exact.
   std::vector<std::byte> rangeBytes;
-  rangeBytes.reserve(grid.cellCount() * 8);
+  rangeBytes.reserve(grid.cellCount() * 2 * scalar);
   ByteWriter rw(rangeBytes);
-  for (std::size_t i = 0; i < grid.cellCount(); ++i) {
-    rw.put<float>(grid.lo[i]);
-    rw.put<float>(grid.hi[i]);
-  }
+  dispatchScalar(volume.type, [&](auto t) {
+    using T = decltype(t);
+    for (std::size_t i = 0; i < grid.cellCount(); ++i) {
+      rw.put<T>(T(grid.lo[i]));
+      rw.put<T>(T(grid.hi[i]));
+    }
+  });
 
   out.sections.emplace_back(kParams, std::move(paramBytes));
   out.sections.emplace_back(kRanges, std::move(rangeBytes));
@@ -99,10 +103,11 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const std::size_t brickCount =
       std::size_t(bricks_.x) * std::size_t(bricks_.y) * std::size_t(bricks_.z);
   rangeBytes_ = sections.get(kRanges, "ranges");
-  if (rangeBytes_.size() != cellCount * 8)
+  if (rangeBytes_.size() != cellCount * 2 * scalarBytes(info.type))
     throw FormatError(sections.source,
                       "raw codec section 'ranges': " + std::to_string(rangeBytes_.size()) +
-                          " bytes, expected " + std::to_string(cellCount * 8));
+                          " bytes, expected " +
+                          std::to_string(cellCount * 2 * scalarBytes(info.type)));
   brickBytes_ = sections.get(kBricks, "bricks");
   const std::size_t expected =
       brickCount * std::size_t((b + 1) * (b + 1) * (b + 1)) * scalarBytes(info.type);
@@ -124,10 +129,13 @@ RangeGrid Layout::rangeGrid() const {
   grid.lo.resize(n);
   grid.hi.resize(n);
   ByteReader r(rangeBytes_, "", "ranges");
-  for (std::size_t i = 0; i < n; ++i) {
-    grid.lo[i] = r.get<float>();
-    grid.hi[i] = r.get<float>();
-  }
+  dispatchScalar(info_.type, [&](auto t) {
+    using T = decltype(t);
+    for (std::size_t i = 0; i < n; ++i) {
+      grid.lo[i] = float(r.get<T>());
+      grid.hi[i] = float(r.get<T>());
+    }
+  });
   return grid;
 }
 

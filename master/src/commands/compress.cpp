@@ -13,7 +13,8 @@ namespace {
 
 struct CompressOptions {
   std::string input, output, codec = "raw";
-  int brick = 8;
+  int brick = codec::raw::Params{}.brickVoxels;
+  int rangeCell = codec::raw::Params{}.rangeCellVoxels;
   bool quiet = false;
   RawInputOptions raw;
 };
@@ -26,7 +27,7 @@ void runCompress(const CompressOptions& o) {
   codec::Volume v = loadVolume(o.input, o.raw.layout());
   if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
   codec::Progress progress = makeProgress(o.quiet);
-  const auto compressed = codec::raw::encode(v, {o.brick}, progress);
+  const auto compressed = codec::raw::encode(v, {o.brick, o.rangeCell}, progress);
   codec::writeContainer(compressed, o.output);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -48,7 +49,14 @@ void addCompressCommand(CLI::App& app) {
   cmd->add_option("-o,--output", o->output, "Output .vwz file")->required();
   cmd->add_option("--codec", o->codec, "Codec (only 'raw' so far: bricked, uncompressed)")
       ->capture_default_str();
-  cmd->add_option("--brick", o->brick, "raw codec: voxels per brick side (4, 8, 16, 32, 64)")
+  cmd->add_option(
+         "--brick", o->brick,
+         "raw codec: voxels per brick side (4, 8, 16, 32, 64); each brick is stored with a "
+         "one-voxel apron, so 16 stores 1.2x the voxels and 8 stores 1.42x")
+      ->capture_default_str();
+  cmd->add_option("--range-cell", o->rangeCell,
+                  "raw codec: voxels per side of the value-range cells used for empty-space "
+                  "skipping (2 to 64, power of two)")
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", o->quiet, "No progress output");
   o->raw.addTo(*cmd);

@@ -41,8 +41,12 @@ void runInfo(const InfoOptions& o) {
                 humanBytes(rawBytes).c_str());
     if (info.codec == codec::CodecId::Raw) {
       const codec::raw::Layout layout(info, file.sections());
-      std::printf("bricks      %d x %d x %d of %d^3 voxels\n", layout.bricks().x, layout.bricks().y,
-                  layout.bricks().z, 1 << layout.brickShift());
+      const int b = 1 << layout.brickShift();
+      const auto ranges = layout.rangeGrid();
+      std::printf("bricks      %d x %d x %d of %d^3 voxels (stored as %d^3 with their apron)\n",
+                  layout.bricks().x, layout.bricks().y, layout.bricks().z, b, b + 1);
+      std::printf("ranges      %d x %d x %d cells of %d^3 voxels\n", ranges.cells.x, ranges.cells.y,
+                  ranges.cells.z, ranges.cellVoxels);
     }
     return;
   }

@@ -5,7 +5,8 @@
 // Sections (ids within CodecId::Raw):
 //   1 params  u32 brickShift (brick = 2^brickShift voxels per side, 2..6),
 //             u32 rangeShift (range cell = 2^rangeShift voxels per side, 1..6)
-//   2 ranges  per range cell, cells x fastest: f32 lo, f32 hi over the cell dilated by one voxel
+//   2 ranges  per range cell, cells x fastest: lo, hi in the volume's scalar type, over the cell
+//             dilated by one voxel
 //   3 bricks  per brick, bricks x fastest: (2^brickShift + 1)^3 scalars of the volume's type,
 //             x fastest: the brick's voxels plus a one-voxel apron on the high side of each
 //             axis (the next brick's first voxels), so a trilinear neighbourhood never spans
