@@ -8,6 +8,7 @@
 #include <variant>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
+#include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/range_grid.hpp>
 #include <voxwall/codec/volume_io.hpp>
 
@@ -25,7 +26,8 @@ class RenderVolume {
   static RenderVolume open(const std::string& path,
                            const std::optional<codec::RawLayout>& raw = std::nullopt);
   static RenderVolume fromContainer(codec::ContainerFile file);
-  static RenderVolume fromVolume(const codec::Volume& volume, int brickVoxels = 8);
+  static RenderVolume fromVolume(const codec::Volume& volume,
+                                 int brickVoxels = codec::raw::Params{}.brickVoxels);
 
   const codec::VolumeInfo& info() const { return info_; }
   const codec::RangeGrid& ranges() const { return ranges_; }
