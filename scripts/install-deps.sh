@@ -14,8 +14,8 @@ packages=(
   libcli11-dev nlohmann-json3-dev libxxhash-dev
   libnifti2-dev libteem-dev zlib1g-dev
   libasio-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests, fuzzing (clang's libFuzzer) and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev
   # real data: the MRI template used as the default volume
   mricron-data
   # benchmark peers and plots

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what voxwall needs, checks formatting, builds everything (with the CUDA backend when
-# nvcc is present: its tests skip without a GPU), runs the whole test suite, then builds and runs
-# it again under AddressSanitizer + UndefinedBehaviorSanitizer.
+# nvcc is present: its tests skip without a GPU), runs the whole test suite, builds and runs it
+# again under AddressSanitizer + UndefinedBehaviorSanitizer, then runs each libFuzzer target for a
+# short while (clang build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -19,3 +20,10 @@ VOXWALL_BUILD_DIR=build-asan bash scripts/build.sh -DCMAKE_BUILD_TYPE=RelWithDeb
 ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j "$(nproc)"
+
+echo "== fuzz targets (clang, libFuzzer, 20 s each)"
+cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DVOXWALL_BUILD_FUZZERS=ON -DVOXWALL_CUDA=OFF -DVOXWALL_BUILD_BENCH=OFF
+cmake --build build-fuzz -j "$(nproc)" --target vwz_reader_fuzz vwz_make_seeds
+ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp \
+  ctest --test-dir build-fuzz --output-on-failure -L fuzz

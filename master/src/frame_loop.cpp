@@ -3,14 +3,9 @@
 #include <filesystem>
 #include <stdexcept>
 #include <voxwall/codec/errors.hpp>
-#include <voxwall/master/default_data.hpp>
 #include <voxwall/master/frame_loop.hpp>
 
 namespace voxwall::master {
-
-std::string defaultVolumeSpec() {
-  return std::filesystem::exists(kDefaultMriPath) ? kDefaultMriPath : "generated:shepp-logan:256";
-}
 
 std::vector<node::Rect> gridTiles(int width, int height, int tilesX, int tilesY) {
   if (tilesX < 1 || tilesY < 1 || tilesX > width || tilesY > height)
