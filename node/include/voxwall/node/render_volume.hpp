@@ -8,8 +8,8 @@
 #include <variant>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
-#include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/volume_io.hpp>
 
 namespace voxwall::node {
