@@ -147,11 +147,11 @@ VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCac
 // Renders one pixel of the virtual screen. `View` answers sample(x, y, z) and
 // sample(x, y, z, View::RayCache&) (trilinear, index space; the cache is per-ray state the view
 // may use to reuse work between consecutive samples); its values are looked up in `lut`. Samples
-// sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid the ray walks cell by cell: a cell's
-// emptiness is looked up once per crossing, an empty cell is jumped over (its samples would all be
-// fully transparent), and the samples of a non-empty cell are taken without further checks. Because
-// positions are computed from k, never accumulated, the image is the same with and without
-// skipping.
+// sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid the ray walks coarse cells: a
+// cell's emptiness is looked up once per crossing and an empty cell is jumped over; inside a
+// non-empty cell, a sample whose fine cell is empty is skipped (checked only after a transparent
+// sample). A skipped sample would have had opacity exactly zero, and positions are computed from
+// k, never accumulated, so the image is the same with and without skipping.
 template <class View>
 VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
                                            const TransferLut& lut, const SkipGrid& skip, int px,
@@ -165,7 +165,7 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
   tEnter = tEnter > 0.0f ? tEnter : 0.0f;
   if (tExit <= tEnter) return out;
   // Samples at (k + 1/2) steps that lie inside [tEnter, tExit); robust to rounding at the exit.
-  const int steps = int(ceilf((tExit - tEnter) / f.stepWorld - 0.5f));
+  const int steps = codec::kernels::ceilToInt((tExit - tEnter) / f.stepWorld - 0.5f);
   const float invStep = 1.0f / f.stepWorld;
   const glm::vec3 invD(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
   glm::vec4 acc(0.0f);
