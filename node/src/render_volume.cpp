@@ -41,7 +41,8 @@ RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxe
 void RenderVolume::init() {
   switch (info_.codec) {
     case codec::CodecId::Raw:
-      ranges_ = codec::raw::Layout(info_, sections_).rangeGrid();
+      rawLayout_.emplace(info_, sections_);
+      ranges_ = rawLayout_->rangeGrid();
       return;
     default:
       throw FormatError(sections_.source, "codec '" + std::string(codec::codecName(info_.codec)) +
@@ -49,9 +50,7 @@ void RenderVolume::init() {
   }
 }
 
-std::span<const std::byte> RenderVolume::payload() const {
-  return codec::raw::Layout(info_, sections_).brickBytes();
-}
+std::span<const std::byte> RenderVolume::payload() const { return rawLayout_->brickBytes(); }
 
 ViewVariant RenderVolume::view(const std::byte* base) const {
   const codec::raw::Layout layout(info_, sections_);

@@ -45,6 +45,7 @@ class RenderVolume {
   std::shared_ptr<codec::ContainerFile> file_;
   std::shared_ptr<codec::CompressedVolume> memory_;
   codec::SectionSet sections_;
+  std::optional<codec::raw::Layout> rawLayout_;  // validated once, in init()
   codec::VolumeInfo info_;
   codec::RangeGrid ranges_;
   std::uint64_t storedBytes_ = 0;
