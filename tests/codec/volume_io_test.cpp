@@ -1,5 +1,6 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <nifti1_io.h>
 
 #include <filesystem>
 #include <voxwall/codec/errors.hpp>
@@ -228,4 +229,37 @@ TEST(VolumeIo, DefaultMriTemplateReadsWhenInstalled) {
   EXPECT_NEAR(v.spacing.x, 0.5, 1e-6);
   EXPECT_EQ(v.valueMin, 0);
   EXPECT_GT(v.valueMax, 100);
+}
+
+namespace {
+// Writes a NIfTI-1 file with nifticlib directly, to reach header fields writeVolume never sets.
+void writeNiftiWith(const std::string& path, int dims4, float slope, float inter) {
+  int dims[8] = {dims4 > 1 ? 4 : 3, 3, 2, 2, dims4, 1, 1, 1};
+  nifti_image* nim = nifti_make_new_nim(dims, DT_UINT8, 1);
+  auto* data = static_cast<std::uint8_t*>(nim->data);
+  for (std::size_t i = 0; i < nim->nvox; ++i) data[i] = std::uint8_t(i);
+  nim->scl_slope = slope;
+  nim->scl_inter = inter;
+  nim->nifti_type = NIFTI_FTYPE_NIFTI1_1;
+  nifti_set_filenames(nim, path.c_str(), 0, 1);
+  nifti_image_write(nim);
+  nifti_image_free(nim);
+}
+}  // namespace
+
+TEST(VolumeIo, NiftiScaleSlopeGivesFloatValues) {
+  TempDir dir;
+  writeNiftiWith(dir.path("scaled.nii"), 1, 2.0f, -10.0f);
+  const Volume v = readVolume(dir.path("scaled.nii"));
+  ASSERT_EQ(v.type, ScalarType::Float32);
+  for (std::size_t i = 0; i < v.voxelCount(); ++i)
+    EXPECT_EQ(v.as<float>()[i], 2.0f * float(i) - 10.0f);
+  writeNiftiWith(dir.path("plain.nii"), 1, 1.0f, 0.0f);
+  EXPECT_EQ(readVolume(dir.path("plain.nii")).type, ScalarType::UInt8);
+}
+
+TEST(VolumeIo, NiftiTimeSeriesIsRefused) {
+  TempDir dir;
+  writeNiftiWith(dir.path("4d.nii"), 3, 1.0f, 0.0f);
+  expectFormatError([&] { readVolume(dir.path("4d.nii")); }, dir.path("4d.nii"), "3D");
 }

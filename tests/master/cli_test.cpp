@@ -132,3 +132,37 @@ TEST(Cli, CudaBackendWithoutADeviceFailsCleanly) {
   if (r.status == 0) GTEST_SKIP() << "a CUDA device is present";
   expectOneLineError(r, "voxwall: cuda: ");
 }
+
+TEST(Cli, TiledRenderWritesTheSameFrame) {
+  test::TempDir dir;
+  const std::string common = "render generated:shepp-logan:32 --size 37x23 --shading -q --out ";
+  ASSERT_EQ(runVoxwall(common + dir.path("one")).status, 0);
+  ASSERT_EQ(runVoxwall(common + dir.path("tiled") + " --tiles 3x2").status, 0);
+  EXPECT_EQ(node::readImage(dir.path("one/frame_00000.png")).pixels,
+            node::readImage(dir.path("tiled/frame_00000.png")).pixels);
+  expectOneLineError(runVoxwall(common + dir.path("bad") + " --tiles 40x1"),
+                     "voxwall: tile grid 40x1");
+}
+
+TEST(Cli, TfRangeMovesTheTransferFunction) {
+  test::TempDir dir;
+  const std::string common = "render generated:shepp-logan:32 --size 24x24 -q --tf grey --out ";
+  ASSERT_EQ(runVoxwall(common + dir.path("a")).status, 0);
+  // Stretched far above the data: everything is transparent.
+  ASSERT_EQ(runVoxwall(common + dir.path("b") + " --tf-range 1000,2000").status, 0);
+  const auto a = node::readImage(dir.path("a/frame_00000.png"));
+  const auto b = node::readImage(dir.path("b/frame_00000.png"));
+  EXPECT_NE(a.pixels, b.pixels);
+  for (auto p : b.pixels) ASSERT_EQ(p, 0xff000000u);  // black background, nothing in front
+  expectOneLineError(runVoxwall(common + dir.path("c") + " --tf-range 5,1"), "voxwall: --tf-range");
+}
+
+TEST(Cli, InfoDescribesAPlainVolumeFile) {
+  test::TempDir dir;
+  ASSERT_EQ(runVoxwall("generate menger --level 2 -o " + dir.path("m.nrrd")).status, 0);
+  const CliRun r = runVoxwall("info " + dir.path("m.nrrd"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("9 x 9 x 9"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("uint8"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 .. 255"), std::string::npos) << r.out;
+}
