@@ -150,8 +150,10 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
   return out;
 }
 
-void writeContainer(const CompressedVolume& volume, const std::string& path) {
-  writeFileAtomically(path, serializeContainer(volume));
+std::uint64_t writeContainer(const CompressedVolume& volume, const std::string& path) {
+  const auto bytes = serializeContainer(volume);
+  writeFileAtomically(path, bytes);
+  return bytes.size();
 }
 
 struct ContainerFile::Mapping {

@@ -61,10 +61,11 @@ TEST(Container, RoundTripsHeaderAndSections) {
 TEST(Container, FileRoundTripIsMemoryMapped) {
   test::TempDir dir;
   const auto c = sample();
-  writeContainer(c, dir.path("a.vwz"));
+  const std::uint64_t written = writeContainer(c, dir.path("a.vwz"));
   EXPECT_TRUE(isContainerFile(dir.path("a.vwz")));
   const auto file = ContainerFile::open(dir.path("a.vwz"));
   EXPECT_EQ(file.fileBytes(), serializeContainer(c).size());
+  EXPECT_EQ(written, file.fileBytes());
   const Volume back = raw::decode(file.info(), file.sections());
   EXPECT_EQ(back.dims, c.info.dims);
 }

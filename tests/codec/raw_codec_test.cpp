@@ -66,8 +66,11 @@ TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
   const Volume v = noise(ScalarType::UInt8, {19, 10, 9}, 3);
   Progress quiet;
   const auto c = raw::encode(v, {8, 4}, quiet);  // range cells independent of the brick size
-  const RangeGrid grid = raw::Layout(c.info, c.view()).rangeGrid();
+  const raw::Layout layout(c.info, c.view());
+  const RangeGrid grid = layout.rangeGrid();
   ASSERT_EQ(grid.cells, glm::ivec3(5, 3, 3));
+  EXPECT_EQ(layout.rangeCells(), grid.cells);
+  EXPECT_EQ(layout.rangeCellVoxels(), grid.cellVoxels);
   // Brute force: the range of each cell grown by one voxel, clamped.
   for (int cz = 0; cz < 3; ++cz)
     for (int cy = 0; cy < 3; ++cy)

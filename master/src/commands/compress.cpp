@@ -28,10 +28,9 @@ void runCompress(const CompressOptions& o) {
   if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
   codec::Progress progress = makeProgress(o.quiet);
   const auto compressed = codec::raw::encode(v, {o.brick, o.rangeCell}, progress);
-  codec::writeContainer(compressed, o.output);
+  const std::uint64_t fileBytes = codec::writeContainer(compressed, o.output);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const auto fileBytes = codec::serializeContainer(compressed).size();
   std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs\n", o.output.c_str(), v.dims.x,
               v.dims.y, v.dims.z, std::string(codec::scalarName(v.type)).c_str(), o.codec.c_str(),
               humanBytes(double(fileBytes)).c_str(), codec::bitsPerVoxel(fileBytes, v), seconds);

@@ -42,11 +42,11 @@ void runInfo(const InfoOptions& o) {
     if (info.codec == codec::CodecId::Raw) {
       const codec::raw::Layout layout(info, file.sections());
       const int b = 1 << layout.brickShift();
-      const auto ranges = layout.rangeGrid();
+      const glm::ivec3 b3 = layout.bricks(), cells = layout.rangeCells();
       std::printf("bricks      %d x %d x %d of %d^3 voxels (stored as %d^3 with their apron)\n",
-                  layout.bricks().x, layout.bricks().y, layout.bricks().z, b, b + 1);
-      std::printf("ranges      %d x %d x %d cells of %d^3 voxels\n", ranges.cells.x, ranges.cells.y,
-                  ranges.cells.z, ranges.cellVoxels);
+                  b3.x, b3.y, b3.z, b, b + 1);
+      std::printf("ranges      %d x %d x %d cells of %d^3 voxels\n", cells.x, cells.y, cells.z,
+                  layout.rangeCellVoxels());
     }
     return;
   }

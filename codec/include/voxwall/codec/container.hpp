@@ -72,8 +72,9 @@ struct CompressedVolume {
 
 // Serializes to the .vwz layout above.
 std::vector<std::byte> serializeContainer(const CompressedVolume& volume);
-// Writes atomically (temporary file, then rename). Throws FormatError on I/O errors.
-void writeContainer(const CompressedVolume& volume, const std::string& path);
+// Writes atomically (temporary file, then rename) and returns the file's size in bytes.
+// Throws FormatError on I/O errors.
+std::uint64_t writeContainer(const CompressedVolume& volume, const std::string& path);
 
 // A .vwz file, memory-mapped and fully validated (header, table, bounds, every checksum) on
 // open. Section spans stay valid while the object lives. Move-only.

@@ -40,6 +40,8 @@ class Layout {
   int brickShift() const { return brickShift_; }
   glm::ivec3 bricks() const { return bricks_; }
   std::span<const std::byte> brickBytes() const { return brickBytes_; }
+  glm::ivec3 rangeCells() const { return rangeCells_; }
+  int rangeCellVoxels() const { return 1 << rangeShift_; }
   RangeGrid rangeGrid() const;
   // The view over bricks at `base` (host memory by default, or a device copy of brickBytes()).
   template <class T>
