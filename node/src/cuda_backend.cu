@@ -82,8 +82,8 @@ class CudaBackend final : public Backend {
   }
   std::string name() const override { return name_; }
 
-  TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
-                   Image& out) override {
+  TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
+                       Image& out, CostGrid* costs) override {
     if (tile.width <= 0 || tile.height <= 0) throw std::invalid_argument("empty tile");
     const auto start = std::chrono::steady_clock::now();
     const auto payload = volume.payload();
@@ -125,6 +125,8 @@ class CudaBackend final : public Backend {
     TileStats stats;
     stats.samples = samples;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    // No per-block clock on the device: the tile's time is spread evenly over its cells.
+    if (costs) costs->add(tile, stats.seconds);
     return stats;
   }
 

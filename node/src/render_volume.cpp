@@ -1,3 +1,5 @@
+#include <xxhash.h>
+
 #include <glm/geometric.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/raw_codec.hpp>
@@ -56,6 +58,24 @@ ViewVariant RenderVolume::view(const std::byte* base) const {
   const codec::raw::Layout layout(info_, sections_);
   return codec::dispatchScalar(
       info_.type, [&](auto t) -> ViewVariant { return layout.view<decltype(t)>(base); });
+}
+
+std::uint64_t RenderVolume::fingerprint() const {
+  XXH64_state_t* state = XXH64_createState();
+  XXH64_reset(state, 0);
+  auto add = [&](const auto& value) { XXH64_update(state, &value, sizeof value); };
+  add(info_.codec), add(info_.type), add(info_.dims.x), add(info_.dims.y), add(info_.dims.z);
+  add(info_.spacing.x), add(info_.spacing.y), add(info_.spacing.z);
+  add(info_.valueMin), add(info_.valueMax);
+  for (const auto& [id, bytes] : sections_.sections) {
+    add(id);
+    const std::uint64_t size = bytes.size();
+    add(size);
+    XXH64_update(state, bytes.data(), bytes.size());
+  }
+  const std::uint64_t hash = XXH64_digest(state);
+  XXH64_freeState(state);
+  return hash;
 }
 
 double boundingRadius(const codec::VolumeInfo& info) {

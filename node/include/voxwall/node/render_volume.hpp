@@ -38,6 +38,9 @@ class RenderVolume {
   std::span<const std::byte> payload() const;
   ViewVariant view(const std::byte* base = nullptr) const;
   const std::string& source() const { return source_; }
+  // xxHash64 of the volume's description and every section's bytes: two ranks with the same
+  // fingerprint render the same pixels. Computed on first use (reads the whole payload).
+  std::uint64_t fingerprint() const;
 
  private:
   RenderVolume() = default;

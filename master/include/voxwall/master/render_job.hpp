@@ -1,0 +1,91 @@
+// The distributed frame loop (sort-first): rank 0 picks each frame's camera and screen cut,
+// every rank renders its rectangles of the virtual screen from its own copy of the volume, and
+// rank 0 assembles the frame, re-balances the cut from the measured costs and writes the frame
+// (in a background thread, so frame f is encoded and written while frame f+1 renders).
+// Message sequence: net/frame_messages.hpp.
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+#include <voxwall/master/camera_path.hpp>
+#include <voxwall/master/communicator.hpp>
+#include <voxwall/master/load_balancer.hpp>
+#include <voxwall/node/renderer.hpp>
+
+namespace voxwall::master {
+
+enum class Balance { Static, Dynamic };
+
+struct JobSettings {
+  int width = 1920, height = 1080;  // the virtual screen
+  int frames = 1;
+  CameraPath path = CameraPath::orbit({}, 0.0);
+  Balance balance = Balance::Dynamic;
+  // Static cut: a grid of tiles dealt to the rendering ranks in turn; 0 x 0: one strip per rank.
+  int staticTilesX = 0, staticTilesY = 0;
+  bool masterRenders = true;  // false: rank 0 only assembles and writes (needs 2+ ranks)
+  std::string outDir;         // empty: frames are assembled but not written
+  std::string format = "png";
+  std::optional<glm::dvec3> background;
+  bool resume = false;        // skip frames already complete in outDir
+  // Everything that shapes the pixels, as a JSON object; written to outDir/voxwall-job.json and
+  // compared on --resume so frames of different renders are never mixed.
+  std::string manifest = "{}";
+  int watchdogMs = 120000;    // at least this; grows to 4x the slowest frame seen
+  BalancerSettings balancer;
+};
+
+struct FrameSummary {
+  int frame = 0;
+  double frameSeconds = 0;      // camera decided -> frame handed to the writer, on rank 0
+  double renderSeconds = 0;     // the slowest rank's render time
+  double gatherSeconds = 0;     // rank 0 waiting for reports after its own render
+  double assembleSeconds = 0;   // decoding reports, pasting tiles, balancing
+  double writeWaitSeconds = 0;  // waiting for the previous frame's write to finish
+  double writeSeconds = 0;      // the previous frame's encode + write (background)
+  std::vector<int> ranks;       // the rendering ranks
+  std::vector<double> rankSeconds;
+  std::vector<std::vector<node::Rect>> rects;  // per rendering rank
+  double imbalance = 1;         // max / mean of rankSeconds
+  std::uint64_t samples = 0;
+  int recuts = 0;               // cut changes so far (dynamic)
+  std::string path;             // file the frame goes to, empty when not writing
+};
+
+struct RankMemory {
+  int rank = 0;
+  std::string host;
+  std::uint64_t residentBytes = 0, peakResidentBytes = 0;
+};
+
+struct JobSummary {
+  int framesRendered = 0, framesSkipped = 0;
+  double seconds = 0;
+  double lastWriteSeconds = 0;
+  std::vector<RankMemory> memory;  // rank 0 only
+};
+
+// The rectangles of every rank in the first frame (what --dry-run shows). Throws
+// std::invalid_argument when the screen cannot be cut for this many ranks.
+std::vector<std::vector<node::Rect>> firstFrameRects(const JobSettings& job, int ranks);
+
+// Frames already complete in job.outDir (resume); checks and writes the manifest, removes
+// temporaries left by a killed run. Throws FormatError when the directory holds frames of
+// different settings. Rank 0 only.
+std::vector<bool> prepareOutput(const JobSettings& job);
+std::string framePath(const JobSettings& job, int frame);
+
+// Collective: every rank calls this with the same settings. onFrame is called on rank 0 after
+// every frame. Throws MpiError (watchdog), FormatError (a corrupt report, a write error) or
+// std::invalid_argument; the caller must then abort the job (other ranks may be waiting).
+JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
+                        const node::RenderVolume& volume, const node::TransferFunction& tf,
+                        const node::RenderSettings& render, const JobSettings& job,
+                        const std::function<void(const FrameSummary&)>& onFrame = {});
+
+// This process's resident and peak resident memory in bytes (0 where /proc is missing).
+std::pair<std::uint64_t, std::uint64_t> processMemory();
+
+}  // namespace voxwall::master

@@ -1,0 +1,332 @@
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <nlohmann/json.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/master/render_job.hpp>
+#include <voxwall/net/frame_messages.hpp>
+
+namespace voxwall::master {
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+constexpr const char* kManifestName = "voxwall-job.json";
+
+// Writes frames in a background thread, one at a time: push() waits for the previous frame.
+class FrameWriter {
+ public:
+  // Returns the seconds spent waiting for the previous write.
+  double push(node::Image image, std::string path, std::optional<glm::dvec3> background) {
+    const double wait = finish();
+    pending_ = std::async(std::launch::async, [image = std::move(image), path = std::move(path),
+                                               background]() {
+      const auto start = Clock::now();
+      node::writeImage(image, path, background);
+      return since(start);
+    });
+    return wait;
+  }
+  // Waits for the write in flight (rethrowing its error); returns the wait.
+  double finish() {
+    if (!pending_.valid()) return 0;
+    const auto start = Clock::now();
+    lastWriteSeconds_ = pending_.get();
+    return since(start);
+  }
+  double lastWriteSeconds() const { return lastWriteSeconds_; }
+  ~FrameWriter() {
+    if (pending_.valid()) pending_.wait();
+  }
+
+ private:
+  std::future<double> pending_;
+  double lastWriteSeconds_ = 0;
+};
+
+std::vector<int> renderingRanks(const JobSettings& job, int ranks) {
+  if (!job.masterRenders && ranks < 2)
+    throw std::invalid_argument("--master-only needs at least 2 ranks (rank 0 renders nothing)");
+  std::vector<int> out;
+  for (int r = job.masterRenders ? 0 : 1; r < ranks; ++r) out.push_back(r);
+  return out;
+}
+
+// The static cut: per rendering slot, its list of rectangles.
+std::vector<std::vector<node::Rect>> staticSlots(const JobSettings& job, int slots) {
+  std::vector<std::vector<node::Rect>> out(static_cast<std::size_t>(slots));
+  if (job.staticTilesX > 0 && job.staticTilesY > 0) {
+    const auto tiles = gridCut(job.width, job.height, job.staticTilesX, job.staticTilesY);
+    for (std::size_t i = 0; i < tiles.size(); ++i) out[i % std::size_t(slots)].push_back(tiles[i]);
+  } else {
+    const auto strips = stripCut(job.width, job.height, slots);
+    for (std::size_t i = 0; i < strips.size(); ++i) out[i].push_back(strips[i]);
+  }
+  return out;
+}
+
+std::vector<std::vector<node::Rect>> byRank(const std::vector<std::vector<node::Rect>>& slots,
+                                            const std::vector<int>& ranks, int size) {
+  std::vector<std::vector<node::Rect>> out(static_cast<std::size_t>(size));
+  for (std::size_t i = 0; i < ranks.size(); ++i) out[std::size_t(ranks[i])] = slots[i];
+  return out;
+}
+
+// Renders `rects` and makes this rank's report for `task`.
+net::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
+                            const node::TransferFunction& tf, const node::RenderSettings& render,
+                            const net::FrameTask& task, const std::vector<node::Rect>& rects) {
+  net::RankReport report;
+  report.frame = task.frame;
+  report.rank = rank;
+  if (!rects.empty()) {
+    const auto start = Clock::now();
+    const auto plan =
+        node::planFrame(volume, task.camera, task.screenWidth, task.screenHeight, tf, render);
+    report.costs = node::CostGrid(task.screenWidth, task.screenHeight, task.cellPixels);
+    for (const auto& rect : rects) {
+      net::RenderedTile tile;
+      tile.rect = rect;
+      report.samples += backend.render(volume, plan, rect, tile.image, &report.costs).samples;
+      report.tiles.push_back(std::move(tile));
+    }
+    report.renderSeconds = since(start);
+  }
+  std::tie(report.residentBytes, report.peakResidentBytes) = processMemory();
+  return report;
+}
+
+JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::RenderVolume& volume,
+                     const node::TransferFunction& tf, const node::RenderSettings& render,
+                     const JobSettings& job) {
+  JobSummary summary;
+  int timeoutMs = job.watchdogMs;
+  for (;;) {
+    std::vector<std::byte> bytes;
+    comm.broadcast(bytes, timeoutMs);
+    const auto task = net::decodeFrameTask(bytes, "frame task from rank 0");
+    if (task.rects.size() != std::size_t(comm.size()))
+      throw FormatError("frame task from rank 0", "has rectangles for " +
+                                                      std::to_string(task.rects.size()) +
+                                                      " ranks in a job of " +
+                                                      std::to_string(comm.size()));
+    timeoutMs = int(std::max<std::uint32_t>(task.watchdogMs, 1000));
+    const auto& mine = task.rects[std::size_t(comm.rank())];
+    const auto report = task.stop ? renderRects(comm.rank(), backend, volume, tf, render, task, {})
+                                  : renderRects(comm.rank(), backend, volume, tf, render, task, mine);
+    comm.gather(net::encode(report), timeoutMs);
+    if (task.stop) break;
+    ++summary.framesRendered;
+  }
+  return summary;
+}
+
+}  // namespace
+
+std::pair<std::uint64_t, std::uint64_t> processMemory() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  std::uint64_t rss = 0, peak = 0;
+  while (std::getline(in, line)) {
+    auto value = [&](const char* key, std::uint64_t& out) {
+      if (line.rfind(key, 0) == 0) out = std::stoull(line.substr(std::strlen(key))) * 1024;
+    };
+    value("VmRSS:", rss);
+    value("VmHWM:", peak);
+  }
+  return {rss, peak};
+}
+
+std::vector<std::vector<node::Rect>> firstFrameRects(const JobSettings& job, int ranks) {
+  const auto renderers = renderingRanks(job, ranks);
+  return byRank(staticSlots(job, int(renderers.size())), renderers, ranks);
+}
+
+std::string framePath(const JobSettings& job, int frame) {
+  char name[64];
+  std::snprintf(name, sizeof name, "frame_%05d.%s", frame, job.format.c_str());
+  return (fs::path(job.outDir) / name).string();
+}
+
+std::vector<bool> prepareOutput(const JobSettings& job) {
+  std::vector<bool> done(std::size_t(job.frames), false);
+  if (job.outDir.empty()) return done;
+  std::error_code ec;
+  fs::create_directories(job.outDir, ec);
+  if (ec) throw FormatError(job.outDir, "cannot create output directory: " + ec.message());
+  const fs::path manifestPath = fs::path(job.outDir) / kManifestName;
+  const auto wanted = nlohmann::json::parse(job.manifest);
+  if (job.resume) {
+    // Temporaries of frames that were being written when the last run was killed.
+    for (const auto& entry : fs::directory_iterator(job.outDir, ec)) {
+      const auto name = entry.path().filename().string();
+      if (name.rfind("frame_", 0) == 0 && name.find(".tmp.") != std::string::npos)
+        fs::remove(entry.path(), ec);
+    }
+    int existing = 0;
+    for (int f = 0; f < job.frames; ++f) {
+      const fs::path p = framePath(job, f);
+      // Frames are renamed into place only when complete, so a file that is there is whole.
+      done[std::size_t(f)] = fs::is_regular_file(p, ec) && fs::file_size(p, ec) > 0;
+      existing += done[std::size_t(f)];
+    }
+    if (fs::exists(manifestPath)) {
+      nlohmann::json found;
+      try {
+        std::ifstream in(manifestPath);
+        found = nlohmann::json::parse(in);
+      } catch (const nlohmann::json::exception& e) {
+        throw FormatError(manifestPath.string(), std::string("not valid JSON: ") + e.what());
+      }
+      if (found != wanted) {
+        std::string differs;
+        for (const auto& [key, value] : wanted.items())
+          if (!found.contains(key) || found[key] != value) differs += (differs.empty() ? "" : ", ") + key;
+        throw FormatError(manifestPath.string(),
+                          "the frames here were rendered with other settings (" +
+                              (differs.empty() ? std::string("extra keys") : differs) +
+                              "); use another --out or drop --resume to overwrite them");
+      }
+    } else if (existing > 0) {
+      throw FormatError(job.outDir, "holds frames but no " + std::string(kManifestName) +
+                                        ": cannot tell how they were made; use another --out or "
+                                        "drop --resume");
+    }
+  }
+  const std::string text = wanted.dump(2) + "\n";
+  const std::string tmp = manifestPath.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << text;
+    if (!out) throw FormatError(manifestPath.string(), "cannot write");
+  }
+  fs::rename(tmp, manifestPath, ec);
+  if (ec) throw FormatError(manifestPath.string(), "cannot write: " + ec.message());
+  return done;
+}
+
+JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
+                        const node::RenderVolume& volume, const node::TransferFunction& tf,
+                        const node::RenderSettings& render, const JobSettings& job,
+                        const std::function<void(const FrameSummary&)>& onFrame) {
+  if (job.frames < 1) throw std::invalid_argument("--frames must be at least 1");
+  if (comm.rank() != 0) return runWorker(comm, backend, volume, tf, render, job);
+
+  const auto jobStart = Clock::now();
+  const auto renderers = renderingRanks(job, comm.size());
+  const int slots = int(renderers.size());
+  std::optional<LoadBalancer> balancer;
+  if (job.balance == Balance::Dynamic)
+    balancer.emplace(job.width, job.height, slots, job.balancer);
+  const auto staticCut = staticSlots(job, slots);
+  const auto done = prepareOutput(job);
+
+  JobSummary summary;
+  FrameWriter writer;
+  node::Image frameImage;
+  double slowestFrame = 0;
+  int timeoutMs = job.watchdogMs;
+  for (int f = 0; f < job.frames; ++f) {
+    if (done[std::size_t(f)]) {
+      ++summary.framesSkipped;
+      continue;
+    }
+    const auto frameStart = Clock::now();
+    net::FrameTask task;
+    task.frame = std::uint32_t(f);
+    task.camera = node::orbitCamera(job.path.at(f), node::boundingRadius(volume.info()));
+    task.screenWidth = job.width, task.screenHeight = job.height;
+    task.cellPixels = job.balancer.cellPixels;
+    std::vector<std::vector<node::Rect>> slotRects = staticCut;
+    if (balancer) {
+      slotRects.assign(std::size_t(slots), {});
+      for (int i = 0; i < slots; ++i) slotRects[std::size_t(i)] = {balancer->cut()[std::size_t(i)]};
+    }
+    task.rects = byRank(slotRects, renderers, comm.size());
+    task.watchdogMs = std::uint32_t(timeoutMs);
+    auto taskBytes = net::encode(task);
+    comm.broadcast(taskBytes, timeoutMs);
+
+    auto own = renderRects(0, backend, volume, tf, render, task, task.rects[0]);
+    const auto gatherStart = Clock::now();
+    auto reportBytes = comm.gather(net::encode(own), timeoutMs);
+    FrameSummary s;
+    s.frame = f;
+    s.gatherSeconds = since(gatherStart);
+    const auto assembleStart = Clock::now();
+
+    frameImage = node::Image(job.width, job.height);
+    std::vector<node::CostGrid> grids(static_cast<std::size_t>(slots));
+    for (int i = 0; i < slots; ++i) {
+      const int r = renderers[std::size_t(i)];
+      const std::string source = "report of rank " + std::to_string(r);
+      auto report = r == 0 ? std::move(own)
+                           : net::decodeRankReport(reportBytes[std::size_t(r)], task, source);
+      if (report.rank != r) throw FormatError(source, "claims to be rank " + std::to_string(report.rank));
+      // Every assigned rectangle must come back, or the frame would be shown incomplete.
+      if (report.tiles.size() != task.rects[std::size_t(r)].size())
+        throw FormatError(source, "has " + std::to_string(report.tiles.size()) + " tiles, " +
+                                      std::to_string(task.rects[std::size_t(r)].size()) +
+                                      " were asked for");
+      for (std::size_t t = 0; t < report.tiles.size(); ++t) {
+        if (!(report.tiles[t].rect == task.rects[std::size_t(r)][t]))
+          throw FormatError(source, "sent a tile that was not asked for");
+        frameImage.paste(report.tiles[t].image, report.tiles[t].rect);
+      }
+      s.ranks.push_back(r);
+      s.rankSeconds.push_back(report.renderSeconds);
+      s.samples += report.samples;
+      s.renderSeconds = std::max(s.renderSeconds, report.renderSeconds);
+      grids[std::size_t(i)] = std::move(report.costs);
+    }
+    s.rects = slotRects;
+    s.imbalance = imbalance(s.rankSeconds);
+    if (balancer) {
+      balancer->update(grids, s.rankSeconds);
+      s.recuts = balancer->recuts();
+    }
+    s.assembleSeconds = since(assembleStart);
+    if (!job.outDir.empty()) {
+      s.path = framePath(job, f);
+      s.writeSeconds = writer.lastWriteSeconds();
+      s.writeWaitSeconds = writer.push(std::move(frameImage), s.path, job.background);
+      s.writeSeconds = writer.lastWriteSeconds();
+    }
+    s.frameSeconds = since(frameStart);
+    slowestFrame = std::max(slowestFrame, s.frameSeconds);
+    timeoutMs = std::max(job.watchdogMs, int(std::min(4e3 * slowestFrame, 3.6e6)));
+    ++summary.framesRendered;
+    if (onFrame) onFrame(s);
+  }
+
+  // Stop: every rank answers with its memory and leaves the loop.
+  net::FrameTask stop;
+  stop.frame = std::uint32_t(job.frames);
+  stop.stop = true;
+  stop.screenWidth = job.width, stop.screenHeight = job.height;
+  stop.cellPixels = job.balancer.cellPixels;
+  stop.rects.resize(std::size_t(comm.size()));
+  stop.watchdogMs = std::uint32_t(timeoutMs);
+  auto stopBytes = net::encode(stop);
+  comm.broadcast(stopBytes, timeoutMs);
+  const auto ownLast = renderRects(0, backend, volume, tf, render, stop, {});
+  const auto finals = comm.gather(net::encode(ownLast), timeoutMs);
+  for (int r = 0; r < comm.size(); ++r) {
+    const auto rep = r == 0 ? ownLast
+                            : net::decodeRankReport(finals[std::size_t(r)], stop,
+                                                    "final report of rank " + std::to_string(r));
+    summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
+  }
+  writer.finish();
+  summary.lastWriteSeconds = writer.lastWriteSeconds();
+  summary.seconds = since(jobStart);
+  return summary;
+}
+
+}  // namespace voxwall::master

@@ -1,0 +1,75 @@
+// Messages of the distributed frame loop, exchanged between the master (rank 0) and the
+// rendering ranks. They travel over MPI (master/), but are plain bytes here so they can be
+// tested and fuzzed without MPI.
+//
+// Message sequence, for every frame f (collective over all ranks):
+//   master  --FrameTask{f, camera, rects of every rank}-->  every rank   (broadcast)
+//   every rank renders its rects
+//   every rank  --RankReport{f, time, pixels, cost grid}-->  master      (gather)
+// and at the end a FrameTask with `stop` set, after which every rank sends its final RankReport
+// (no pixels; resident memory) and leaves the loop.
+//
+// Layout (little-endian, serialized field by field):
+//   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop),
+//               f64 eye[3], center[3], up[3], fovYDeg, u32 tfVersion, u32 watchdogMs,
+//               i32 screenWidth, screenHeight, i32 cellPixels, u32 rankCount,
+//               per rank: u32 rectCount, then i32 x, y, width, height per rect.
+//   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
+//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 tileCount,
+//               per tile: i32 x, y, width, height, then width*height u32 RGBA8 pixels,
+//               then i32 cellsX, cellsY (0, 0: no grid) and f64 seconds per cell.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+#include <voxwall/node/camera.hpp>
+#include <voxwall/node/cost_grid.hpp>
+#include <voxwall/node/image.hpp>
+
+namespace voxwall::net {
+
+inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
+inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
+inline constexpr std::uint32_t kFrameMessageVersion = 1;
+// Limits a decoder enforces before it allocates anything.
+inline constexpr int kMaxRanks = 1 << 16;
+inline constexpr int kMaxRectsPerRank = 1 << 12;
+inline constexpr int kMaxScreenSide = 1 << 16;
+
+struct FrameTask {
+  std::uint32_t frame = 0;
+  bool stop = false;  // no more frames: send the final report and leave the loop
+  node::Camera camera;
+  std::uint32_t tfVersion = 0;      // transfer function in use (ranks hold it; fixed for now)
+  std::uint32_t watchdogMs = 0;     // how long any rank waits for any other in this frame
+  int screenWidth = 0, screenHeight = 0;
+  int cellPixels = 32;              // cost grid cell size
+  std::vector<std::vector<node::Rect>> rects;  // per rank (index = rank); may be empty
+};
+
+struct RenderedTile {
+  node::Rect rect;
+  node::Image image;  // rect.width x rect.height, premultiplied RGBA8
+};
+
+struct RankReport {
+  std::uint32_t frame = 0;
+  int rank = 0;
+  double renderSeconds = 0;  // wall time for all of this rank's rects
+  std::uint64_t samples = 0;
+  std::uint64_t residentBytes = 0, peakResidentBytes = 0;
+  std::vector<RenderedTile> tiles;
+  node::CostGrid costs;  // over the whole screen; empty (cellsX = 0) when not measured
+};
+
+std::vector<std::byte> encode(const FrameTask& task);
+std::vector<std::byte> encode(const RankReport& report);
+// Decoders check magic, version, every count and every rectangle against the limits and the
+// screen before allocating; they throw FormatError("<source>: ...") naming what is wrong.
+FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& source);
+// `task` is the frame the report answers: tiles must lie on its screen, the grid must match it.
+RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& task,
+                            const std::string& source);
+
+}  // namespace voxwall::net

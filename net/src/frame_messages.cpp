@@ -1,0 +1,158 @@
+#include <cmath>
+#include <voxwall/codec/bytes.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/net/frame_messages.hpp>
+
+namespace voxwall::net {
+namespace {
+
+using codec::ByteReader;
+using codec::ByteWriter;
+
+void putRect(ByteWriter& w, const node::Rect& r) {
+  w.put<std::int32_t>(r.x), w.put<std::int32_t>(r.y);
+  w.put<std::int32_t>(r.width), w.put<std::int32_t>(r.height);
+}
+
+node::Rect getRect(ByteReader& r, int screenWidth, int screenHeight) {
+  node::Rect rect;
+  rect.x = r.get<std::int32_t>(), rect.y = r.get<std::int32_t>();
+  rect.width = r.get<std::int32_t>(), rect.height = r.get<std::int32_t>();
+  if (rect.x < 0 || rect.y < 0 || rect.width <= 0 || rect.height <= 0 ||
+      rect.width > screenWidth - rect.x || rect.height > screenHeight - rect.y)
+    r.fail("rectangle " + std::to_string(rect.width) + "x" + std::to_string(rect.height) + "+" +
+           std::to_string(rect.x) + "+" + std::to_string(rect.y) + " is not on the " +
+           std::to_string(screenWidth) + "x" + std::to_string(screenHeight) + " screen");
+  return rect;
+}
+
+void expectHeader(ByteReader& r, std::uint32_t magic, const char* name) {
+  if (r.get<std::uint32_t>() != magic) r.fail(std::string("not a ") + name + " message");
+  const auto version = r.get<std::uint32_t>();
+  if (version != kFrameMessageVersion)
+    r.fail(std::string(name) + " version " + std::to_string(version) + ", this program speaks " +
+           std::to_string(kFrameMessageVersion) + " (mixed voxwall versions in one job?)");
+}
+
+}  // namespace
+
+std::vector<std::byte> encode(const FrameTask& t) {
+  std::vector<std::byte> out;
+  ByteWriter w(out);
+  w.put(kFrameTaskMagic), w.put(kFrameMessageVersion);
+  w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>(t.stop ? 1u : 0u);
+  for (const glm::dvec3& v : {t.camera.eye, t.camera.center, t.camera.up})
+    w.put(v.x), w.put(v.y), w.put(v.z);
+  w.put(t.camera.fovYDeg);
+  w.put<std::uint32_t>(t.tfVersion), w.put<std::uint32_t>(t.watchdogMs);
+  w.put<std::int32_t>(t.screenWidth), w.put<std::int32_t>(t.screenHeight);
+  w.put<std::int32_t>(t.cellPixels);
+  w.put<std::uint32_t>(std::uint32_t(t.rects.size()));
+  for (const auto& rects : t.rects) {
+    w.put<std::uint32_t>(std::uint32_t(rects.size()));
+    for (const auto& r : rects) putRect(w, r);
+  }
+  return out;
+}
+
+FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& source) {
+  ByteReader r(bytes, source, "frame task");
+  expectHeader(r, kFrameTaskMagic, "frame task");
+  FrameTask t;
+  t.frame = r.get<std::uint32_t>();
+  const auto flags = r.get<std::uint32_t>();
+  if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
+  t.stop = flags & 1;
+  for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
+    v->x = r.get<double>(), v->y = r.get<double>(), v->z = r.get<double>();
+  t.camera.fovYDeg = r.get<double>();
+  for (double v : {t.camera.eye.x, t.camera.eye.y, t.camera.eye.z, t.camera.center.x,
+                   t.camera.center.y, t.camera.center.z, t.camera.up.x, t.camera.up.y,
+                   t.camera.up.z})
+    if (!std::isfinite(v)) r.fail("camera is not finite");
+  if (!(t.camera.fovYDeg > 0 && t.camera.fovYDeg < 180)) r.fail("camera field of view");
+  t.tfVersion = r.get<std::uint32_t>(), t.watchdogMs = r.get<std::uint32_t>();
+  t.screenWidth = r.get<std::int32_t>(), t.screenHeight = r.get<std::int32_t>();
+  t.cellPixels = r.get<std::int32_t>();
+  if (t.screenWidth <= 0 || t.screenHeight <= 0 || t.screenWidth > kMaxScreenSide ||
+      t.screenHeight > kMaxScreenSide)
+    r.fail("screen size " + std::to_string(t.screenWidth) + "x" +
+           std::to_string(t.screenHeight));
+  if (t.cellPixels <= 0 || t.cellPixels > kMaxScreenSide) r.fail("cost cell size");
+  const auto ranks = r.get<std::uint32_t>();
+  if (ranks > std::uint32_t(kMaxRanks)) r.fail(std::to_string(ranks) + " ranks");
+  // Each rank takes at least 4 bytes: a count larger than the rest of the message is corrupt.
+  if (ranks > r.remaining() / 4) r.fail("rank count larger than the message");
+  t.rects.resize(ranks);
+  for (auto& rects : t.rects) {
+    const auto n = r.get<std::uint32_t>();
+    if (n > std::uint32_t(kMaxRectsPerRank) || n > r.remaining() / 16)
+      r.fail(std::to_string(n) + " rectangles for one rank");
+    rects.reserve(n);
+    for (std::uint32_t i = 0; i < n; ++i)
+      rects.push_back(getRect(r, t.screenWidth, t.screenHeight));
+  }
+  if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " trailing bytes");
+  return t;
+}
+
+std::vector<std::byte> encode(const RankReport& rep) {
+  std::vector<std::byte> out;
+  std::size_t pixels = 0;
+  for (const auto& t : rep.tiles) pixels += t.image.pixels.size();
+  out.reserve(64 + rep.tiles.size() * 16 + pixels * 4 + rep.costs.seconds.size() * 8);
+  ByteWriter w(out);
+  w.put(kRankReportMagic), w.put(kFrameMessageVersion);
+  w.put<std::uint32_t>(rep.frame), w.put<std::int32_t>(rep.rank);
+  w.put(rep.renderSeconds), w.put<std::uint64_t>(rep.samples);
+  w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
+  w.put<std::uint32_t>(std::uint32_t(rep.tiles.size()));
+  for (const auto& t : rep.tiles) {
+    putRect(w, t.rect);
+    w.putBytes(std::as_bytes(std::span(t.image.pixels)));
+  }
+  w.put<std::int32_t>(rep.costs.cellsX), w.put<std::int32_t>(rep.costs.cellsY);
+  for (double s : rep.costs.seconds) w.put(s);
+  return out;
+}
+
+RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& task,
+                            const std::string& source) {
+  ByteReader r(bytes, source, "rank report");
+  expectHeader(r, kRankReportMagic, "rank report");
+  RankReport rep;
+  rep.frame = r.get<std::uint32_t>();
+  if (rep.frame != task.frame)
+    r.fail("answers frame " + std::to_string(rep.frame) + " instead of " +
+           std::to_string(task.frame));
+  rep.rank = r.get<std::int32_t>();
+  rep.renderSeconds = r.get<double>();
+  rep.samples = r.get<std::uint64_t>();
+  rep.residentBytes = r.get<std::uint64_t>(), rep.peakResidentBytes = r.get<std::uint64_t>();
+  const auto tiles = r.get<std::uint32_t>();
+  if (tiles > std::uint32_t(kMaxRectsPerRank) || tiles > r.remaining() / 16)
+    r.fail(std::to_string(tiles) + " tiles");
+  rep.tiles.resize(tiles);
+  for (auto& t : rep.tiles) {
+    t.rect = getRect(r, task.screenWidth, task.screenHeight);
+    const std::size_t n = std::size_t(t.rect.width) * std::size_t(t.rect.height);
+    if (n > r.remaining() / 4) r.fail("tile pixels truncated");
+    t.image = node::Image(t.rect.width, t.rect.height);
+    const auto src = r.getBytes(n * 4);
+    std::memcpy(t.image.pixels.data(), src.data(), n * 4);
+  }
+  const int cellsX = r.get<std::int32_t>(), cellsY = r.get<std::int32_t>();
+  if (cellsX != 0 || cellsY != 0) {
+    node::CostGrid grid(task.screenWidth, task.screenHeight, task.cellPixels);
+    if (cellsX != grid.cellsX || cellsY != grid.cellsY)
+      r.fail("cost grid " + std::to_string(cellsX) + "x" + std::to_string(cellsY) +
+             " does not match the screen's " + std::to_string(grid.cellsX) + "x" +
+             std::to_string(grid.cellsY));
+    for (double& s : grid.seconds) s = r.get<double>();
+    rep.costs = std::move(grid);
+  }
+  if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " trailing bytes");
+  return rep;
+}
+
+}  // namespace voxwall::net
