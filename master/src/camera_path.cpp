@@ -17,8 +17,9 @@ CameraPath CameraPath::orbit(const node::Orbit& start, double stepDeg) {
 CameraPath CameraPath::orbitThenZoom(const node::Orbit& start, int orbitFrames, int zoomFrames,
                                      double zoomDistance) {
   if (orbitFrames < 1 || zoomFrames < 0 || !(zoomDistance > 0))
-    throw std::invalid_argument("orbit-zoom path: needs at least one orbit frame and a positive "
-                                "zoom distance");
+    throw std::invalid_argument(
+        "orbit-zoom path: needs at least one orbit frame and a positive "
+        "zoom distance");
   CameraPath p;
   p.kind_ = Kind::OrbitZoom;
   p.start_ = start;
@@ -62,8 +63,8 @@ CameraPath CameraPath::fromJsonFile(const std::string& path) {
   node::Orbit previous;
   for (const auto& k : doc["keyframes"]) {
     if (!k.is_object() || !k.contains("frame") || !k["frame"].is_number_integer())
-      throw FormatError(path, "key frame " + std::to_string(keys.size()) +
-                                  ": needs an integer \"frame\"");
+      throw FormatError(
+          path, "key frame " + std::to_string(keys.size()) + ": needs an integer \"frame\"");
     KeyFrame key;
     key.frame = k["frame"].get<int>();
     key.orbit = previous;

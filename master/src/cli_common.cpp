@@ -129,4 +129,10 @@ std::string humanBytes(double bytes) {
   return buf;
 }
 
+bool isNonZeroRank() {
+  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK"})
+    if (const char* value = std::getenv(name)) return std::string(value) != "0";
+  return false;
+}
+
 }  // namespace voxwall::cli

@@ -35,4 +35,14 @@ codec::Progress makeProgress(bool quiet);
 
 std::string humanBytes(double bytes);
 
+// Thrown by a rank other than rank 0 when the job fails for a reason rank 0 reports: main exits
+// with status 1 without printing, so the user reads one line, not one per rank.
+struct SilentFailure : std::exception {
+  const char* what() const noexcept override { return "failure reported by rank 0"; }
+};
+
+// Whether an MPI launcher started this process as a rank other than 0 (from its environment,
+// before MPI is initialised): such a rank keeps quiet about errors every rank sees.
+bool isNonZeroRank();
+
 }  // namespace voxwall::cli

@@ -35,8 +35,7 @@ std::unique_ptr<Communicator> makeSingleRankCommunicator() {
   return std::make_unique<SingleRankCommunicator>();
 }
 
-std::vector<std::string> gatherStrings(Communicator& comm, const std::string& text,
-                                       int timeoutMs) {
+std::vector<std::string> gatherStrings(Communicator& comm, const std::string& text, int timeoutMs) {
   std::vector<std::string> out;
   for (const auto& bytes : comm.gather(toBytes(text), timeoutMs)) out.push_back(toString(bytes));
   return out;

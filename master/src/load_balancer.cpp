@@ -18,7 +18,8 @@ std::vector<Rect> stripCut(int width, int height, int count) {
                                 " strips");
   std::vector<Rect> strips;
   for (int i = 0; i < count; ++i) {
-    const int y0 = int((long long)height * i / count), y1 = int((long long)height * (i + 1) / count);
+    const int y0 = int((long long)height * i / count),
+              y1 = int((long long)height * (i + 1) / count);
     strips.push_back({0, y0, width, y1 - y0});
   }
   return strips;
@@ -89,7 +90,8 @@ void bisect(const CostGrid& g, const Rect& rect, int count, double floorCost,
   // Split the longer side; fall back to the other when one-pixel minimums do not fit.
   bool splitX = rect.width >= rect.height;
   auto bounds = [&](bool alongX, int first) {
-    const int length = alongX ? rect.width : rect.height, across = alongX ? rect.height : rect.width;
+    const int length = alongX ? rect.width : rect.height,
+              across = alongX ? rect.height : rect.width;
     const int lo = (first + across - 1) / across;
     const int hi = length - (count - first + across - 1) / across;
     return std::pair{lo, hi};
@@ -102,7 +104,8 @@ void bisect(const CostGrid& g, const Rect& rect, int count, double floorCost,
   if (lo > hi || lo < 1) {
     // Degenerate (as many ranks as pixels): split the longer side in half and the ranks by area.
     splitX = rect.width >= rect.height;
-    const int length = splitX ? rect.width : rect.height, across = splitX ? rect.height : rect.width;
+    const int length = splitX ? rect.width : rect.height,
+              across = splitX ? rect.height : rect.width;
     lo = hi = length / 2;
     n1 = std::clamp(count - (length - lo) * across, 1, std::min(lo * across, count - 1));
   }
@@ -169,8 +172,8 @@ double LoadBalancer::predictedImbalance() const {
 void LoadBalancer::update(const std::vector<CostGrid>& slotGrids, std::vector<double> slotSeconds) {
   if (slotGrids.size() != std::size_t(ranks_) || slotSeconds.size() != std::size_t(ranks_))
     throw std::invalid_argument("load balancer: " + std::to_string(slotGrids.size()) +
-                                " grids and " + std::to_string(slotSeconds.size()) +
-                                " times for " + std::to_string(ranks_) + " ranks");
+                                " grids and " + std::to_string(slotSeconds.size()) + " times for " +
+                                std::to_string(ranks_) + " ranks");
   constexpr double kDaySeconds = 86400;
   double validSum = 0;
   int valid = 0;
@@ -187,8 +190,10 @@ void LoadBalancer::update(const std::vector<CostGrid>& slotGrids, std::vector<do
     const bool sameGrid = g.cellsX == measured.cellsX && g.cellsY == measured.cellsY &&
                           g.cellPixels == measured.cellPixels;
     // The slot's own cells: those its rectangle overlaps.
-    const int cx0 = rect.x / measured.cellPixels, cx1 = (rect.x + rect.width - 1) / measured.cellPixels;
-    const int cy0 = rect.y / measured.cellPixels, cy1 = (rect.y + rect.height - 1) / measured.cellPixels;
+    const int cx0 = rect.x / measured.cellPixels,
+              cx1 = (rect.x + rect.width - 1) / measured.cellPixels;
+    const int cy0 = rect.y / measured.cellPixels,
+              cy1 = (rect.y + rect.height - 1) / measured.cellPixels;
     double sum = 0;
     bool sane = sameGrid;
     for (int cy = cy0; sane && cy <= cy1; ++cy)

@@ -5,6 +5,7 @@
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/node/renderer.hpp>
 
+#include "cli_common.hpp"
 #include "commands/commands.hpp"
 
 int main(int argc, char** argv) {
@@ -21,7 +22,11 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    // Under mpirun every rank parses the same line: only rank 0 explains what is wrong.
+    if (voxwall::cli::isNonZeroRank()) return e.get_exit_code();
     return app.exit(e);
+  } catch (const voxwall::cli::SilentFailure&) {
+    return 1;
   } catch (const voxwall::FormatError& e) {
     std::fprintf(stderr, "voxwall: %s\n", e.what());
     return 1;

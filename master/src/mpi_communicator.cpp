@@ -69,8 +69,7 @@ class MpiCommunicator final : public Communicator {
     MPI_Get_processor_name(name, &length);
     host_.assign(name, std::size_t(length));
     MPI_Comm shared;
-    check(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank_, MPI_INFO_NULL,
-                              &shared),
+    check(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank_, MPI_INFO_NULL, &shared),
           "MPI_Comm_split_type", rank_);
     MPI_Comm_size(shared, &onHost_);
     MPI_Comm_free(&shared);
@@ -100,13 +99,12 @@ class MpiCommunicator final : public Communicator {
                     "the master (rank 0) sent nothing for " + seconds(timeoutMs));
   }
 
-  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes,
-                                             int timeoutMs) override {
+  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int timeoutMs) override {
     std::vector<std::vector<std::byte>> all;
     if (rank_ != 0) {
       MPI_Request request;
-      check(MPI_Isend(bytes.data(), messageCount(bytes, rank_), MPI_BYTE, 0, kTagGather, MPI_COMM_WORLD,
-                      &request),
+      check(MPI_Isend(bytes.data(), messageCount(bytes, rank_), MPI_BYTE, 0, kTagGather,
+                      MPI_COMM_WORLD, &request),
             "MPI_Isend", rank_);
       std::vector<MPI_Request> requests{request};
       waitAll(requests, timeoutMs, "(the master) did not take this rank's report");

@@ -15,7 +15,9 @@ namespace fs = std::filesystem;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 constexpr const char* kManifestName = "voxwall-job.json";
 
@@ -25,12 +27,12 @@ class FrameWriter {
   // Returns the seconds spent waiting for the previous write.
   double push(node::Image image, std::string path, std::optional<glm::dvec3> background) {
     const double wait = finish();
-    pending_ = std::async(std::launch::async, [image = std::move(image), path = std::move(path),
-                                               background]() {
-      const auto start = Clock::now();
-      node::writeImage(image, path, background);
-      return since(start);
-    });
+    pending_ = std::async(std::launch::async,
+                          [image = std::move(image), path = std::move(path), background]() {
+                            const auto start = Clock::now();
+                            node::writeImage(image, path, background);
+                            return since(start);
+                          });
     return wait;
   }
   // Waits for the write in flight (rethrowing its error); returns the wait.
@@ -108,18 +110,20 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   JobSummary summary;
   int timeoutMs = job.watchdogMs;
   for (;;) {
+    // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
+    // twice as long, so that rank 0's watchdog names the culprit before anyone blames rank 0.
     std::vector<std::byte> bytes;
-    comm.broadcast(bytes, timeoutMs);
+    comm.broadcast(bytes, 2 * timeoutMs);
     const auto task = net::decodeFrameTask(bytes, "frame task from rank 0");
     if (task.rects.size() != std::size_t(comm.size()))
-      throw FormatError("frame task from rank 0", "has rectangles for " +
-                                                      std::to_string(task.rects.size()) +
-                                                      " ranks in a job of " +
-                                                      std::to_string(comm.size()));
+      throw FormatError("frame task from rank 0",
+                        "has rectangles for " + std::to_string(task.rects.size()) +
+                            " ranks in a job of " + std::to_string(comm.size()));
     timeoutMs = int(std::max<std::uint32_t>(task.watchdogMs, 1000));
     const auto& mine = task.rects[std::size_t(comm.rank())];
-    const auto report = task.stop ? renderRects(comm.rank(), backend, volume, tf, render, task, {})
-                                  : renderRects(comm.rank(), backend, volume, tf, render, task, mine);
+    const auto report = task.stop
+                            ? renderRects(comm.rank(), backend, volume, tf, render, task, {})
+                            : renderRects(comm.rank(), backend, volume, tf, render, task, mine);
     comm.gather(net::encode(report), timeoutMs);
     if (task.stop) break;
     ++summary.framesRendered;
@@ -187,7 +191,8 @@ std::vector<bool> prepareOutput(const JobSettings& job) {
       if (found != wanted) {
         std::string differs;
         for (const auto& [key, value] : wanted.items())
-          if (!found.contains(key) || found[key] != value) differs += (differs.empty() ? "" : ", ") + key;
+          if (!found.contains(key) || found[key] != value)
+            differs += (differs.empty() ? "" : ", ") + key;
         throw FormatError(manifestPath.string(),
                           "the frames here were rendered with other settings (" +
                               (differs.empty() ? std::string("extra keys") : differs) +
@@ -222,8 +227,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   const auto renderers = renderingRanks(job, comm.size());
   const int slots = int(renderers.size());
   std::optional<LoadBalancer> balancer;
-  if (job.balance == Balance::Dynamic)
-    balancer.emplace(job.width, job.height, slots, job.balancer);
+  if (job.balance == Balance::Dynamic) balancer.emplace(job.width, job.height, slots, job.balancer);
   const auto staticCut = staticSlots(job, slots);
   const auto done = prepareOutput(job);
 
@@ -268,7 +272,8 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
       const std::string source = "report of rank " + std::to_string(r);
       auto report = r == 0 ? std::move(own)
                            : net::decodeRankReport(reportBytes[std::size_t(r)], task, source);
-      if (report.rank != r) throw FormatError(source, "claims to be rank " + std::to_string(report.rank));
+      if (report.rank != r)
+        throw FormatError(source, "claims to be rank " + std::to_string(report.rank));
       // Every assigned rectangle must come back, or the frame would be shown incomplete.
       if (report.tiles.size() != task.rects[std::size_t(r)].size())
         throw FormatError(source, "has " + std::to_string(report.tiles.size()) + " tiles, " +

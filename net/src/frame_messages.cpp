@@ -1,4 +1,5 @@
 #include <cmath>
+#include <cstring>
 #include <voxwall/codec/bytes.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/net/frame_messages.hpp>
@@ -66,9 +67,9 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
     v->x = r.get<double>(), v->y = r.get<double>(), v->z = r.get<double>();
   t.camera.fovYDeg = r.get<double>();
-  for (double v : {t.camera.eye.x, t.camera.eye.y, t.camera.eye.z, t.camera.center.x,
-                   t.camera.center.y, t.camera.center.z, t.camera.up.x, t.camera.up.y,
-                   t.camera.up.z})
+  for (double v :
+       {t.camera.eye.x, t.camera.eye.y, t.camera.eye.z, t.camera.center.x, t.camera.center.y,
+        t.camera.center.z, t.camera.up.x, t.camera.up.y, t.camera.up.z})
     if (!std::isfinite(v)) r.fail("camera is not finite");
   if (!(t.camera.fovYDeg > 0 && t.camera.fovYDeg < 180)) r.fail("camera field of view");
   t.tfVersion = r.get<std::uint32_t>(), t.watchdogMs = r.get<std::uint32_t>();
@@ -76,8 +77,7 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   t.cellPixels = r.get<std::int32_t>();
   if (t.screenWidth <= 0 || t.screenHeight <= 0 || t.screenWidth > kMaxScreenSide ||
       t.screenHeight > kMaxScreenSide)
-    r.fail("screen size " + std::to_string(t.screenWidth) + "x" +
-           std::to_string(t.screenHeight));
+    r.fail("screen size " + std::to_string(t.screenWidth) + "x" + std::to_string(t.screenHeight));
   if (t.cellPixels <= 0 || t.cellPixels > kMaxScreenSide) r.fail("cost cell size");
   const auto ranks = r.get<std::uint32_t>();
   if (ranks > std::uint32_t(kMaxRanks)) r.fail(std::to_string(ranks) + " ranks");

@@ -1,53 +1,201 @@
 #include <gtest/gtest.h>
 
-#include <random>
+#include <filesystem>
+#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/master/frame_loop.hpp>
+#include <voxwall/master/render_job.hpp>
 
+#include "support/fake_communicator.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
+namespace fs = std::filesystem;
 
-TEST(GridTiles, CoverTheScreenExactlyOnce) {
-  std::mt19937 rng(42);
-  for (int trial = 0; trial < 200; ++trial) {
-    const int w = 1 + int(rng() % 300), h = 1 + int(rng() % 300);
-    const int tx = 1 + int(rng() % std::min(w, 9)), ty = 1 + int(rng() % std::min(h, 9));
-    std::vector<int> covered(std::size_t(w) * std::size_t(h), 0);
-    for (auto& r : master::gridTiles(w, h, tx, ty)) {
-      ASSERT_GT(r.width, 0);
-      ASSERT_GT(r.height, 0);
-      for (int y = r.y; y < r.y + r.height; ++y)
-        for (int x = r.x; x < r.x + r.width; ++x)
-          covered[std::size_t(y) * std::size_t(w) + std::size_t(x)]++;
-    }
-    for (int c : covered) ASSERT_EQ(c, 1) << w << "x" << h << " in " << tx << "x" << ty;
-  }
-  EXPECT_THROW(master::gridTiles(4, 4, 5, 1), std::invalid_argument);
-  EXPECT_THROW(master::gridTiles(4, 4, 0, 1), std::invalid_argument);
+namespace {
+
+const node::RenderVolume& testVolume() {
+  // 8-voxel bricks, so tile edges at odd pixels cut through bricks.
+  static const auto volume = node::RenderVolume::fromVolume(codec::generateSheppLogan(40), 8);
+  return volume;
 }
 
-TEST(RenderSequence, WritesOneFilePerFrameAndOrbits) {
-  test::TempDir dir;
-  const auto volume = node::RenderVolume::fromVolume(codec::generateMenger(3), 8);
-  master::SequenceSettings seq;
-  seq.width = 40, seq.height = 30, seq.frames = 3, seq.orbitStepDeg = 20;
-  seq.outDir = dir.path("frames");
-  auto backend = node::makeCpuBackend(2);
-  std::vector<master::FrameReport> reports;
-  master::renderSequence(*backend, volume, node::TransferFunction::preset("grey").rescaled(0, 255),
-                         {}, seq, [&](const master::FrameReport& r) { reports.push_back(r); });
-  ASSERT_EQ(reports.size(), 3u);
-  for (int f = 0; f < 3; ++f) {
-    EXPECT_TRUE(std::filesystem::exists(reports[std::size_t(f)].path));
-    EXPECT_NE(reports[std::size_t(f)].path.find("frame_0000" + std::to_string(f) + ".png"),
-              std::string::npos);
-    EXPECT_GT(reports[std::size_t(f)].samples, 0u);
+node::TransferFunction testTf() { return node::TransferFunction::preset("mri").rescaled(0, 255); }
+
+master::JobSettings testJob(const std::string& dir, int frames = 3) {
+  master::JobSettings job;
+  job.width = 61, job.height = 47;  // odd sizes: strips and bisections cut bricks
+  job.frames = frames;
+  job.path = master::CameraPath::orbit({}, 25);
+  job.outDir = dir;
+  job.watchdogMs = 20000;
+  job.balancer.cellPixels = 8;
+  return job;
+}
+
+// Runs the job on `ranks` fake ranks; rethrows rank 0's error; returns rank 0's summary.
+master::JobSummary runJob(int ranks, const master::JobSettings& job,
+                          std::vector<master::FrameSummary>* frames = nullptr) {
+  master::JobSummary summary;
+  const auto errors = test::runRanks(ranks, [&](master::Communicator& comm) {
+    auto backend = node::makeCpuBackend(1);
+    auto result = master::runRenderJob(comm, *backend, testVolume(), testTf(), {}, job,
+                                       [&](const master::FrameSummary& f) {
+                                         if (frames) frames->push_back(f);
+                                       });
+    if (comm.rank() == 0) summary = result;
+  });
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  return summary;
+}
+
+void expectSameFrames(const std::string& a, const std::string& b, int frames) {
+  for (int f = 0; f < frames; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d.png", f);
+    const auto ia = node::readImage((fs::path(a) / name).string());
+    const auto ib = node::readImage((fs::path(b) / name).string());
+    ASSERT_EQ(ia.width, ib.width);
+    EXPECT_EQ(ia.pixels, ib.pixels) << name << " differs between " << a << " and " << b;
   }
-  // Frames differ because the camera moved.
-  EXPECT_NE(node::readImage(reports[0].path).pixels, node::readImage(reports[1].path).pixels);
-  // Nothing but the frames is left in the directory (no temporaries).
+}
+
+}  // namespace
+
+TEST(RenderJob, SingleRankWritesOneFilePerFrameAndOrbits) {
+  test::TempDir dir;
+  std::vector<master::FrameSummary> frames;
+  const auto summary = runJob(1, testJob(dir.path("one")), &frames);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(summary.framesRendered, 3);
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_TRUE(fs::exists(frames[std::size_t(f)].path));
+    EXPECT_GT(frames[std::size_t(f)].samples, 0u);
+  }
+  EXPECT_NE(node::readImage(frames[0].path).pixels, node::readImage(frames[1].path).pixels);
+  // Only the frames and the job manifest are left (no temporaries).
   int files = 0;
-  for (auto& e : std::filesystem::directory_iterator(seq.outDir)) files += e.is_regular_file();
-  EXPECT_EQ(files, 3);
+  for (auto& e : fs::directory_iterator(dir.path("one"))) files += e.is_regular_file();
+  EXPECT_EQ(files, 4);
+  EXPECT_TRUE(fs::exists(dir.path("one/voxwall-job.json")));
+}
+
+// The image from N ranks equals the single-rank image pixel for pixel, for every cut.
+TEST(RenderJob, ManyRanksEqualOneRankPixelForPixel) {
+  test::TempDir dir;
+  runJob(1, testJob(dir.path("ref"), 4));
+  for (int ranks : {2, 3, 4}) {
+    for (int mode = 0; mode < 4; ++mode) {
+      auto job = testJob(dir.path("r" + std::to_string(ranks) + "m" + std::to_string(mode)), 4);
+      job.balance = mode == 0 ? master::Balance::Dynamic : master::Balance::Static;
+      if (mode == 2) job.staticTilesX = 3, job.staticTilesY = 5;  // several tiles per rank
+      if (mode == 3) job.masterRenders = false;
+      std::vector<master::FrameSummary> frames;
+      runJob(ranks, job, &frames);
+      ASSERT_EQ(frames.size(), 4u);
+      EXPECT_EQ(frames[0].ranks.size(), std::size_t(mode == 3 ? ranks - 1 : ranks));
+      expectSameFrames(dir.path("ref"), job.outDir, 4);
+    }
+  }
+}
+
+TEST(RenderJob, ResumeRendersOnlyTheMissingFrames) {
+  test::TempDir dir;
+  const auto out = dir.path("frames");
+  runJob(2, testJob(dir.path("ref"), 5));
+  auto job = testJob(out, 5);
+  runJob(3, job);
+  // As a killed run leaves it: two frames missing, one temporary half-written.
+  fs::remove(out + "/frame_00001.png");
+  fs::remove(out + "/frame_00004.png");
+  test::writeFile(out + "/frame_00004.png.tmp.123.png", "half a frame");
+  const auto before = fs::last_write_time(out + "/frame_00002.png");
+  job.resume = true;
+  const auto summary = runJob(3, job);
+  EXPECT_EQ(summary.framesSkipped, 3);
+  EXPECT_EQ(summary.framesRendered, 2);
+  EXPECT_EQ(fs::last_write_time(out + "/frame_00002.png"), before);
+  EXPECT_FALSE(fs::exists(out + "/frame_00004.png.tmp.123.png"));
+  expectSameFrames(dir.path("ref"), out, 5);
+}
+
+TEST(RenderJob, ResumeRefusesFramesOfOtherSettings) {
+  test::TempDir dir;
+  auto job = testJob(dir.path("frames"), 2);
+  job.manifest = R"({"step": 0.25})";
+  runJob(1, job);
+  job.resume = true;
+  job.manifest = R"({"step": 0.5})";
+  try {
+    runJob(1, job);
+    FAIL() << "resumed frames made with another step";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("step"), std::string::npos) << e.what();
+  }
+  // Frames without a manifest: nobody knows how they were made.
+  fs::remove(dir.path("frames/voxwall-job.json"));
+  EXPECT_THROW(runJob(1, job), FormatError);
+}
+
+namespace {
+
+// A rank that stops answering (test stand-in for a hung process).
+class SlowBackend final : public node::Backend {
+ public:
+  explicit SlowBackend(int ms) : inner_(node::makeCpuBackend(1)), ms_(ms) {}
+  std::string name() const override { return "slow"; }
+
+ protected:
+  node::TileStats renderTile(const node::RenderVolume& v, const node::FramePlan& p,
+                             const node::Rect& t, node::Image& out, node::CostGrid* c) override {
+    std::this_thread::sleep_for(std::chrono::milliseconds(ms_));
+    return inner_->render(v, p, t, out, c);
+  }
+
+ private:
+  std::unique_ptr<node::Backend> inner_;
+  int ms_;
+};
+
+}  // namespace
+
+TEST(RenderJob, WatchdogNamesTheRankThatStoppedAnswering) {
+  test::TempDir dir;
+  auto job = testJob("", 2);
+  job.watchdogMs = 300;
+  const auto errors = test::runRanks(3, [&](master::Communicator& comm) {
+    std::unique_ptr<node::Backend> backend =
+        comm.rank() == 2 ? std::unique_ptr<node::Backend>(std::make_unique<SlowBackend>(1500))
+                         : node::makeCpuBackend(1);
+    master::runRenderJob(comm, *backend, testVolume(), testTf(), {}, job);
+  });
+  ASSERT_TRUE(errors[0]);
+  try {
+    std::rethrow_exception(errors[0]);
+  } catch (const master::MpiError& e) {
+    EXPECT_NE(std::string(e.what()).find("2"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find("1 "), std::string::npos) << e.what();
+  }
+}
+
+TEST(RenderJob, AgreeOnErrorsTellsEveryRankTheFirstFailure) {
+  std::vector<std::string> verdicts(3);
+  const auto errors = test::runRanks(3, [&](master::Communicator& comm) {
+    verdicts[std::size_t(comm.rank())] =
+        master::agreeOnErrors(comm, comm.rank() == 1 ? "volume.vwz: truncated" : "", 5000);
+  });
+  for (const auto& e : errors) EXPECT_FALSE(e);
+  for (const auto& v : verdicts) EXPECT_EQ(v, "rank 1 (thread1): volume.vwz: truncated");
+  test::runRanks(
+      2, [&](master::Communicator& comm) { EXPECT_EQ(master::agreeOnErrors(comm, "", 5000), ""); });
+}
+
+TEST(RenderJob, FirstFrameRectsForADryRun) {
+  auto job = testJob("", 1);
+  const auto rects = master::firstFrameRects(job, 3);
+  ASSERT_EQ(rects.size(), 3u);
+  for (const auto& r : rects) EXPECT_EQ(r.size(), 1u);
+  job.masterRenders = false;
+  EXPECT_TRUE(master::firstFrameRects(job, 3)[0].empty());
+  EXPECT_THROW(master::firstFrameRects(job, 1), std::invalid_argument);
 }

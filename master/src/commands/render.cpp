@@ -2,10 +2,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <nlohmann/json.hpp>
-#include <thread>
 #include <filesystem>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
@@ -113,7 +113,8 @@ std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ra
   else
     for (const auto& r : rects[std::size_t(rank)]) pixels += std::uint64_t(r.area());
   const std::uint64_t screen = std::uint64_t(job.width) * std::uint64_t(job.height);
-  const std::uint64_t cells = std::uint64_t((job.width + 31) / 32) * std::uint64_t((job.height + 31) / 32);
+  const std::uint64_t cells =
+      std::uint64_t((job.width + 31) / 32) * std::uint64_t((job.height + 31) / 32);
   std::uint64_t bytes = baseBytes + volumeBytes + pixels * 8 + cells * 16 + (1u << 20);
   if (rank == 0) bytes += screen * (4 + 4 + 16 + 8) + std::uint64_t(ranks) * cells * 16;
   return bytes;
@@ -164,8 +165,8 @@ master::JobSettings jobSettings(const RenderOptions& o) {
     job.path = master::CameraPath::orbit(orbit, o.orbitDeg != 0 ? o.orbitDeg : 360.0 / o.frames);
   } else if (o.path == "orbit-zoom") {
     const int orbitFrames = std::max(1, o.frames / 2);
-    job.path = master::CameraPath::orbitThenZoom(orbit, orbitFrames, o.frames - orbitFrames,
-                                                 o.zoomTo);
+    job.path =
+        master::CameraPath::orbitThenZoom(orbit, orbitFrames, o.frames - orbitFrames, o.zoomTo);
   } else {
     job.path = master::CameraPath::fromJsonFile(o.path);
   }
@@ -175,14 +176,16 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   job.format = o.format;
   job.background = parseBackground(o.background);
   job.resume = o.resume;
-  if (o.resume && o.noWrite) throw std::invalid_argument("--resume needs frames on disk, not --no-write");
+  if (o.resume && o.noWrite)
+    throw std::invalid_argument("--resume needs frames on disk, not --no-write");
   if (o.balance != "static" && o.balance != "dynamic")
     throw std::invalid_argument("--balance: expected static or dynamic");
   job.balance = o.balance == "static" ? master::Balance::Static : master::Balance::Dynamic;
   if (o.tiles != "1x1") {
     if (o.balanceGiven && job.balance == master::Balance::Dynamic)
-      throw std::invalid_argument("--tiles cuts the screen statically: it cannot go with "
-                                  "--balance dynamic");
+      throw std::invalid_argument(
+          "--tiles cuts the screen statically: it cannot go with "
+          "--balance dynamic");
     job.balance = master::Balance::Static;
     std::tie(job.staticTilesX, job.staticTilesY) = parseSize(o.tiles, "--tiles");
   }
@@ -230,6 +233,7 @@ void runRender(const RenderOptions& o) {
   Setup s;
   // Setup errors are agreed on by all ranks before anyone goes on (STYLE.md "Errors").
   std::string error;
+  std::exception_ptr setupError;
   try {
     s.job = jobSettings(o);
     if (!(o.step > 0 && o.step <= 8))
@@ -253,8 +257,8 @@ void runRender(const RenderOptions& o) {
     } else {
       s.volume = node::RenderVolume::open(s.input);
     }
-    s.needBytes = estimateRankBytes(s.job, comm->rank(), comm->size(), s.volume->storedBytes(),
-                                    baseBytes);
+    s.needBytes =
+        estimateRankBytes(s.job, comm->rank(), comm->size(), s.volume->storedBytes(), baseBytes);
     if (!o.memoryBudget.empty()) {
       const auto budget = parseBytes(o.memoryBudget, "--memory-budget");
       if (s.needBytes > budget)
@@ -273,12 +277,17 @@ void runRender(const RenderOptions& o) {
       if (o.testStallRank == comm->rank())
         s.backend = std::make_unique<StallingBackend>(std::move(s.backend), o.testStallCall);
     }
+  } catch (const node::CudaError& e) {
+    error = std::string("cuda: ") + e.what();
+    setupError = std::current_exception();
   } catch (const std::exception& e) {
     error = e.what();
+    setupError = std::current_exception();
   }
   error = master::agreeOnErrors(*comm, error, setupTimeoutMs);
   if (!error.empty()) {
-    if (comm->size() == 1) throw std::runtime_error(error.substr(error.find(": ") + 2));
+    if (comm->size() == 1 && setupError) std::rethrow_exception(setupError);
+    if (!leader) throw SilentFailure();
     throw std::runtime_error(error);
   }
 
@@ -299,12 +308,16 @@ void runRender(const RenderOptions& o) {
     hosts.push_back(host);
     needs.push_back(need);
     if (verdict.empty() && std::string(hash) != std::string(all[0].substr(0, 16)))
-      verdict = "rank " + std::to_string(r) + " (" + host + ") holds a different volume than rank "
-                "0 (fingerprint " + hash + " vs " + all[0].substr(0, 16) +
-                "): give every rank the same file";
+      verdict = "rank " + std::to_string(r) + " (" + host +
+                ") holds a different volume than rank "
+                "0 (fingerprint " +
+                hash + " vs " + all[0].substr(0, 16) + "): give every rank the same file";
   }
   verdict = master::broadcastString(*comm, verdict, setupTimeoutMs);
-  if (!verdict.empty()) throw std::runtime_error(verdict);
+  if (!verdict.empty()) {
+    if (!leader) throw SilentFailure();
+    throw std::runtime_error(verdict);
+  }
   s.job.manifest = manifest(o, s.job, s.render, fingerprint);
 
   if (!quiet)
@@ -312,14 +325,15 @@ void runRender(const RenderOptions& o) {
                  s.input.c_str(), info.dims.x, info.dims.y, info.dims.z,
                  std::string(codec::scalarName(info.type)).c_str(),
                  std::string(codec::codecName(info.codec)).c_str(), s.job.width, s.job.height,
-                 s.job.frames, comm->size(),
-                 o.dryRun ? "dry run" : s.backend->name().c_str());
+                 s.job.frames, comm->size(), o.dryRun ? "dry run" : s.backend->name().c_str());
   if (o.dryRun) {
     if (leader) {
       const auto rects = master::firstFrameRects(s.job, comm->size());
       std::printf("dry run: %d rank(s), %s cut%s\n", comm->size(),
                   s.job.balance == master::Balance::Dynamic ? "dynamic" : "static",
-                  s.job.balance == master::Balance::Dynamic ? " (first frame shown; re-cut from measured costs after it)" : "");
+                  s.job.balance == master::Balance::Dynamic
+                      ? " (first frame shown; re-cut from measured costs after it)"
+                      : "");
       for (int r = 0; r < comm->size(); ++r) {
         const std::string list = rectList(rects[std::size_t(r)]);
         std::printf("rank %d on %s: needs %s; tiles:%s\n", r, hosts[std::size_t(r)].c_str(),
@@ -354,10 +368,11 @@ void runRender(const RenderOptions& o) {
                             f.rankSeconds[i] * 1e3);
               ranks += text;
             }
-            std::printf("frame %d/%d: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s\n",
-                        f.frame + 1, s.job.frames, f.frameSeconds * 1e3, f.imbalance,
-                        ranks.c_str(), double(f.samples) / f.renderSeconds / 1e6,
-                        f.path.empty() ? "" : " -> ", f.path.c_str());
+            std::printf(
+                "frame %d/%d: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s\n",
+                f.frame + 1, s.job.frames, f.frameSeconds * 1e3, f.imbalance, ranks.c_str(),
+                double(f.samples) / f.renderSeconds / 1e6, f.path.empty() ? "" : " -> ",
+                f.path.c_str());
             if (o.verbose)
               for (std::size_t i = 0; i < f.ranks.size(); ++i)
                 std::printf("  rank %d:%s\n", f.ranks[i], rectList(f.rects[i]).c_str());
@@ -374,20 +389,23 @@ void runRender(const RenderOptions& o) {
   }();
   if (quiet) return;
   if (summary.framesSkipped > 0)
-    std::printf("resume: %d frame(s) already complete in %s, rendered %d\n",
-                summary.framesSkipped, s.job.outDir.c_str(), summary.framesRendered);
+    std::printf("resume: %d frame(s) already complete in %s, rendered %d\n", summary.framesSkipped,
+                s.job.outDir.c_str(), summary.framesRendered);
   if (frames > 0) {
     const double n = frames;
-    std::printf("total: %d frame(s) in %.2f s, %.2f frames/s, mean frame %.1f ms, mean imbalance "
-                "%.2f, %.1f Msamples/s\n",
-                frames, summary.seconds, n / summary.seconds, totals.frameSeconds / n * 1e3,
-                imbalanceSum / n, double(totals.samples) / totals.renderSeconds / 1e6);
+    std::printf(
+        "total: %d frame(s) in %.2f s, %.2f frames/s, mean frame %.1f ms, mean imbalance "
+        "%.2f, %.1f Msamples/s\n",
+        frames, summary.seconds, n / summary.seconds, totals.frameSeconds / n * 1e3,
+        imbalanceSum / n, double(totals.samples) / totals.renderSeconds / 1e6);
     const double whole = totals.frameSeconds;
-    std::printf("frame time on rank 0: render %.0f%%, wait for ranks %.0f%%, assemble %.0f%%, "
-                "wait for writer %.0f%%\n",
-                100 * (whole - totals.gatherSeconds - totals.assembleSeconds - totals.writeWaitSeconds) / whole,
-                100 * totals.gatherSeconds / whole, 100 * totals.assembleSeconds / whole,
-                100 * totals.writeWaitSeconds / whole);
+    std::printf(
+        "frame time on rank 0: render %.0f%%, wait for ranks %.0f%%, assemble %.0f%%, "
+        "wait for writer %.0f%%\n",
+        100 * (whole - totals.gatherSeconds - totals.assembleSeconds - totals.writeWaitSeconds) /
+            whole,
+        100 * totals.gatherSeconds / whole, 100 * totals.assembleSeconds / whole,
+        100 * totals.writeWaitSeconds / whole);
   }
   for (const auto& m : summary.memory)
     std::printf("rank %d on %s: resident %s, peak %s\n", m.rank, hosts[std::size_t(m.rank)].c_str(),
@@ -432,14 +450,14 @@ void addRenderCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--resume", o->resume,
                 "Skip frames already complete in --out (made with the same settings)");
-  cmd->add_option("--path", o->path,
-                  "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), "
-                  "orbit-zoom (a turn in half the frames, then a zoom to --zoom-to), or a key-frame "
-                  "JSON file ({\"keyframes\": [{\"frame\": 0, \"azimuth\": 30, \"elevation\": "
-                  "20, \"distance\": 2.6, \"fov\": 30}, ...]})")
+  cmd->add_option(
+         "--path", o->path,
+         "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), "
+         "orbit-zoom (a turn in half the frames, then a zoom to --zoom-to), or a key-frame "
+         "JSON file ({\"keyframes\": [{\"frame\": 0, \"azimuth\": 30, \"elevation\": "
+         "20, \"distance\": 2.6, \"fov\": 30}, ...]})")
       ->capture_default_str();
-  cmd->add_option("--zoom-to", o->zoomTo,
-                  "orbit-zoom: final camera distance in bounding radii")
+  cmd->add_option("--zoom-to", o->zoomTo, "orbit-zoom: final camera distance in bounding radii")
       ->capture_default_str();
   cmd->add_option("--cost-cell", o->costCell,
                   "Cell size in pixels of the cost grid the dynamic balancer measures")

@@ -41,8 +41,7 @@ class Communicator {
 std::unique_ptr<Communicator> makeSingleRankCommunicator();
 
 // Collective: rank 0 gets every rank's text (index = rank); other ranks get an empty list.
-std::vector<std::string> gatherStrings(Communicator& comm, const std::string& text,
-                                       int timeoutMs);
+std::vector<std::string> gatherStrings(Communicator& comm, const std::string& text, int timeoutMs);
 // Collective: every rank gets rank 0's text.
 std::string broadcastString(Communicator& comm, const std::string& text, int timeoutMs);
 

@@ -2,8 +2,8 @@
 // costs measured in the previous frame (dynamic), like Equalizer's 2D load balancer.
 #pragma once
 
-#include <vector>
 #include <span>
+#include <vector>
 #include <voxwall/node/cost_grid.hpp>
 
 namespace voxwall::master {
@@ -21,18 +21,17 @@ std::vector<node::Rect> gridCut(int width, int height, int tilesX, int tilesY);
 // rectangle is at least one pixel. Zero, negative or non-finite cells count as free; a grid with
 // no usable cost cuts by area. The result tiles `screen` exactly. Throws std::invalid_argument
 // when `screen` has fewer pixels than `count`.
-std::vector<node::Rect> bisectCut(const node::CostGrid& costs, const node::Rect& screen,
-                                  int count);
+std::vector<node::Rect> bisectCut(const node::CostGrid& costs, const node::Rect& screen, int count);
 
 // max / mean of `costs` (1 = perfect balance; 1 for an empty or all-zero list).
 double imbalance(const std::vector<double>& costs);
 
 struct BalancerSettings {
-  int cellPixels = 32;             // cost grid cell
-  double smoothing = 0.5;          // weight of the newest frame in the cost prediction
-  double recutAbove = 1.05;        // keep the current cut while it predicts at most this
-  double resetAbove = 1.30;        // a frame this unbalanced replaces the prediction outright
-  double minGain = 0.02;           // a new cut must predict at least this much less imbalance
+  int cellPixels = 32;       // cost grid cell
+  double smoothing = 0.5;    // weight of the newest frame in the cost prediction
+  double recutAbove = 1.05;  // keep the current cut while it predicts at most this
+  double resetAbove = 1.30;  // a frame this unbalanced replaces the prediction outright
+  double minGain = 0.02;     // a new cut must predict at least this much less imbalance
 };
 
 // The dynamic balancer. Not thread-safe.

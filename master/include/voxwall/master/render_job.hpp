@@ -29,11 +29,11 @@ struct JobSettings {
   std::string outDir;         // empty: frames are assembled but not written
   std::string format = "png";
   std::optional<glm::dvec3> background;
-  bool resume = false;        // skip frames already complete in outDir
+  bool resume = false;  // skip frames already complete in outDir
   // Everything that shapes the pixels, as a JSON object; written to outDir/voxwall-job.json and
   // compared on --resume so frames of different renders are never mixed.
   std::string manifest = "{}";
-  int watchdogMs = 120000;    // at least this; grows to 4x the slowest frame seen
+  int watchdogMs = 120000;  // at least this; grows to 4x the slowest frame seen
   BalancerSettings balancer;
 };
 
@@ -48,10 +48,10 @@ struct FrameSummary {
   std::vector<int> ranks;       // the rendering ranks
   std::vector<double> rankSeconds;
   std::vector<std::vector<node::Rect>> rects;  // per rendering rank
-  double imbalance = 1;         // max / mean of rankSeconds
+  double imbalance = 1;                        // max / mean of rankSeconds
   std::uint64_t samples = 0;
-  int recuts = 0;               // cut changes so far (dynamic)
-  std::string path;             // file the frame goes to, empty when not writing
+  int recuts = 0;    // cut changes so far (dynamic)
+  std::string path;  // file the frame goes to, empty when not writing
 };
 
 struct RankMemory {

@@ -41,10 +41,10 @@ struct FrameTask {
   std::uint32_t frame = 0;
   bool stop = false;  // no more frames: send the final report and leave the loop
   node::Camera camera;
-  std::uint32_t tfVersion = 0;      // transfer function in use (ranks hold it; fixed for now)
-  std::uint32_t watchdogMs = 0;     // how long any rank waits for any other in this frame
+  std::uint32_t tfVersion = 0;   // transfer function in use (ranks hold it; fixed for now)
+  std::uint32_t watchdogMs = 0;  // how long any rank waits for any other in this frame
   int screenWidth = 0, screenHeight = 0;
-  int cellPixels = 32;              // cost grid cell size
+  int cellPixels = 32;                         // cost grid cell size
   std::vector<std::vector<node::Rect>> rects;  // per rank (index = rank); may be empty
 };
 

@@ -60,14 +60,14 @@ class Backend {
   // Renders `tile` of the virtual screen into `out` (resized to the tile). With `costs` (a grid
   // over the whole virtual screen), adds the time spent on each part of the tile to its cells:
   // the CPU backend per 16x16 block (thread-seconds), the CUDA backend spread over the tile.
-  TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
-                   Image& out, CostGrid* costs = nullptr) {
+  TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile, Image& out,
+                   CostGrid* costs = nullptr) {
     return renderTile(volume, plan, tile, out, costs);
   }
 
  protected:
-  virtual TileStats renderTile(const RenderVolume& volume, const FramePlan& plan,
-                               const Rect& tile, Image& out, CostGrid* costs) = 0;
+  virtual TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
+                               Image& out, CostGrid* costs) = 0;
 };
 
 // threads: CPU worker threads (0 = all cores). Cuda throws CudaError when no device is usable.

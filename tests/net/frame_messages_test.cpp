@@ -1,0 +1,167 @@
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/net/frame_messages.hpp>
+
+using namespace voxwall;
+
+namespace {
+
+net::FrameTask sampleTask() {
+  net::FrameTask t;
+  t.frame = 7;
+  t.camera.eye = {1, -2, 3};
+  t.camera.fovYDeg = 40;
+  t.tfVersion = 3;
+  t.watchdogMs = 5000;
+  t.screenWidth = 64, t.screenHeight = 48;
+  t.cellPixels = 16;
+  t.rects = {{{0, 0, 32, 48}}, {{32, 0, 32, 20}, {32, 20, 32, 28}}, {}};
+  return t;
+}
+
+net::RankReport sampleReport(const net::FrameTask& t) {
+  net::RankReport r;
+  r.frame = t.frame;
+  r.rank = 1;
+  r.renderSeconds = 0.25;
+  r.samples = 12345;
+  r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
+  for (const auto& rect : t.rects[1]) {
+    net::RenderedTile tile{rect, node::Image(rect.width, rect.height)};
+    for (std::size_t i = 0; i < tile.image.pixels.size(); ++i)
+      tile.image.pixels[i] = std::uint32_t(i * 2654435761u);
+    r.tiles.push_back(tile);
+  }
+  r.costs = node::CostGrid(t.screenWidth, t.screenHeight, t.cellPixels);
+  r.costs.add({32, 0, 32, 48}, 0.25);
+  return r;
+}
+
+void expectRejected(std::span<const std::byte> bytes, const net::FrameTask* task) {
+  if (task)
+    EXPECT_THROW(net::decodeRankReport(bytes, *task, "test"), FormatError);
+  else
+    EXPECT_THROW(net::decodeFrameTask(bytes, "test"), FormatError);
+}
+
+template <typename T>
+void poke(std::vector<std::byte>& bytes, std::size_t offset, T value) {
+  std::memcpy(bytes.data() + offset, &value, sizeof value);
+}
+
+}  // namespace
+
+TEST(FrameTask, RoundTrips) {
+  const auto t = sampleTask();
+  const auto back = net::decodeFrameTask(net::encode(t), "test");
+  EXPECT_EQ(back.frame, 7u);
+  EXPECT_FALSE(back.stop);
+  EXPECT_EQ(back.camera.eye, t.camera.eye);
+  EXPECT_EQ(back.camera.fovYDeg, 40);
+  EXPECT_EQ(back.tfVersion, 3u);
+  EXPECT_EQ(back.watchdogMs, 5000u);
+  EXPECT_EQ(back.cellPixels, 16);
+  EXPECT_EQ(back.rects, t.rects);
+}
+
+TEST(FrameTask, RejectsEveryTruncation) {
+  const auto bytes = net::encode(sampleTask());
+  for (std::size_t n = 0; n < bytes.size(); ++n)
+    expectRejected(std::span(bytes).first(n), nullptr);
+}
+
+TEST(FrameTask, RejectsOtherVersionsAndMagic) {
+  for (std::uint32_t version : {0u, net::kFrameMessageVersion - 1, net::kFrameMessageVersion + 1}) {
+    if (version == net::kFrameMessageVersion) continue;
+    auto bytes = net::encode(sampleTask());
+    poke(bytes, 4, version);
+    try {
+      net::decodeFrameTask(bytes, "rank 0");
+      FAIL() << "version " << version << " accepted";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("version"), std::string::npos) << e.what();
+    }
+  }
+  auto bytes = net::encode(sampleTask());
+  poke(bytes, 0, std::uint32_t(0xdeadbeef));
+  expectRejected(bytes, nullptr);
+}
+
+TEST(FrameTask, RejectsRectanglesOffTheScreenAndHugeCounts) {
+  auto t = sampleTask();
+  t.rects[0][0].width = 33;  // 32 + 33 > 64
+  t.rects[0][0].x = 32;
+  expectRejected(net::encode(t), nullptr);
+  t = sampleTask();
+  t.rects[0][0].height = 0;
+  expectRejected(net::encode(t), nullptr);
+  // Rank count and rect count fields set to huge values.
+  auto bytes = net::encode(sampleTask());
+  const std::size_t rankCountAt = 4 * 4 + 10 * 8 + 4 * 2 + 4 * 3;
+  poke(bytes, rankCountAt, std::uint32_t(0xffffffff));
+  expectRejected(bytes, nullptr);
+  bytes = net::encode(sampleTask());
+  poke(bytes, rankCountAt + 4, std::uint32_t(1u << 30));
+  expectRejected(bytes, nullptr);
+  // A non-finite camera.
+  t = sampleTask();
+  t.camera.eye.x = std::nan("");
+  expectRejected(net::encode(t), nullptr);
+}
+
+TEST(FrameTask, SurvivesRandomCorruption) {
+  const auto good = net::encode(sampleTask());
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 2000; ++trial) {
+    auto bytes = good;
+    for (int k = 0; k < 3; ++k) bytes[rng() % bytes.size()] = std::byte(rng());
+    try {
+      const auto t = net::decodeFrameTask(bytes, "test");
+      for (const auto& rects : t.rects)
+        for (const auto& r : rects) {
+          EXPECT_GE(r.x, 0);
+          EXPECT_LE(r.x + r.width, t.screenWidth);
+          EXPECT_LE(r.y + r.height, t.screenHeight);
+        }
+    } catch (const FormatError&) {
+    }
+  }
+}
+
+TEST(RankReport, RoundTrips) {
+  const auto t = sampleTask();
+  const auto r = sampleReport(t);
+  const auto back = net::decodeRankReport(net::encode(r), t, "test");
+  EXPECT_EQ(back.rank, 1);
+  EXPECT_EQ(back.renderSeconds, 0.25);
+  EXPECT_EQ(back.samples, 12345u);
+  EXPECT_EQ(back.peakResidentBytes, 2u << 20);
+  ASSERT_EQ(back.tiles.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(back.tiles[i].rect, r.tiles[i].rect);
+    EXPECT_EQ(back.tiles[i].image.pixels, r.tiles[i].image.pixels);
+  }
+  EXPECT_EQ(back.costs.seconds, r.costs.seconds);
+  EXPECT_NEAR(back.costs.total(), 0.25, 1e-12);
+}
+
+TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
+  const auto t = sampleTask();
+  const auto bytes = net::encode(sampleReport(t));
+  for (std::size_t n = 0; n < bytes.size(); n += 7) expectRejected(std::span(bytes).first(n), &t);
+  auto other = t;
+  other.frame = 8;
+  expectRejected(bytes, &other);
+  auto smaller = t;
+  smaller.cellPixels = 32;  // the grid no longer matches
+  expectRejected(bytes, &smaller);
+  auto narrow = t;
+  narrow.screenWidth = 40;  // the tiles are off this screen
+  expectRejected(bytes, &narrow);
+  auto extra = bytes;
+  extra.push_back(std::byte{0});
+  expectRejected(extra, &t);
+}
