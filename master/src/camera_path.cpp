@@ -37,7 +37,8 @@ CameraPath CameraPath::fromKeyFrames(std::vector<KeyFrame> keys, const std::stri
       throw FormatError(source, "key frame " + std::to_string(i) +
                                     ": frame numbers must be non-negative and increase");
     if (!std::isfinite(o.azimuthDeg) || !std::isfinite(o.elevationDeg) || !(o.distance > 0) ||
-        !std::isfinite(o.distance) || !(o.fovYDeg > 0 && o.fovYDeg < 180))
+        !std::isfinite(o.distance) || !(o.fovYDeg > 0 && o.fovYDeg < 180) ||
+        !std::isfinite(o.panX) || !std::isfinite(o.panY))
       throw FormatError(source, "key frame " + std::to_string(i) +
                                     ": needs finite angles, a positive distance and a field of "
                                     "view in (0, 180) degrees");
@@ -79,6 +80,8 @@ CameraPath CameraPath::fromJsonFile(const std::string& path) {
     read("elevation", key.orbit.elevationDeg);
     read("distance", key.orbit.distance);
     read("fov", key.orbit.fovYDeg);
+    read("pan_x", key.orbit.panX);
+    read("pan_y", key.orbit.panY);
     previous = key.orbit;
     keys.push_back(key);
   }
@@ -119,6 +122,8 @@ node::Orbit CameraPath::at(int frame) const {
   o.elevationDeg = mix(a.orbit.elevationDeg, b.orbit.elevationDeg);
   o.distance = mix(a.orbit.distance, b.orbit.distance);
   o.fovYDeg = mix(a.orbit.fovYDeg, b.orbit.fovYDeg);
+  o.panX = mix(a.orbit.panX, b.orbit.panX);
+  o.panY = mix(a.orbit.panY, b.orbit.panY);
   return o;
 }
 

@@ -39,17 +39,17 @@ class FrameWriter {
   double finish() {
     if (!pending_.valid()) return 0;
     const auto start = Clock::now();
-    lastWriteSeconds_ = pending_.get();
+    totalWriteSeconds_ += pending_.get();
     return since(start);
   }
-  double lastWriteSeconds() const { return lastWriteSeconds_; }
+  double totalWriteSeconds() const { return totalWriteSeconds_; }
   ~FrameWriter() {
     if (pending_.valid()) pending_.wait();
   }
 
  private:
   std::future<double> pending_;
-  double lastWriteSeconds_ = 0;
+  double totalWriteSeconds_ = 0;
 };
 
 std::vector<int> renderingRanks(const JobSettings& job, int ranks) {
@@ -299,9 +299,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     s.assembleSeconds = since(assembleStart);
     if (!job.outDir.empty()) {
       s.path = framePath(job, f);
-      s.writeSeconds = writer.lastWriteSeconds();
       s.writeWaitSeconds = writer.push(std::move(frameImage), s.path, job.background);
-      s.writeSeconds = writer.lastWriteSeconds();
     }
     s.frameSeconds = since(frameStart);
     slowestFrame = std::max(slowestFrame, s.frameSeconds);
@@ -329,7 +327,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
   }
   writer.finish();
-  summary.lastWriteSeconds = writer.lastWriteSeconds();
+  summary.writeSeconds = writer.totalWriteSeconds();
   summary.seconds = since(jobStart);
   return summary;
 }

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <voxwall/codec/bytes.hpp>
@@ -111,8 +112,26 @@ std::vector<std::byte> encode(const RankReport& rep) {
     putRect(w, t.rect);
     w.putBytes(std::as_bytes(std::span(t.image.pixels)));
   }
-  w.put<std::int32_t>(rep.costs.cellsX), w.put<std::int32_t>(rep.costs.cellsY);
-  for (double s : rep.costs.seconds) w.put(s);
+  // Only the cells under this rank's tiles travel: the wire cost of the grid is O(cells) for the
+  // whole job, not O(cells x ranks).
+  int cx0 = 0, cy0 = 0, cx1 = 0, cy1 = 0;  // [cx0, cx1) x [cy0, cy1)
+  const auto& g = rep.costs;
+  if (g.cellsX > 0 && !rep.tiles.empty()) {
+    cx0 = g.cellsX, cy0 = g.cellsY;
+    for (const auto& t : rep.tiles) {
+      cx0 = std::min(cx0, t.rect.x / g.cellPixels);
+      cy0 = std::min(cy0, t.rect.y / g.cellPixels);
+      cx1 = std::max(cx1, (t.rect.x + t.rect.width - 1) / g.cellPixels + 1);
+      cy1 = std::max(cy1, (t.rect.y + t.rect.height - 1) / g.cellPixels + 1);
+    }
+    cx1 = std::min(cx1, g.cellsX), cy1 = std::min(cy1, g.cellsY);
+  }
+  w.put<std::int32_t>(g.cellsX > 0 ? g.cellsX : 0),
+      w.put<std::int32_t>(g.cellsX > 0 ? g.cellsY : 0);
+  w.put<std::int32_t>(cx0), w.put<std::int32_t>(cy0);
+  w.put<std::int32_t>(std::max(0, cx1 - cx0)), w.put<std::int32_t>(std::max(0, cy1 - cy0));
+  for (int cy = cy0; cy < cy1; ++cy)
+    for (int cx = cx0; cx < cx1; ++cx) w.put(g.at(cx, cy));
   return out;
 }
 
@@ -142,14 +161,22 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
     std::memcpy(t.image.pixels.data(), src.data(), n * 4);
   }
   const int cellsX = r.get<std::int32_t>(), cellsY = r.get<std::int32_t>();
+  const int cx0 = r.get<std::int32_t>(), cy0 = r.get<std::int32_t>();
+  const int cw = r.get<std::int32_t>(), ch = r.get<std::int32_t>();
   if (cellsX != 0 || cellsY != 0) {
     node::CostGrid grid(task.screenWidth, task.screenHeight, task.cellPixels);
     if (cellsX != grid.cellsX || cellsY != grid.cellsY)
       r.fail("cost grid " + std::to_string(cellsX) + "x" + std::to_string(cellsY) +
              " does not match the screen's " + std::to_string(grid.cellsX) + "x" +
              std::to_string(grid.cellsY));
-    for (double& s : grid.seconds) s = r.get<double>();
+    if (cx0 < 0 || cy0 < 0 || cw < 0 || ch < 0 || cw > grid.cellsX - cx0 || ch > grid.cellsY - cy0)
+      r.fail("cost cells outside the grid");
+    if (std::size_t(cw) * std::size_t(ch) > r.remaining() / 8) r.fail("cost cells truncated");
+    for (int cy = cy0; cy < cy0 + ch; ++cy)
+      for (int cx = cx0; cx < cx0 + cw; ++cx) grid.at(cx, cy) = r.get<double>();
     rep.costs = std::move(grid);
+  } else if (cx0 != 0 || cy0 != 0 || cw != 0 || ch != 0) {
+    r.fail("cost cells without a grid");
   }
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " trailing bytes");
   return rep;

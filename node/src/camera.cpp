@@ -1,4 +1,5 @@
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <numbers>
 #include <stdexcept>
 #include <voxwall/node/camera.hpp>
@@ -16,6 +17,14 @@ Camera orbitCamera(const Orbit& orbit, double boundingRadius) {
   c.up = std::abs(std::cos(el)) < 1e-6 ? glm::dvec3(-std::cos(az), -std::sin(az), 0)
                                        : glm::dvec3(0, 0, 1);
   c.fovYDeg = orbit.fovYDeg;
+  if (orbit.panX != 0 || orbit.panY != 0) {
+    const glm::dvec3 forward = glm::normalize(c.center - c.eye);
+    const glm::dvec3 right = glm::normalize(glm::cross(forward, c.up));
+    const glm::dvec3 up = glm::cross(right, forward);
+    const glm::dvec3 offset = (right * orbit.panX + up * orbit.panY) * boundingRadius;
+    c.eye += offset;
+    c.center += offset;
+  }
   return c;
 }
 

@@ -29,6 +29,14 @@ run() {
 "$voxwall" compress generated:shepp-logan:48 -o vol.vwz -q || fail "compress"
 common=(render vol.vwz --size 97x61 --frames 4 --orbit-deg 20 --shading -q --threads 1)
 
+descendants() {
+  local child
+  for child in $(pgrep -P "$1"); do
+    descendants "$child"
+    echo "$child"
+  done
+}
+
 same_frames() {
   local a=$1 b=$2 count=0
   for f in "$a"/frame_*.png; do
@@ -61,7 +69,10 @@ case $scenario in
     pid=$!
     for _ in $(seq 600); do [ -f killed/frame_00002.png ] && break; sleep 0.05; done
     [ -f killed/frame_00002.png ] || fail "no frame appeared before the kill"
-    pkill -KILL -P "$pid"; kill -KILL "$pid" 2>/dev/null; wait "$pid" 2>/dev/null
+    # Kill the whole tree at once (timeout, mpirun and every rank), as a node failure would.
+    tree="$(descendants "$pid") $pid"
+    # shellcheck disable=SC2086
+    kill -STOP $tree 2>/dev/null; kill -KILL $tree 2>/dev/null; wait "$pid" 2>/dev/null
     done_before=$(ls killed/frame_*.png | wc -l)
     [ "$done_before" -lt 30 ] || fail "the run finished before it could be killed"
     out=$(run "$n" "${slow[@]}" --out killed --resume) || fail "resumed run"

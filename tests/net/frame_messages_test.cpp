@@ -69,8 +69,7 @@ TEST(FrameTask, RoundTrips) {
 
 TEST(FrameTask, RejectsEveryTruncation) {
   const auto bytes = net::encode(sampleTask());
-  for (std::size_t n = 0; n < bytes.size(); ++n)
-    expectRejected(std::span(bytes).first(n), nullptr);
+  for (std::size_t n = 0; n < bytes.size(); ++n) expectRejected(std::span(bytes).first(n), nullptr);
 }
 
 TEST(FrameTask, RejectsOtherVersionsAndMagic) {

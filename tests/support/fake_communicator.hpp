@@ -50,8 +50,7 @@ class FakeCommunicator final : public master::Communicator {
     box.pop_front();
   }
 
-  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes,
-                                             int timeoutMs) override {
+  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int timeoutMs) override {
     std::unique_lock lock(world_.mutex_);
     if (rank_ != 0) {
       world_.gathered_[std::size_t(rank_)].push_back(std::move(bytes));

@@ -20,7 +20,7 @@ namespace {
 struct RenderOptions {
   std::string input, size = "1920x1080", tf = "mri", tfRange, camera = "30,20,2.6", out = "frames";
   std::string backend = "cpu", background = "black", format = "png", tiles = "1x1";
-  std::string path = "orbit", balance = "dynamic", memoryBudget;
+  std::string path = "orbit", balance = "dynamic", memoryBudget, pan;
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
   int testStallRank = -1, testStallCall = 0;
@@ -159,6 +159,11 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   if (!(orbit.distance > 0)) throw std::invalid_argument("--camera: distance must be positive");
   if (!(o.fov > 0 && o.fov < 180)) throw std::invalid_argument("--fov must be in (0, 180) degrees");
   orbit.fovYDeg = o.fov;
+  if (!o.pan.empty()) {
+    const auto pan = parseNumbers(o.pan, "--pan");
+    if (pan.size() != 2) throw std::invalid_argument("--pan: expected X,Y in bounding radii");
+    orbit.panX = pan[0], orbit.panY = pan[1];
+  }
   if (o.frames < 1) throw std::invalid_argument("--frames must be at least 1");
   job.frames = o.frames;
   if (o.path == "orbit") {
@@ -211,6 +216,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["path"] = o.path;
   m["camera"] = o.camera;
   m["fov"] = o.fov;
+  m["pan"] = o.pan;
   m["orbit_deg"] = o.orbitDeg;
   m["zoom_to"] = o.zoomTo;
   m["tf"] = o.tf;
@@ -455,7 +461,7 @@ void addRenderCommand(CLI::App& app) {
          "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), "
          "orbit-zoom (a turn in half the frames, then a zoom to --zoom-to), or a key-frame "
          "JSON file ({\"keyframes\": [{\"frame\": 0, \"azimuth\": 30, \"elevation\": "
-         "20, \"distance\": 2.6, \"fov\": 30}, ...]})")
+         "20, \"distance\": 2.6, \"fov\": 30, \"pan_x\": 0, \"pan_y\": 0}, ...]})")
       ->capture_default_str();
   cmd->add_option("--zoom-to", o->zoomTo, "orbit-zoom: final camera distance in bounding radii")
       ->capture_default_str();
@@ -474,6 +480,9 @@ void addRenderCommand(CLI::App& app) {
                   "Orbit camera of frame 0: AZIMUTH,ELEVATION[,DISTANCE] in degrees around +z and "
                   "multiples of the volume's bounding radius")
       ->capture_default_str();
+  cmd->add_option("--pan", o->pan,
+                  "Slide the camera across the view by X,Y bounding radii (the volume moves the "
+                  "other way on the screen)");
   cmd->add_option("--fov", o->fov, "Vertical field of view in degrees")->capture_default_str();
   cmd->add_option("--frames", o->frames, "Number of frames")->capture_default_str();
   cmd->add_option("--orbit-deg", o->orbitDeg,

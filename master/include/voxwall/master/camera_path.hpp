@@ -21,7 +21,8 @@ class CameraPath {
   // to `zoomDistance` over the next `zoomFrames` frames (and stays there).
   static CameraPath orbitThenZoom(const node::Orbit& start, int orbitFrames, int zoomFrames,
                                   double zoomDistance);
-  // Key frames, linearly interpolated in azimuth, elevation, distance and field of view; before
+  // Key frames, linearly interpolated in azimuth, elevation, distance, field of view and pan
+  // (pan_x, pan_y in bounding radii); before
   // the first and after the last key the camera holds still. The file:
   //   {"keyframes": [{"frame": 0, "azimuth": 30, "elevation": 20, "distance": 2.6, "fov": 30},
   //                  {"frame": 50, "azimuth": 120, ...}]}

@@ -44,7 +44,6 @@ struct FrameSummary {
   double gatherSeconds = 0;     // rank 0 waiting for reports after its own render
   double assembleSeconds = 0;   // decoding reports, pasting tiles, balancing
   double writeWaitSeconds = 0;  // waiting for the previous frame's write to finish
-  double writeSeconds = 0;      // the previous frame's encode + write (background)
   std::vector<int> ranks;       // the rendering ranks
   std::vector<double> rankSeconds;
   std::vector<std::vector<node::Rect>> rects;  // per rendering rank
@@ -63,7 +62,7 @@ struct RankMemory {
 struct JobSummary {
   int framesRendered = 0, framesSkipped = 0;
   double seconds = 0;
-  double lastWriteSeconds = 0;
+  double writeSeconds = 0;         // encoding and writing all frames, in the background thread
   std::vector<RankMemory> memory;  // rank 0 only
 };
 

@@ -17,7 +17,8 @@
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 tileCount,
 //               per tile: i32 x, y, width, height, then width*height u32 RGBA8 pixels,
-//               then i32 cellsX, cellsY (0, 0: no grid) and f64 seconds per cell.
+//               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
+//               under this rank's tiles) and cw*ch f64 seconds, row by row.
 #pragma once
 
 #include <cstdint>
@@ -60,7 +61,9 @@ struct RankReport {
   std::uint64_t samples = 0;
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
   std::vector<RenderedTile> tiles;
-  node::CostGrid costs;  // over the whole screen; empty (cellsX = 0) when not measured
+  // Over the whole screen; only the cells under `tiles` travel (the rest decode as zero).
+  // Empty (cellsX = 0) when not measured.
+  node::CostGrid costs;
 };
 
 std::vector<std::byte> encode(const FrameTask& task);

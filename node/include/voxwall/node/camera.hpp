@@ -27,6 +27,9 @@ struct Orbit {
   double elevationDeg = 20.0;
   double distance = 2.6;
   double fovYDeg = 30.0;
+  // Moves eye and centre together across the view (along the screen's right and up), in
+  // bounding radii: the volume slides the other way on the screen.
+  double panX = 0.0, panY = 0.0;
 };
 Camera orbitCamera(const Orbit& orbit, double boundingRadius);
 
