@@ -25,7 +25,7 @@ trap 'rm -rf "$work"' EXIT
 mri=/usr/share/mricron/templates/ch2better.nii.gz
 [ -f "$mri" ] || { echo "needs Debian's mricron-data ($mri)" >&2; exit 1; }
 "$voxwall" compress "$mri" -o "$work/mri.vwz" -q > /dev/null
-mpi=(mpirun --oversubscribe)
+mpi=(mpirun --oversubscribe --bind-to none)
 [ "$(id -u)" = 0 ] && mpi+=(--allow-run-as-root)
 cores=$(nproc)
 
@@ -41,14 +41,14 @@ for size in $sizes; do
     note=""; [ "$n" -gt "$cores" ] && note=" (oversubscribed)"
     out=$("${mpi[@]}" -np "$n" "$voxwall" render "$work/mri.vwz" --size "$size" --frames "$frames" \
       --orbit-deg 5 --shading --out "$work/frames-$size-$n" 2>/dev/null)
-    total=$(echo "$out" | grep '^total:')
+    total=$(echo "$out" | grep '^total:' || true)
     fps=$(echo "$total" | sed -E 's/.* ([0-9.]+) frames\/s.*/\1/')
     mean=$(echo "$total" | sed -E 's/.*mean frame ([0-9.]+) ms.*/\1/')
     imb=$(echo "$total" | sed -E 's/.*mean imbalance ([0-9.]+).*/\1/')
-    shares=$(echo "$out" | grep '^frame time on rank 0' | grep -oE '[0-9]+%' | tr -d % | paste -sd' ')
+    shares=$(echo "$out" | grep '^frame time on rank 0' | grep -oE '[0-9]+%' | tr -d % | paste -sd' ' || true)
     read -r render wait assemble writer <<< "$shares"
-    write=$(echo "$out" | grep '^writer' | sed -E 's/.*write ([0-9.]+) ms.*/\1/')
-    rss0=$(echo "$out" | grep '^rank 0 on' | sed -E 's/.*peak (.*)$/\1/')
+    write=$(echo "$out" | grep '^writer' | sed -E 's/.*write ([0-9.]+) ms.*/\1/' || true)
+    rss0=$(echo "$out" | grep '^rank 0 on' | sed -E 's/.*peak (.*)$/\1/' || true)
     rss1=$(echo "$out" | grep '^rank 1 on' | sed -E 's/.*peak (.*)$/\1/' || true)
     echo "| $size | $n$note | $threads | $fps | $mean | $imb | $render | $wait | $assemble | $writer | $write | $rss0 / ${rss1:--} |"
     rm -rf "$work/frames-$size-$n"
@@ -68,7 +68,7 @@ for n in 2 4; do
   for balance in static dynamic; do
     out=$("${mpi[@]}" -np "$n" "$voxwall" render "$work/mri.vwz" --size 1920x1080 --frames 8 \
       --orbit-deg 0 --pan 1.1,-0.55 --shading --balance "$balance" --no-write 2>/dev/null)
-    row=$(echo "$out" | grep -E '^frame [0-9]+/' | sed -E 's/.*imbalance ([0-9.]+).*/\1/' | paste -sd'|')
+    row=$(echo "$out" | grep -E '^frame [0-9]+/' | sed -E 's/.*imbalance ([0-9.]+).*/\1/' | paste -sd'|' || true)
     note=""; [ "$n" -gt "$cores" ] && note=" (oversubscribed)"
     echo "| $n$note | $balance | ${row//|/ | } |"
   done

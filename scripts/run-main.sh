@@ -14,7 +14,7 @@ if [ -f "$mri" ]; then input=$mri; else input=generated:shepp-logan:256; fi
 mkdir -p out
 "$voxwall" compress "$input" -o out/default.vwz
 "$voxwall" info out/default.vwz
-mpirun=(mpirun --oversubscribe -np "${VOXWALL_RANKS:-2}")
+mpirun=(mpirun --oversubscribe --bind-to none -np "${VOXWALL_RANKS:-2}")
 [ "$(id -u)" = 0 ] && mpirun+=(--allow-run-as-root)
 "${mpirun[@]}" "$voxwall" render out/default.vwz --size "${VOXWALL_SIZE:-1280x720}" \
   --frames "${VOXWALL_FRAMES:-12}" --shading --out out/frames

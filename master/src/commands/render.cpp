@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 #include <voxwall/codec/container.hpp>
+#include <voxwall/codec/parallel.hpp>
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
@@ -276,8 +277,17 @@ void runRender(const RenderOptions& o) {
     s.tf = loadTransferFunction(o, s.volume->info(), quiet);
     if (!o.dryRun) {
       int threads = o.threads;
-      if (threads == 0 && comm->ranksOnHost() > 1)
-        threads = std::max(1, int(std::thread::hardware_concurrency()) / comm->ranksOnHost());
+      if (threads == 0) {
+        // The host's cores shared by its ranks, but never more than this rank may run on.
+        const int share =
+            std::max(1, int(std::thread::hardware_concurrency()) / comm->ranksOnHost());
+        threads = std::min(share, codec::usableCores());
+        if (threads < share && !quiet)
+          std::fprintf(stderr,
+                       "voxwall: rank %d is bound to %d core(s) by its launcher while %d are its "
+                       "share; mpirun --bind-to none lets it use them\n",
+                       comm->rank(), threads, share);
+      }
       s.backend = node::makeBackend(
           o.backend == "cuda" ? node::BackendKind::Cuda : node::BackendKind::Cpu, threads);
       if (o.testStallRank == comm->rank())
@@ -412,6 +422,10 @@ void runRender(const RenderOptions& o) {
             whole,
         100 * totals.gatherSeconds / whole, 100 * totals.assembleSeconds / whole,
         100 * totals.writeWaitSeconds / whole);
+    if (summary.writeSeconds > 0)
+      std::printf("writer (background thread, overlaps the next frame): encode + write %.1f "
+                  "ms/frame\n",
+                  summary.writeSeconds / n * 1e3);
   }
   for (const auto& m : summary.memory)
     std::printf("rank %d on %s: resident %s, peak %s\n", m.rank, hosts[std::size_t(m.rank)].c_str(),

@@ -7,14 +7,28 @@
 #include <exception>
 #include <mutex>
 #include <thread>
+#ifdef __linux__
+#include <sched.h>
+#endif
 #include <vector>
 
 namespace voxwall::codec {
 
 // Number of worker threads to use when the user asked for `requested` (0 = all cores).
+// Cores this process may run on: its CPU affinity mask (set by taskset, cgroups, or an MPI
+// launcher that binds ranks to cores), else all of the machine's.
+inline int usableCores() {
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0) return std::max(1, CPU_COUNT(&set));
+#endif
+  return int(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 inline int resolveThreads(int requested) {
   if (requested > 0) return requested;
-  return std::max(1u, std::thread::hardware_concurrency());
+  return usableCores();
 }
 
 // Calls fn(i) for every i in [0, count) on `threads` threads, handing out indices dynamically.
