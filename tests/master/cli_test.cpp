@@ -2,8 +2,10 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/node/image.hpp>
@@ -165,4 +167,48 @@ TEST(Cli, InfoDescribesAPlainVolumeFile) {
   EXPECT_NE(r.out.find("9 x 9 x 9"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("uint8"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("0 .. 255"), std::string::npos) << r.out;
+}
+
+TEST(Cli, DistributedOptionsAreCheckedWithOneLine) {
+  const std::string render = "render generated:shepp-logan:16 --size 32x24 --no-write ";
+  expectOneLineError(runVoxwall(render + "--tiles 2x2 --balance dynamic"),
+                     "voxwall: --tiles cuts the screen statically");
+  expectOneLineError(runVoxwall(render + "--balance fair"), "voxwall: --balance: expected");
+  expectOneLineError(runVoxwall(render + "--master-only"),
+                     "voxwall: --master-only needs at least 2 ranks");
+  expectOneLineError(runVoxwall(render + "--memory-budget lots"), "voxwall: --memory-budget:");
+  expectOneLineError(runVoxwall(render + "--memory-budget 1K"), "voxwall: needs ");
+  expectOneLineError(runVoxwall(render + "--watchdog 0"), "voxwall: --watchdog must be");
+  expectOneLineError(runVoxwall(render + "--resume"), "voxwall: --resume needs frames on disk");
+  expectOneLineError(runVoxwall(render + "--path nowhere.json"), "voxwall: nowhere.json: ");
+  expectOneLineError(runVoxwall(render + "--pan 1"), "voxwall: --pan: expected X,Y");
+}
+
+TEST(Cli, DryRunPrintsTheTileMapAndWritesNothing) {
+  test::TempDir dir;
+  const CliRun r = runVoxwall(
+      "render generated:shepp-logan:16 --size 32x24 --tiles 2x2 --dry-run "
+      "--out " +
+      dir.path("frames"));
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("rank 0 on localhost: needs "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("tiles: 16x12+0+0 16x12+16+0 16x12+0+12 16x12+16+12"), std::string::npos)
+      << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.path("frames")));
+}
+
+TEST(Cli, OrbitZoomPathApproachesTheVolume) {
+  test::TempDir dir;
+  const CliRun r = runVoxwall(
+      "render generated:shepp-logan:24 --size 40x30 --frames 4 --path orbit-zoom --zoom-to 1.0 "
+      "-q --out " +
+      dir.path("f"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  // The zoomed frame covers more pixels than the first one.
+  auto covered = [](const node::Image& im) {
+    return std::count_if(im.pixels.begin(), im.pixels.end(),
+                         [](std::uint32_t p) { return (p & 0xffffffu) != 0; });
+  };
+  EXPECT_GT(covered(node::readImage(dir.path("f/frame_00003.png"))),
+            covered(node::readImage(dir.path("f/frame_00000.png"))));
 }

@@ -423,9 +423,10 @@ void runRender(const RenderOptions& o) {
         100 * totals.gatherSeconds / whole, 100 * totals.assembleSeconds / whole,
         100 * totals.writeWaitSeconds / whole);
     if (summary.writeSeconds > 0)
-      std::printf("writer (background thread, overlaps the next frame): encode + write %.1f "
-                  "ms/frame\n",
-                  summary.writeSeconds / n * 1e3);
+      std::printf(
+          "writer (background thread, overlaps the next frame): encode + write %.1f "
+          "ms/frame\n",
+          summary.writeSeconds / n * 1e3);
   }
   for (const auto& m : summary.memory)
     std::printf("rank %d on %s: resident %s, peak %s\n", m.rank, hosts[std::size_t(m.rank)].c_str(),
