@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -226,6 +227,13 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["shading"] = render.shading;
   m["format"] = job.format;
   m["background"] = o.background;
+  m["backend"] = o.backend;  // CUDA and CPU may differ in the last bit of a channel
+  // Files named by the settings count by their contents: an edited file is another render.
+  for (const auto& [key, file] : {std::pair{"path_file", o.path}, std::pair{"tf_file", o.tf}}) {
+    if (!std::filesystem::is_regular_file(file)) continue;
+    std::ifstream in(file, std::ios::binary);
+    m[key] = std::string(std::istreambuf_iterator<char>(in), {});
+  }
   return m.dump();
 }
 

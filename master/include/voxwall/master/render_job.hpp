@@ -21,7 +21,7 @@ enum class Balance { Static, Dynamic };
 struct JobSettings {
   int width = 1920, height = 1080;  // the virtual screen
   int frames = 1;
-  CameraPath path = CameraPath::orbit({}, 0.0);
+  CameraPath path;  // default: the default orbit, standing still
   Balance balance = Balance::Dynamic;
   // Static cut: a grid of tiles dealt to the rendering ranks in turn; 0 x 0: one strip per rank.
   int staticTilesX = 0, staticTilesY = 0;
