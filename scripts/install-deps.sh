@@ -7,7 +7,7 @@ packages=(
   # build
   build-essential cmake ninja-build pkg-config git clang-format
   # libraries (see ../shared/PLATFORM.md for how CMake finds each)
-  libopenmpi-dev openmpi-bin
+  libopenmpi-dev openmpi-bin procps
   libglm-dev
   libturbojpeg0-dev
   libopenimageio-dev
