@@ -119,12 +119,13 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
       throw FormatError("frame task from rank 0",
                         "has rectangles for " + std::to_string(task.rects.size()) +
                             " ranks in a job of " + std::to_string(comm.size()));
-    timeoutMs = int(std::max<std::uint32_t>(task.watchdogMs, 1000));
+    timeoutMs = int(std::clamp<std::uint32_t>(task.watchdogMs, 1000, 86400000));
     const auto& mine = task.rects[std::size_t(comm.rank())];
     const auto report = task.stop
                             ? renderRects(comm.rank(), backend, volume, tf, render, task, {})
                             : renderRects(comm.rank(), backend, volume, tf, render, task, mine);
-    comm.gather(net::encode(report), timeoutMs);
+    // Rank 0 takes the report after rendering its own part, which may take longer than ours.
+    comm.gather(net::encode(report), 2 * timeoutMs);
     if (task.stop) break;
     ++summary.framesRendered;
   }
@@ -259,7 +260,8 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
 
     auto own = renderRects(0, backend, volume, tf, render, task, task.rects[0]);
     const auto gatherStart = Clock::now();
-    auto reportBytes = comm.gather(net::encode(own), timeoutMs);
+    // Rank 0 keeps its own report as it is; only the others' travel.
+    auto reportBytes = comm.gather({}, timeoutMs);
     FrameSummary s;
     s.frame = f;
     s.gatherSeconds = since(gatherStart);
@@ -319,7 +321,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   auto stopBytes = net::encode(stop);
   comm.broadcast(stopBytes, timeoutMs);
   const auto ownLast = renderRects(0, backend, volume, tf, render, stop, {});
-  const auto finals = comm.gather(net::encode(ownLast), timeoutMs);
+  const auto finals = comm.gather({}, timeoutMs);
   for (int r = 0; r < comm.size(); ++r) {
     const auto rep = r == 0 ? ownLast
                             : net::decodeRankReport(finals[std::size_t(r)], stop,
