@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <exception>
 #include <voxwall/codec/errors.hpp>
+#include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "cli_common.hpp"
@@ -19,6 +20,7 @@ int main(int argc, char** argv) {
   voxwall::cli::addDecompressCommand(app);
   voxwall::cli::addInfoCommand(app);
   voxwall::cli::addRenderCommand(app);
+  voxwall::cli::addSinkCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -28,6 +30,9 @@ int main(int argc, char** argv) {
   } catch (const voxwall::cli::SilentFailure&) {
     return 1;
   } catch (const voxwall::FormatError& e) {
+    std::fprintf(stderr, "voxwall: %s\n", e.what());
+    return 1;
+  } catch (const voxwall::net::NetError& e) {
     std::fprintf(stderr, "voxwall: %s\n", e.what());
     return 1;
   } catch (const voxwall::node::CudaError& e) {

@@ -8,6 +8,7 @@
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/frame_messages.hpp>
+#include <voxwall/net/tcp.hpp>
 
 namespace voxwall::master {
 namespace fs = std::filesystem;
@@ -80,35 +81,72 @@ std::vector<std::vector<node::Rect>> byRank(const std::vector<std::vector<node::
   return out;
 }
 
-// Renders `rects` and makes this rank's report for `task`.
+// Renders `rects`, streams them to the sink (if any) and makes this rank's report for `task`.
 net::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
                             const node::TransferFunction& tf, const node::RenderSettings& render,
+                            const JobSettings& job, net::TileStreamer* streamer,
                             const net::FrameTask& task, const std::vector<node::Rect>& rects) {
   net::RankReport report;
   report.frame = task.frame;
   report.rank = rank;
+  report.pixels = !job.outDir.empty();
   if (!rects.empty()) {
     const auto start = Clock::now();
     const auto plan =
         node::planFrame(volume, task.camera, task.screenWidth, task.screenHeight, tf, render);
     report.costs = node::CostGrid(task.screenWidth, task.screenHeight, task.cellPixels);
-    for (const auto& rect : rects) {
-      net::RenderedTile tile;
-      tile.rect = rect;
-      report.samples += backend.render(volume, plan, rect, tile.image, &report.costs).samples;
-      report.tiles.push_back(std::move(tile));
-    }
+    std::vector<node::Image> images(rects.size());
+    for (std::size_t i = 0; i < rects.size(); ++i)
+      report.samples += backend.render(volume, plan, rects[i], images[i], &report.costs).samples;
     report.renderSeconds = since(start);
+    if (streamer) {
+      const auto encodeStart = Clock::now();
+      std::vector<net::EncodedTile> encoded;
+      for (std::size_t i = 0; i < rects.size(); ++i) {
+        auto parts =
+            net::encodeTiles(images[i], rects[i], job.stream->background, job.stream->codec);
+        std::move(parts.begin(), parts.end(), std::back_inserter(encoded));
+      }
+      report.encodeSeconds = since(encodeStart);
+      const auto before = streamer->bytesSent();
+      report.streamed = streamer->sendFrame(task.frame, encoded, task.decidedUnixMicros);
+      report.streamedBytes = streamer->bytesSent() - before;
+    }
+    for (std::size_t i = 0; i < rects.size(); ++i)
+      report.tiles.push_back({rects[i], report.pixels ? std::move(images[i]) : node::Image()});
   }
   std::tie(report.residentBytes, report.peakResidentBytes) = processMemory();
   return report;
 }
+
+std::unique_ptr<net::TileStreamer> makeStreamer(const JobSettings& job, int rank, int ranks) {
+  if (!job.stream) return nullptr;
+  net::Hello hello;
+  hello.role = net::Role::Renderer;
+  hello.rank = rank, hello.rankCount = ranks;
+  hello.wallId = job.stream->wallId, hello.token = job.stream->token;
+  return std::make_unique<net::TileStreamer>(job.stream->host, job.stream->port, hello);
+}
+
+}  // namespace
+
+node::Orbit CameraOffset::apply(node::Orbit orbit) const {
+  orbit.azimuthDeg += azimuthDeg;
+  orbit.elevationDeg = std::clamp(orbit.elevationDeg + elevationDeg, -89.0, 89.0);
+  orbit.distance *= zoom;
+  orbit.panX += panX;
+  orbit.panY += panY;
+  return orbit;
+}
+
+namespace {
 
 JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::RenderVolume& volume,
                      const node::TransferFunction& tf, const node::RenderSettings& render,
                      const JobSettings& job) {
   JobSummary summary;
   int timeoutMs = job.watchdogMs;
+  const auto streamer = makeStreamer(job, comm.rank(), comm.size());
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
     // twice as long, so that rank 0's watchdog names the culprit before anyone blames rank 0.
@@ -121,9 +159,8 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
                             " ranks in a job of " + std::to_string(comm.size()));
     timeoutMs = int(std::clamp<std::uint32_t>(task.watchdogMs, 1000, 86400000));
     const auto& mine = task.rects[std::size_t(comm.rank())];
-    const auto report = task.stop
-                            ? renderRects(comm.rank(), backend, volume, tf, render, task, {})
-                            : renderRects(comm.rank(), backend, volume, tf, render, task, mine);
+    const auto report = renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(),
+                                    task, task.stop ? std::vector<node::Rect>{} : mine);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(net::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -234,6 +271,15 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
 
   JobSummary summary;
   FrameWriter writer;
+  const auto streamer = makeStreamer(job, 0, comm.size());
+  std::unique_ptr<net::ControlChannel> control;
+  if (job.stream) {
+    net::Hello hello;
+    hello.rank = 0, hello.rankCount = comm.size();
+    hello.wallId = job.stream->wallId, hello.token = job.stream->token;
+    control = std::make_unique<net::ControlChannel>(job.stream->host, job.stream->port, hello);
+  }
+  CameraOffset offset;
   node::Image frameImage;
   double slowestFrame = 0;
   int timeoutMs = job.watchdogMs;
@@ -243,9 +289,30 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
       continue;
     }
     const auto frameStart = Clock::now();
+    int controls = 0;
+    if (control)
+      for (const auto& c : control->drain()) {
+        ++controls;
+        switch (c.command) {
+          case net::ControlCommand::Rotate:
+            offset.azimuthDeg += c.a, offset.elevationDeg += c.b;
+            break;
+          case net::ControlCommand::Zoom:
+            offset.zoom = std::clamp(offset.zoom / c.a, 0.05, 20.0);
+            break;
+          case net::ControlCommand::Pan:
+            offset.panX += c.a, offset.panY += c.b;
+            break;
+          case net::ControlCommand::Reset:
+            offset = {};
+            break;
+        }
+      }
     net::FrameTask task;
     task.frame = std::uint32_t(f);
-    task.camera = node::orbitCamera(job.path.at(f), node::boundingRadius(volume.info()));
+    task.decidedUnixMicros = net::unixMicrosNow();
+    task.camera =
+        node::orbitCamera(offset.apply(job.path.at(f)), node::boundingRadius(volume.info()));
     task.screenWidth = job.width, task.screenHeight = job.height;
     task.cellPixels = job.balancer.cellPixels;
     std::vector<std::vector<node::Rect>> slotRects = staticCut;
@@ -258,16 +325,18 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     auto taskBytes = net::encode(task);
     comm.broadcast(taskBytes, timeoutMs);
 
-    auto own = renderRects(0, backend, volume, tf, render, task, task.rects[0]);
+    auto own =
+        renderRects(0, backend, volume, tf, render, job, streamer.get(), task, task.rects[0]);
     const auto gatherStart = Clock::now();
     // Rank 0 keeps its own report as it is; only the others' travel.
     auto reportBytes = comm.gather({}, timeoutMs);
     FrameSummary s;
     s.frame = f;
+    s.controls = controls;
     s.gatherSeconds = since(gatherStart);
     const auto assembleStart = Clock::now();
 
-    frameImage = node::Image(job.width, job.height);
+    frameImage = job.outDir.empty() ? node::Image() : node::Image(job.width, job.height);
     std::vector<node::CostGrid> grids(static_cast<std::size_t>(slots));
     for (int i = 0; i < slots; ++i) {
       const int r = renderers[std::size_t(i)];
@@ -281,11 +350,17 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
         throw FormatError(source, "has " + std::to_string(report.tiles.size()) + " tiles, " +
                                       std::to_string(task.rects[std::size_t(r)].size()) +
                                       " were asked for");
+      if (report.pixels != !job.outDir.empty())
+        throw FormatError(source, report.pixels ? "sent pixels nobody asked for"
+                                                : "sent no pixels, the frame is to be written");
       for (std::size_t t = 0; t < report.tiles.size(); ++t) {
         if (!(report.tiles[t].rect == task.rects[std::size_t(r)][t]))
           throw FormatError(source, "sent a tile that was not asked for");
-        frameImage.paste(report.tiles[t].image, report.tiles[t].rect);
+        if (report.pixels) frameImage.paste(report.tiles[t].image, report.tiles[t].rect);
       }
+      s.streamedRanks += report.streamed;
+      s.encodeSeconds = std::max(s.encodeSeconds, report.encodeSeconds);
+      s.streamedBytes += report.streamedBytes;
       s.ranks.push_back(r);
       s.rankSeconds.push_back(report.renderSeconds);
       s.samples += report.samples;
@@ -320,7 +395,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   stop.watchdogMs = std::uint32_t(timeoutMs);
   auto stopBytes = net::encode(stop);
   comm.broadcast(stopBytes, timeoutMs);
-  const auto ownLast = renderRects(0, backend, volume, tf, render, stop, {});
+  const auto ownLast = renderRects(0, backend, volume, tf, render, job, nullptr, stop, {});
   const auto finals = comm.gather({}, timeoutMs);
   for (int r = 0; r < comm.size(); ++r) {
     const auto rep = r == 0 ? ownLast

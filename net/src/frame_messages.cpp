@@ -43,6 +43,7 @@ std::vector<std::byte> encode(const FrameTask& t) {
   ByteWriter w(out);
   w.put(kFrameTaskMagic), w.put(kFrameMessageVersion);
   w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>(t.stop ? 1u : 0u);
+  w.put<std::uint64_t>(t.decidedUnixMicros);
   for (const glm::dvec3& v : {t.camera.eye, t.camera.center, t.camera.up})
     w.put(v.x), w.put(v.y), w.put(v.z);
   w.put(t.camera.fovYDeg);
@@ -65,6 +66,7 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   const auto flags = r.get<std::uint32_t>();
   if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
   t.stop = flags & 1;
+  t.decidedUnixMicros = r.get<std::uint64_t>();
   for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
     v->x = r.get<double>(), v->y = r.get<double>(), v->z = r.get<double>();
   t.camera.fovYDeg = r.get<double>();
@@ -107,10 +109,16 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put<std::uint32_t>(rep.frame), w.put<std::int32_t>(rep.rank);
   w.put(rep.renderSeconds), w.put<std::uint64_t>(rep.samples);
   w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
+  w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u));
+  w.put(rep.encodeSeconds), w.put<std::uint64_t>(rep.streamedBytes);
   w.put<std::uint32_t>(std::uint32_t(rep.tiles.size()));
   for (const auto& t : rep.tiles) {
     putRect(w, t.rect);
-    w.putBytes(std::as_bytes(std::span(t.image.pixels)));
+    if (rep.pixels) {
+      if (t.image.width != t.rect.width || t.image.height != t.rect.height)
+        throw std::invalid_argument("rank report: a tile's pixels do not match its rectangle");
+      w.putBytes(std::as_bytes(std::span(t.image.pixels)));
+    }
   }
   // Only the cells under this rank's tiles travel: the wire cost of the grid is O(cells) for the
   // whole job, not O(cells x ranks).
@@ -148,12 +156,18 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.renderSeconds = r.get<double>();
   rep.samples = r.get<std::uint64_t>();
   rep.residentBytes = r.get<std::uint64_t>(), rep.peakResidentBytes = r.get<std::uint64_t>();
+  const auto flags = r.get<std::uint32_t>();
+  if (flags > 3) r.fail("unknown flags " + std::to_string(flags));
+  rep.pixels = flags & 1, rep.streamed = flags & 2;
+  rep.encodeSeconds = r.get<double>();
+  rep.streamedBytes = r.get<std::uint64_t>();
   const auto tiles = r.get<std::uint32_t>();
   if (tiles > std::uint32_t(kMaxRectsPerRank) || tiles > r.remaining() / 16)
     r.fail(std::to_string(tiles) + " tiles");
   rep.tiles.resize(tiles);
   for (auto& t : rep.tiles) {
     t.rect = getRect(r, task.screenWidth, task.screenHeight);
+    if (!rep.pixels) continue;
     const std::size_t n = std::size_t(t.rect.width) * std::size_t(t.rect.height);
     if (n > r.remaining() / 4) r.fail("tile pixels truncated");
     t.image = node::Image(t.rect.width, t.rect.height);

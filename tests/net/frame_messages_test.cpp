@@ -99,7 +99,7 @@ TEST(FrameTask, RejectsRectanglesOffTheScreenAndHugeCounts) {
   expectRejected(net::encode(t), nullptr);
   // Rank count and rect count fields set to huge values.
   auto bytes = net::encode(sampleTask());
-  const std::size_t rankCountAt = 4 * 4 + 10 * 8 + 4 * 2 + 4 * 3;
+  const std::size_t rankCountAt = 4 * 4 + 8 + 10 * 8 + 4 * 2 + 4 * 3;
   poke(bytes, rankCountAt, std::uint32_t(0xffffffff));
   expectRejected(bytes, nullptr);
   bytes = net::encode(sampleTask());

@@ -10,5 +10,6 @@ void addCompressCommand(CLI::App& app);
 void addDecompressCommand(CLI::App& app);
 void addInfoCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
+void addSinkCommand(CLI::App& app);
 
 }  // namespace voxwall::cli

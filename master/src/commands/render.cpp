@@ -12,6 +12,8 @@
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/wall.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"
@@ -23,6 +25,9 @@ struct RenderOptions {
   std::string input, size = "1920x1080", tf = "mri", tfRange, camera = "30,20,2.6", out = "frames";
   std::string backend = "cpu", background = "black", format = "png", tiles = "1x1";
   std::string path = "orbit", balance = "dynamic", memoryBudget, pan;
+  std::string sink, token, wall, subsampling = "420", tileCodec = "jpeg";
+  int jpegQuality = 90;
+  bool sizeGiven = false, outGiven = false;
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
   int testStallRank = -1, testStallCall = 0;
@@ -148,9 +153,48 @@ struct Setup {
 
 master::JobSettings jobSettings(const RenderOptions& o) {
   master::JobSettings job;
-  std::tie(job.width, job.height) = parseSize(o.size, "--size");
+  std::optional<walls::Wall> wall;
+  if (!o.wall.empty()) {
+    if (o.sizeGiven)
+      throw std::invalid_argument("--size and --wall both set the screen: give one of them");
+    wall = walls::loadWall(o.wall);
+    job.width = wall->width, job.height = wall->height;
+  } else {
+    std::tie(job.width, job.height) = parseSize(o.size, "--size");
+  }
   if (job.width > 65536 || job.height > 65536)
     throw std::invalid_argument("--size: at most 65536 pixels per side");
+  if (!o.sink.empty()) {
+    if (!wall)
+      throw std::invalid_argument("--sink needs --wall: the same wall file the sink shows");
+    master::StreamSettings st;
+    std::tie(st.host, st.port) = net::parseEndpoint(o.sink, "--sink");
+    st.token = o.token;
+    st.wallId = wall->id;
+    st.background = wall->background;
+    if (o.tileCodec == "jpeg")
+      st.codec.codec = net::TileCodec::Jpeg;
+    else if (o.tileCodec == "raw")
+      st.codec.codec = net::TileCodec::Raw;
+    else if (o.tileCodec == "deflate")
+      st.codec.codec = net::TileCodec::Deflate;
+    else
+      throw std::invalid_argument("--tile-codec: expected jpeg, raw or deflate");
+    if (o.jpegQuality < 1 || o.jpegQuality > 100)
+      throw std::invalid_argument("--jpeg-quality must be in [1, 100]");
+    st.codec.jpegQuality = o.jpegQuality;
+    if (o.subsampling == "444")
+      st.codec.subsampling = net::Subsampling::S444;
+    else if (o.subsampling == "422")
+      st.codec.subsampling = net::Subsampling::S422;
+    else if (o.subsampling == "420")
+      st.codec.subsampling = net::Subsampling::S420;
+    else
+      throw std::invalid_argument("--subsampling: expected 444, 422 or 420");
+    job.stream = st;
+  } else if (!o.token.empty()) {
+    throw std::invalid_argument("--token goes with --sink");
+  }
   const auto cam = parseNumbers(o.camera, "--camera");
   if (cam.size() < 2 || cam.size() > 3)
     throw std::invalid_argument("--camera: expected AZIMUTH,ELEVATION[,DISTANCE]");
@@ -177,7 +221,8 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   } else {
     job.path = master::CameraPath::fromJsonFile(o.path);
   }
-  job.outDir = o.noWrite ? "" : o.out;
+  // Streaming to a sink writes no frames on rank 0 unless --out asks for them too.
+  job.outDir = o.noWrite || (job.stream && !o.outGiven) ? "" : o.out;
   if (o.format != "png" && o.format != "exr")
     throw std::invalid_argument("--format: expected png or exr");
   job.format = o.format;
@@ -214,6 +259,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["voxwall_job"] = 1;
   m["volume_fingerprint"] = hex;
   m["size"] = {job.width, job.height};
+  m["wall"] = o.wall;
   m["frames"] = job.frames;
   m["path"] = o.path;
   m["camera"] = o.camera;
@@ -392,11 +438,20 @@ void runRender(const RenderOptions& o) {
                             f.rankSeconds[i] * 1e3);
               ranks += text;
             }
+            std::string sinkText;
+            if (s.job.stream) {
+              char text[160];
+              std::snprintf(text, sizeof text, " -> sink: %d/%zu ranks, %.1f KiB, encode %.1f ms%s",
+                            f.streamedRanks, f.ranks.size(), double(f.streamedBytes) / 1024,
+                            f.encodeSeconds * 1e3,
+                            f.controls ? ", camera moved from the wall" : "");
+              sinkText = text;
+            }
             std::printf(
-                "frame %d/%d: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s\n",
+                "frame %d/%d: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s%s\n",
                 f.frame + 1, s.job.frames, f.frameSeconds * 1e3, f.imbalance, ranks.c_str(),
-                double(f.samples) / f.renderSeconds / 1e6, f.path.empty() ? "" : " -> ",
-                f.path.c_str());
+                double(f.samples) / f.renderSeconds / 1e6, sinkText.c_str(),
+                f.path.empty() ? "" : " -> ", f.path.c_str());
             if (o.verbose)
               for (std::size_t i = 0; i < f.ranks.size(); ++i)
                 std::printf("  rank %d:%s\n", f.ranks[i], rectList(f.rects[i]).c_str());
@@ -455,7 +510,21 @@ void addRenderCommand(CLI::App& app) {
                   "A .vwz file or any volume input (.nii/.nii.gz, .nrrd/.nhdr, .raw with --dims, "
                   ".tif, a slice directory, generated:KIND:SIZE). Default: the MRI template from "
                   "Debian's mricron-data if installed, else a generated Shepp-Logan phantom");
-  cmd->add_option("--size", o->size, "Virtual screen size in pixels, WIDTHxHEIGHT")
+  auto* size = cmd->add_option("--size", o->size, "Virtual screen size in pixels, WIDTHxHEIGHT")
+                   ->capture_default_str();
+  cmd->add_option("--wall", o->wall,
+                  "Render the virtual screen of this wall (walls/*.json or a Tide configuration; "
+                  "bezel gaps included) instead of --size");
+  cmd->add_option("--sink", o->sink,
+                  "Stream every rank's tiles to the wall sink at HOST:PORT (voxwall sink); needs "
+                  "--wall. Frames are then written by rank 0 only if --out is given too");
+  cmd->add_option("--token", o->token, "Token the sink asks for");
+  cmd->add_option("--tile-codec", o->tileCodec,
+                  "How tiles travel to the sink: jpeg, raw (exact) or deflate (exact, zlib)")
+      ->capture_default_str();
+  cmd->add_option("--jpeg-quality", o->jpegQuality, "JPEG quality of streamed tiles, 1-100")
+      ->capture_default_str();
+  cmd->add_option("--subsampling", o->subsampling, "JPEG chroma subsampling: 444, 422 or 420")
       ->capture_default_str();
   cmd->add_option("--tiles", o->tiles,
                   "Static cut: a grid of COLSxROWS tiles dealt to the ranks in turn (implies "
@@ -518,8 +587,8 @@ void addRenderCommand(CLI::App& app) {
   cmd->add_option("--threads", o->threads,
                   "CPU backend threads per rank (0 = the host's cores shared by its ranks)")
       ->capture_default_str();
-  cmd->add_option("--out", o->out, "Directory for frame_NNNNN.<format> files")
-      ->capture_default_str();
+  auto* out = cmd->add_option("--out", o->out, "Directory for frame_NNNNN.<format> files")
+                  ->capture_default_str();
   cmd->add_option("--format", o->format,
                   "Frame file format: png (8-bit) or exr (half float, keeps alpha)")
       ->capture_default_str();
@@ -530,8 +599,10 @@ void addRenderCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", o->quiet, "Print nothing but errors");
   cmd->add_flag("-v,--verbose", o->verbose, "Print every rank's rectangles every frame");
   o->raw.addTo(*cmd);
-  cmd->callback([o, balance] {
+  cmd->callback([o, balance, size, out] {
     o->balanceGiven = balance->count() > 0;
+    o->sizeGiven = size->count() > 0;
+    o->outGiven = out->count() > 0;
     runRender(*o);
   });
 }

@@ -12,11 +12,28 @@
 #include <voxwall/master/camera_path.hpp>
 #include <voxwall/master/communicator.hpp>
 #include <voxwall/master/load_balancer.hpp>
+#include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
 namespace voxwall::master {
 
 enum class Balance { Static, Dynamic };
+
+// Streaming to a wall sink (walls/sink.hpp): every rendering rank compresses its tiles and sends
+// them straight to the sink; rank 0 also holds a control connection for camera commands.
+struct StreamSettings {
+  std::string host;
+  std::uint16_t port = 0;
+  std::string token, wallId;
+  glm::dvec3 background{0.0};  // JPEG has no alpha: tiles are composited onto this
+  net::TileCodecSettings codec;
+};
+
+// Camera changes from the wall, added to the camera path from the frame after they arrive.
+struct CameraOffset {
+  double azimuthDeg = 0, elevationDeg = 0, zoom = 1, panX = 0, panY = 0;
+  node::Orbit apply(node::Orbit orbit) const;
+};
 
 struct JobSettings {
   int width = 1920, height = 1080;  // the virtual screen
@@ -35,6 +52,7 @@ struct JobSettings {
   std::string manifest = "{}";
   int watchdogMs = 120000;  // at least this; grows to 4x the slowest frame seen
   BalancerSettings balancer;
+  std::optional<StreamSettings> stream;  // none: no wall sink
 };
 
 struct FrameSummary {
@@ -49,8 +67,12 @@ struct FrameSummary {
   std::vector<std::vector<node::Rect>> rects;  // per rendering rank
   double imbalance = 1;                        // max / mean of rankSeconds
   std::uint64_t samples = 0;
-  int recuts = 0;    // cut changes so far (dynamic)
-  std::string path;  // file the frame goes to, empty when not writing
+  int recuts = 0;            // cut changes so far (dynamic)
+  std::string path;          // file the frame goes to, empty when not writing
+  int streamedRanks = 0;     // ranks whose tiles reached the sink
+  double encodeSeconds = 0;  // the slowest rank's tile compression
+  std::uint64_t streamedBytes = 0;
+  int controls = 0;  // camera commands from the wall applied to this frame
 };
 
 struct RankMemory {

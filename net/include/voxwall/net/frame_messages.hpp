@@ -11,12 +11,14 @@
 //
 // Layout (little-endian, serialized field by field):
 //   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop),
-//               f64 eye[3], center[3], up[3], fovYDeg, u32 tfVersion, u32 watchdogMs,
-//               i32 screenWidth, screenHeight, i32 cellPixels, u32 rankCount,
-//               per rank: u32 rectCount, then i32 x, y, width, height per rect.
+//               u64 decidedUnixMicros, f64 eye[3], center[3], up[3], fovYDeg, u32 tfVersion, u32
+//               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, u32 rankCount, per rank:
+//               u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
-//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 tileCount,
-//               per tile: i32 x, y, width, height, then width*height u32 RGBA8 pixels,
+//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
+//               pixels included, bit 1: streamed to the sink), f64 encodeSeconds,
+//               u64 streamedBytes, u32 tileCount,
+//               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8,
 //               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
 //               under this rank's tiles) and cw*ch f64 seconds, row by row.
 #pragma once
@@ -40,7 +42,8 @@ inline constexpr int kMaxScreenSide = 1 << 16;
 
 struct FrameTask {
   std::uint32_t frame = 0;
-  bool stop = false;  // no more frames: send the final report and leave the loop
+  bool stop = false;                    // no more frames: send the final report and leave the loop
+  std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the camera (for latency)
   node::Camera camera;
   std::uint32_t tfVersion = 0;   // transfer function in use (ranks hold it; fixed for now)
   std::uint32_t watchdogMs = 0;  // how long any rank waits for any other in this frame
@@ -51,7 +54,7 @@ struct FrameTask {
 
 struct RenderedTile {
   node::Rect rect;
-  node::Image image;  // rect.width x rect.height, premultiplied RGBA8
+  node::Image image;  // rect.width x rect.height, premultiplied RGBA8; empty without pixels
 };
 
 struct RankReport {
@@ -60,6 +63,10 @@ struct RankReport {
   double renderSeconds = 0;  // wall time for all of this rank's rects
   std::uint64_t samples = 0;
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
+  bool pixels = true;        // tiles carry their pixels (rank 0 writes frames)
+  bool streamed = false;     // the tiles went to the wall sink
+  double encodeSeconds = 0;  // compressing tiles for the sink
+  std::uint64_t streamedBytes = 0;
   std::vector<RenderedTile> tiles;
   // Over the whole screen; only the cells under `tiles` travel (the rest decode as zero).
   // Empty (cellsX = 0) when not measured.

@@ -1,0 +1,114 @@
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <thread>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/sink.hpp>
+
+#include "../cli_common.hpp"
+#include "commands.hpp"
+
+namespace voxwall::cli {
+namespace {
+
+struct SinkOptions {
+  std::string wall, listen = "127.0.0.1:7400", out, token;
+  int frames = 0, pending = 4;
+  bool mosaic = false, quiet = false, noStdin = false;
+};
+
+void runSink(const SinkOptions& o) {
+  walls::SinkSettings settings;
+  settings.wall = walls::loadWall(o.wall);
+  std::tie(settings.listenHost, settings.listenPort) = net::parseEndpoint(o.listen, "--listen");
+  settings.outDir = o.out;
+  settings.mosaic = o.mosaic;
+  settings.token = o.token;
+  if (o.frames < 0) throw std::invalid_argument("--frames must not be negative");
+  settings.maxFrames = o.frames;
+  if (o.pending < 1 || o.pending > 64) throw std::invalid_argument("--pending must be in [1, 64]");
+  settings.pendingFrames = o.pending;
+
+  // SIGINT and SIGTERM end the sink cleanly (the frame being written is finished).
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  const bool quiet = o.quiet;
+  walls::Sink sink(settings, [quiet](const std::string& line) {
+    if (quiet) return;
+    std::printf("%s\n", line.c_str());
+    std::fflush(stdout);
+  });
+  const auto& wall = settings.wall;
+  if (!quiet)
+    std::printf("sink: wall '%s', %zu display(s), virtual screen %dx%d; listening on %s:%u%s\n",
+                wall.id.c_str(), wall.displays.size(), wall.width, wall.height,
+                settings.listenHost.c_str(), unsigned(sink.port()),
+                settings.token.empty() ? "" : " (token required)");
+  std::fflush(stdout);
+
+  std::thread signalWatcher([&] {
+    int received = 0;
+    sigwait(&signals, &received);
+    sink.stop();
+  });
+  signalWatcher.detach();  // blocked in sigwait until a signal; the process exits after run()
+  if (!o.noStdin) {
+    // Camera commands typed at the sink go to the render job's rank 0.
+    std::thread([&sink, quiet] {
+      std::string line;
+      while (std::getline(std::cin, line)) {
+        if (line.find_first_not_of(" \t") == std::string::npos) continue;
+        try {
+          sink.sendControl(walls::parseControlLine(line));
+        } catch (const std::invalid_argument& e) {
+          if (!quiet) std::fprintf(stderr, "sink: %s\n", e.what());
+        }
+      }
+    }).detach();
+  }
+  sink.run();
+  const auto st = sink.stats();
+  if (!quiet)
+    std::printf(
+        "sink: %d frame(s) presented, %d dropped incomplete, %d skipped (behind); "
+        "peers: %d accepted, %d refused, %d dropped; %s received; mean latency %.1f ms\n",
+        st.framesPresented, st.framesDropped, st.framesStale, st.peersAccepted, st.peersRefused,
+        st.peersDropped, humanBytes(double(st.bytesReceived)).c_str(), st.meanLatencyMs);
+}
+
+}  // namespace
+
+void addSinkCommand(CLI::App& app) {
+  auto o = std::make_shared<SinkOptions>();
+  auto* cmd = app.add_subcommand(
+      "sink",
+      "The display wall's data sink: accepts the tiles that `voxwall render --sink` streams, "
+      "shows (writes) a frame only when every display pixel has arrived, and forwards camera "
+      "commands typed on stdin (rotate DAZ DEL | zoom FACTOR | pan DX DY | reset) to the render "
+      "job");
+  cmd->add_option("--wall", o->wall, "Wall file (walls/*.json, or a Tide configuration)")
+      ->required();
+  cmd->add_option("--listen", o->listen,
+                  "Address and port to listen on (loopback by default; 0.0.0.0:PORT for all)")
+      ->capture_default_str();
+  cmd->add_option("--out", o->out, "Write every presented frame as DIR/frame_NNNNN_<display>.png");
+  cmd->add_flag("--mosaic", o->mosaic, "Also write the whole virtual screen, bezels included");
+  cmd->add_option("--token", o->token, "Refuse peers that do not present this token");
+  cmd->add_option("--frames", o->frames,
+                  "Exit after presenting this many frames (0: run until "
+                  "interrupted)")
+      ->capture_default_str();
+  cmd->add_option("--pending", o->pending,
+                  "Incomplete frames held at once before the oldest is dropped")
+      ->capture_default_str();
+  cmd->add_flag("--no-stdin", o->noStdin, "Do not read camera commands from stdin");
+  cmd->add_flag("-q,--quiet", o->quiet, "Print nothing but errors");
+  cmd->callback([o] { runSink(*o); });
+}
+
+}  // namespace voxwall::cli

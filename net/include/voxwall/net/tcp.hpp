@@ -1,0 +1,93 @@
+// TCP transport of the wall protocol (Asio): a blocking client connection with deadlines, the
+// per-rank tile streamer that reconnects with back-off, and rank 0's control channel.
+#pragma once
+
+#include <chrono>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <voxwall/net/wire.hpp>
+
+namespace voxwall::net {
+
+// "HOST:PORT" -> (host, port). Throws std::invalid_argument naming `option`.
+std::pair<std::string, std::uint16_t> parseEndpoint(const std::string& text,
+                                                    const std::string& option);
+
+// One connection to the sink. Not thread-safe. Throws NetError ("<host:port>: ...").
+class Connection {
+ public:
+  // Connects, sends Hello and waits for Welcome; a Bye or a silent sink is an error.
+  static std::unique_ptr<Connection> open(const std::string& host, std::uint16_t port,
+                                          const Hello& hello, int timeoutMs);
+  ~Connection();
+  void send(std::span<const std::byte> bytes);
+  // Waits up to timeoutMs for a whole message; nullopt when none came. Throws NetError when the
+  // peer closed or sent garbage.
+  std::optional<Message> receive(int timeoutMs);
+  const Welcome& welcome() const { return welcome_; }
+  const std::string& name() const { return name_; }
+  void close();
+
+ private:
+  struct Impl;
+  explicit Connection(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+  Welcome welcome_;
+  std::string name_;
+};
+
+// Sends a rank's tiles to the sink, frame by frame. When the sink is unreachable or drops the
+// connection, the frame is skipped and the next attempt waits a growing back-off (0.1 s doubling
+// to 5 s), so rendering never stalls on a dead sink. Not thread-safe.
+class TileStreamer {
+ public:
+  TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000);
+  // Returns whether the whole frame (tiles and FrameEnd) went out.
+  bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
+                 std::uint64_t decidedUnixMicros);
+  bool connected() const { return connection_ != nullptr; }
+  const std::string& lastError() const { return lastError_; }
+  int reconnects() const { return reconnects_; }
+  std::uint64_t bytesSent() const { return bytesSent_; }
+
+ private:
+  bool ensureConnected();
+  std::string host_;
+  std::uint16_t port_;
+  Hello hello_;
+  int connectTimeoutMs_;
+  std::unique_ptr<Connection> connection_;
+  std::chrono::steady_clock::time_point nextAttempt_{};
+  std::chrono::milliseconds backoff_{100};
+  std::string lastError_;
+  int reconnects_ = 0, attempts_ = 0;
+  std::uint64_t bytesSent_ = 0;
+};
+
+// Rank 0's connection for camera commands from the wall: a background thread keeps it open
+// (reconnecting with back-off) and queues every Control that arrives. Thread-safe.
+class ControlChannel {
+ public:
+  ControlChannel(std::string host, std::uint16_t port, Hello hello);
+  ~ControlChannel();
+  std::vector<Control> drain();  // the commands received since the last call, in order
+  bool connected() const;
+
+ private:
+  void run();
+  std::string host_;
+  std::uint16_t port_;
+  Hello hello_;
+  mutable std::mutex mutex_;
+  std::deque<Control> queue_;
+  bool connected_ = false, stop_ = false;
+  std::thread thread_;
+};
+
+std::uint64_t unixMicrosNow();
+
+}  // namespace voxwall::net

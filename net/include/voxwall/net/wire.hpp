@@ -1,0 +1,124 @@
+// The wall protocol: rendering ranks and the master talk to the sink over TCP.
+//
+// Every message is a 32-byte header and a payload (little-endian, field by field):
+//   offset size
+//        0    4  u32 magic 0x50575756 ("VWWP")
+//        4    2  u16 protocol version (kWireVersion)
+//        6    2  u16 message type (MessageType)
+//        8    4  u32 flags (0)
+//       12    4  u32 payload bytes (<= kMaxPayload)
+//       16    8  u64 frame id (0 where no frame)
+//       24    4  u32 xxHash32 (seed 0) of the payload
+//       28    4  u32 xxHash32 (seed 0) of bytes 0..27
+// Payloads (str = u16 length <= kMaxString, then bytes):
+//   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, str wallId, str token
+//   Welcome  str wallId, i32 screenWidth, i32 screenHeight          (sink -> peer, after Hello)
+//   Tile     i32 x, y, width, height (virtual screen), u8 codec, u64 decidedUnixMicros, bytes
+//   FrameEnd i32 rank, u32 tiles this rank sent for the frame
+//   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
+//   Bye      str reason
+// Sequence: peer connects, sends Hello; the sink answers Welcome, or Bye with the reason (wrong
+// version, token or wall) and closes. A renderer then sends, per frame, its Tiles and a
+// FrameEnd; the controller (rank 0) receives Controls. Either side may send Bye and close.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+#include <voxwall/net/tile_codec.hpp>
+#include <voxwall/node/camera.hpp>
+
+namespace voxwall::net {
+
+inline constexpr std::uint32_t kWireMagic = 0x50575756;
+inline constexpr std::uint16_t kWireVersion = 1;
+inline constexpr std::size_t kHeaderBytes = 32;
+inline constexpr std::uint32_t kMaxPayload = 64u << 20;
+inline constexpr std::size_t kMaxString = 256;
+
+enum class MessageType : std::uint16_t {
+  Hello = 1,
+  Welcome = 2,
+  Tile = 3,
+  FrameEnd = 4,
+  Control = 5,
+  Bye = 6,
+};
+enum class Role : std::uint8_t { Renderer = 1, Controller = 2 };
+enum class ControlCommand : std::uint8_t { Rotate = 1, Zoom = 2, Pan = 3, Reset = 4 };
+
+struct Hello {
+  Role role = Role::Renderer;
+  int rank = 0, rankCount = 1;
+  std::string wallId, token;
+};
+struct Welcome {
+  std::string wallId;
+  int screenWidth = 0, screenHeight = 0;
+};
+struct TileMessage {
+  node::Rect rect;
+  TileCodec codec = TileCodec::Jpeg;
+  std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the frame's camera
+  std::vector<std::byte> bytes;
+};
+struct FrameEnd {
+  int rank = 0;
+  std::uint32_t tiles = 0;
+};
+struct Control {
+  ControlCommand command = ControlCommand::Reset;
+  double a = 0, b = 0;  // rotate: degrees of azimuth, elevation; zoom: factor; pan: x, y radii
+};
+struct Bye {
+  std::string reason;
+};
+
+struct Message {
+  MessageType type = MessageType::Bye;
+  std::uint64_t frame = 0;
+  std::vector<std::byte> payload;
+};
+
+// Whole messages (header + payload).
+std::vector<std::byte> encodeMessage(const Hello& m);
+std::vector<std::byte> encodeMessage(const Welcome& m);
+std::vector<std::byte> encodeMessage(std::uint64_t frame, const TileMessage& m);
+std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameEnd& m);
+std::vector<std::byte> encodeMessage(const Control& m);
+std::vector<std::byte> encodeMessage(const Bye& m);
+
+// Header check: magic, version, type, flags, length limit, header checksum. Returns the payload
+// length. Throws FormatError(source, ...) naming what is wrong (a version mismatch says both).
+std::uint32_t checkHeader(std::span<const std::byte, kHeaderBytes> header,
+                          const std::string& source, MessageType* type, std::uint64_t* frame);
+// Payload check against the header's checksum. Throws FormatError.
+void checkPayload(std::span<const std::byte, kHeaderBytes> header,
+                  std::span<const std::byte> payload, const std::string& source);
+
+// Payload decoders: every length is checked, trailing bytes are an error. Throw FormatError.
+Hello decodeHello(std::span<const std::byte> payload, const std::string& source);
+Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& source);
+TileMessage decodeTile(std::span<const std::byte> payload, const std::string& source);
+FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& source);
+Control decodeControl(std::span<const std::byte> payload, const std::string& source);
+Bye decodeBye(std::span<const std::byte> payload, const std::string& source);
+
+// Splits a byte stream into messages: feed() what arrived, next() returns whole messages.
+// Throws FormatError on the first bad header or payload (the stream is then unusable).
+class MessageReader {
+ public:
+  explicit MessageReader(std::string source) : source_(std::move(source)) {}
+  void feed(std::span<const std::byte> bytes);
+  std::optional<Message> next();
+  std::size_t buffered() const { return buffer_.size() - start_; }
+
+ private:
+  std::string source_;
+  std::vector<std::byte> buffer_;
+  std::size_t start_ = 0;
+};
+
+}  // namespace voxwall::net

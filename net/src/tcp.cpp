@@ -1,0 +1,233 @@
+#include <asio.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/net/tcp.hpp>
+
+namespace voxwall::net {
+
+using asio::ip::tcp;
+using Clock = std::chrono::steady_clock;
+
+std::uint64_t unixMicrosNow() {
+  return std::uint64_t(std::chrono::duration_cast<std::chrono::microseconds>(
+                           std::chrono::system_clock::now().time_since_epoch())
+                           .count());
+}
+
+std::pair<std::string, std::uint16_t> parseEndpoint(const std::string& text,
+                                                    const std::string& option) {
+  const auto colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == text.size())
+    throw std::invalid_argument(option + ": expected HOST:PORT, got '" + text + "'");
+  const std::string port = text.substr(colon + 1);
+  if (port.find_first_not_of("0123456789") != std::string::npos || port.size() > 5 ||
+      std::stoul(port) > 65535)
+    throw std::invalid_argument(option + ": '" + port + "' is not a port number");
+  std::string host = text.substr(0, colon);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  return {host, std::uint16_t(std::stoul(port))};
+}
+
+struct Connection::Impl {
+  asio::io_context io;
+  tcp::socket socket{io};
+  MessageReader reader;
+  explicit Impl(std::string source) : reader(std::move(source)) {}
+
+  // Runs the io_context until `done` or the deadline; cancels what is pending on a timeout.
+  bool runUntil(const bool& done, Clock::time_point deadline) {
+    io.restart();
+    while (!done && Clock::now() < deadline) {
+      io.run_one_for(deadline - Clock::now());
+      if (io.stopped()) io.restart();
+    }
+    if (done) return true;
+    asio::error_code ignored;
+    socket.cancel(ignored);
+    io.restart();
+    io.run_for(std::chrono::milliseconds(100));
+    return false;
+  }
+};
+
+Connection::Connection(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Connection::~Connection() { close(); }
+
+void Connection::close() {
+  if (!impl_) return;
+  asio::error_code ignored;
+  impl_->socket.shutdown(tcp::socket::shutdown_both, ignored);
+  impl_->socket.close(ignored);
+}
+
+std::unique_ptr<Connection> Connection::open(const std::string& host, std::uint16_t port,
+                                             const Hello& hello, int timeoutMs) {
+  const std::string name = host + ":" + std::to_string(port);
+  auto impl = std::make_unique<Impl>("sink " + name);
+  const auto deadline = Clock::now() + std::chrono::milliseconds(timeoutMs);
+  asio::error_code ec;
+  tcp::resolver resolver(impl->io);
+  const auto endpoints = resolver.resolve(host, std::to_string(port), ec);
+  if (ec) throw NetError(name + ": " + ec.message());
+  bool done = false;
+  asio::async_connect(impl->socket, endpoints,
+                      [&](const asio::error_code& e, const tcp::endpoint&) {
+                        ec = e;
+                        done = true;
+                      });
+  if (!impl->runUntil(done, deadline)) throw NetError(name + ": connection timed out");
+  if (ec) throw NetError(name + ": " + ec.message());
+  impl->socket.set_option(tcp::no_delay(true), ec);
+  std::unique_ptr<Connection> c(new Connection(std::move(impl)));
+  c->name_ = name;
+  c->send(encodeMessage(hello));
+  const int left = int(std::max<long long>(
+      1, std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count()));
+  const auto reply = c->receive(left);
+  if (!reply) throw NetError(name + ": no answer to Hello");
+  if (reply->type == MessageType::Bye)
+    throw NetError(name + ": refused: " + decodeBye(reply->payload, name).reason);
+  if (reply->type != MessageType::Welcome) throw NetError(name + ": unexpected answer to Hello");
+  c->welcome_ = decodeWelcome(reply->payload, name);
+  return c;
+}
+
+void Connection::send(std::span<const std::byte> bytes) {
+  asio::error_code ec;
+  asio::write(impl_->socket, asio::buffer(bytes.data(), bytes.size()), ec);
+  if (ec) throw NetError(name_ + ": " + ec.message());
+}
+
+std::optional<Message> Connection::receive(int timeoutMs) {
+  const auto deadline = Clock::now() + std::chrono::milliseconds(timeoutMs);
+  for (;;) {
+    try {
+      if (auto m = impl_->reader.next()) return m;
+    } catch (const FormatError& e) {
+      throw NetError(e.what());
+    }
+    std::array<std::byte, 65536> buffer;
+    std::size_t got = 0;
+    asio::error_code ec;
+    bool done = false;
+    impl_->socket.async_read_some(
+        asio::buffer(buffer),
+        [&](const asio::error_code& e, std::size_t n) { ec = e, got = n, done = true; });
+    if (!impl_->runUntil(done, deadline)) return std::nullopt;
+    if (ec) throw NetError(name_ + ": " + (ec == asio::error::eof ? "closed" : ec.message()));
+    impl_->reader.feed(std::span(buffer.data(), got));
+  }
+}
+
+TileStreamer::TileStreamer(std::string host, std::uint16_t port, Hello hello, int timeoutMs)
+    : host_(std::move(host)), port_(port), hello_(std::move(hello)), connectTimeoutMs_(timeoutMs) {}
+
+bool TileStreamer::ensureConnected() {
+  if (connection_) return true;
+  const auto now = Clock::now();
+  if (now < nextAttempt_) return false;
+  try {
+    connection_ = Connection::open(host_, port_, hello_, connectTimeoutMs_);
+    if (attempts_ > 0) ++reconnects_;
+    ++attempts_;
+    backoff_ = std::chrono::milliseconds(100);
+    return true;
+  } catch (const NetError& e) {
+    ++attempts_;
+    lastError_ = e.what();
+    nextAttempt_ = now + backoff_;
+    backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(5000));
+    return false;
+  }
+}
+
+bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
+                             std::uint64_t decidedUnixMicros) {
+  if (!ensureConnected()) return false;
+  try {
+    for (const auto& t : tiles) {
+      const auto bytes =
+          encodeMessage(frame, TileMessage{t.rect, t.codec, decidedUnixMicros, t.bytes});
+      connection_->send(bytes);
+      bytesSent_ += bytes.size();
+    }
+    connection_->send(encodeMessage(frame, FrameEnd{hello_.rank, std::uint32_t(tiles.size())}));
+    return true;
+  } catch (const NetError& e) {
+    lastError_ = e.what();
+    connection_.reset();
+    nextAttempt_ = Clock::now() + backoff_;
+    return false;
+  }
+}
+
+ControlChannel::ControlChannel(std::string host, std::uint16_t port, Hello hello)
+    : host_(std::move(host)), port_(port), hello_(std::move(hello)) {
+  hello_.role = Role::Controller;
+  thread_ = std::thread([this] { run(); });
+}
+
+ControlChannel::~ControlChannel() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  thread_.join();
+}
+
+std::vector<Control> ControlChannel::drain() {
+  std::lock_guard lock(mutex_);
+  std::vector<Control> out(queue_.begin(), queue_.end());
+  queue_.clear();
+  return out;
+}
+
+bool ControlChannel::connected() const {
+  std::lock_guard lock(mutex_);
+  return connected_;
+}
+
+void ControlChannel::run() {
+  auto backoff = std::chrono::milliseconds(100);
+  auto stopping = [&] {
+    std::lock_guard lock(mutex_);
+    return stop_;
+  };
+  while (!stopping()) {
+    std::unique_ptr<Connection> c;
+    try {
+      c = Connection::open(host_, port_, hello_, 1000);
+    } catch (const NetError&) {
+      for (auto waited = std::chrono::milliseconds(0); waited < backoff && !stopping();
+           waited += std::chrono::milliseconds(50))
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      backoff = std::min(backoff * 2, std::chrono::milliseconds(5000));
+      continue;
+    }
+    backoff = std::chrono::milliseconds(100);
+    {
+      std::lock_guard lock(mutex_);
+      connected_ = true;
+    }
+    try {
+      while (!stopping()) {
+        const auto m = c->receive(100);
+        if (!m) continue;
+        if (m->type == MessageType::Control) {
+          const auto control = decodeControl(m->payload, c->name());
+          std::lock_guard lock(mutex_);
+          queue_.push_back(control);
+        } else if (m->type == MessageType::Bye) {
+          break;
+        }
+      }
+      if (stopping()) c->send(encodeMessage(Bye{"render job finished"}));
+    } catch (const std::exception&) {
+      // The sink went away or sent garbage: reconnect.
+    }
+    std::lock_guard lock(mutex_);
+    connected_ = false;
+  }
+}
+
+}  // namespace voxwall::net

@@ -1,0 +1,176 @@
+#include <turbojpeg.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/parallel.hpp>
+#include <voxwall/net/tile_codec.hpp>
+
+namespace voxwall::net {
+namespace {
+
+struct TjDeleter {
+  void operator()(void* h) const { tjDestroy(h); }
+};
+using TjHandle = std::unique_ptr<void, TjDeleter>;
+
+// Premultiplied RGBA over an opaque background -> RGB8.
+std::vector<unsigned char> compositeRgb(const node::Image& image, const node::Rect& part,
+                                        const glm::dvec3& background) {
+  std::vector<unsigned char> rgb(std::size_t(part.width) * std::size_t(part.height) * 3);
+  const int bg[3] = {int(std::lround(background.r * 255)), int(std::lround(background.g * 255)),
+                     int(std::lround(background.b * 255))};
+  std::size_t o = 0;
+  for (int y = part.y; y < part.y + part.height; ++y)
+    for (int x = part.x; x < part.x + part.width; ++x) {
+      const std::uint32_t p = image.at(x, y);
+      const int a = int(p >> 24);
+      for (int c = 0; c < 3; ++c) {
+        const int v = int((p >> (8 * c)) & 255u) + (bg[c] * (255 - a) + 127) / 255;
+        rgb[o++] = (unsigned char)std::min(v, 255);
+      }
+    }
+  return rgb;
+}
+
+int tjSubsampling(Subsampling s) {
+  switch (s) {
+    case Subsampling::S444:
+      return TJSAMP_444;
+    case Subsampling::S422:
+      return TJSAMP_422;
+    case Subsampling::S420:
+      return TJSAMP_420;
+  }
+  return TJSAMP_420;
+}
+
+std::vector<std::byte> encodeSegment(const std::vector<unsigned char>& rgb, int w, int h,
+                                     const TileCodecSettings& s) {
+  std::vector<std::byte> out;
+  switch (s.codec) {
+    case TileCodec::Raw:
+      out.resize(rgb.size());
+      std::memcpy(out.data(), rgb.data(), rgb.size());
+      return out;
+    case TileCodec::Deflate: {
+      uLongf size = compressBound(uLong(rgb.size()));
+      out.resize(size);
+      if (compress2(reinterpret_cast<Bytef*>(out.data()), &size, rgb.data(), uLong(rgb.size()),
+                    1) != Z_OK)
+        throw NetError("deflate failed");
+      out.resize(size);
+      return out;
+    }
+    case TileCodec::Jpeg: {
+      TjHandle tj(tjInitCompress());
+      if (!tj) throw NetError("tjInitCompress failed");
+      unsigned char* jpeg = nullptr;
+      unsigned long size = 0;
+      if (tjCompress2(tj.get(), rgb.data(), w, 0, h, TJPF_RGB, &jpeg, &size,
+                      tjSubsampling(s.subsampling), s.jpegQuality, TJFLAG_FASTDCT) != 0) {
+        const std::string error = tjGetErrorStr2(tj.get());
+        tjFree(jpeg);
+        throw NetError("JPEG compression failed: " + error);
+      }
+      out.resize(size);
+      std::memcpy(out.data(), jpeg, size);
+      tjFree(jpeg);
+      return out;
+    }
+  }
+  throw std::invalid_argument("unknown tile codec");
+}
+
+}  // namespace
+
+const char* tileCodecName(TileCodec codec) {
+  switch (codec) {
+    case TileCodec::Jpeg:
+      return "jpeg";
+    case TileCodec::Raw:
+      return "raw";
+    case TileCodec::Deflate:
+      return "deflate";
+  }
+  return "unknown";
+}
+
+std::vector<EncodedTile> encodeTiles(const node::Image& image, const node::Rect& rect,
+                                     const glm::dvec3& background, const TileCodecSettings& s) {
+  if (image.width != rect.width || image.height != rect.height)
+    throw std::invalid_argument("encodeTiles: image and rectangle differ in size");
+  if (s.jpegQuality < 1 || s.jpegQuality > 100)
+    throw std::invalid_argument("JPEG quality must be in [1, 100]");
+  if (s.segmentPixels < 8) throw std::invalid_argument("segments must be at least 8 pixels");
+  std::vector<node::Rect> parts;  // in tile coordinates
+  for (int y = 0; y < rect.height; y += s.segmentPixels)
+    for (int x = 0; x < rect.width; x += s.segmentPixels)
+      parts.push_back({x, y, std::min(s.segmentPixels, rect.width - x),
+                       std::min(s.segmentPixels, rect.height - y)});
+  std::vector<EncodedTile> out(parts.size());
+  codec::parallelFor(parts.size(), s.threads, [&](std::size_t i) {
+    const node::Rect& p = parts[i];
+    const auto rgb = compositeRgb(image, p, background);
+    out[i].rect = {rect.x + p.x, rect.y + p.y, p.width, p.height};
+    out[i].codec = s.codec;
+    out[i].bytes = encodeSegment(rgb, p.width, p.height, s);
+  });
+  return out;
+}
+
+node::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
+                       const std::string& source) {
+  if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+    throw FormatError(source, "tile size " + std::to_string(width) + "x" + std::to_string(height));
+  const std::size_t pixels = std::size_t(width) * std::size_t(height);
+  node::Image image(width, height);
+  auto fromRgb = [&](const unsigned char* rgb) {
+    for (std::size_t i = 0; i < pixels; ++i)
+      image.pixels[i] = std::uint32_t(rgb[3 * i]) | std::uint32_t(rgb[3 * i + 1]) << 8 |
+                        std::uint32_t(rgb[3 * i + 2]) << 16 | 0xff000000u;
+  };
+  switch (codec) {
+    case TileCodec::Raw:
+      if (bytes.size() != pixels * 3)
+        throw FormatError(source, "raw tile of " + std::to_string(bytes.size()) + " bytes for " +
+                                      std::to_string(pixels) + " pixels");
+      fromRgb(reinterpret_cast<const unsigned char*>(bytes.data()));
+      return image;
+    case TileCodec::Deflate: {
+      std::vector<unsigned char> rgb(pixels * 3);
+      uLongf size = uLongf(rgb.size());
+      if (uncompress(rgb.data(), &size, reinterpret_cast<const Bytef*>(bytes.data()),
+                     uLong(bytes.size())) != Z_OK ||
+          size != rgb.size())
+        throw FormatError(source, "corrupt deflate tile");
+      fromRgb(rgb.data());
+      return image;
+    }
+    case TileCodec::Jpeg: {
+      TjHandle tj(tjInitDecompress());
+      if (!tj) throw NetError("tjInitDecompress failed");
+      int w = 0, h = 0, subsamp = 0, colorspace = 0;
+      auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+      if (tjDecompressHeader3(tj.get(), data, (unsigned long)bytes.size(), &w, &h, &subsamp,
+                              &colorspace) != 0)
+        throw FormatError(source, std::string("corrupt JPEG tile: ") + tjGetErrorStr2(tj.get()));
+      if (w != width || h != height)
+        throw FormatError(source, "JPEG tile is " + std::to_string(w) + "x" + std::to_string(h) +
+                                      ", the message says " + std::to_string(width) + "x" +
+                                      std::to_string(height));
+      if (tjDecompress2(tj.get(), data, (unsigned long)bytes.size(),
+                        reinterpret_cast<unsigned char*>(image.pixels.data()), width, 0, height,
+                        TJPF_RGBA, TJFLAG_FASTDCT | TJFLAG_STOPONWARNING) != 0)
+        throw FormatError(source, std::string("corrupt JPEG tile: ") + tjGetErrorStr2(tj.get()));
+      for (auto& p : image.pixels) p |= 0xff000000u;
+      return image;
+    }
+  }
+  throw FormatError(source, "unknown tile codec " + std::to_string(int(codec)));
+}
+
+}  // namespace voxwall::net

@@ -1,0 +1,180 @@
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/net/wire.hpp>
+
+using namespace voxwall;
+using net::MessageType;
+
+namespace {
+
+std::vector<net::Message> readAll(const std::vector<std::byte>& stream, std::size_t chunk) {
+  net::MessageReader reader("test");
+  std::vector<net::Message> out;
+  for (std::size_t i = 0; i < stream.size(); i += chunk) {
+    reader.feed(std::span(stream).subspan(i, std::min(chunk, stream.size() - i)));
+    while (auto m = reader.next()) out.push_back(std::move(*m));
+  }
+  return out;
+}
+
+template <typename T>
+void poke(std::vector<std::byte>& bytes, std::size_t offset, T value) {
+  std::memcpy(bytes.data() + offset, &value, sizeof value);
+}
+
+std::vector<std::byte> sampleTile() {
+  net::TileMessage t;
+  t.rect = {10, 20, 30, 40};
+  t.codec = net::TileCodec::Deflate;
+  t.decidedUnixMicros = 123456789;
+  t.bytes = {std::byte{1}, std::byte{2}, std::byte{3}};
+  return net::encodeMessage(42, t);
+}
+
+}  // namespace
+
+TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
+  std::vector<std::byte> stream;
+  auto append = [&](const std::vector<std::byte>& m) {
+    stream.insert(stream.end(), m.begin(), m.end());
+  };
+  append(net::encodeMessage(net::Hello{net::Role::Renderer, 2, 4, "bigeye", "secret"}));
+  append(net::encodeMessage(net::Welcome{"bigeye", 5772, 4338}));
+  append(sampleTile());
+  append(net::encodeMessage(42, net::FrameEnd{2, 7}));
+  append(net::encodeMessage(net::Control{net::ControlCommand::Pan, 0.5, -0.25}));
+  append(net::encodeMessage(net::Bye{"done"}));
+  for (std::size_t chunk : {std::size_t(1), std::size_t(7), std::size_t(4096)}) {
+    const auto m = readAll(stream, chunk);
+    ASSERT_EQ(m.size(), 6u);
+    const auto hello = net::decodeHello(m[0].payload, "t");
+    EXPECT_EQ(hello.rank, 2);
+    EXPECT_EQ(hello.rankCount, 4);
+    EXPECT_EQ(hello.wallId, "bigeye");
+    EXPECT_EQ(hello.token, "secret");
+    EXPECT_EQ(net::decodeWelcome(m[1].payload, "t").screenHeight, 4338);
+    EXPECT_EQ(m[2].type, MessageType::Tile);
+    EXPECT_EQ(m[2].frame, 42u);
+    const auto tile = net::decodeTile(m[2].payload, "t");
+    EXPECT_EQ(tile.rect, (node::Rect{10, 20, 30, 40}));
+    EXPECT_EQ(tile.codec, net::TileCodec::Deflate);
+    EXPECT_EQ(tile.decidedUnixMicros, 123456789u);
+    EXPECT_EQ(tile.bytes.size(), 3u);
+    EXPECT_EQ(net::decodeFrameEnd(m[3].payload, "t").tiles, 7u);
+    const auto control = net::decodeControl(m[4].payload, "t");
+    EXPECT_EQ(control.command, net::ControlCommand::Pan);
+    EXPECT_EQ(control.b, -0.25);
+    EXPECT_EQ(net::decodeBye(m[5].payload, "t").reason, "done");
+  }
+}
+
+TEST(Wire, TruncatedStreamsWaitForMoreAndNeverYieldHalfAMessage) {
+  const auto tile = sampleTile();
+  for (std::size_t n = 0; n < tile.size(); ++n) {
+    net::MessageReader reader("test");
+    reader.feed(std::span(tile).first(n));
+    EXPECT_FALSE(reader.next().has_value()) << n;
+  }
+}
+
+TEST(Wire, PeersAtOtherVersionsAreRefusedByName) {
+  for (int delta : {-1, +1}) {
+    auto m = sampleTile();
+    poke(m, 4, std::uint16_t(net::kWireVersion + delta));
+    net::MessageReader reader("peer");
+    reader.feed(m);
+    try {
+      reader.next();
+      FAIL() << "version " << net::kWireVersion + delta << " accepted";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("protocol version"), std::string::npos) << e.what();
+    }
+  }
+  auto zero = sampleTile();
+  poke(zero, 4, std::uint16_t(0));
+  net::MessageReader reader("peer");
+  reader.feed(zero);
+  EXPECT_THROW(reader.next(), FormatError);
+}
+
+TEST(Wire, GarbageOversizedAndTamperedMessagesAreRejected) {
+  auto expectBad = [](std::vector<std::byte> bytes, const char* what) {
+    net::MessageReader reader("peer");
+    reader.feed(bytes);
+    EXPECT_THROW(reader.next(), FormatError) << what;
+  };
+  std::vector<std::byte> garbage(64);
+  for (std::size_t i = 0; i < garbage.size(); ++i) garbage[i] = std::byte(i * 37 + 11);
+  expectBad(garbage, "garbage");
+  auto big = sampleTile();
+  poke(big, 12, std::uint32_t(net::kMaxPayload + 1));
+  expectBad(big, "oversized length");
+  auto header = sampleTile();
+  header[17] ^= std::byte{1};  // frame id changed: the header checksum no longer matches
+  expectBad(header, "header checksum");
+  auto payload = sampleTile();
+  payload.back() ^= std::byte{0x40};
+  expectBad(payload, "payload checksum");
+  auto type = sampleTile();
+  poke(type, 6, std::uint16_t(99));
+  expectBad(type, "unknown type");
+}
+
+TEST(Wire, PayloadDecodersCheckEveryField) {
+  EXPECT_THROW(net::decodeHello({}, "t"), FormatError);
+  auto hello = net::encodeMessage(net::Hello{net::Role::Renderer, 0, 1, "w", ""});
+  const std::span payload = std::span(hello).subspan(net::kHeaderBytes);
+  std::vector<std::byte> p(payload.begin(), payload.end());
+  p[0] = std::byte{9};  // role
+  EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
+  p = {payload.begin(), payload.end()};
+  poke(p, 1, std::int32_t(5));  // rank 5 of 1
+  EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
+  p = {payload.begin(), payload.end()};
+  poke(p, 9, std::uint16_t(60000));  // string longer than the limit
+  EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
+  p = {payload.begin(), payload.end()};
+  p.push_back(std::byte{0});
+  EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
+
+  auto control = net::encodeMessage(net::Control{net::ControlCommand::Zoom, 2, 0});
+  std::vector<std::byte> c(control.begin() + net::kHeaderBytes, control.end());
+  poke(c, 1, -1.0);  // zoom factor must be positive
+  EXPECT_THROW(net::decodeControl(c, "t"), FormatError);
+  poke(c, 1, std::nan(""));
+  EXPECT_THROW(net::decodeControl(c, "t"), FormatError);
+
+  auto tile = sampleTile();
+  std::vector<std::byte> t(tile.begin() + net::kHeaderBytes, tile.end());
+  poke(t, 8, std::int32_t(0));  // zero width
+  EXPECT_THROW(net::decodeTile(t, "t"), FormatError);
+  t.assign(tile.begin() + net::kHeaderBytes, tile.end());
+  t[16] = std::byte{7};  // codec
+  EXPECT_THROW(net::decodeTile(t, "t"), FormatError);
+}
+
+TEST(Wire, RandomCorruptionNeverCrashes) {
+  const auto good = sampleTile();
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 3000; ++trial) {
+    auto bytes = good;
+    for (int k = 0; k < 2; ++k) bytes[rng() % bytes.size()] ^= std::byte(1 + rng() % 255);
+    net::MessageReader reader("fuzz");
+    reader.feed(bytes);
+    try {
+      if (auto m = reader.next()) net::decodeTile(m->payload, "fuzz");
+    } catch (const FormatError&) {
+    }
+  }
+}
+
+TEST(Wire, EndpointsParse) {
+  EXPECT_EQ(net::parseEndpoint("127.0.0.1:7400", "--sink").second, 7400);
+  EXPECT_EQ(net::parseEndpoint("[::1]:80", "--sink").first, "::1");
+  for (const char* bad : {"7400", "host:", ":7400", "host:port", "host:70000"})
+    EXPECT_THROW(net::parseEndpoint(bad, "--sink"), std::invalid_argument) << bad;
+}

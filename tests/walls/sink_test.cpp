@@ -1,0 +1,285 @@
+// The sink against well-behaved and badly behaved peers on loopback (port 0).
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/sink.hpp>
+
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+
+namespace {
+
+walls::Wall testWall() {
+  return walls::parseWall(R"({"wall": "t2x1", "display": {"width": 20, "height": 10},
+                              "bezel_px": {"x": 4, "y": 0}, "grid": {"columns": 2, "rows": 1}})",
+                          "test");
+}
+
+class RunningSink {
+ public:
+  explicit RunningSink(walls::SinkSettings s)
+      : sink_(std::move(s), [this](const std::string& line) {
+          std::lock_guard lock(mutex_);
+          log_.push_back(line);
+        }) {
+    thread_ = std::thread([this] { sink_.run(); });
+  }
+  ~RunningSink() {
+    sink_.stop();
+    thread_.join();
+  }
+  walls::Sink& sink() { return sink_; }
+  std::uint16_t port() const { return sink_.port(); }
+  std::string log() {
+    std::lock_guard lock(mutex_);
+    std::string all;
+    for (const auto& l : log_) all += l + "\n";
+    return all;
+  }
+  // Waits (up to 5 s) until `done` holds for the stats.
+  template <typename F>
+  bool waitFor(F done) {
+    for (int i = 0; i < 500; ++i) {
+      if (done(sink_.stats())) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  }
+
+ private:
+  walls::Sink sink_;
+  std::thread thread_;
+  std::mutex mutex_;
+  std::vector<std::string> log_;
+};
+
+walls::SinkSettings settings(const std::string& out = "") {
+  walls::SinkSettings s;
+  s.wall = testWall();
+  s.outDir = out;
+  return s;
+}
+
+// A raw TCP peer: sends whatever it is given and reads what comes back until the sink closes.
+class RawPeer {
+ public:
+  explicit RawPeer(std::uint16_t port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(port);
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    connected_ = ::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+  }
+  ~RawPeer() { ::close(fd_); }
+  bool connected() const { return connected_; }
+  void send(const std::vector<std::byte>& bytes) {
+    (void)!::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL);
+  }
+  // Everything the sink sent until it closed; `closed` says whether it did within 5 s.
+  std::vector<std::byte> readUntilClosed(bool* closed) {
+    std::vector<std::byte> all;
+    *closed = false;
+    for (int i = 0; i < 500; ++i) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 10) <= 0) continue;
+      std::byte buf[4096];
+      const auto n = ::recv(fd_, buf, sizeof buf, 0);
+      if (n <= 0) {
+        *closed = true;
+        return all;
+      }
+      all.insert(all.end(), buf, buf + n);
+    }
+    return all;
+  }
+
+ private:
+  int fd_ = -1;
+  bool connected_ = false;
+};
+
+std::string byeReason(const std::vector<std::byte>& bytes) {
+  net::MessageReader reader("sink");
+  reader.feed(bytes);
+  while (auto m = reader.next())
+    if (m->type == net::MessageType::Bye) return net::decodeBye(m->payload, "sink").reason;
+  return "";
+}
+
+net::Hello renderer(int rank, int ranks, const std::string& token = "") {
+  return net::Hello{net::Role::Renderer, rank, ranks, "t2x1", token};
+}
+
+// A solid tile of colour `rgb` (opaque) at `rect`.
+net::EncodedTile solidTile(const node::Rect& rect, std::uint32_t rgb) {
+  node::Image image(rect.width, rect.height);
+  for (auto& p : image.pixels) p = rgb | 0xff000000u;
+  net::TileCodecSettings s;
+  s.codec = net::TileCodec::Raw;
+  return net::encodeTiles(image, rect, {0, 0, 0}, s)[0];
+}
+
+}  // namespace
+
+TEST(Sink, PresentsAFrameOnlyWhenEveryDisplayPixelHasArrived) {
+  test::TempDir dir;
+  RunningSink sink(settings(dir.path("out")));
+  auto left = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 2), 2000);
+  auto right = net::Connection::open("127.0.0.1", sink.port(), renderer(1, 2), 2000);
+  EXPECT_EQ(left->welcome().screenWidth, 44);
+  // Frame 1: only the left half arrives.
+  left->send(net::encodeMessage(
+      1, net::TileMessage{
+             {0, 0, 22, 10}, net::TileCodec::Raw, 0, solidTile({0, 0, 22, 10}, 0x0000ff).bytes}));
+  // Frame 2: both halves (the bezel column 20..23 belongs to no display).
+  for (auto& [c, rect, color] : {std::tuple{left.get(), node::Rect{0, 0, 22, 10}, 0x00ff00u},
+                                 std::tuple{right.get(), node::Rect{22, 0, 22, 10}, 0xff0000u}}) {
+    const auto tile = solidTile(rect, color);
+    c->send(net::encodeMessage(2, net::TileMessage{rect, tile.codec, 0, tile.bytes}));
+  }
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
+      << sink.log();
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesDropped == 1; }));
+  EXPECT_FALSE(std::filesystem::exists(dir.path("out/frame_00001_r0c0.png")));
+  const auto l = node::readImage(dir.path("out/frame_00002_r0c0.png"));
+  const auto r = node::readImage(dir.path("out/frame_00002_r0c1.png"));
+  ASSERT_EQ(l.width, 20);
+  EXPECT_EQ(l.pixels[0], 0xff00ff00u);
+  EXPECT_EQ(r.pixels[0], 0xffff0000u);  // 0xff0000 with red in the lowest byte: blue
+  // Late tiles for a frame already settled are ignored, not presented.
+  left->send(net::encodeMessage(
+      1, net::TileMessage{
+             {22, 0, 22, 10}, net::TileCodec::Raw, 0, solidTile({22, 0, 22, 10}, 0xff).bytes}));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(sink.sink().stats().framesPresented, 1);
+}
+
+TEST(Sink, RefusesWrongTokenVersionAndWall) {
+  auto s = settings();
+  s.token = "secret";
+  RunningSink sink(s);
+  EXPECT_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, "guess"), 2000),
+               net::NetError);
+  try {
+    net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, "guess"), 2000);
+  } catch (const net::NetError& e) {
+    EXPECT_NE(std::string(e.what()).find("wrong token"), std::string::npos) << e.what();
+  }
+  auto otherWall = renderer(0, 1, "secret");
+  otherWall.wallId = "bigeye";
+  EXPECT_THROW(net::Connection::open("127.0.0.1", sink.port(), otherWall, 2000), net::NetError);
+  for (int version : {0, net::kWireVersion - 1, net::kWireVersion + 1}) {
+    if (version == net::kWireVersion) continue;
+    auto hello = net::encodeMessage(renderer(0, 1, "secret"));
+    const std::uint16_t v = std::uint16_t(version);
+    std::memcpy(hello.data() + 4, &v, 2);
+    RawPeer peer(sink.port());
+    ASSERT_TRUE(peer.connected());
+    peer.send(hello);
+    bool closed = false;
+    const auto reason = byeReason(peer.readUntilClosed(&closed));
+    EXPECT_TRUE(closed);
+    EXPECT_NE(reason.find("protocol version"), std::string::npos) << "'" << reason << "'";
+  }
+  // The right token still gets in.
+  EXPECT_NO_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, "secret"), 2000));
+  EXPECT_GE(sink.sink().stats().peersRefused, 5);
+}
+
+TEST(Sink, SurvivesGarbageTruncationAndOversizedLengths) {
+  RunningSink sink(settings());
+  {  // garbage
+    RawPeer peer(sink.port());
+    std::vector<std::byte> garbage(100);
+    for (std::size_t i = 0; i < garbage.size(); ++i) garbage[i] = std::byte(i * 7 + 1);
+    peer.send(garbage);
+    bool closed = false;
+    peer.readUntilClosed(&closed);
+    EXPECT_TRUE(closed);
+  }
+  {  // an oversized length after a good Hello
+    RawPeer peer(sink.port());
+    peer.send(net::encodeMessage(renderer(0, 1)));
+    auto big = net::encodeMessage(1, net::FrameEnd{0, 1});
+    const std::uint32_t huge = net::kMaxPayload + 1;
+    std::memcpy(big.data() + 12, &huge, 4);
+    peer.send(big);
+    bool closed = false;
+    peer.readUntilClosed(&closed);
+    EXPECT_TRUE(closed);
+  }
+  {  // a tile before Hello
+    RawPeer peer(sink.port());
+    peer.send(net::encodeMessage(1, net::FrameEnd{0, 1}));
+    bool closed = false;
+    EXPECT_NE(byeReason(peer.readUntilClosed(&closed)).find("before Hello"), std::string::npos);
+    EXPECT_TRUE(closed);
+  }
+  {  // a tile cut off in the middle, then the peer vanishes
+    RawPeer peer(sink.port());
+    peer.send(net::encodeMessage(renderer(0, 1)));
+    auto tile = net::encodeMessage(
+        3, net::TileMessage{
+               {0, 0, 44, 10}, net::TileCodec::Raw, 0, solidTile({0, 0, 44, 10}, 0xff).bytes});
+    tile.resize(tile.size() / 2);
+    peer.send(tile);
+  }
+  {  // a tile whose pixels do not decode, and one outside the screen
+    auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+    c->send(net::encodeMessage(
+        4,
+        net::TileMessage{
+            {0, 0, 44, 10}, net::TileCodec::Jpeg, 0, std::vector<std::byte>(300, std::byte{1})}));
+    EXPECT_THROW(
+        {
+          for (int i = 0; i < 50; ++i) {
+            c->receive(20);
+          }
+        },
+        net::NetError);
+  }
+  // Garbage, the oversized length and the early tile are refused (with a Bye where the header
+  // was readable); the half tile and the bad JPEG drop their connections.
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
+    return s.peersRefused >= 3 && s.peersDropped >= 2;
+  })) << sink.log();
+  // Still serving: a whole frame from a good peer is presented.
+  auto good = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  const auto tile = solidTile({0, 0, 44, 10}, 0x808080);
+  good->send(net::encodeMessage(9, net::TileMessage{tile.rect, tile.codec, 0, tile.bytes}));
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
+      << sink.log();
+  EXPECT_EQ(sink.sink().stats().framesPresented, 1);
+}
+
+TEST(Sink, ForwardsCameraCommandsToTheController) {
+  RunningSink sink(settings());
+  net::ControlChannel channel("127.0.0.1", sink.port(), renderer(0, 1));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  sink.sink().sendControl(walls::parseControlLine("rotate 30 -5"));
+  sink.sink().sendControl(walls::parseControlLine("zoom 1.5"));
+  std::vector<net::Control> got;
+  for (int i = 0; i < 200 && got.size() < 2; ++i) {
+    auto more = channel.drain();
+    got.insert(got.end(), more.begin(), more.end());
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[0].command, net::ControlCommand::Rotate);
+  EXPECT_EQ(got[0].b, -5);
+  EXPECT_EQ(got[1].command, net::ControlCommand::Zoom);
+  EXPECT_THROW(walls::parseControlLine("spin 3"), std::invalid_argument);
+  EXPECT_THROW(walls::parseControlLine("zoom -1"), std::invalid_argument);
+}

@@ -1,0 +1,63 @@
+// The data sink of a display wall: accepts the rendering ranks and rank 0's control connection
+// (net/wire.hpp), collects the tiles of each frame and presents a frame only when every pixel of
+// every display has arrived (never a torn or partial frame). It drops stale frames when it falls
+// behind (always keeping the newest complete one), drops and reports frames it cannot complete,
+// survives peers that join late, drop, or send garbage, writes per-display images (and
+// optionally a mosaic) and forwards camera commands to rank 0.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <string>
+#include <voxwall/net/wire.hpp>
+#include <voxwall/walls/wall.hpp>
+
+namespace voxwall::walls {
+
+struct SinkSettings {
+  Wall wall;
+  std::string listenHost = "127.0.0.1";  // loopback unless told otherwise
+  std::uint16_t listenPort = 0;          // 0: any free port (see Sink::port)
+  std::string token;                     // empty: no token required
+  std::string outDir;                    // empty: frames are assembled and counted, not written
+  bool mosaic = false;                   // also write the whole virtual screen
+  int maxFrames = 0;                     // stop after presenting this many (0: run until stop())
+  int pendingFrames = 4;                 // incomplete frames held at once; the oldest is dropped
+};
+
+struct SinkStats {
+  int framesPresented = 0, framesDropped = 0, framesStale = 0;
+  int peersAccepted = 0, peersRefused = 0, peersDropped = 0;
+  bool controllerConnected = false;  // rank 0's control connection is up
+  std::uint64_t bytesReceived = 0;
+  double meanLatencyMs = 0;  // camera decided on rank 0 -> frame presented (same clock: one host)
+};
+
+// One line per event (frame presented or dropped, peer refused or dropped).
+using SinkLog = std::function<void(const std::string&)>;
+
+class Sink {
+ public:
+  // Binds the listening socket. Throws net::NetError when it cannot.
+  explicit Sink(SinkSettings settings, SinkLog log = {});
+  ~Sink();
+  std::uint16_t port() const;
+  // Serves until maxFrames were presented or stop() was called. Thread: any one thread.
+  void run();
+  // Thread-safe.
+  void stop();
+  // Forwards a camera command to the controller (rank 0), if one is connected. Thread-safe.
+  void sendControl(const net::Control& control);
+  SinkStats stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Parses a control line typed at the sink: "rotate DAZ DEL", "zoom FACTOR", "pan DX DY",
+// "reset". Throws std::invalid_argument with a usage line.
+net::Control parseControlLine(const std::string& line);
+
+}  // namespace voxwall::walls
