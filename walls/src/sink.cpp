@@ -70,6 +70,14 @@ struct Sink::Impl {
     if (log) log(line);
   }
 
+  // After maxFrames frames were settled (presented, skipped or dropped), the sink stops.
+  // Call with statsMutex held.
+  void stopIfDone() {
+    const int settled = stats.framesPresented + stats.framesStale + stats.framesDropped;
+    if (settings.maxFrames > 0 && settled >= settings.maxFrames)
+      asio::post(io, [this] { io.stop(); });
+  }
+
   struct Session : std::enable_shared_from_this<Session> {
     Impl& sink;
     tcp::socket socket;
@@ -243,6 +251,7 @@ struct Sink::Impl {
     {
       std::lock_guard lock(statsMutex);
       ++stats.framesDropped;
+      stopIfDone();
     }
     pending.erase(it);
   }
@@ -293,6 +302,7 @@ struct Sink::Impl {
       say("frame " + std::to_string(toPresent->frame) + " skipped: the sink fell behind");
       std::lock_guard s(statsMutex);
       ++stats.framesStale;
+      stopIfDone();
     }
     toPresent = std::move(done);
     presentReady.notify_one();
@@ -328,10 +338,9 @@ struct Sink::Impl {
           frame.data.decidedUnixMicros
               ? double(net::unixMicrosNow() - frame.data.decidedUnixMicros) / 1e3
               : 0.0;
-      int presented;
       {
         std::lock_guard lock(statsMutex);
-        presented = ++stats.framesPresented;
+        const int presented = ++stats.framesPresented;
         latencySumMs += latencyMs;
         stats.meanLatencyMs = latencySumMs / presented;
       }
@@ -342,8 +351,8 @@ struct Sink::Impl {
                     (unsigned long long)frame.frame, wall.displays.size(), frame.data.tiles,
                     frame.data.ranks.size(), double(frame.data.bytes) / 1024, latencyMs);
       say(line);
-      if (settings.maxFrames > 0 && presented >= settings.maxFrames)
-        asio::post(io, [this] { io.stop(); });
+      std::lock_guard lock(statsMutex);
+      stopIfDone();
     }
   }
 };
@@ -394,6 +403,14 @@ std::uint16_t Sink::port() const { return impl_->acceptor.local_endpoint().port(
 void Sink::run() {
   impl_->accept();
   impl_->io.run();
+  // Stop listening and hang up on every peer, so the port is free for a new sink at once.
+  asio::error_code ignored;
+  impl_->acceptor.close(ignored);
+  for (const auto& session : std::set(impl_->sessions)) {
+    session->socket.shutdown(tcp::socket::shutdown_both, ignored);
+    session->socket.close(ignored);
+  }
+  impl_->sessions.clear();
   // Finish the frame being written before returning.
   {
     std::lock_guard lock(impl_->presentMutex);

@@ -100,8 +100,8 @@ void addSinkCommand(CLI::App& app) {
   cmd->add_flag("--mosaic", o->mosaic, "Also write the whole virtual screen, bezels included");
   cmd->add_option("--token", o->token, "Refuse peers that do not present this token");
   cmd->add_option("--frames", o->frames,
-                  "Exit after presenting this many frames (0: run until "
-                  "interrupted)")
+                  "Exit after this many frames were presented, skipped (the sink fell behind) or "
+                  "dropped (incomplete); 0: run until interrupted")
       ->capture_default_str();
   cmd->add_option("--pending", o->pending,
                   "Incomplete frames held at once before the oldest is dropped")

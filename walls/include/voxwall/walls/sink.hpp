@@ -22,8 +22,8 @@ struct SinkSettings {
   std::string token;                     // empty: no token required
   std::string outDir;                    // empty: frames are assembled and counted, not written
   bool mosaic = false;                   // also write the whole virtual screen
-  int maxFrames = 0;                     // stop after presenting this many (0: run until stop())
-  int pendingFrames = 4;                 // incomplete frames held at once; the oldest is dropped
+  int maxFrames = 0;  // stop after this many frames were presented, skipped or dropped (0: never)
+  int pendingFrames = 4;  // incomplete frames held at once; the oldest is dropped
 };
 
 struct SinkStats {
@@ -43,7 +43,7 @@ class Sink {
   explicit Sink(SinkSettings settings, SinkLog log = {});
   ~Sink();
   std::uint16_t port() const;
-  // Serves until maxFrames were presented or stop() was called. Thread: any one thread.
+  // Serves until maxFrames frames were settled or stop() was called. Thread: any one thread.
   void run();
   // Thread-safe.
   void stop();

@@ -1,0 +1,213 @@
+// The render job streaming to a sink on loopback: N fake ranks (threads) render, compress and
+// send their tiles; the sink assembles and writes per-display images.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <thread>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/master/render_job.hpp>
+#include <voxwall/walls/sink.hpp>
+
+#include "support/fake_communicator.hpp"
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+namespace fs = std::filesystem;
+
+namespace {
+
+const node::RenderVolume& volume() {
+  static const auto v = node::RenderVolume::fromVolume(codec::generateSheppLogan(40), 8);
+  return v;
+}
+node::TransferFunction tf() { return node::TransferFunction::preset("mri").rescaled(0, 255); }
+
+walls::Wall wall() {
+  return walls::parseWall(R"({"wall": "mini", "display": {"width": 48, "height": 36},
+      "bezel_px": {"x": 3, "y": 5}, "grid": {"columns": 2, "rows": 2}})",
+                          "mini");
+}
+
+class SinkThread {
+ public:
+  SinkThread(const std::string& out, std::uint16_t port = 0) {
+    walls::SinkSettings s;
+    s.wall = wall();
+    s.outDir = out;
+    s.listenPort = port;
+    sink_ = std::make_unique<walls::Sink>(s, [](const std::string& line) {
+      if (line.rfind("sink:", 0) == 0) std::fprintf(stderr, "%s\n", line.c_str());
+    });
+    thread_ = std::thread([this] { sink_->run(); });
+  }
+  ~SinkThread() { stop(); }
+  void stop() {
+    if (!thread_.joinable()) return;
+    sink_->stop();
+    thread_.join();
+  }
+  walls::Sink& sink() { return *sink_; }
+
+ private:
+  std::unique_ptr<walls::Sink> sink_;
+  std::thread thread_;
+};
+
+master::JobSettings streamJob(std::uint16_t port, net::TileCodec codec, int frames) {
+  master::JobSettings job;
+  const auto w = wall();
+  job.width = w.width, job.height = w.height;
+  job.frames = frames;
+  job.path = master::CameraPath::orbit({}, 30);
+  job.watchdogMs = 20000;
+  job.balancer.cellPixels = 8;
+  master::StreamSettings st;
+  st.host = "127.0.0.1", st.port = port, st.wallId = w.id;
+  st.codec.codec = codec;
+  st.codec.segmentPixels = 16;  // several segments per rank
+  st.codec.threads = 1;
+  job.stream = st;
+  return job;
+}
+
+void runJob(int ranks, const master::JobSettings& job,
+            const std::function<void(const master::FrameSummary&)>& onFrame = {}) {
+  const auto errors = test::runRanks(ranks, [&](master::Communicator& comm) {
+    auto backend = node::makeCpuBackend(1);
+    master::runRenderJob(comm, *backend, volume(), tf(), {}, job, onFrame);
+  });
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+// The single-rank reference frame over black, as the sink shows it.
+node::Image reference(const master::JobSettings& job, int frame,
+                      const master::CameraOffset& offset = {}) {
+  const auto camera =
+      node::orbitCamera(offset.apply(job.path.at(frame)), node::boundingRadius(volume().info()));
+  const auto plan = node::planFrame(volume(), camera, job.width, job.height, tf(), {});
+  node::Image image;
+  node::makeCpuBackend(1)->render(volume(), plan, {0, 0, job.width, job.height}, image);
+  for (auto& p : image.pixels) p |= 0xff000000u;
+  return image;
+}
+
+std::string displayFile(const std::string& dir, int frame, const std::string& display) {
+  char name[64];
+  std::snprintf(name, sizeof name, "frame_%05d_%s.png", frame, display.c_str());
+  return (fs::path(dir) / name).string();
+}
+
+// Waits until the sink has settled `frames` frames: presented, or skipped because it fell behind
+// (a live wall shows the newest complete frame; tests check every frame that was shown).
+bool waitSettled(walls::Sink& sink, int frames) {
+  auto settled = [&] {
+    const auto s = sink.stats();
+    return s.framesPresented + s.framesStale + s.framesDropped >= frames;
+  };
+  for (int i = 0; i < 1000 && !settled(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  return settled();
+}
+
+// Checks every frame the sink wrote against the single-rank render; returns how many it wrote.
+int checkShownFrames(const std::string& dir, const master::JobSettings& job, double minPsnrDb) {
+  int shown = 0;
+  for (int f = 0; f < job.frames; ++f) {
+    int present = 0;
+    for (const auto& d : wall().displays) present += fs::exists(displayFile(dir, f, d.name));
+    if (present == 0) continue;
+    EXPECT_EQ(present, 4) << "frame " << f << " was written partly";
+    const auto ref = reference(job, f);
+    for (const auto& d : wall().displays) {
+      const auto image = node::readImage(displayFile(dir, f, d.name));
+      if (minPsnrDb == 0)
+        EXPECT_EQ(image.pixels, ref.crop(d.rect).pixels) << "frame " << f << " " << d.name;
+      else
+        EXPECT_GE(node::compareImages(image, ref.crop(d.rect)).psnrDb, minPsnrDb)
+            << "frame " << f << " " << d.name;
+    }
+    ++shown;
+  }
+  return shown;
+}
+
+}  // namespace
+
+// Lossless tiles from 4 ranks: every display image equals the crop of the single-rank render.
+TEST(Stream, FourRanksLosslessEqualCropsOfTheSingleRankRender) {
+  test::TempDir dir;
+  SinkThread sink(dir.path("wall"));
+  const auto job = streamJob(sink.sink().port(), net::TileCodec::Deflate, 3);
+  runJob(4, job);
+  ASSERT_TRUE(waitSettled(sink.sink(), 3));
+  sink.stop();
+  const auto stats = sink.sink().stats();
+  EXPECT_EQ(stats.framesDropped, 0);
+  EXPECT_EQ(checkShownFrames(dir.path("wall"), job, 0), stats.framesPresented);
+  // The newest frame is always shown.
+  EXPECT_TRUE(fs::exists(displayFile(dir.path("wall"), 2, "r1c1")));
+}
+
+TEST(Stream, JpegTilesKeep40Decibels) {
+  test::TempDir dir;
+  SinkThread sink(dir.path("wall"));
+  const auto job = streamJob(sink.sink().port(), net::TileCodec::Jpeg, 2);
+  runJob(3, job);
+  ASSERT_TRUE(waitSettled(sink.sink(), 2));
+  sink.stop();
+  EXPECT_GE(checkShownFrames(dir.path("wall"), job, 40.0), 1);
+}
+
+// A command typed at the sink changes the camera of later frames.
+TEST(Stream, ControlFromTheWallMovesTheCamera) {
+  test::TempDir dir;
+  SinkThread sink(dir.path("wall"));
+  auto job = streamJob(sink.sink().port(), net::TileCodec::Deflate, 4);
+  job.path = master::CameraPath::orbit({}, 0);  // a still camera
+  runJob(2, job, [&](const master::FrameSummary& f) {
+    if (f.frame != 0) return;
+    // Wait for rank 0's control connection, then send the command.
+    for (int i = 0; i < 500 && !sink.sink().stats().controllerConnected; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    sink.sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  });
+  ASSERT_TRUE(waitSettled(sink.sink(), 4));
+  sink.stop();
+  master::CameraOffset turned;
+  turned.azimuthDeg = 40;
+  const auto before = reference(job, 0), after = reference(job, 3, turned);
+  const auto screen = wall();
+  const auto& d = screen.displays[0];
+  EXPECT_EQ(node::readImage(displayFile(dir.path("wall"), 0, d.name)).pixels,
+            before.crop(d.rect).pixels);
+  EXPECT_EQ(node::readImage(displayFile(dir.path("wall"), 3, d.name)).pixels,
+            after.crop(d.rect).pixels);
+  EXPECT_NE(before.pixels, after.pixels);
+}
+
+// The sink dies and comes back mid-run: the job goes on, frames in flight are lost, every frame
+// the new sink writes is whole and right.
+TEST(Stream, SinkRestartLosesOnlyFramesInFlight) {
+  test::TempDir dir;
+  auto first = std::make_unique<SinkThread>(dir.path("a"));
+  const std::uint16_t port = first->sink().port();
+  std::unique_ptr<SinkThread> second;
+  const int frames = 30;
+  auto job = streamJob(port, net::TileCodec::Deflate, frames);
+  runJob(3, job, [&](const master::FrameSummary& f) {
+    if (f.frame == 5) first->stop();  // the sink process dies
+    if (f.frame == 10) second = std::make_unique<SinkThread>(dir.path("b"), port);
+    if (f.frame >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  });
+  ASSERT_TRUE(second);
+  second->stop();
+  EXPECT_GE(first->sink().stats().framesPresented, 1);
+  EXPECT_GE(second->sink().stats().framesPresented, 2) << "the ranks did not reconnect";
+  // Every frame either sink wrote is whole and right.
+  const int checked =
+      checkShownFrames(dir.path("a"), job, 0) + checkShownFrames(dir.path("b"), job, 0);
+  EXPECT_GE(checked, 6);
+  EXPECT_LT(checked, frames);  // frames in flight while no sink listened are gone
+}
