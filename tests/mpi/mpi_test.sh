@@ -10,6 +10,12 @@
 #   stall N           a rank that stops answering is named by the watchdog; the job ends
 #   dry-run N         prints the rank -> tile map, hosts and memory, renders nothing
 #   memory-budget     a budget smaller than the volume is refused with the memory needed
+#   sink N CODEC      N ranks stream to a `voxwall sink` on loopback (ci-2x2 wall): every display
+#                     image equals (jpeg: >= 40 dB) the crop of the single-process render
+#   sink-restart N    the sink is killed (-9) and restarted mid-run: the job goes on, every frame
+#                     either sink wrote is whole and right
+# Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
+# scenarios; ctest sets both.
 set -uo pipefail
 voxwall=$1 mpiexec=$2 preflags=$3 scenario=$4
 shift 4
@@ -45,6 +51,41 @@ same_frames() {
   done
   [ "$count" -gt 0 ] || fail "no frames in $a"
   [ "$count" -eq "$(ls "$b"/frame_*.png | wc -l)" ] || fail "$a and $b hold different frame sets"
+}
+
+# Starts a sink on a free loopback port (PORT=... when given); sets sink_pid and sink_port.
+start_sink() {
+  local out=$1 frames=$2 port=${3:-0}
+  "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen "127.0.0.1:$port" --out "$out" \
+    --frames "$frames" --no-stdin > "$out.log" 2>&1 &
+  sink_pid=$!
+  for _ in $(seq 200); do
+    sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$out.log" 2>/dev/null)
+    [ -n "$sink_port" ] && return 0
+    sleep 0.05
+  done
+  cat "$out.log"
+  fail "the sink did not start"
+}
+
+# Every frame the sink wrote to DIR is whole (4 displays) and matches the reference frames in
+# REF (min PSNR given: at least that; else equal). Prints how many frames it checked.
+check_wall_frames() {
+  local dir=$1 ref=$2 psnr=${3:-} checked=0
+  declare -A rects=([r0c0]="0 0" [r0c1]="100 0" [r1c0]="0 68" [r1c1]="100 68")
+  for f in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)_r0c0.png$/\1/p'); do
+    for d in r0c0 r0c1 r1c0 r1c1; do
+      [ -f "$dir/frame_${f}_$d.png" ] || fail "frame $f in $dir lacks display $d (a partial frame)"
+      # shellcheck disable=SC2086
+      "$VOXWALL_COMPARE_CROP" "$ref/frame_$f.png" ${rects[$d]} 96 64 "$dir/frame_${f}_$d.png" \
+        $psnr > /dev/null || fail "frame $f display $d differs from the single-process render"
+    done
+    checked=$((checked + 1))
+  done
+  for other in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)_r[01]c[01].png$/\1/p' | sort -u); do
+    [ -f "$dir/frame_${other}_r0c0.png" ] || fail "frame $other in $dir lacks display r0c0"
+  done
+  echo "$checked"
 }
 
 case $scenario in
@@ -129,6 +170,46 @@ case $scenario in
     [ $? -ne 0 ] || fail "a 64 KiB budget was accepted"
     grep -q "needs .* over the --memory-budget of 64.0 KiB" err.txt || { cat err.txt; fail "no message saying what is needed"; }
     run 2 render vol.vwz --size 64x48 --no-write --memory-budget 4G -q || fail "a 4 GiB budget was refused"
+    ;;
+  sink)
+    n=$1 codec=$2
+    start_sink wall 3
+    run "$n" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --tile-codec "$codec" --frames 3 --orbit-deg 20 --threads 1 -q || fail "render to the sink"
+    timeout 30 tail --pid="$sink_pid" -f /dev/null || fail "the sink did not finish"
+    wait "$sink_pid" || fail "the sink exited with $?"
+    "$voxwall" render vol.vwz --size 196x132 --frames 3 --orbit-deg 20 --threads 1 -q --out ref \
+      || fail "reference render"
+    psnr=""; [ "$codec" = jpeg ] && psnr=40
+    checked=$(check_wall_frames wall ref $psnr) || exit 1
+    [ "$checked" -ge 1 ] || fail "the sink showed no frame"
+    grep -q "frame 2 presented" wall.log || { cat wall.log; fail "the newest frame was not shown"; }
+    echo "$checked frame(s) on the wall match the single-process render"
+    ;;
+  sink-restart)
+    n=$1
+    frames=20
+    start_sink first 0
+    port=$sink_port
+    slow=(render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$port"
+          --tile-codec deflate --frames $frames --orbit-deg 9 --step 0.01 --threads 1)
+    run "$n" "${slow[@]}" > render.log 2>&1 &
+    render_pid=$!
+    for _ in $(seq 400); do grep -q "presented" first.log && break; sleep 0.05; done
+    grep -q "presented" first.log || fail "the first sink showed nothing"
+    kill -KILL "$sink_pid"; wait "$sink_pid" 2>/dev/null
+    sleep 0.5
+    start_sink second 0 "$port"
+    second_pid=$sink_pid
+    wait "$render_pid" || { cat render.log; fail "the render job did not survive the sink's restart"; }
+    kill -TERM "$second_pid" 2>/dev/null; wait "$second_pid" 2>/dev/null
+    "$voxwall" render vol.vwz --size 196x132 --frames $frames --orbit-deg 9 --step 0.01 \
+      --threads 1 -q --out ref || fail "reference render"
+    a=$(check_wall_frames first ref) || exit 1
+    b=$(check_wall_frames second ref) || exit 1
+    [ "$b" -ge 1 ] || { cat second.log; fail "no frame reached the restarted sink"; }
+    [ $((a + b)) -lt $frames ] || fail "no frame was lost while the sink was down?"
+    echo "first sink showed $a frame(s), the restarted one $b, all whole and right"
     ;;
   *)
     fail "unknown scenario $scenario"

@@ -1,0 +1,32 @@
+// Writes one valid message of every type into DIR, as seeds for wire_fuzz.
+#include <fstream>
+#include <string>
+#include <voxwall/net/wire.hpp>
+
+using namespace voxwall;
+
+int main(int argc, char** argv) {
+  if (argc != 2) return 2;
+  const std::string dir = argv[1];
+  node::Image image(16, 8);
+  for (auto& p : image.pixels) p = 0xff336699u;
+  std::vector<std::vector<std::byte>> seeds = {
+      net::encodeMessage(net::Hello{net::Role::Renderer, 1, 4, "ci-2x2", "token"}),
+      net::encodeMessage(net::Welcome{"ci-2x2", 196, 132}),
+      net::encodeMessage(3, net::FrameEnd{1, 4}),
+      net::encodeMessage(net::Control{net::ControlCommand::Rotate, 10, -5}),
+      net::encodeMessage(net::Bye{"done"}),
+  };
+  for (auto codec : {net::TileCodec::Jpeg, net::TileCodec::Raw, net::TileCodec::Deflate}) {
+    net::TileCodecSettings s;
+    s.codec = codec;
+    const auto t = net::encodeTiles(image, {4, 4, 16, 8}, {0, 0, 0}, s)[0];
+    seeds.push_back(net::encodeMessage(7, net::TileMessage{t.rect, t.codec, 1, t.bytes}));
+  }
+  for (std::size_t i = 0; i < seeds.size(); ++i) {
+    std::ofstream out(dir + "/seed" + std::to_string(i), std::ios::binary);
+    out.put(char(0));  // first byte: where the fuzzer cuts the stream
+    out.write(reinterpret_cast<const char*>(seeds[i].data()), std::streamsize(seeds[i].size()));
+  }
+  return 0;
+}
