@@ -9,7 +9,7 @@ packages=(
   # libraries (see ../shared/PLATFORM.md for how CMake finds each)
   libopenmpi-dev openmpi-bin procps
   libglm-dev
-  libturbojpeg0-dev
+  libturbojpeg0-dev libjpeg-turbo-progs
   libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libxxhash-dev
   libnifti2-dev libteem-dev zlib1g-dev
