@@ -1,7 +1,7 @@
 // Frame-codec benchmark: how fast voxwall compresses a whole wall frame into tiles, per core,
 // and how many bytes a frame takes, for JPEG (the wall default), deflate and raw RGB. Writes the
 // frame as a PPM so libjpeg-turbo's own tjbench can run on the same pixels (bench/wall_bench.sh).
-//   voxwall_bench_tiles FRAME.png OUT.ppm [QUALITY] [SUBSAMPLING] [SECONDS]
+//   voxwall_bench_tiles FRAME.png OUT.ppm [QUALITY] [SUBSAMPLING] [SECONDS] [SEGMENT_PIXELS]
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -14,7 +14,8 @@ using namespace voxwall;
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: %s FRAME.png OUT.ppm [QUALITY] [444|422|420] [SECONDS]\n",
+    std::fprintf(stderr,
+                 "usage: %s FRAME.png OUT.ppm [QUALITY] [444|422|420] [SECONDS] [SEGMENT]\n",
                  argv[0]);
     return 2;
   }
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
   const int quality = argc > 3 ? std::atoi(argv[3]) : 90;
   const std::string sub = argc > 4 ? argv[4] : "420";
   const double seconds = argc > 5 ? std::atof(argv[5]) : 3.0;
+  const int segmentPixels = argc > 6 ? std::atoi(argv[6]) : net::TileCodecSettings{}.segmentPixels;
   {
     std::ofstream ppm(argv[2], std::ios::binary);
     ppm << "P6\n" << image.width << " " << image.height << "\n255\n";
@@ -46,13 +48,13 @@ int main(int argc, char** argv) {
                       : sub == "422" ? net::Subsampling::S422
                                      : net::Subsampling::S420;
       s.threads = threads;
+      s.segmentPixels = segmentPixels;
       std::size_t bytes = 0;
       int frames = 0;
       const auto start = std::chrono::steady_clock::now();
       double elapsed = 0;
       do {
-        const auto tiles =
-            net::encodeTiles(image, {0, 0, image.width, image.height}, {0, 0, 0}, s);
+        const auto tiles = net::encodeTiles(image, {0, 0, image.width, image.height}, {0, 0, 0}, s);
         bytes = 0;
         for (const auto& t : tiles) bytes += t.bytes.size();
         ++frames;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <mutex>
+#include <utility>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/parallel.hpp>
 #include <voxwall/net/tile_codec.hpp>
@@ -48,8 +50,84 @@ int tjSubsampling(Subsampling s) {
   return TJSAMP_420;
 }
 
-std::vector<std::byte> encodeSegment(const std::vector<unsigned char>& rgb, int w, int h,
-                                     const TileCodecSettings& s) {
+// A compressor and its output buffer, reused across segments and calls: tjInitCompress and the
+// worst-case output buffer are allocations we do not want per segment.
+struct Compressor {
+  TjHandle handle;
+  unsigned char* buffer = nullptr;
+  unsigned long capacity = 0;
+  Compressor() : handle(tjInitCompress()) {
+    if (!handle) throw NetError("tjInitCompress failed");
+  }
+  Compressor(Compressor&& o) noexcept
+      : handle(std::move(o.handle)),
+        buffer(std::exchange(o.buffer, nullptr)),
+        capacity(std::exchange(o.capacity, 0)) {}
+  Compressor& operator=(Compressor&&) = delete;
+  ~Compressor() { tjFree(buffer); }
+};
+
+class CompressorPool {
+ public:
+  std::unique_ptr<Compressor> take() {
+    {
+      std::lock_guard lock(mutex_);
+      if (!free_.empty()) {
+        auto c = std::move(free_.back());
+        free_.pop_back();
+        return c;
+      }
+    }
+    return std::make_unique<Compressor>();
+  }
+  void give(std::unique_ptr<Compressor> c) {
+    std::lock_guard lock(mutex_);
+    if (free_.size() < 64) free_.push_back(std::move(c));
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<Compressor>> free_;
+};
+
+CompressorPool& compressorPool() {
+  static CompressorPool pool;
+  return pool;
+}
+
+// JPEG of `w` x `h` pixels at `src` (rows `pitch` bytes apart) in TurboJPEG pixel format `format`.
+std::vector<std::byte> compressJpeg(const unsigned char* src, int w, int pitch, int h, int format,
+                                    const TileCodecSettings& s) {
+  auto c = compressorPool().take();
+  const int subsamp = tjSubsampling(s.subsampling);
+  const unsigned long worst = tjBufSize(w, h, subsamp);
+  if (c->capacity < worst) {
+    tjFree(c->buffer);
+    c->buffer = tjAlloc(int(worst));
+    if (!c->buffer) throw NetError("out of memory for a JPEG buffer");
+    c->capacity = worst;
+  }
+  unsigned char* jpeg = c->buffer;
+  unsigned long size = c->capacity;
+  if (tjCompress2(c->handle.get(), src, w, pitch, h, format, &jpeg, &size, subsamp, s.jpegQuality,
+                  TJFLAG_FASTDCT | TJFLAG_NOREALLOC) != 0)
+    throw NetError(std::string("JPEG compression failed: ") + tjGetErrorStr2(c->handle.get()));
+  std::vector<std::byte> out(size);
+  std::memcpy(out.data(), jpeg, size);
+  compressorPool().give(std::move(c));
+  return out;
+}
+
+std::vector<std::byte> encodeSegment(const node::Image& image, const node::Rect& part,
+                                     const glm::dvec3& background, const TileCodecSettings& s) {
+  if (s.codec == TileCodec::Jpeg && background == glm::dvec3(0.0)) {
+    // Premultiplied colour over black is the colour as stored: compress straight from the
+    // image (RGBX: the alpha byte is skipped), no copy.
+    const auto* src = reinterpret_cast<const unsigned char*>(
+        &image.pixels[std::size_t(part.y) * std::size_t(image.width) + std::size_t(part.x)]);
+    return compressJpeg(src, part.width, image.width * 4, part.height, TJPF_RGBX, s);
+  }
+  const auto rgb = compositeRgb(image, part, background);
   std::vector<std::byte> out;
   switch (s.codec) {
     case TileCodec::Raw:
@@ -65,22 +143,8 @@ std::vector<std::byte> encodeSegment(const std::vector<unsigned char>& rgb, int 
       out.resize(size);
       return out;
     }
-    case TileCodec::Jpeg: {
-      TjHandle tj(tjInitCompress());
-      if (!tj) throw NetError("tjInitCompress failed");
-      unsigned char* jpeg = nullptr;
-      unsigned long size = 0;
-      if (tjCompress2(tj.get(), rgb.data(), w, 0, h, TJPF_RGB, &jpeg, &size,
-                      tjSubsampling(s.subsampling), s.jpegQuality, TJFLAG_FASTDCT) != 0) {
-        const std::string error = tjGetErrorStr2(tj.get());
-        tjFree(jpeg);
-        throw NetError("JPEG compression failed: " + error);
-      }
-      out.resize(size);
-      std::memcpy(out.data(), jpeg, size);
-      tjFree(jpeg);
-      return out;
-    }
+    case TileCodec::Jpeg:
+      return compressJpeg(rgb.data(), part.width, 0, part.height, TJPF_RGB, s);
   }
   throw std::invalid_argument("unknown tile codec");
 }
@@ -114,10 +178,9 @@ std::vector<EncodedTile> encodeTiles(const node::Image& image, const node::Rect&
   std::vector<EncodedTile> out(parts.size());
   codec::parallelFor(parts.size(), s.threads, [&](std::size_t i) {
     const node::Rect& p = parts[i];
-    const auto rgb = compositeRgb(image, p, background);
     out[i].rect = {rect.x + p.x, rect.y + p.y, p.width, p.height};
     out[i].codec = s.codec;
-    out[i].bytes = encodeSegment(rgb, p.width, p.height, s);
+    out[i].bytes = encodeSegment(image, p, background, s);
   });
   return out;
 }

@@ -46,7 +46,7 @@ void expectOneLineError(const CliRun& r, const std::string& prefix) {
 TEST(Cli, HelpListsEverySubcommand) {
   const CliRun r = runVoxwall("--help");
   EXPECT_EQ(r.status, 0);
-  for (const char* sub : {"generate", "compress", "decompress", "info", "render"})
+  for (const char* sub : {"generate", "compress", "decompress", "info", "render", "sink"})
     EXPECT_NE(r.out.find(sub), std::string::npos) << sub;
   const CliRun render = runVoxwall("render --help");
   for (const char* opt :
@@ -211,4 +211,32 @@ TEST(Cli, OrbitZoomPathApproachesTheVolume) {
   };
   EXPECT_GT(covered(node::readImage(dir.path("f/frame_00003.png"))),
             covered(node::readImage(dir.path("f/frame_00000.png"))));
+}
+
+TEST(Cli, WallAndSinkOptionsAreCheckedWithOneLine) {
+  test::TempDir dir;
+  const std::string wall = std::string(VOXWALL_WALLS_DIR) + "/ci-2x2.json";
+  const std::string render = "render generated:shepp-logan:16 --no-write ";
+  expectOneLineError(runVoxwall(render + "--sink 127.0.0.1:7400"), "voxwall: --sink needs --wall");
+  expectOneLineError(runVoxwall(render + "--token abc"), "voxwall: --token goes with --sink");
+  expectOneLineError(runVoxwall(render + "--wall " + wall + " --size 64x64"),
+                     "voxwall: --size and --wall both set the screen");
+  expectOneLineError(runVoxwall(render + "--wall " + wall +
+                                " --sink 127.0.0.1:7400 "
+                                "--tile-codec png"),
+                     "voxwall: --tile-codec: expected");
+  expectOneLineError(runVoxwall(render + "--wall " + wall + " --sink localhost"),
+                     "voxwall: --sink: expected HOST:PORT");
+  test::writeFile(dir.path("overlap.json"),
+                  R"({"displays": [{"name": "a", "x": 0, "y": 0, "width": 10, "height": 10},
+                                   {"name": "b", "x": 5, "y": 5, "width": 10, "height": 10}]})");
+  expectOneLineError(runVoxwall("sink --wall " + dir.path("overlap.json")),
+                     "voxwall: " + dir.path("overlap.json") + ": display 'b' overlaps");
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --listen 10.1.2.3.4:80"),
+                     "voxwall: --listen: '10.1.2.3.4' is not an IP address");
+  // A wall rendered without a sink: the frame has the wall's size.
+  const CliRun r =
+      runVoxwall("render generated:shepp-logan:16 -q --wall " + wall + " --out " + dir.path("f"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(node::readImage(dir.path("f/frame_00000.png")).width, 196);
 }

@@ -19,8 +19,8 @@ struct TileCodecSettings {
   TileCodec codec = TileCodec::Jpeg;
   int jpegQuality = 90;  // 1..100
   Subsampling subsampling = Subsampling::S420;
-  int segmentPixels = 512;  // segments are at most this wide and high
-  int threads = 0;          // 0: the usable cores
+  int segmentPixels = 1024;  // segments are at most this wide and high
+  int threads = 0;           // 0: the usable cores
 };
 
 struct EncodedTile {
