@@ -92,9 +92,15 @@ std::unique_ptr<Connection> Connection::open(const std::string& host, std::uint1
   return c;
 }
 
-void Connection::send(std::span<const std::byte> bytes) {
+void Connection::send(std::span<const std::byte> bytes, int timeoutMs) {
+  // A sink that stops reading (frozen, not dead) must not hold a rank forever: give up after the
+  // deadline, as if the connection had dropped.
   asio::error_code ec;
-  asio::write(impl_->socket, asio::buffer(bytes.data(), bytes.size()), ec);
+  bool done = false;
+  asio::async_write(impl_->socket, asio::buffer(bytes.data(), bytes.size()),
+                    [&](const asio::error_code& e, std::size_t) { ec = e, done = true; });
+  if (!impl_->runUntil(done, Clock::now() + std::chrono::milliseconds(timeoutMs)))
+    throw NetError(name_ + ": sending timed out after " + std::to_string(timeoutMs) + " ms");
   if (ec) throw NetError(name_ + ": " + ec.message());
 }
 

@@ -24,7 +24,8 @@ class Connection {
   static std::unique_ptr<Connection> open(const std::string& host, std::uint16_t port,
                                           const Hello& hello, int timeoutMs);
   ~Connection();
-  void send(std::span<const std::byte> bytes);
+  // Throws NetError when the bytes are not all sent within timeoutMs (the peer stopped reading).
+  void send(std::span<const std::byte> bytes, int timeoutMs = 10000);
   // Waits up to timeoutMs for a whole message; nullopt when none came. Throws NetError when the
   // peer closed or sent garbage.
   std::optional<Message> receive(int timeoutMs);
