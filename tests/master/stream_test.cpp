@@ -9,6 +9,7 @@
 #include <voxwall/walls/sink.hpp>
 
 #include "support/fake_communicator.hpp"
+#include "support/sink_runner.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
@@ -28,30 +29,14 @@ walls::Wall wall() {
                           "mini");
 }
 
-class SinkThread {
- public:
-  SinkThread(const std::string& out, std::uint16_t port = 0) {
-    walls::SinkSettings s;
-    s.wall = wall();
-    s.outDir = out;
-    s.listenPort = port;
-    sink_ = std::make_unique<walls::Sink>(s, [](const std::string& line) {
-      if (line.rfind("sink:", 0) == 0) std::fprintf(stderr, "%s\n", line.c_str());
-    });
-    thread_ = std::thread([this] { sink_->run(); });
-  }
-  ~SinkThread() { stop(); }
-  void stop() {
-    if (!thread_.joinable()) return;
-    sink_->stop();
-    thread_.join();
-  }
-  walls::Sink& sink() { return *sink_; }
-
- private:
-  std::unique_ptr<walls::Sink> sink_;
-  std::thread thread_;
-};
+// A sink for the test wall writing to `out`, on `port` (0: any free one).
+std::unique_ptr<test::SinkRunner> startSink(const std::string& out, std::uint16_t port = 0) {
+  walls::SinkSettings s;
+  s.wall = wall();
+  s.outDir = out;
+  s.listenPort = port;
+  return std::make_unique<test::SinkRunner>(s);
+}
 
 master::JobSettings streamJob(std::uint16_t port, net::TileCodec codec, int frames) {
   master::JobSettings job;
@@ -100,14 +85,10 @@ std::string displayFile(const std::string& dir, int frame, const std::string& di
 
 // Waits until the sink has settled `frames` frames: presented, or skipped because it fell behind
 // (a live wall shows the newest complete frame; tests check every frame that was shown).
-bool waitSettled(walls::Sink& sink, int frames) {
-  auto settled = [&] {
-    const auto s = sink.stats();
+bool waitSettled(test::SinkRunner& sink, int frames) {
+  return sink.waitFor([frames](const walls::SinkStats& s) {
     return s.framesPresented + s.framesStale + s.framesDropped >= frames;
-  };
-  for (int i = 0; i < 1000 && !settled(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  return settled();
+  });
 }
 
 // Checks every frame the sink wrote against the single-rank render; returns how many it wrote.
@@ -137,12 +118,12 @@ int checkShownFrames(const std::string& dir, const master::JobSettings& job, dou
 // Lossless tiles from 4 ranks: every display image equals the crop of the single-rank render.
 TEST(Stream, FourRanksLosslessEqualCropsOfTheSingleRankRender) {
   test::TempDir dir;
-  SinkThread sink(dir.path("wall"));
-  const auto job = streamJob(sink.sink().port(), net::TileCodec::Deflate, 3);
+  auto sink = startSink(dir.path("wall"));
+  const auto job = streamJob(sink->port(), net::TileCodec::Deflate, 3);
   runJob(4, job);
-  ASSERT_TRUE(waitSettled(sink.sink(), 3));
-  sink.stop();
-  const auto stats = sink.sink().stats();
+  ASSERT_TRUE(waitSettled(*sink, 3));
+  sink->stop();
+  const auto stats = sink->sink().stats();
   EXPECT_EQ(stats.framesDropped, 0);
   EXPECT_EQ(checkShownFrames(dir.path("wall"), job, 0), stats.framesPresented);
   // The newest frame is always shown.
@@ -151,30 +132,30 @@ TEST(Stream, FourRanksLosslessEqualCropsOfTheSingleRankRender) {
 
 TEST(Stream, JpegTilesKeep40Decibels) {
   test::TempDir dir;
-  SinkThread sink(dir.path("wall"));
-  const auto job = streamJob(sink.sink().port(), net::TileCodec::Jpeg, 2);
+  auto sink = startSink(dir.path("wall"));
+  const auto job = streamJob(sink->port(), net::TileCodec::Jpeg, 2);
   runJob(3, job);
-  ASSERT_TRUE(waitSettled(sink.sink(), 2));
-  sink.stop();
+  ASSERT_TRUE(waitSettled(*sink, 2));
+  sink->stop();
   EXPECT_GE(checkShownFrames(dir.path("wall"), job, 40.0), 1);
 }
 
 // A command typed at the sink changes the camera of later frames.
 TEST(Stream, ControlFromTheWallMovesTheCamera) {
   test::TempDir dir;
-  SinkThread sink(dir.path("wall"));
-  auto job = streamJob(sink.sink().port(), net::TileCodec::Deflate, 4);
+  auto sink = startSink(dir.path("wall"));
+  auto job = streamJob(sink->port(), net::TileCodec::Deflate, 4);
   job.path = master::CameraPath::orbit({}, 0);  // a still camera
   runJob(2, job, [&](const master::FrameSummary& f) {
     if (f.frame != 0) return;
     // Wait for rank 0's control connection, then send the command.
-    for (int i = 0; i < 500 && !sink.sink().stats().controllerConnected; ++i)
+    for (int i = 0; i < 500 && !sink->sink().stats().controllerConnected; ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    sink.sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
+    sink->sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   });
-  ASSERT_TRUE(waitSettled(sink.sink(), 4));
-  sink.stop();
+  ASSERT_TRUE(waitSettled(*sink, 4));
+  sink->stop();
   master::CameraOffset turned;
   turned.azimuthDeg = 40;
   const auto before = reference(job, 0), after = reference(job, 3, turned);
@@ -191,14 +172,14 @@ TEST(Stream, ControlFromTheWallMovesTheCamera) {
 // the new sink writes is whole and right.
 TEST(Stream, SinkRestartLosesOnlyFramesInFlight) {
   test::TempDir dir;
-  auto first = std::make_unique<SinkThread>(dir.path("a"));
-  const std::uint16_t port = first->sink().port();
-  std::unique_ptr<SinkThread> second;
+  auto first = startSink(dir.path("a"));
+  const std::uint16_t port = first->port();
+  std::unique_ptr<test::SinkRunner> second;
   const int frames = 30;
   auto job = streamJob(port, net::TileCodec::Deflate, frames);
   runJob(3, job, [&](const master::FrameSummary& f) {
     if (f.frame == 5) first->stop();  // the sink process dies
-    if (f.frame == 10) second = std::make_unique<SinkThread>(dir.path("b"), port);
+    if (f.frame == 10) second = startSink(dir.path("b"), port);
     if (f.frame >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(60));
   });
   ASSERT_TRUE(second);

@@ -14,6 +14,7 @@
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/sink.hpp>
 
+#include "support/sink_runner.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
@@ -26,43 +27,7 @@ walls::Wall testWall() {
                           "test");
 }
 
-class RunningSink {
- public:
-  explicit RunningSink(walls::SinkSettings s)
-      : sink_(std::move(s), [this](const std::string& line) {
-          std::lock_guard lock(mutex_);
-          log_.push_back(line);
-        }) {
-    thread_ = std::thread([this] { sink_.run(); });
-  }
-  ~RunningSink() {
-    sink_.stop();
-    thread_.join();
-  }
-  walls::Sink& sink() { return sink_; }
-  std::uint16_t port() const { return sink_.port(); }
-  std::string log() {
-    std::lock_guard lock(mutex_);
-    std::string all;
-    for (const auto& l : log_) all += l + "\n";
-    return all;
-  }
-  // Waits (up to 5 s) until `done` holds for the stats.
-  template <typename F>
-  bool waitFor(F done) {
-    for (int i = 0; i < 500; ++i) {
-      if (done(sink_.stats())) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return false;
-  }
-
- private:
-  walls::Sink sink_;
-  std::thread thread_;
-  std::mutex mutex_;
-  std::vector<std::string> log_;
-};
+using RunningSink = test::SinkRunner;
 
 walls::SinkSettings settings(const std::string& out = "") {
   walls::SinkSettings s;

@@ -1,0 +1,54 @@
+// A wall sink serving on its own thread for tests (link voxwall::walls), with its log kept.
+#pragma once
+
+#include <chrono>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+#include <voxwall/walls/sink.hpp>
+
+namespace voxwall::test {
+
+class SinkRunner {
+ public:
+  explicit SinkRunner(walls::SinkSettings settings)
+      : sink_(std::move(settings), [this](const std::string& line) {
+          std::lock_guard lock(mutex_);
+          log_.push_back(line);
+        }) {
+    thread_ = std::thread([this] { sink_.run(); });
+  }
+  ~SinkRunner() { stop(); }
+  // Stops the sink (it frees its port) and waits for its thread; idempotent.
+  void stop() {
+    if (!thread_.joinable()) return;
+    sink_.stop();
+    thread_.join();
+  }
+  walls::Sink& sink() { return sink_; }
+  std::uint16_t port() const { return sink_.port(); }
+  std::string log() {
+    std::lock_guard lock(mutex_);
+    std::string all;
+    for (const auto& line : log_) all += line + "\n";
+    return all;
+  }
+  // Waits up to 10 s until `done(stats)` holds.
+  template <typename F>
+  bool waitFor(F done) {
+    for (int i = 0; i < 1000; ++i) {
+      if (done(sink_.stats())) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return done(sink_.stats());
+  }
+
+ private:
+  walls::Sink sink_;
+  std::thread thread_;
+  std::mutex mutex_;
+  std::vector<std::string> log_;
+};
+
+}  // namespace voxwall::test
