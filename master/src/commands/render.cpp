@@ -121,7 +121,8 @@ std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ra
     for (const auto& r : rects[std::size_t(rank)]) pixels += std::uint64_t(r.area());
   const std::uint64_t screen = std::uint64_t(job.width) * std::uint64_t(job.height);
   const std::uint64_t cells =
-      std::uint64_t((job.width + 31) / 32) * std::uint64_t((job.height + 31) / 32);
+      std::uint64_t((job.width + job.balancer.cellPixels - 1) / job.balancer.cellPixels) *
+      std::uint64_t((job.height + job.balancer.cellPixels - 1) / job.balancer.cellPixels);
   std::uint64_t bytes = baseBytes + volumeBytes + pixels * 8 + cells * 16 + (1u << 20);
   if (rank == 0) bytes += screen * (4 + 4 + 16 + 8) + std::uint64_t(ranks) * cells * 16;
   return bytes;
