@@ -85,15 +85,18 @@ std::vector<std::vector<node::Rect>> byRank(const std::vector<std::vector<node::
 net::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
                             const node::TransferFunction& tf, const node::RenderSettings& render,
                             const JobSettings& job, net::TileStreamer* streamer,
-                            const net::FrameTask& task, const std::vector<node::Rect>& rects) {
+                            std::optional<node::FramePlan>& lastPlan, const net::FrameTask& task,
+                            const std::vector<node::Rect>& rects) {
   net::RankReport report;
   report.frame = task.frame;
   report.rank = rank;
   report.pixels = !job.outDir.empty();
   if (!rects.empty()) {
     const auto start = Clock::now();
-    const auto plan =
-        node::planFrame(volume, task.camera, task.screenWidth, task.screenHeight, tf, render);
+    // The transfer function is the same for the whole job: its part of the plan is made once.
+    lastPlan = node::planFrame(volume, task.camera, task.screenWidth, task.screenHeight, tf, render,
+                               lastPlan ? &*lastPlan : nullptr);
+    const auto& plan = *lastPlan;
     report.costs = node::CostGrid(task.screenWidth, task.screenHeight, task.cellPixels);
     std::vector<node::Image> images(rects.size());
     for (std::size_t i = 0; i < rects.size(); ++i)
@@ -147,6 +150,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   JobSummary summary;
   int timeoutMs = job.watchdogMs;
   const auto streamer = makeStreamer(job, comm.rank(), comm.size());
+  std::optional<node::FramePlan> plan;
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
     // twice as long, so that rank 0's watchdog names the culprit before anyone blames rank 0.
@@ -160,7 +164,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     timeoutMs = int(std::clamp<std::uint32_t>(task.watchdogMs, 1000, 86400000));
     const auto& mine = task.rects[std::size_t(comm.rank())];
     const auto report = renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(),
-                                    task, task.stop ? std::vector<node::Rect>{} : mine);
+                                    plan, task, task.stop ? std::vector<node::Rect>{} : mine);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(net::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -272,6 +276,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   JobSummary summary;
   FrameWriter writer;
   const auto streamer = makeStreamer(job, 0, comm.size());
+  std::optional<node::FramePlan> plan;
   std::unique_ptr<net::ControlChannel> control;
   if (job.stream) {
     net::Hello hello;
@@ -326,7 +331,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     comm.broadcast(taskBytes, timeoutMs);
 
     auto own =
-        renderRects(0, backend, volume, tf, render, job, streamer.get(), task, task.rects[0]);
+        renderRects(0, backend, volume, tf, render, job, streamer.get(), plan, task, task.rects[0]);
     const auto gatherStart = Clock::now();
     // Rank 0 keeps its own report as it is; only the others' travel.
     auto reportBytes = comm.gather({}, timeoutMs);
@@ -395,7 +400,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   stop.watchdogMs = std::uint32_t(timeoutMs);
   auto stopBytes = net::encode(stop);
   comm.broadcast(stopBytes, timeoutMs);
-  const auto ownLast = renderRects(0, backend, volume, tf, render, job, nullptr, stop, {});
+  const auto ownLast = renderRects(0, backend, volume, tf, render, job, nullptr, plan, stop, {});
   const auto finals = comm.gather({}, timeoutMs);
   for (int r = 0; r < comm.size(); ++r) {
     const auto rep = r == 0 ? ownLast

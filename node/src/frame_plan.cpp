@@ -8,7 +8,8 @@
 namespace voxwall::node {
 
 FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screenWidth,
-                    int screenHeight, const TransferFunction& tf, const RenderSettings& settings) {
+                    int screenHeight, const TransferFunction& tf, const RenderSettings& settings,
+                    const FramePlan* reuse) {
   if (screenWidth <= 0 || screenHeight <= 0)
     throw std::invalid_argument("screen size must be positive");
   if (!(settings.stepVoxels > 0)) throw std::invalid_argument("ray step must be positive");
@@ -36,6 +37,17 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
   r.earlyTermination = float(settings.earlyTerminationOpacity);
   r.shading = settings.shading;
 
+  if (reuse) {
+    plan.lut = reuse->lut;
+    plan.emptyCells = reuse->emptyCells;
+    plan.fineEmptyCells = reuse->fineEmptyCells;
+    plan.emptyFraction = reuse->emptyFraction;
+    plan.fineEmptyFraction = reuse->fineEmptyFraction;
+    plan.skip = reuse->skip;
+    if (plan.skip.empty) plan.skip.empty = plan.emptyCells.data();
+    if (plan.skip.fineEmpty) plan.skip.fineEmpty = plan.fineEmptyCells.data();
+    return plan;
+  }
   plan.lut = tf.bake(tf.domainMin(), tf.domainMax(), settings.stepVoxels, settings.lutEntries);
 
   const auto& ranges = volume.ranges();

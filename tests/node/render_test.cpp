@@ -179,3 +179,25 @@ TEST(Render, ATransferFunctionOutsideTheDataShowsNothing) {
   EXPECT_EQ(opaquePixels(img), 0);
   EXPECT_EQ(samples, 0u);  // every cell skipped
 }
+
+// A plan that reuses another frame's transfer-function part renders exactly like a fresh one.
+TEST(Render, AReusedPlanRendersLikeAFreshOne) {
+  const auto volume = RenderVolume::fromVolume(codec::generateSheppLogan(40), 8);
+  const auto tf = TransferFunction::preset("mri").rescaled(0, 255);
+  RenderSettings settings;
+  settings.shading = true;
+  const double radius = boundingRadius(volume.info());
+  Orbit first, second;
+  second.azimuthDeg = 75, second.elevationDeg = -10;
+  const auto old = planFrame(volume, orbitCamera(first, radius), 48, 32, tf, settings);
+  auto reused = planFrame(volume, orbitCamera(second, radius), 48, 32, tf, settings, &old);
+  const auto fresh = planFrame(volume, orbitCamera(second, radius), 48, 32, tf, settings);
+  EXPECT_NE(reused.skip.empty, old.skip.empty);  // its own copy, not the old plan's memory
+  EXPECT_EQ(reused.emptyCells, fresh.emptyCells);
+  Image a, b;
+  auto backend = makeCpuBackend(1);
+  backend->render(volume, reused, {0, 0, 48, 32}, a);
+  backend->render(volume, fresh, {0, 0, 48, 32}, b);
+  EXPECT_EQ(a.pixels, b.pixels);
+  EXPECT_GT(fresh.emptyFraction, 0.0);
+}

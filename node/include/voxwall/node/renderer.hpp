@@ -37,8 +37,12 @@ struct FramePlan {
 
 // `tfDomain` is the data-value range the LUT covers (usually the TF's own domain).
 // Throws std::invalid_argument for a non-positive step or screen size.
+// With `reuse` (a plan made for the same volume, transfer function and settings, e.g. the
+// previous frame's), its transfer-function part (LUT, skip grids: most of the planning time on
+// a large volume) is copied instead of rebuilt; only the camera part is new.
 FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screenWidth,
-                    int screenHeight, const TransferFunction& tf, const RenderSettings& settings);
+                    int screenHeight, const TransferFunction& tf, const RenderSettings& settings,
+                    const FramePlan* reuse = nullptr);
 
 struct TileStats {
   double seconds = 0.0;
