@@ -42,10 +42,13 @@ struct Connection::Impl {
       if (io.stopped()) io.restart();
     }
     if (done) return true;
+    // Cancel, and let the cancelled handler run now: it refers to the caller's locals.
     asio::error_code ignored;
     socket.cancel(ignored);
-    io.restart();
-    io.run_for(std::chrono::milliseconds(100));
+    while (!done) {
+      io.restart();
+      io.run_one();
+    }
     return false;
   }
 };
