@@ -38,11 +38,13 @@ void runSink(const SinkOptions& o) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   const bool quiet = o.quiet;
-  walls::Sink sink(settings, [quiet](const std::string& line) {
+  // Shared with the detached threads below, which may outlive this function until exit.
+  const auto sinkPtr = std::make_shared<walls::Sink>(settings, [quiet](const std::string& line) {
     if (quiet) return;
     std::printf("%s\n", line.c_str());
     std::fflush(stdout);
   });
+  walls::Sink& sink = *sinkPtr;
   const auto& wall = settings.wall;
   if (!quiet)
     std::printf("sink: wall '%s', %zu display(s), virtual screen %dx%d; listening on %s:%u%s\n",
@@ -51,20 +53,20 @@ void runSink(const SinkOptions& o) {
                 settings.token.empty() ? "" : " (token required)");
   std::fflush(stdout);
 
-  std::thread signalWatcher([&] {
+  std::thread signalWatcher([sinkPtr, signals] {
     int received = 0;
     sigwait(&signals, &received);
-    sink.stop();
+    sinkPtr->stop();
   });
   signalWatcher.detach();  // blocked in sigwait until a signal; the process exits after run()
   if (!o.noStdin) {
     // Camera commands typed at the sink go to the render job's rank 0.
-    std::thread([&sink, quiet] {
+    std::thread([sinkPtr, quiet] {
       std::string line;
       while (std::getline(std::cin, line)) {
         if (line.find_first_not_of(" \t") == std::string::npos) continue;
         try {
-          sink.sendControl(walls::parseControlLine(line));
+          sinkPtr->sendControl(walls::parseControlLine(line));
         } catch (const std::invalid_argument& e) {
           if (!quiet) std::fprintf(stderr, "sink: %s\n", e.what());
         }
