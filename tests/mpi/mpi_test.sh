@@ -43,14 +43,16 @@ descendants() {
   done
 }
 
+frames_in() { ls "$1" | grep -E '^frame_[0-9]+\.png$'; }
+
 same_frames() {
   local a=$1 b=$2 count=0
-  for f in "$a"/frame_*.png; do
-    cmp -s "$f" "$b/$(basename "$f")" || fail "$(basename "$f") differs between $a and $b"
+  for f in $(frames_in "$a"); do
+    cmp -s "$a/$f" "$b/$f" || fail "$f differs between $a and $b"
     count=$((count + 1))
   done
   [ "$count" -gt 0 ] || fail "no frames in $a"
-  [ "$count" -eq "$(ls "$b"/frame_*.png | wc -l)" ] || fail "$a and $b hold different frame sets"
+  [ "$count" -eq "$(frames_in "$b" | wc -l)" ] || fail "$a and $b hold different frame sets"
 }
 
 # Starts a sink on a free loopback port (PORT=... when given); sets sink_pid and sink_port.
@@ -114,7 +116,8 @@ case $scenario in
     tree="$(descendants "$pid") $pid"
     # shellcheck disable=SC2086
     kill -STOP $tree 2>/dev/null; kill -KILL $tree 2>/dev/null; wait "$pid" 2>/dev/null
-    done_before=$(ls killed/frame_*.png | wc -l)
+    # Complete frames only: a temporary of a frame being written also ends in .png.
+    done_before=$(ls killed | grep -cE '^frame_[0-9]+\.png$')
     [ "$done_before" -lt 30 ] || fail "the run finished before it could be killed"
     out=$(run "$n" "${slow[@]}" --out killed --resume) || fail "resumed run"
     echo "$out" | grep -q "resume: $done_before frame(s) already complete" || fail "resume did not skip the $done_before complete frames: $out"
