@@ -113,6 +113,7 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
       report.encodeSeconds = since(encodeStart);
       const auto before = streamer->bytesSent();
       report.streamed = streamer->sendFrame(task.frame, encoded, task.decidedUnixMicros);
+      report.streamError = streamer->lastError();
       report.streamedBytes = streamer->bytesSent() - before;
     }
     for (std::size_t i = 0; i < rects.size(); ++i)
@@ -364,6 +365,8 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
         if (report.pixels) frameImage.paste(report.tiles[t].image, report.tiles[t].rect);
       }
       s.streamedRanks += report.streamed;
+      if (!report.streamed && s.streamError.empty() && job.stream && !report.tiles.empty())
+        s.streamError = "rank " + std::to_string(r) + ": " + report.streamError;
       s.encodeSeconds = std::max(s.encodeSeconds, report.encodeSeconds);
       s.streamedBytes += report.streamedBytes;
       s.ranks.push_back(r);

@@ -111,6 +111,9 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
   w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u));
   w.put(rep.encodeSeconds), w.put<std::uint64_t>(rep.streamedBytes);
+  const std::string error = rep.streamError.substr(0, kMaxStreamError);
+  w.put<std::uint16_t>(std::uint16_t(error.size()));
+  w.putBytes(std::as_bytes(std::span(error)));
   w.put<std::uint32_t>(std::uint32_t(rep.tiles.size()));
   for (const auto& t : rep.tiles) {
     putRect(w, t.rect);
@@ -161,6 +164,11 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.pixels = flags & 1, rep.streamed = flags & 2;
   rep.encodeSeconds = r.get<double>();
   rep.streamedBytes = r.get<std::uint64_t>();
+  const auto errorBytes = r.get<std::uint16_t>();
+  if (errorBytes > kMaxStreamError)
+    r.fail("stream error of " + std::to_string(errorBytes) + " bytes");
+  const auto error = r.getBytes(errorBytes);
+  rep.streamError.assign(reinterpret_cast<const char*>(error.data()), error.size());
   const auto tiles = r.get<std::uint32_t>();
   if (tiles > std::uint32_t(kMaxRectsPerRank) || tiles > r.remaining() / 16)
     r.fail(std::to_string(tiles) + " tiles");

@@ -137,12 +137,9 @@ bool TileStreamer::ensureConnected() {
   if (now < nextAttempt_) return false;
   try {
     connection_ = Connection::open(host_, port_, hello_, connectTimeoutMs_);
-    if (attempts_ > 0) ++reconnects_;
-    ++attempts_;
     backoff_ = std::chrono::milliseconds(100);
     return true;
   } catch (const NetError& e) {
-    ++attempts_;
     lastError_ = e.what();
     nextAttempt_ = now + backoff_;
     backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(5000));
@@ -152,7 +149,11 @@ bool TileStreamer::ensureConnected() {
 
 bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                              std::uint64_t decidedUnixMicros) {
-  if (!ensureConnected()) return false;
+  if (!ensureConnected()) {
+    if (lastError_.empty()) lastError_ = "waiting to reconnect";
+    return false;
+  }
+  lastError_.clear();
   try {
     for (const auto& t : tiles) {
       const auto bytes =
@@ -191,11 +192,6 @@ std::vector<Control> ControlChannel::drain() {
   return out;
 }
 
-bool ControlChannel::connected() const {
-  std::lock_guard lock(mutex_);
-  return connected_;
-}
-
 void ControlChannel::run() {
   auto backoff = std::chrono::milliseconds(100);
   auto stopping = [&] {
@@ -214,10 +210,6 @@ void ControlChannel::run() {
       continue;
     }
     backoff = std::chrono::milliseconds(100);
-    {
-      std::lock_guard lock(mutex_);
-      connected_ = true;
-    }
     try {
       while (!stopping()) {
         const auto m = c->receive(100);
@@ -234,8 +226,6 @@ void ControlChannel::run() {
     } catch (const std::exception&) {
       // The sink went away or sent garbage: reconnect.
     }
-    std::lock_guard lock(mutex_);
-    connected_ = false;
   }
 }
 

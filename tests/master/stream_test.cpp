@@ -177,12 +177,16 @@ TEST(Stream, SinkRestartLosesOnlyFramesInFlight) {
   std::unique_ptr<test::SinkRunner> second;
   const int frames = 30;
   auto job = streamJob(port, net::TileCodec::Deflate, frames);
+  std::string downtimeError;
   runJob(3, job, [&](const master::FrameSummary& f) {
+    if (f.frame > 5 && f.frame < 10 && downtimeError.empty()) downtimeError = f.streamError;
     if (f.frame == 5) first->stop();  // the sink process dies
     if (f.frame == 10) second = startSink(dir.path("b"), port);
     if (f.frame >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(60));
   });
   ASSERT_TRUE(second);
+  // While no sink listened, rank 0 heard which rank missed it and why.
+  EXPECT_EQ(downtimeError.rfind("rank ", 0), 0u) << "'" << downtimeError << "'";
   second->stop();
   EXPECT_GE(first->sink().stats().framesPresented, 1);
   EXPECT_GE(second->sink().stats().framesPresented, 2) << "the ranks did not reconnect";

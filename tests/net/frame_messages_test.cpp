@@ -37,6 +37,8 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   }
   r.costs = node::CostGrid(t.screenWidth, t.screenHeight, t.cellPixels);
   r.costs.add({32, 0, 32, 48}, 0.25);
+  r.streamed = false;
+  r.streamError = "sink 127.0.0.1:7400: Connection refused";
   return r;
 }
 
@@ -144,6 +146,8 @@ TEST(RankReport, RoundTrips) {
     EXPECT_EQ(back.tiles[i].image.pixels, r.tiles[i].image.pixels);
   }
   EXPECT_EQ(back.costs.seconds, r.costs.seconds);
+  EXPECT_FALSE(back.streamed);
+  EXPECT_EQ(back.streamError, r.streamError);
   EXPECT_NEAR(back.costs.total(), 0.25, 1e-12);
 }
 
@@ -163,4 +167,9 @@ TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   auto extra = bytes;
   extra.push_back(std::byte{0});
   expectRejected(extra, &t);
+  // A stream error longer than the limit (its u16 length follows 68 bytes of fields).
+  auto longError = bytes;
+  const std::uint16_t huge = 60000;
+  std::memcpy(longError.data() + 68, &huge, 2);
+  expectRejected(longError, &t);
 }

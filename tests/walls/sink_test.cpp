@@ -131,6 +131,22 @@ TEST(Sink, PresentsAFrameOnlyWhenEveryDisplayPixelHasArrived) {
   EXPECT_EQ(sink.sink().stats().framesPresented, 1);
 }
 
+// Frames that never complete are held up to --pending; then the oldest goes, reported.
+TEST(Sink, DropsTheOldestWhenTooManyFramesAreOpen) {
+  auto s = settings();
+  s.pendingFrames = 2;
+  RunningSink sink(s);
+  auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  const auto half = solidTile({0, 0, 22, 10}, 0x123456);
+  for (std::uint64_t frame : {1, 2, 3})
+    c->send(net::encodeMessage(frame, net::TileMessage{half.rect, half.codec, 0, half.bytes}));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesDropped == 1; }))
+      << sink.log();
+  EXPECT_NE(sink.log().find("frame 1 dropped (too many frames open)"), std::string::npos)
+      << sink.log();
+  EXPECT_EQ(sink.sink().stats().framesPresented, 0);
+}
+
 TEST(Sink, RefusesWrongTokenVersionAndWall) {
   auto s = settings();
   s.token = "secret";

@@ -263,9 +263,9 @@ struct Sink::Impl {
     if (r.x + r.width > wall.width || r.y + r.height > wall.height)
       throw FormatError(peer, "tile outside the " + std::to_string(wall.width) + "x" +
                                   std::to_string(wall.height) + " screen");
-    // Decode first: a corrupt tile must not touch any frame.
-    const node::Image image = net::decodeTile(tile.bytes, tile.codec, r.width, r.height, peer);
     if (lastComplete && frame <= *lastComplete) return;  // late: that frame is settled
+    // Decode before touching the frame: a corrupt tile must not mark any pixel as arrived.
+    const node::Image image = net::decodeTile(tile.bytes, tile.codec, r.width, r.height, peer);
     auto it = pending.find(frame);
     if (it == pending.end()) {
       while (int(pending.size()) >= settings.pendingFrames)

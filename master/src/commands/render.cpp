@@ -441,11 +441,12 @@ void runRender(const RenderOptions& o) {
             }
             std::string sinkText;
             if (s.job.stream) {
-              char text[160];
-              std::snprintf(text, sizeof text, " -> sink: %d/%zu ranks, %.1f KiB, encode %.1f ms%s",
+              char text[512];
+              std::snprintf(text, sizeof text,
+                            " -> sink: %d/%zu ranks, %.1f KiB, encode %.1f ms%s%s%s",
                             f.streamedRanks, f.ranks.size(), double(f.streamedBytes) / 1024,
-                            f.encodeSeconds * 1e3,
-                            f.controls ? ", camera moved from the wall" : "");
+                            f.encodeSeconds * 1e3, f.controls ? ", camera moved from the wall" : "",
+                            f.streamError.empty() ? "" : "; ", f.streamError.c_str());
               sinkText = text;
             }
             std::printf(

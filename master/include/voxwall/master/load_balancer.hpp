@@ -60,7 +60,6 @@ class LoadBalancer {
   // The current cut's imbalance as the prediction sees it; the number of re-cuts so far.
   double predictedImbalance() const;
   int recuts() const { return recuts_; }
-  const node::CostGrid& prediction() const { return prediction_; }
 
  private:
   int width_, height_, ranks_;

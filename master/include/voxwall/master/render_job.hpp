@@ -69,6 +69,7 @@ struct FrameSummary {
   std::uint64_t samples = 0;
   int recuts = 0;            // cut changes so far (dynamic)
   std::string path;          // file the frame goes to, empty when not writing
+  std::string streamError;   // the first rank that missed the sink, and why
   int streamedRanks = 0;     // ranks whose tiles reached the sink
   double encodeSeconds = 0;  // the slowest rank's tile compression
   std::uint64_t streamedBytes = 0;

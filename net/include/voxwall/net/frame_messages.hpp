@@ -17,7 +17,7 @@
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
 //               pixels included, bit 1: streamed to the sink), f64 encodeSeconds,
-//               u64 streamedBytes, u32 tileCount,
+//               u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
 //               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8,
 //               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
 //               under this rank's tiles) and cw*ch f64 seconds, row by row.
@@ -39,6 +39,7 @@ inline constexpr std::uint32_t kFrameMessageVersion = 1;
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
 inline constexpr int kMaxScreenSide = 1 << 16;
+inline constexpr std::size_t kMaxStreamError = 256;
 
 struct FrameTask {
   std::uint32_t frame = 0;
@@ -67,6 +68,7 @@ struct RankReport {
   bool streamed = false;     // the tiles went to the wall sink
   double encodeSeconds = 0;  // compressing tiles for the sink
   std::uint64_t streamedBytes = 0;
+  std::string streamError;  // why the tiles did not reach the sink (at most kMaxStreamError bytes)
   std::vector<RenderedTile> tiles;
   // Over the whole screen; only the cells under `tiles` travel (the rest decode as zero).
   // Empty (cellsX = 0) when not measured.

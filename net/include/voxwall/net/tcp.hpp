@@ -50,9 +50,8 @@ class TileStreamer {
   // Returns whether the whole frame (tiles and FrameEnd) went out.
   bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                  std::uint64_t decidedUnixMicros);
-  bool connected() const { return connection_ != nullptr; }
+  // Why the last frame did not go out (empty when it did).
   const std::string& lastError() const { return lastError_; }
-  int reconnects() const { return reconnects_; }
   std::uint64_t bytesSent() const { return bytesSent_; }
 
  private:
@@ -65,7 +64,6 @@ class TileStreamer {
   std::chrono::steady_clock::time_point nextAttempt_{};
   std::chrono::milliseconds backoff_{100};
   std::string lastError_;
-  int reconnects_ = 0, attempts_ = 0;
   std::uint64_t bytesSent_ = 0;
 };
 
@@ -76,7 +74,6 @@ class ControlChannel {
   ControlChannel(std::string host, std::uint16_t port, Hello hello);
   ~ControlChannel();
   std::vector<Control> drain();  // the commands received since the last call, in order
-  bool connected() const;
 
  private:
   void run();
@@ -85,7 +82,7 @@ class ControlChannel {
   Hello hello_;
   mutable std::mutex mutex_;
   std::deque<Control> queue_;
-  bool connected_ = false, stop_ = false;
+  bool stop_ = false;
   std::thread thread_;
 };
 
