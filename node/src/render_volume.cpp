@@ -46,18 +46,24 @@ void RenderVolume::init() {
       rawLayout_.emplace(info_, sections_);
       ranges_ = rawLayout_->rangeGrid();
       return;
+    case codec::CodecId::Vq:
+      vqLayout_.emplace(info_, sections_);
+      ranges_ = vqLayout_->rangeGrid();
+      return;
     default:
       throw FormatError(sections_.source, "codec '" + std::string(codec::codecName(info_.codec)) +
                                               "' cannot be rendered by this build");
   }
 }
 
-std::span<const std::byte> RenderVolume::payload() const { return rawLayout_->brickBytes(); }
+std::span<const std::byte> RenderVolume::payload() const {
+  return vqLayout_ ? vqLayout_->dataBytes() : rawLayout_->brickBytes();
+}
 
 ViewVariant RenderVolume::view(const std::byte* base) const {
-  const codec::raw::Layout layout(info_, sections_);
+  if (vqLayout_) return vqLayout_->view(base);
   return codec::dispatchScalar(
-      info_.type, [&](auto t) -> ViewVariant { return layout.view<decltype(t)>(base); });
+      info_.type, [&](auto t) -> ViewVariant { return rawLayout_->view<decltype(t)>(base); });
 }
 
 std::uint64_t RenderVolume::fingerprint() const {

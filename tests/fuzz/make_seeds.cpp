@@ -3,6 +3,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/vq_codec.hpp>
 
 int main(int argc, char** argv) {
   using namespace voxwall::codec;
@@ -14,5 +15,12 @@ int main(int argc, char** argv) {
                  dir + "/ml5.vwz");
   writeContainer(raw::encode(generateSheppLogan(6, ScalarType::Int16), {8}, quiet),
                  dir + "/sl6.vwz");
+  vq::Params lossy;
+  lossy.reduction = 2;
+  vq::Params plain;
+  plain.compressedCodebook = false;
+  writeContainer(vq::encode(generateSheppLogan(7, ScalarType::Int16), {}, quiet), dir + "/vq7.vwz");
+  writeContainer(vq::encode(generateMarschnerLobb(9), lossy, quiet), dir + "/vq9-lossy.vwz");
+  writeContainer(vq::encode(generateMenger(2), plain, quiet), dir + "/vq-plain.vwz");
   return 0;
 }

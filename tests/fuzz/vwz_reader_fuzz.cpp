@@ -6,6 +6,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/vq_codec.hpp>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace voxwall::codec;
@@ -16,6 +17,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const raw::Layout layout(file.info(), file.sections());
       (void)layout.rangeGrid();
       (void)raw::decode(file.info(), file.sections());
+    }
+    if (file.info().codec == CodecId::Vq) {
+      const vq::Layout layout(file.info(), file.sections());
+      (void)layout.rangeGrid();
+      (void)vq::decode(file.info(), file.sections());
     }
   } catch (const voxwall::FormatError&) {
   }

@@ -124,9 +124,36 @@ TEST(Cli, BadArgumentsGiveOneLine) {
                      "voxwall: unknown transfer-function preset");
   expectOneLineError(runVoxwall("render /nonexistent.nii"),
                      "voxwall: /nonexistent.nii: no such file");
-  expectOneLineError(runVoxwall("compress generated:menger:2 --codec vq -o /tmp/x.vwz"),
-                     "voxwall: codec 'vq' is not implemented");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --codec svmm -o /tmp/x.vwz"),
+                     "voxwall: codec 'svmm' is not implemented");
+  expectOneLineError(
+      runVoxwall("compress generated:menger:2 --codec vq --codebook bogus -o /tmp/x.vwz"),
+      "voxwall: --codebook must be");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --reduction 4 -o /tmp/x.vwz"),
+                     "voxwall: --reduction, --bits-per-voxel and --codebook need --codec vq");
+  expectOneLineError(
+      runVoxwall(
+          "compress generated:menger:2 --codec vq --reduction 4 --bits-per-voxel 1 -o /tmp/x.vwz"),
+      "voxwall: give --reduction or --bits-per-voxel, not both");
   EXPECT_NE(runVoxwall("render --no-such-flag").status, 0);
+}
+
+TEST(Cli, VqCompressInfoDecompressRender) {
+  test::TempDir dir;
+  const std::string vwz = dir.path("sl.vwz");
+  const CliRun c =
+      runVoxwall("compress generated:shepp-logan:24 --codec vq --reduction 4 -q -o " + vwz);
+  ASSERT_EQ(c.status, 0) << c.out;
+  EXPECT_NE(c.out.find("lossy: 1/4 of the unique bricks, PSNR"), std::string::npos) << c.out;
+  const CliRun info = runVoxwall("info " + vwz);
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("codec       vq"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("quality     lossy, 1/4"), std::string::npos) << info.out;
+  const CliRun d = runVoxwall("decompress " + vwz + " -o " + dir.path("sl.nrrd"));
+  EXPECT_EQ(d.status, 0) << d.out;
+  const CliRun r = runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames"));
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
 }
 
 TEST(Cli, CudaBackendWithoutADeviceFailsCleanly) {

@@ -1,9 +1,11 @@
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/vq_codec.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"
@@ -15,25 +17,72 @@ struct CompressOptions {
   std::string input, output, codec = "raw";
   int brick = codec::raw::Params{}.brickVoxels;
   int rangeCell = codec::raw::Params{}.rangeCellVoxels;
+  int reduction = 1;
+  double bitsPerVoxel = 0;
+  std::string codebook = "compressed";
+  int threads = 0;
   bool quiet = false;
   RawInputOptions raw;
 };
 
 void runCompress(const CompressOptions& o) {
   const auto codecId = codec::parseCodecName(o.codec);
-  if (codecId != codec::CodecId::Raw)
-    throw std::invalid_argument("codec '" + o.codec + "' is not implemented yet (available: raw)");
+  if (codecId != codec::CodecId::Raw && codecId != codec::CodecId::Vq)
+    throw std::invalid_argument("codec '" + o.codec +
+                                "' is not implemented yet (available: raw, vq)");
+  if (o.codebook != "compressed" && o.codebook != "plain")
+    throw std::invalid_argument("--codebook must be 'compressed' or 'plain', not '" + o.codebook +
+                                "'");
+  if (codecId != codec::CodecId::Vq && (o.reduction != 1 || o.bitsPerVoxel > 0 ||
+                                        o.codebook != "compressed"))
+    throw std::invalid_argument("--reduction, --bits-per-voxel and --codebook need --codec vq");
+  if (o.reduction != 1 && o.bitsPerVoxel > 0)
+    throw std::invalid_argument("give --reduction or --bits-per-voxel, not both");
   const auto start = std::chrono::steady_clock::now();
   codec::Volume v = loadVolume(o.input, o.raw.layout());
   if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
   codec::Progress progress = makeProgress(o.quiet);
-  const auto compressed = codec::raw::encode(v, {o.brick, o.rangeCell}, progress);
+  codec::CompressedVolume compressed;
+  std::string detail;
+  if (codecId == codec::CodecId::Raw) {
+    compressed = codec::raw::encode(v, {o.brick, o.rangeCell}, progress);
+  } else {
+    codec::vq::Params p;
+    p.reduction = o.reduction;
+    p.targetBitsPerVoxel = o.bitsPerVoxel;
+    p.compressedCodebook = o.codebook == "compressed";
+    p.threads = o.threads;
+    codec::vq::EncodeStats s;
+    compressed = codec::vq::encode(v, p, progress, &s);
+    char line[512];
+    std::snprintf(line, sizeof line, "\n  %llu bricks, %llu unique, %llu codewords (%s, %s)",
+                  (unsigned long long)s.bricks, (unsigned long long)s.uniqueBricks,
+                  (unsigned long long)s.codewords, p.compressedCodebook ? "RBUC" : "plain",
+                  !p.compressedCodebook ? "indices"
+                  : s.indirect          ? "indirect mapping"
+                                        : "direct mapping");
+    detail = line;
+    if (s.codewords != s.uniqueBricks || s.reduction > 1) {
+      const double plain = double(s.plainEquivalent);
+      std::snprintf(line, sizeof line,
+                    "\n  lossy: 1/%d of the unique bricks, PSNR %.2f dB; k-means %d iterations "
+                    "in %.2fs: %.3g distances computed, %.3g skipped by the norm bound, %.0fx "
+                    "fewer than plain Lloyd",
+                    s.reduction, s.psnr, s.iterations, s.kmeansSeconds, double(s.distancesComputed),
+                    double(s.distancesSkipped),
+                    s.distancesComputed ? plain / double(s.distancesComputed) : 0.0);
+      detail += line;
+    } else {
+      detail += "\n  lossless";
+    }
+  }
   const std::uint64_t fileBytes = codec::writeContainer(compressed, o.output);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs\n", o.output.c_str(), v.dims.x,
-              v.dims.y, v.dims.z, std::string(codec::scalarName(v.type)).c_str(), o.codec.c_str(),
-              humanBytes(double(fileBytes)).c_str(), codec::bitsPerVoxel(fileBytes, v), seconds);
+  std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs%s\n", o.output.c_str(),
+              v.dims.x, v.dims.y, v.dims.z, std::string(codec::scalarName(v.type)).c_str(),
+              o.codec.c_str(), humanBytes(double(fileBytes)).c_str(),
+              codec::bitsPerVoxel(fileBytes, v), seconds, detail.c_str());
 }
 
 }  // namespace
@@ -46,7 +95,10 @@ void addCompressCommand(CLI::App& app) {
                   "directory of slices, or generated:KIND:SIZE")
       ->required();
   cmd->add_option("-o,--output", o->output, "Output .vwz file")->required();
-  cmd->add_option("--codec", o->codec, "Codec (only 'raw' so far: bricked, uncompressed)")
+  cmd->add_option("--codec", o->codec,
+                  "Codec: 'raw' (bricked, uncompressed) or 'vq' (4^3 bricks deduplicated into a "
+                  "codebook, lossless unless --reduction/--bits-per-voxel; 8/12/16-bit integer "
+                  "data)")
       ->capture_default_str();
   cmd->add_option(
          "--brick", o->brick,
@@ -56,6 +108,22 @@ void addCompressCommand(CLI::App& app) {
   cmd->add_option("--range-cell", o->rangeCell,
                   "raw codec: voxels per side of the value-range cells used for empty-space "
                   "skipping (2 to 64, power of two)")
+      ->capture_default_str();
+  cmd->add_option("--reduction", o->reduction,
+                  "vq codec: keep 1/K of the unique bricks (k-means; K = 2, 4, ... 1024); 1 is "
+                  "lossless")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  cmd->add_option("--bits-per-voxel", o->bitsPerVoxel,
+                  "vq codec: choose the reduction for this size instead (bits per voxel of the "
+                  "coded data; lossless when that already fits)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--codebook", o->codebook,
+                  "vq codec: 'compressed' (RBUC variable-length codewords) or 'plain' (bit-packed "
+                  "at the data's bit depth: faster to decode, larger)")
+      ->capture_default_str();
+  cmd->add_option("--threads", o->threads, "Encoder threads (0: every usable core)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", o->quiet, "No progress output");
   o->raw.addTo(*cmd);

@@ -4,6 +4,7 @@
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/codec/vq_codec.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"
@@ -21,6 +22,9 @@ void runDecompress(const DecompressOptions& o) {
   switch (file.info().codec) {
     case codec::CodecId::Raw:
       v = codec::raw::decode(file.info(), file.sections());
+      break;
+    case codec::CodecId::Vq:
+      v = codec::vq::decode(file.info(), file.sections());
       break;
     default:
       throw FormatError(o.input, "codec '" + std::string(codec::codecName(file.info().codec)) +

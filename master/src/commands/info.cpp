@@ -1,8 +1,10 @@
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/vq_codec.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"
@@ -47,6 +49,23 @@ void runInfo(const InfoOptions& o) {
                   b3.x, b3.y, b3.z, b, b + 1);
       std::printf("ranges      %d x %d x %d cells of %d^3 voxels\n", cells.x, cells.y, cells.z,
                   layout.rangeCellVoxels());
+    }
+    if (info.codec == codec::CodecId::Vq) {
+      const codec::vq::Layout layout(info, file.sections());
+      const glm::ivec3 b3 = (info.dims + 3) / 4;
+      const bool compressed = layout.flags() & codec::vq::kCompressed;
+      std::printf("bricks      %d x %d x %d of 4^3 voxels, %llu codewords of %d-bit values\n", b3.x,
+                  b3.y, b3.z, (unsigned long long)layout.codewords(), layout.bits());
+      std::printf("codebook    %s, %s (%s)\n", compressed ? "RBUC-compressed" : "plain bit-packed",
+                  humanBytes(double(layout.codebookBytes())).c_str(),
+                  !compressed                               ? "offset volume holds indices"
+                  : (layout.flags() & codec::vq::kIndirect) ? "indirect mapping: index table"
+                                                            : "direct mapping: byte addresses");
+      if (layout.reduction() > 1 || !std::isinf(layout.psnr()))
+        std::printf("quality     lossy, 1/%d of the unique bricks, PSNR %.2f dB\n",
+                    layout.reduction(), layout.psnr());
+      else
+        std::printf("quality     lossless\n");
     }
     return;
   }

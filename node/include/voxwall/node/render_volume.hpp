@@ -11,13 +11,15 @@
 #include <voxwall/codec/range_grid.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/codec/vq_codec.hpp>
 
 namespace voxwall::node {
 
 // Every view type the raycaster is instantiated for (one per codec and scalar type).
 using ViewVariant =
     std::variant<codec::kernels::RawView<std::uint8_t>, codec::kernels::RawView<std::uint16_t>,
-                 codec::kernels::RawView<std::int16_t>, codec::kernels::RawView<float>>;
+                 codec::kernels::RawView<std::int16_t>, codec::kernels::RawView<float>,
+                 codec::kernels::VqView>;
 
 class RenderVolume {
  public:
@@ -49,6 +51,7 @@ class RenderVolume {
   std::shared_ptr<codec::CompressedVolume> memory_;
   codec::SectionSet sections_;
   std::optional<codec::raw::Layout> rawLayout_;  // validated once, in init()
+  std::optional<codec::vq::Layout> vqLayout_;
   codec::VolumeInfo info_;
   codec::RangeGrid ranges_;
   std::uint64_t storedBytes_ = 0;

@@ -67,6 +67,11 @@ struct RawView {
     return sample(x, y, z, cache);
   }
 
+  // A gradient neighbour: leaves the cache (the main sample's cell) alone.
+  VOXWALL_HD_INLINE float sampleNear(float x, float y, float z, RayCache&) const {
+    return sample(x, y, z);
+  }
+
   VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& cache) const {
     x = x < 0.0f ? 0.0f : (x > maxX ? maxX : x);
     y = y < 0.0f ? 0.0f : (y > maxY ? maxY : y);

@@ -134,19 +134,26 @@ VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCac
   // A transparent sample composites nothing; only the (costly) shading branches on it.
   if (f.shading && c.a > 0.0f) {
     const glm::vec3 g = 0.5f * f.invSpacing;  // central differences over two voxels, world units
-    const glm::vec3 grad(
-        (view.sample(p.x + 1.0f, p.y, p.z) - view.sample(p.x - 1.0f, p.y, p.z)) * g.x,
-        (view.sample(p.x, p.y + 1.0f, p.z) - view.sample(p.x, p.y - 1.0f, p.z)) * g.y,
-        (view.sample(p.x, p.y, p.z + 1.0f) - view.sample(p.x, p.y, p.z - 1.0f)) * g.z);
+    const glm::vec3 grad((view.sampleNear(p.x + 1.0f, p.y, p.z, cache) -
+                          view.sampleNear(p.x - 1.0f, p.y, p.z, cache)) *
+                             g.x,
+                         (view.sampleNear(p.x, p.y + 1.0f, p.z, cache) -
+                          view.sampleNear(p.x, p.y - 1.0f, p.z, cache)) *
+                             g.y,
+                         (view.sampleNear(p.x, p.y, p.z + 1.0f, cache) -
+                          view.sampleNear(p.x, p.y, p.z - 1.0f, cache)) *
+                             g.z);
     color = shade(color, grad, dir, f);
   }
   compositeOver(acc, color, c.a);
   return acc.a >= f.earlyTermination;
 }
 
-// Renders one pixel of the virtual screen. `View` answers sample(x, y, z) and
+// Renders one pixel of the virtual screen. `View` answers sample(x, y, z),
 // sample(x, y, z, View::RayCache&) (trilinear, index space; the cache is per-ray state the view
-// may use to reuse work between consecutive samples); its values are looked up in `lut`. Samples
+// may use to reuse work between consecutive samples) and sampleNear(x, y, z, RayCache&) (a
+// sample next to the last one, for gradients: a view whose cache holds decoded bricks reuses
+// them); its values are looked up in `lut`. Samples
 // sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid the ray walks coarse cells: a
 // cell's emptiness is looked up once per crossing and an empty cell is jumped over; inside a
 // non-empty cell, a sample whose fine cell is empty is skipped (checked only after a transparent

@@ -1,0 +1,646 @@
+// The vq codec; the byte layout is documented in vq_codec.hpp.
+#include <xxhash.h>
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <unordered_map>
+#include <voxwall/codec/bytes.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/parallel.hpp>
+#include <voxwall/codec/vq_codec.hpp>
+#include <voxwall/codec/vq_kmeans.hpp>
+
+namespace voxwall::codec::vq {
+namespace {
+
+constexpr int kN = kernels::kVqBrickVoxels;
+constexpr std::size_t kPad = 8;  // zero bytes after every array (8-byte reads)
+
+int widthOf(std::uint32_t v) { return int(std::bit_width(v)); }  // 0 for 0
+
+// Appends `count` values of `bits` bits, LSB first, to a byte-aligned stream.
+class BitWriter {
+ public:
+  explicit BitWriter(std::vector<std::uint8_t>& out) : out_(out) {}
+  void put(std::uint64_t value, int bits) {
+    for (int i = 0; i < bits; ++i) {
+      if (used_ == 0) out_.push_back(0);
+      out_.back() |= std::uint8_t(((value >> i) & 1u) << used_);
+      used_ = (used_ + 1) & 7;
+    }
+  }
+  void align() { used_ = 0; }
+
+ private:
+  std::vector<std::uint8_t>& out_;
+  int used_ = 0;
+};
+
+// Writes n entries of `bits` bits into a zero-initialised buffer at byte offset `at`.
+void packInto(std::vector<std::uint8_t>& buf, std::size_t at, std::span<const std::uint64_t> v,
+              int bits) {
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const std::uint64_t bit = std::uint64_t(i) * std::uint64_t(bits);
+    for (int b = 0; b < bits; ++b)
+      if ((v[i] >> b) & 1u) {
+        const std::uint64_t pos = bit + std::uint64_t(b);
+        buf[at + (pos >> 3)] |= std::uint8_t(1u << (pos & 7));
+      }
+  }
+}
+
+std::size_t packedBytes(std::uint64_t count, int bits) {
+  return std::size_t((count * std::uint64_t(bits) + 7) / 8);
+}
+std::size_t align64(std::size_t n) { return (n + 63) / 64 * 64; }
+
+struct BrickHash {
+  std::size_t operator()(const Brick& b) const {
+    return std::size_t(XXH3_64bits(b.data(), sizeof(Brick)));
+  }
+};
+
+void plainCodeword(const Brick& b, int bits, std::vector<std::uint8_t>& out) {
+  BitWriter w(out);
+  for (int i = 0; i < kN; ++i) w.put(b[i], bits);
+}
+
+// The RBUC body of brick values u (relative to min) for transformation t: c2 header, c1s, c0s.
+void rbucBody(const Brick& u, std::int32_t range, int t, std::vector<std::uint8_t>& out) {
+  std::uint32_t c0[kN];
+  Brick decoded{};  // the decoder's view of the values so far (equal to u: lossless)
+  for (int i = 0; i < kN; ++i) {
+    if (t == 0) {
+      c0[i] = u[i];
+    } else {
+      const std::int32_t pred = kernels::vqPredict(decoded.data(), i, t, range);
+      const std::int32_t r = std::int32_t(u[i]) - pred;
+      c0[i] = (std::uint32_t(r) << 1) ^ std::uint32_t(r >> 31);  // zigzag
+    }
+    decoded[i] = u[i];
+  }
+  int c1[8], maxC1 = 0;
+  for (int g = 0; g < 8; ++g) {
+    std::uint32_t m = 0;
+    for (int j = 0; j < 8; ++j) m = std::max(m, c0[g * 8 + j]);
+    c1[g] = widthOf(m);
+    maxC1 = std::max(maxC1, c1[g]);
+  }
+  const int c2 = widthOf(std::uint32_t(maxC1));
+  out.push_back(std::uint8_t(c2 | (t << 6)));
+  BitWriter w(out);
+  for (int g = 0; g < 8; ++g) w.put(std::uint64_t(c1[g]), c2);
+  for (int g = 0; g < 8; ++g) {
+    w.align();
+    for (int j = 0; j < 8; ++j) w.put(c0[g * 8 + j], c1[g]);
+  }
+}
+
+// Size of the RBUC body without writing it.
+std::size_t rbucBodyBytes(const Brick& u, std::int32_t range, int t) {
+  std::vector<std::uint8_t> scratch;
+  scratch.reserve(128);
+  rbucBody(u, range, t, scratch);
+  return scratch.size();
+}
+
+template <class T>
+void gatherBrick(const Volume& v, std::span<const T> src, int bias, int bx, int by, int bz,
+                 Brick& out) {
+  int i = 0;
+  for (int z = 0; z < 4; ++z)
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 4; ++x) {
+        const int vx = std::min(bx * 4 + x, v.dims.x - 1);
+        const int vy = std::min(by * 4 + y, v.dims.y - 1);
+        const int vz = std::min(bz * 4 + z, v.dims.z - 1);
+        out[i++] = std::uint16_t(int(src[v.index(vx, vy, vz)]) - bias);
+      }
+}
+
+int biasOf(const Volume& v) {
+  if (v.type != ScalarType::Int16) return 0;
+  auto s = v.as<std::int16_t>();
+  return s.empty() ? 0 : int(*std::min_element(s.begin(), s.end()));
+}
+
+// Estimated bytes of a compressed codeword, from a sample of bricks.
+double meanCodewordBytes(std::span<const Brick> bricks, int bits) {
+  const std::size_t step = std::max<std::size_t>(1, bricks.size() / 4096);
+  double sum = 0;
+  std::size_t n = 0;
+  std::vector<std::uint8_t> scratch;
+  for (std::size_t i = 0; i < bricks.size(); i += step, ++n) {
+    scratch.clear();
+    encodeCodeword(bricks[i], bits, scratch);
+    sum += double(scratch.size());
+  }
+  return n ? sum / double(n) : 0.0;
+}
+
+}  // namespace
+
+int bitsFor(std::uint64_t maxValue) { return std::max(1, int(std::bit_width(maxValue))); }
+
+bool chooseIndirect(std::uint64_t entries, std::uint64_t codewords, std::uint64_t codebookBytes) {
+  const int a = bitsFor(codewords > 0 ? codewords - 1 : 0);
+  const int b = bitsFor(codebookBytes > 0 ? codebookBytes - 1 : 0);
+  const std::uint64_t direct = (entries * std::uint64_t(b) + 7) / 8;
+  const std::uint64_t indirect =
+      (entries * std::uint64_t(a) + 7) / 8 + (codewords * std::uint64_t(b) + 7) / 8;
+  return indirect < direct;
+}
+
+int bitDepth(const Volume& v) {
+  switch (v.type) {
+    case ScalarType::UInt8:
+      return 8;
+    case ScalarType::UInt16: {
+      auto s = v.as<std::uint16_t>();
+      const int maxV = s.empty() ? 0 : int(*std::max_element(s.begin(), s.end()));
+      return maxV < 4096 ? 12 : 16;
+    }
+    case ScalarType::Int16: {
+      auto s = v.as<std::int16_t>();
+      if (s.empty()) return 12;
+      const auto [lo, hi] = std::minmax_element(s.begin(), s.end());
+      return int(*hi) - int(*lo) < 4096 ? 12 : 16;
+    }
+    case ScalarType::Float32:
+      break;
+  }
+  throw std::invalid_argument(
+      "vq codec: float32 volumes are not supported (the codec codes 8, 12 and 16-bit integers); "
+      "use --codec raw");
+}
+
+int encodeCodeword(const Brick& brick, int bits, std::vector<std::uint8_t>& out, int transform) {
+  const auto [loIt, hiIt] = std::minmax_element(brick.begin(), brick.end());
+  const std::uint32_t lo = *loIt, hi = *hiIt;
+  {
+    BitWriter w(out);
+    w.put(lo, bits);
+    w.put(hi, bits);
+  }
+  if (lo == hi) return -1;
+  Brick u;
+  for (int i = 0; i < kN; ++i) u[i] = std::uint16_t(brick[i] - lo);
+  const std::int32_t range = std::int32_t(hi - lo);
+  int best = transform;
+  std::size_t bestBytes = 0;
+  if (transform < 0) {
+    for (int t = 0; t < 4; ++t) {
+      const std::size_t bytes = rbucBodyBytes(u, range, t);
+      if (best < 0 || bytes < bestBytes) best = t, bestBytes = bytes;
+    }
+  } else {
+    bestBytes = rbucBodyBytes(u, range, transform);
+  }
+  if (bestBytes >= std::size_t(1 + 8 * bits)) {
+    out.push_back(std::uint8_t(kernels::kVqEscape));
+    plainCodeword(brick, bits, out);
+    return kernels::kVqEscape;
+  }
+  rbucBody(u, range, best, out);
+  return best;
+}
+
+std::size_t codewordLength(const std::uint8_t* p, std::size_t available, int bits,
+                           const std::string& source) {
+  auto fail = [&](const std::string& what) -> std::size_t {
+    throw FormatError(source, "section 'data': malformed codeword: " + what);
+  };
+  const std::size_t mm = std::size_t((2 * bits + 7) / 8);
+  if (available < mm) return fail("truncated min/max");
+  const auto lo = kernels::readBits(p, 0, bits),
+             hi = kernels::readBits(p, std::uint64_t(bits), bits);
+  if (lo > hi) return fail("min above max");
+  if (lo == hi) return mm;
+  if (available < mm + 1) return fail("truncated header");
+  const int header = p[mm];
+  if (header == kernels::kVqEscape) {
+    const std::size_t n = mm + 1 + std::size_t(8 * bits);
+    return n <= available ? n : fail("truncated raw brick");
+  }
+  const int c2 = header & 63;
+  if (c2 > 5) return fail("c2 of " + std::to_string(c2) + " bits");
+  std::size_t n = mm + 1 + std::size_t(c2);
+  if (n > available) return fail("truncated c1 values");
+  for (int g = 0; g < 8; ++g) {
+    const int c1 = int(kernels::readBits(p + mm + 1, std::uint64_t(g * c2), c2));
+    if (c1 > bits + 1) return fail("c1 of " + std::to_string(c1) + " bits");
+    n += std::size_t(c1);
+  }
+  return n <= available ? n : fail("truncated values");
+}
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* statsOut) {
+  const int bits = bitDepth(volume);
+  if (params.reduction < 1 || params.reduction > 1 << 20)
+    throw std::invalid_argument("vq codec: --reduction must be 1 (lossless) to 1048576, not " +
+                                std::to_string(params.reduction));
+  if (params.targetBitsPerVoxel < 0 || !std::isfinite(params.targetBitsPerVoxel))
+    throw std::invalid_argument("vq codec: --bits-per-voxel must be positive");
+  const int bias = biasOf(volume);
+  const glm::ivec3 bricks = (volume.dims + 3) / 4;
+  const std::size_t brickCount =
+      std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
+  EncodeStats stats;
+  stats.bricks = brickCount;
+
+  // ---- bricks and the lossless codebook (section 3) ----
+  std::vector<Brick> all(brickCount);
+  progress.begin("bricking", brickCount);
+  dispatchScalar(volume.type, [&](auto t) {
+    using T = decltype(t);
+    if constexpr (std::is_integral_v<T>) {
+      auto src = volume.as<T>();
+      parallelFor(std::size_t(bricks.z) * std::size_t(bricks.y), params.threads,
+                  [&](std::size_t row) {
+                    const int by = int(row % std::size_t(bricks.y)), bz = int(row / bricks.y);
+                    for (int bx = 0; bx < bricks.x; ++bx)
+                      gatherBrick<T>(volume, src, bias, bx, by, bz,
+                                     all[row * std::size_t(bricks.x) + std::size_t(bx)]);
+                    progress.advance(std::uint64_t(bricks.x));
+                  });
+    }
+  });
+  progress.end();
+  std::vector<std::uint32_t> brickToUnique(brickCount);
+  std::vector<Point> unique;
+  std::vector<std::uint32_t> weight;
+  {
+    std::unordered_map<Brick, std::uint32_t, BrickHash> index;
+    index.reserve(brickCount);
+    for (std::size_t i = 0; i < brickCount; ++i) {
+      const auto [it, inserted] = index.try_emplace(all[i], std::uint32_t(unique.size()));
+      if (inserted) unique.push_back(all[i]), weight.push_back(0);
+      brickToUnique[i] = it->second;
+      ++weight[it->second];
+    }
+  }
+  all.clear();
+  all.shrink_to_fit();
+  stats.uniqueBricks = unique.size();
+
+  // ---- data reduction (section 4) ----
+  std::vector<Brick> codebook;
+  std::vector<std::uint32_t> brickToCodeword(brickCount);
+  const std::uint64_t maxValue = (std::uint64_t(1) << bits) - 1;
+  auto reduce = [&](std::size_t k) {
+    const auto start = std::chrono::steady_clock::now();
+    const KMeansResult r =
+        kmeans(unique, weight, k, params.maxIterations, params.threads, progress);
+    stats.kmeansSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.iterations = r.iterations;
+    stats.distancesComputed = r.computed, stats.distancesSkipped = r.skipped;
+    stats.plainEquivalent = r.plainEquivalent;
+    // Round the centres; drop clusters nobody uses and centres that round to the same brick.
+    std::vector<char> used(r.centers.size(), 0);
+    for (const auto a : r.assignment) used[a] = 1;
+    std::unordered_map<Brick, std::uint32_t, BrickHash> index;
+    std::vector<std::uint32_t> centerToCodeword(r.centers.size(), 0);
+    codebook.clear();
+    for (std::size_t c = 0; c < r.centers.size(); ++c) {
+      if (!used[c]) continue;
+      Brick b;
+      for (int d = 0; d < kN; ++d)
+        b[d] = std::uint16_t(std::clamp(std::llround(r.centers[c][d]), 0ll, (long long)maxValue));
+      const auto [it, inserted] = index.try_emplace(b, std::uint32_t(codebook.size()));
+      if (inserted) codebook.push_back(b);
+      centerToCodeword[c] = it->second;
+    }
+    for (std::size_t i = 0; i < brickCount; ++i)
+      brickToCodeword[i] = centerToCodeword[r.assignment[brickToUnique[i]]];
+  };
+  auto keepLossless = [&] {
+    codebook.assign(unique.begin(), unique.end());
+    brickToCodeword = brickToUnique;
+  };
+  int reduction = params.reduction;
+  if (params.targetBitsPerVoxel > 0) {
+    // Choose k from a size model (offset volume + mean codeword size), run k-means, and shrink
+    // k while the result is still above the target.
+    const double perCodeword =
+        params.compressedCodebook ? meanCodewordBytes(unique, bits) : double(8 * bits);
+    const double voxels = double(volume.voxelCount());
+    auto model = [&](double k) {
+      return (double(brickCount) * bitsFor(std::uint64_t(std::max(1.0, k) - 1)) +
+              8.0 * k * perCodeword) /
+             voxels;
+    };
+    if (model(double(unique.size())) <= params.targetBitsPerVoxel) {
+      keepLossless();
+      reduction = 1;
+    } else {
+      double k = double(unique.size());
+      while (k > 1 && model(k) > params.targetBitsPerVoxel) k = std::floor(k * 0.9);
+      for (int attempt = 0; attempt < 6; ++attempt) {
+        reduce(std::size_t(std::max(1.0, k)));
+        std::uint64_t bytes = packedBytes(brickCount, bitsFor(codebook.size() - 1));
+        std::vector<std::uint8_t> scratch;
+        for (const auto& b : codebook)
+          if (params.compressedCodebook)
+            encodeCodeword(b, bits, scratch);
+          else
+            plainCodeword(b, bits, scratch);
+        bytes += scratch.size();
+        const double bpv = 8.0 * double(bytes) / voxels;
+        if (bpv <= params.targetBitsPerVoxel * 1.02 || k <= 1) break;
+        k = std::floor(k * std::min(0.95, params.targetBitsPerVoxel / bpv));
+      }
+      reduction = int(std::lround(double(unique.size()) / double(codebook.size())));
+    }
+  } else if (params.reduction > 1) {
+    reduce(std::max<std::size_t>(1, unique.size() / std::size_t(params.reduction)));
+  } else {
+    keepLossless();
+  }
+  unique.clear();
+  unique.shrink_to_fit();
+  stats.codewords = codebook.size();
+  stats.reduction = reduction;
+
+  // ---- codebook (section 3.1) and offset volume (section 3.2) ----
+  const std::uint64_t m = codebook.size();
+  std::vector<std::uint8_t> codebookBytes;
+  std::vector<std::uint64_t> address(m, 0);
+  progress.begin("coding codebook", m);
+  if (params.compressedCodebook) {
+    std::vector<std::vector<std::uint8_t>> coded(m);
+    std::vector<int> used(m);
+    parallelFor((m + 1023) / 1024, params.threads, [&](std::size_t chunk) {
+      for (std::size_t i = chunk * 1024; i < std::min<std::size_t>(m, (chunk + 1) * 1024); ++i)
+        used[i] = encodeCodeword(codebook[i], bits, coded[i]);
+      progress.advance(std::min<std::size_t>(m, (chunk + 1) * 1024) - chunk * 1024);
+    });
+    for (std::size_t i = 0; i < m; ++i) {
+      address[i] = codebookBytes.size();
+      codebookBytes.insert(codebookBytes.end(), coded[i].begin(), coded[i].end());
+      if (used[i] == kernels::kVqEscape)
+        ++stats.escapes;
+      else if (used[i] >= 0)
+        ++stats.transformUse[used[i]];
+    }
+  } else {
+    for (std::size_t i = 0; i < m; ++i) {
+      address[i] = codebookBytes.size();
+      plainCodeword(codebook[i], bits, codebookBytes);
+    }
+    progress.advance(m);
+  }
+  progress.end();
+
+  const bool indirect =
+      params.compressedCodebook && chooseIndirect(brickCount, m, codebookBytes.size());
+  const int indexBits = bitsFor(m - 1);
+  const int addressBits = bitsFor(codebookBytes.empty() ? 0 : codebookBytes.size() - 1);
+  const int offsetBits = params.compressedCodebook && !indirect ? addressBits : indexBits;
+  std::vector<std::uint64_t> entries(brickCount);
+  for (std::size_t i = 0; i < brickCount; ++i)
+    entries[i] =
+        params.compressedCodebook && !indirect ? address[brickToCodeword[i]] : brickToCodeword[i];
+  const std::size_t offsetBytes = packedBytes(brickCount, offsetBits);
+  const std::size_t tableBytes = indirect ? packedBytes(m, addressBits) : 0;
+  const std::size_t indexTableAt = align64(offsetBytes + kPad);
+  const std::size_t codebookAt =
+      indirect ? align64(indexTableAt + tableBytes + kPad) : indexTableAt;
+  std::vector<std::uint8_t> data(align64(codebookAt + codebookBytes.size() + kPad), 0);
+  packInto(data, 0, entries, offsetBits);
+  if (indirect) packInto(data, indexTableAt, address, addressBits);
+  if (!codebookBytes.empty())
+    std::memcpy(data.data() + codebookAt, codebookBytes.data(), codebookBytes.size());
+  stats.indirect = indirect;
+  stats.offsetVolumeBytes = offsetBytes, stats.indexTableBytes = tableBytes;
+  stats.codebookBytes = codebookBytes.size();
+
+  CompressedVolume out;
+  out.info.codec = CodecId::Vq;
+  out.info.type = volume.type;
+  out.info.dims = volume.dims;
+  out.info.spacing = volume.spacing;
+  out.info.valueMin = volume.valueMin;
+  out.info.valueMax = volume.valueMax;
+  auto writeParams = [&](double psnr) {
+    std::vector<std::byte> bytes;
+    ByteWriter w(bytes);
+    w.put<std::uint32_t>(std::uint32_t(bits));
+    w.put<std::int32_t>(bias);
+    w.put<std::uint32_t>((params.compressedCodebook ? kCompressed : 0u) |
+                         (indirect ? kIndirect : 0u));
+    w.put<std::uint32_t>(std::uint32_t(offsetBits));
+    w.put<std::uint32_t>(indirect ? std::uint32_t(addressBits) : 0u);
+    w.put<std::uint32_t>(std::uint32_t(reduction));
+    w.put<std::uint64_t>(m);
+    w.put<std::uint64_t>(indexTableAt);
+    w.put<std::uint64_t>(codebookAt);
+    w.put<std::uint64_t>(codebookBytes.size());
+    w.put<double>(psnr);
+    return bytes;
+  };
+  const bool lossless = codebook.size() == stats.uniqueBricks && reduction == 1;
+  out.sections.emplace_back(kParams, writeParams(std::numeric_limits<double>::infinity()));
+  {
+    std::vector<std::byte> d(data.size());
+    std::memcpy(d.data(), data.data(), data.size());
+    out.sections.emplace_back(kData, std::move(d));
+  }
+  // The quality of what was stored, measured on the decoder's output.
+  stats.psnr = std::numeric_limits<double>::infinity();
+  if (!lossless) {
+    progress.begin("measuring PSNR", 1);
+    stats.psnr = psnr(volume, decode(out.info, out.view()));
+    progress.advance();
+    progress.end();
+    out.sections[0].second = writeParams(stats.psnr);
+  }
+  if (statsOut) *statsOut = stats;
+  return out;
+}
+
+// ---- reading ------------------------------------------------------------------------------
+
+Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
+  static std::atomic<std::uint64_t> nextCacheId{1};
+  cacheId_ = nextCacheId.fetch_add(1);
+  const std::string& src = sections.source;
+  ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
+  bits_ = int(r.get<std::uint32_t>());
+  bias_ = r.get<std::int32_t>();
+  flags_ = r.get<std::uint32_t>();
+  offsetBits_ = int(r.get<std::uint32_t>());
+  addressBits_ = int(r.get<std::uint32_t>());
+  reduction_ = int(r.get<std::uint32_t>());
+  codewords_ = r.get<std::uint64_t>();
+  indexTableAt_ = r.get<std::uint64_t>();
+  codebookAt_ = r.get<std::uint64_t>();
+  codebookBytes_ = r.get<std::uint64_t>();
+  psnr_ = r.get<double>();
+  auto fail = [&](const std::string& what) { r.fail(what); };
+  if (bits_ != 8 && bits_ != 12 && bits_ != 16)
+    fail("bit depth " + std::to_string(bits_) + " (8, 12 or 16)");
+  if (info.type == ScalarType::Float32) fail("float32 volumes cannot be vq-coded");
+  if (info.type == ScalarType::UInt8 && bits_ != 8) fail("uint8 data must be 8-bit");
+  if (info.type != ScalarType::UInt8 && bits_ == 8) fail("16-bit types are coded at 12 or 16 bits");
+  if (info.type != ScalarType::Int16 && bias_ != 0) fail("bias on unsigned data");
+  if (bias_ < -32768 || bias_ > 32767) fail("bias out of range");
+  if (flags_ > 3 || flags_ == kIndirect) fail("flags " + std::to_string(flags_));
+  const bool compressed = flags_ & kCompressed, indirect = flags_ & kIndirect;
+  if (offsetBits_ < 1 || offsetBits_ > 57) fail("offset bits " + std::to_string(offsetBits_));
+  if (indirect ? (addressBits_ < 1 || addressBits_ > 57) : addressBits_ != 0)
+    fail("address bits " + std::to_string(addressBits_));
+  if (reduction_ < 1) fail("reduction 0");
+  const glm::ivec3 bricks = (info.dims + 3) / 4;
+  const std::uint64_t n =
+      std::uint64_t(bricks.x) * std::uint64_t(bricks.y) * std::uint64_t(bricks.z);
+  if (codewords_ < 1 || codewords_ > n)
+    fail(std::to_string(codewords_) + " codewords for " + std::to_string(n) + " bricks");
+  data_ = sections.get(kData, "data");
+  ByteReader dr(data_, src, "section 'data'");
+  auto dfail = [&](const std::string& what) { dr.fail(what); };
+  const std::uint64_t size = data_.size();
+  const std::uint64_t offsetBytes = (n * std::uint64_t(offsetBits_) + 7) / 8;
+  const std::uint64_t tableEnd =
+      indirect ? indexTableAt_ + (codewords_ * std::uint64_t(addressBits_) + 7) / 8 : 0;
+  if (indexTableAt_ > size || codebookAt_ > size)
+    dfail("array offsets past the section's " + std::to_string(size) + " bytes");
+  if (indexTableAt_ % 64 || codebookAt_ % 64) dfail("arrays not aligned to 64 bytes");
+  if (offsetBytes + kPad > indexTableAt_) dfail("offset volume overlaps the next array");
+  if (indirect ? tableEnd + kPad > codebookAt_ : codebookAt_ != indexTableAt_)
+    dfail("index table does not fit");
+  if (codebookAt_ > size || codebookBytes_ > size - codebookAt_ ||
+      size - codebookAt_ - codebookBytes_ < kPad)
+    dfail("codebook of " + std::to_string(codebookBytes_) + " bytes does not fit in " +
+          std::to_string(size) + " bytes");
+  if (!compressed && codebookBytes_ != codewords_ * std::uint64_t(8 * bits_))
+    dfail("plain codebook size does not match its codewords");
+  const auto* base = reinterpret_cast<const std::uint8_t*>(data_.data());
+
+  // Walk the codebook: every codeword well-formed, the count right.
+  std::vector<std::uint64_t> starts;
+  if (compressed) {
+    starts.reserve(codewords_);
+    std::uint64_t pos = 0;
+    while (pos < codebookBytes_) {
+      if (starts.size() == codewords_)
+        dfail("more codewords than the header's " + std::to_string(codewords_));
+      starts.push_back(pos);
+      pos += codewordLength(base + codebookAt_ + pos, codebookBytes_ - pos, bits_, src);
+    }
+    if (starts.size() != codewords_)
+      dfail(std::to_string(starts.size()) + " codewords, the header says " +
+            std::to_string(codewords_));
+    if (indirect)
+      for (std::uint64_t i = 0; i < codewords_; ++i)
+        if (kernels::readBits(base + indexTableAt_, i * std::uint64_t(addressBits_),
+                              addressBits_) != starts[i])
+          dfail("index table entry " + std::to_string(i) + " is not codeword " + std::to_string(i));
+  }
+  // Every offset-volume entry names a codeword.
+  const bool direct = compressed && !indirect;
+  for (std::uint64_t i = 0; i < n; ++i) {
+    const std::uint64_t e = kernels::readBits(base, i * std::uint64_t(offsetBits_), offsetBits_);
+    const bool ok = direct ? std::binary_search(starts.begin(), starts.end(), e) : e < codewords_;
+    if (!ok) dfail("offset volume entry " + std::to_string(i) + " names no codeword");
+  }
+}
+
+kernels::VqView Layout::view(const std::byte* base) const {
+  kernels::VqView v;
+  v.data = reinterpret_cast<const std::uint8_t*>(base ? base : data_.data());
+  v.indexTableAt = indexTableAt_, v.codebookAt = codebookAt_;
+  v.dimX = info_.dims.x, v.dimY = info_.dims.y, v.dimZ = info_.dims.z;
+  v.bricksX = (info_.dims.x + 3) / 4, v.bricksY = (info_.dims.y + 3) / 4;
+  v.bits = bits_, v.offsetBits = offsetBits_, v.addressBits = addressBits_;
+  v.compressed = flags_ & kCompressed, v.indirect = flags_ & kIndirect;
+  v.bias = float(bias_);
+  v.cacheId = cacheId_;
+  v.maxX = float(info_.dims.x - 1), v.maxY = float(info_.dims.y - 1),
+  v.maxZ = float(info_.dims.z - 1);
+  return v;
+}
+
+RangeGrid Layout::rangeGrid() const {
+  const kernels::VqView v = view();
+  RangeGrid g;
+  g.cellVoxels = 4;
+  g.cells = (info_.dims + 3) / 4;
+  const std::size_t n = g.cellCount();
+  std::vector<float> lo(n), hi(n);
+  parallelFor(std::size_t(g.cells.z), 0, [&](std::size_t bz) {
+    std::uint16_t vox[kN];
+    for (int by = 0; by < g.cells.y; ++by)
+      for (int bx = 0; bx < g.cells.x; ++bx) {
+        v.decodeAt(v.codewordAddress(bx, by, int(bz)), vox);
+        const auto [a, b] = std::minmax_element(vox, vox + kN);
+        const std::size_t i =
+            (bz * std::size_t(g.cells.y) + std::size_t(by)) * std::size_t(g.cells.x) +
+            std::size_t(bx);
+        lo[i] = float(*a) + v.bias, hi[i] = float(*b) + v.bias;
+      }
+  });
+  // Dilate by one brick: covers the one-voxel dilation the raycaster relies on.
+  g.lo.resize(n), g.hi.resize(n);
+  parallelFor(std::size_t(g.cells.z), 0, [&](std::size_t zs) {
+    const int z = int(zs);
+    for (int y = 0; y < g.cells.y; ++y)
+      for (int x = 0; x < g.cells.x; ++x) {
+        float l = std::numeric_limits<float>::infinity(), h = -l;
+        for (int dz = std::max(0, z - 1); dz <= std::min(g.cells.z - 1, z + 1); ++dz)
+          for (int dy = std::max(0, y - 1); dy <= std::min(g.cells.y - 1, y + 1); ++dy)
+            for (int dx = std::max(0, x - 1); dx <= std::min(g.cells.x - 1, x + 1); ++dx) {
+              const std::size_t j = (std::size_t(dz) * std::size_t(g.cells.y) + std::size_t(dy)) *
+                                        std::size_t(g.cells.x) +
+                                    std::size_t(dx);
+              l = std::min(l, lo[j]), h = std::max(h, hi[j]);
+            }
+        const std::size_t i =
+            (std::size_t(z) * std::size_t(g.cells.y) + std::size_t(y)) * std::size_t(g.cells.x) +
+            std::size_t(x);
+        g.lo[i] = l, g.hi[i] = h;
+      }
+  });
+  return g;
+}
+
+Volume decode(const VolumeInfo& info, const SectionSet& sections) {
+  const Layout layout(info, sections);
+  const kernels::VqView v = layout.view();
+  Volume out = Volume::allocate(info.dims, info.type, info.spacing);
+  const glm::ivec3 bricks = (info.dims + 3) / 4;
+  dispatchScalar(info.type, [&](auto t) {
+    using T = decltype(t);
+    if constexpr (std::is_integral_v<T>) {
+      auto dst = out.as<T>();
+      parallelFor(std::size_t(bricks.z), 0, [&](std::size_t bz) {
+        std::uint16_t vox[kN];
+        for (int by = 0; by < bricks.y; ++by)
+          for (int bx = 0; bx < bricks.x; ++bx) {
+            v.decodeAt(v.codewordAddress(bx, by, int(bz)), vox);
+            for (int z = 0; z < 4; ++z)
+              for (int y = 0; y < 4; ++y)
+                for (int x = 0; x < 4; ++x) {
+                  const int vx = bx * 4 + x, vy = by * 4 + y, vz = int(bz) * 4 + z;
+                  if (vx >= info.dims.x || vy >= info.dims.y || vz >= info.dims.z) continue;
+                  const long value = long(vox[x + 4 * y + 16 * z]) + long(v.bias);
+                  dst[out.index(vx, vy, vz)] =
+                      T(std::clamp<long>(value, long(std::numeric_limits<T>::min()),
+                                         long(std::numeric_limits<T>::max())));
+                }
+          }
+      });
+    }
+  });
+  out.computeRange();
+  return out;
+}
+
+}  // namespace voxwall::codec::vq
