@@ -33,8 +33,8 @@ void runCompress(const CompressOptions& o) {
   if (o.codebook != "compressed" && o.codebook != "plain")
     throw std::invalid_argument("--codebook must be 'compressed' or 'plain', not '" + o.codebook +
                                 "'");
-  if (codecId != codec::CodecId::Vq && (o.reduction != 1 || o.bitsPerVoxel > 0 ||
-                                        o.codebook != "compressed"))
+  if (codecId != codec::CodecId::Vq &&
+      (o.reduction != 1 || o.bitsPerVoxel > 0 || o.codebook != "compressed"))
     throw std::invalid_argument("--reduction, --bits-per-voxel and --codebook need --codec vq");
   if (o.reduction != 1 && o.bitsPerVoxel > 0)
     throw std::invalid_argument("give --reduction or --bits-per-voxel, not both");

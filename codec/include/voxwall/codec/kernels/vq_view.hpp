@@ -239,6 +239,16 @@ struct VqView {
     // Bit a of `split` is set when the cell crosses a brick border along axis a; corner i
     // (bit 0: x + 1, bit 1: y + 1, bit 2: z + 1) lies in the brick of corner (i & split).
     const int split = int(bx[1] != bx[0]) | (int(by[1] != by[0]) << 1) | (int(bz[1] != bz[0]) << 2);
+    if (split == 0) {  // the common case: the whole cell in one brick
+      const std::uint16_t* b = brick(bx[0], by[0], bz[0], cache);
+      const int i0 = (ix & 3) + ((iy & 3) << 2) + ((iz & 3) << 4);
+      const int dx = x1 - ix, dy = (y1 - iy) << 2, dz = (z1 - iz) << 4;
+      c[0] = float(b[i0]) + bias, c[1] = float(b[i0 + dx]) + bias;
+      c[2] = float(b[i0 + dy]) + bias, c[3] = float(b[i0 + dy + dx]) + bias;
+      c[4] = float(b[i0 + dz]) + bias, c[5] = float(b[i0 + dz + dx]) + bias;
+      c[6] = float(b[i0 + dz + dy]) + bias, c[7] = float(b[i0 + dz + dy + dx]) + bias;
+      return;
+    }
     const int lx[2] = {ix & 3, x1 & 3}, ly[2] = {(iy & 3) << 2, (y1 & 3) << 2};
     const int lz[2] = {(iz & 3) << 4, (z1 & 3) << 4};
     for (int j = 0; j < 8; ++j) {
