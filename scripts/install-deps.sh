@@ -19,7 +19,7 @@ packages=(
   # real data: the MRI template used as the default volume
   mricron-data
   # benchmark peers and plots
-  python3-numpy python3-matplotlib python3-vtk9 xvfb xauth
+  python3-numpy python3-matplotlib python3-vtk9 xvfb xauth zfp libzfp-dev astcenc
 )
 
 if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
