@@ -104,6 +104,16 @@ case $scenario in
     run "$n" "${common[@]}" "${extra[@]}" --out multi || fail "mpirun -np $n exited with $?"
     same_frames ref multi
     ;;
+  vq)
+    # A lossy vq volume: every rank renders from the compressed bricks through its own caches.
+    n=$1
+    "$voxwall" compress generated:shepp-logan:48 --codec vq --reduction 4 -o vq.vwz -q ||
+      fail "compress --codec vq"
+    vq=(render vq.vwz --size 97x61 --frames 4 --orbit-deg 20 --shading -q --threads 1)
+    "$voxwall" "${vq[@]}" --out ref || fail "single-process reference"
+    run "$n" "${vq[@]}" --balance dynamic --cost-cell 8 --out multi || fail "mpirun -np $n exited with $?"
+    same_frames ref multi
+    ;;
   resume)
     n=$1
     slow=(render vol.vwz --size 240x160 --frames 30 --step 0.04 --shading --threads 1)
