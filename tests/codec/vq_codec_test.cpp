@@ -170,9 +170,10 @@ TEST(VqRbuc, RoundTripsEveryTransformAndNeverExceedsTheEscapeSize) {
       for (int t = -1; t < 4; ++t) {
         std::vector<std::uint8_t> out;
         const int used = vq::encodeCodeword(brick, bits, out, t);
-        EXPECT_LE(out.size(), vq::maxCodewordBytes(bits));
-        EXPECT_EQ(vq::codewordLength(out.data(), out.size(), bits, "test"), out.size());
-        out.resize(out.size() + 8, 0);  // the decoder's 8-byte reads
+        const std::size_t size = out.size();
+        EXPECT_LE(size, vq::maxCodewordBytes(bits));
+        out.resize(size + 8, 0);  // the readers' 8-byte reads, as in a file's padding
+        EXPECT_EQ(vq::codewordLength(out.data(), size, bits, "test"), size);
         vq::Brick back;
         kernels::vqDecodeCodeword(out.data(), bits, back.data());
         ASSERT_EQ(back, brick) << "bits " << bits << " transform " << t << " used " << used;

@@ -102,8 +102,9 @@ int encodeCodeword(const Brick& brick, int bits, std::vector<std::uint8_t>& out,
 inline std::size_t maxCodewordBytes(int bits) {
   return std::size_t((2 * bits + 7) / 8 + 1 + 8 * bits);
 }
-// Length of the codeword at `p` (at most `available` bytes); throws FormatError naming `source`
-// when it is malformed or runs past `available`.
+// Length of the codeword at `p` (at most `available` bytes; 8 more bytes must be readable, as
+// the padding after a codebook guarantees); throws FormatError naming `source` when it is
+// malformed or runs past `available`.
 std::size_t codewordLength(const std::uint8_t* p, std::size_t available, int bits,
                            const std::string& source);
 
