@@ -151,6 +151,7 @@ struct VqView {
     std::uint64_t id[kSlots];
     std::uint64_t key[kSlots];
     std::uint16_t voxels[kSlots][kVqBrickVoxels];
+    std::uint64_t writes = 0;  // slots (re)filled so far: a change invalidates rays' memos
   };
   struct RayCache {
 #if defined(__CUDA_ARCH__)
@@ -159,11 +160,11 @@ struct VqView {
 #else
     HostCache* host = nullptr;
     // The bricks this ray used last, one per parity of (bx, by, bz), so the up to 2x2x2
-    // bricks around a cell or a gradient never evict each other: brick index, and the voxels
-    // in the host cache with the codeword address that slot held (valid while it still does).
+    // bricks around a cell or a gradient never evict each other: brick index and its voxels in
+    // the host cache, valid while the cache has not refilled a slot since (memoWrites).
     std::uint64_t memoBrick[8] = {~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull};
-    std::uint64_t memoAddress[8] = {};
-    int memoSlot[8] = {};
+    const std::uint16_t* memoVoxels[8] = {};
+    std::uint64_t memoWrites = ~0ull;
 #endif
     int ix = -1, iy = -1, iz = -1;  // the last voxel cell and its eight corners
     float c[8] = {};
@@ -198,17 +199,19 @@ struct VqView {
         (std::uint64_t(bz) * std::uint64_t(bricksY) + std::uint64_t(by)) * std::uint64_t(bricksX) +
         std::uint64_t(bx);
     const int m = (bx & 1) | ((by & 1) << 1) | ((bz & 1) << 2);
-    if (cache.memoBrick[m] == brick) {
-      const int slot = cache.memoSlot[m];
-      if (h.key[slot] == cache.memoAddress[m] && h.id[slot] == cacheId) return h.voxels[slot];
-    }
+    if (cache.memoWrites == h.writes && cache.memoBrick[m] == brick) return cache.memoVoxels[m];
     const std::uint64_t address = codewordAddress(bx, by, bz);
     const int slot = int(((address ^ (cacheId << 40)) * 0x9E3779B97F4A7C15ull) >> 53);
     if (h.key[slot] != address || h.id[slot] != cacheId) {
       decodeAt(address, h.voxels[slot]);
       h.key[slot] = address, h.id[slot] = cacheId;
+      ++h.writes;
     }
-    cache.memoBrick[m] = brick, cache.memoSlot[m] = slot, cache.memoAddress[m] = address;
+    if (cache.memoWrites != h.writes) {  // a slot was refilled: forget every memo
+      for (int i = 0; i < 8; ++i) cache.memoBrick[i] = ~0ull;
+      cache.memoWrites = h.writes;
+    }
+    cache.memoBrick[m] = brick, cache.memoVoxels[m] = h.voxels[slot];
     return h.voxels[slot];
 #endif
   }
