@@ -203,7 +203,7 @@ KMeansResult kmeans(std::span<const Point> points, std::span<const std::uint32_t
     heap.pop_back();
     while (eval[cw] < s.centers.size()) {
       const std::size_t c = eval[cw];
-      // The centre is a point: the bound and the distance are exact.
+      // The centre is a point, so the distance is exact (integers).
       const double d = s.distanceS(s.p[cw], cw, c, initCount);
       if (d < s.p[cw]) s.p[cw] = d, s.assignment[cw] = std::uint32_t(c);
       ++eval[cw];
