@@ -57,6 +57,17 @@ std::size_t alignUp(std::size_t n) {
 
 }  // namespace
 
+VolumeInfo volumeInfo(const Volume& volume, CodecId codec) {
+  VolumeInfo info;
+  info.codec = codec;
+  info.type = volume.type;
+  info.dims = volume.dims;
+  info.spacing = volume.spacing;
+  info.valueMin = volume.valueMin;
+  info.valueMax = volume.valueMax;
+  return info;
+}
+
 std::string_view codecName(CodecId id) {
   switch (id) {
     case CodecId::Raw:

@@ -31,12 +31,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   const std::size_t scalar = scalarBytes(volume.type);
 
   CompressedVolume out;
-  out.info.codec = CodecId::Raw;
-  out.info.type = volume.type;
-  out.info.dims = volume.dims;
-  out.info.spacing = volume.spacing;
-  out.info.valueMin = volume.valueMin;
-  out.info.valueMax = volume.valueMax;
+  out.info = volumeInfo(volume, CodecId::Raw);
 
   std::vector<std::byte> paramBytes;
   ByteWriter pw(paramBytes);

@@ -132,6 +132,24 @@ TEST(VqCodec, EqualBricksAreStoredOnce) {
   EXPECT_EQ(stats.uniqueBricks, 2u);
 }
 
+TEST(VqCodec, StatsAccountForEveryCodewordAndByte) {
+  const Volume v = mixed<std::uint16_t>({40, 36, 30}, 0, 65535, 4);
+  Progress quiet;
+  vq::EncodeStats stats;
+  const auto c = vq::encode(v, {}, quiet, &stats);
+  // Noise escapes to raw values, ramps are exact for the 3D Lorenzo predictor.
+  EXPECT_GT(stats.escapes, 0u);
+  EXPECT_GT(stats.transformUse[3], 0u);
+  const std::uint64_t coded = stats.escapes + stats.transformUse[0] + stats.transformUse[1] +
+                              stats.transformUse[2] + stats.transformUse[3];
+  EXPECT_LE(coded, stats.codewords);
+  const vq::Layout layout(c.info, c.view());
+  EXPECT_EQ(stats.codebookBytes, layout.codebookBytes());
+  EXPECT_LE(stats.offsetVolumeBytes + stats.indexTableBytes + stats.codebookBytes,
+            layout.dataBytes().size());
+  EXPECT_EQ(stats.indexTableBytes > 0, stats.indirect);
+}
+
 TEST(VqCodec, RefusesFloatAndBadParameters) {
   Progress quiet;
   const Volume f = Volume::allocate({8, 8, 8}, ScalarType::Float32);
@@ -353,6 +371,23 @@ TEST(VqCorrupt, BadSectionsAreRefusedWithTheirName) {
     auto c = small(compressed);
     c.sections.pop_back();
     expectRefused(c, "missing section");
+  }
+  {
+    // Indirect mapping (many bricks, few codewords): an index-table entry that is not its
+    // codeword's start.
+    Volume v = Volume::allocate({64, 64, 64}, ScalarType::UInt8);
+    for (int z = 0; z < 64; ++z)
+      for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x)
+          v.as<std::uint8_t>()[v.index(x, y, z)] =
+              std::uint8_t((x / 4 + 3 * (y / 4)) % 5 * 40 + x % 4);
+    v.computeRange();
+    Progress quiet;
+    auto c = vq::encode(v, {}, quiet);
+    const vq::Layout layout(c.info, c.view());
+    ASSERT_TRUE(layout.flags() & vq::kIndirect);
+    section(c, vq::kData)[layout.indexTableAt()] ^= std::byte{1};
+    expectRefused(c, "index table entry 0");
   }
   // A codeword's header byte claiming c2 = 7.
   auto c = small(true);

@@ -145,6 +145,7 @@ TEST(Cli, VqCompressInfoDecompressRender) {
       runVoxwall("compress generated:shepp-logan:24 --codec vq --reduction 4 -q -o " + vwz);
   ASSERT_EQ(c.status, 0) << c.out;
   EXPECT_NE(c.out.find("lossy: 1/4 of the unique bricks, PSNR"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("codewords by predictor: none "), std::string::npos) << c.out;
   const CliRun info = runVoxwall("info " + vwz);
   ASSERT_EQ(info.status, 0) << info.out;
   EXPECT_NE(info.out.find("codec       vq"), std::string::npos) << info.out;

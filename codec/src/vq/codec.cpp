@@ -102,14 +102,6 @@ void rbucBody(const Brick& u, std::int32_t range, int t, std::vector<std::uint8_
   }
 }
 
-// Size of the RBUC body without writing it.
-std::size_t rbucBodyBytes(const Brick& u, std::int32_t range, int t) {
-  std::vector<std::uint8_t> scratch;
-  scratch.reserve(128);
-  rbucBody(u, range, t, scratch);
-  return scratch.size();
-}
-
 template <class T>
 void gatherBrick(const Volume& v, std::span<const T> src, int bias, int bx, int by, int bz,
                  Brick& out) {
@@ -192,22 +184,20 @@ int encodeCodeword(const Brick& brick, int bits, std::vector<std::uint8_t>& out,
   Brick u;
   for (int i = 0; i < kN; ++i) u[i] = std::uint16_t(brick[i] - lo);
   const std::int32_t range = std::int32_t(hi - lo);
-  int best = transform;
-  std::size_t bestBytes = 0;
-  if (transform < 0) {
-    for (int t = 0; t < 4; ++t) {
-      const std::size_t bytes = rbucBodyBytes(u, range, t);
-      if (best < 0 || bytes < bestBytes) best = t, bestBytes = bytes;
-    }
-  } else {
-    bestBytes = rbucBodyBytes(u, range, transform);
+  // Code the body with each candidate transformation once and keep the shortest.
+  std::vector<std::uint8_t> body, candidate;
+  int best = -1;
+  for (int t = transform < 0 ? 0 : transform; t <= (transform < 0 ? 3 : transform); ++t) {
+    candidate.clear();
+    rbucBody(u, range, t, candidate);
+    if (best < 0 || candidate.size() < body.size()) best = t, body.swap(candidate);
   }
-  if (bestBytes >= std::size_t(1 + 8 * bits)) {
+  if (body.size() >= std::size_t(1 + 8 * bits)) {
     out.push_back(std::uint8_t(kernels::kVqEscape));
     plainCodeword(brick, bits, out);
     return kernels::kVqEscape;
   }
-  rbucBody(u, range, best, out);
+  out.insert(out.end(), body.begin(), body.end());
   return best;
 }
 
@@ -423,12 +413,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   stats.codebookBytes = codebookBytes.size();
 
   CompressedVolume out;
-  out.info.codec = CodecId::Vq;
-  out.info.type = volume.type;
-  out.info.dims = volume.dims;
-  out.info.spacing = volume.spacing;
-  out.info.valueMin = volume.valueMin;
-  out.info.valueMax = volume.valueMax;
+  out.info = volumeInfo(volume, CodecId::Vq);
   auto writeParams = [&](double psnr) {
     std::vector<std::byte> bytes;
     ByteWriter w(bytes);

@@ -62,6 +62,19 @@ void runCompress(const CompressOptions& o) {
                   : s.indirect          ? "indirect mapping"
                                         : "direct mapping");
     detail = line;
+    std::snprintf(line, sizeof line, "\n  offset volume %s, index table %s, codebook %s",
+                  humanBytes(double(s.offsetVolumeBytes)).c_str(),
+                  humanBytes(double(s.indexTableBytes)).c_str(),
+                  humanBytes(double(s.codebookBytes)).c_str());
+    detail += line;
+    if (p.compressedCodebook) {
+      std::snprintf(line, sizeof line,
+                    "; codewords by predictor: none %llu, x %llu, xy %llu, xyz %llu, raw %llu",
+                    (unsigned long long)s.transformUse[0], (unsigned long long)s.transformUse[1],
+                    (unsigned long long)s.transformUse[2], (unsigned long long)s.transformUse[3],
+                    (unsigned long long)s.escapes);
+      detail += line;
+    }
     if (s.codewords != s.uniqueBricks || s.reduction > 1) {
       const double plain = double(s.plainEquivalent);
       std::snprintf(line, sizeof line,

@@ -53,6 +53,9 @@ struct VolumeInfo {
   }
 };
 
+// The header description of `volume` coded with `codec` (what every encoder stores).
+VolumeInfo volumeInfo(const Volume& volume, CodecId codec);
+
 // Read-only access to a codec's sections by id, wherever they live (a mapped file or memory).
 // `source` names the file (or "<memory>") for error messages.
 struct SectionSet {

@@ -73,8 +73,9 @@ struct EncodeStats {
   double psnr = 0;  // decoded against the input, dB (+inf when lossless)
   bool indirect = false;
   std::uint64_t offsetVolumeBytes = 0, indexTableBytes = 0, codebookBytes = 0;
-  std::uint64_t escapes = 0;           // compressed codewords stored raw
-  std::uint64_t transformUse[4] = {};  // compressed codewords per transformation
+  // Compressed codewords stored raw, and per transformation (constant bricks are in neither).
+  std::uint64_t escapes = 0;
+  std::uint64_t transformUse[4] = {};
   // k-means (zero when lossless)
   int iterations = 0;
   std::uint64_t distancesComputed = 0, distancesSkipped = 0, plainEquivalent = 0;
