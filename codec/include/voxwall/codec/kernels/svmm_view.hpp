@@ -1,0 +1,315 @@
+// Random access into a Sparse Voxel Mip-Map (Faas 2016) on the host or on a device: refinement
+// from the root through the sub-block offsets (thesis section 3.1), a per-ray cache of the last
+// block visited on every level (so a ray re-refines from the deepest block that still contains
+// the next voxel instead of from the root, section 3.2.2), trilinear or nearest-voxel samples,
+// the constant region a sample lies in (for skipping a terminal block in one step, section
+// 3.2.3) and level-of-detail sampling from the coarser levels (section 3.2.4). The byte layout
+// and the encoder are documented in svmm_codec.hpp.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#include <voxwall/codec/kernels/trilinear.hpp>
+
+namespace voxwall::codec::kernels {
+
+inline constexpr int kSvmmMaxLevels = 16;
+
+// Voxel formats (stored in files).
+enum SvmmFormat : int { kSvmmDensity8 = 1, kSvmmDensity16 = 2, kSvmmRgba32 = 3 };
+
+// Non-base voxel word: the value in the high bits, bit 4 = terminal, bits 3..0 = one nibble of
+// the sub-block's 32-bit child offset (nibble j belongs to the sub-block's voxel j).
+inline constexpr std::uint32_t kSvmmTerminal = 16;
+
+// 3-bit alpha of an RGBA32 non-base word, expanded to 8 bits (round(a3 * 255 / 7)).
+VOXWALL_HD_INLINE std::uint32_t svmmExpandAlpha3(std::uint32_t a3) { return (a3 * 255u + 3u) / 7u; }
+
+// RGBA values are packed r | g << 8 | b << 16 | a << 24.
+VOXWALL_HD_INLINE std::uint32_t svmmWordValue(int format, std::uint32_t w) {
+  if (format == kSvmmDensity8) return w >> 8;
+  if (format == kSvmmDensity16) return w >> 16;
+  return (w >> 24) | (((w >> 16) & 255u) << 8) | (((w >> 8) & 255u) << 16) |
+         (svmmExpandAlpha3((w >> 5) & 7u) << 24);
+}
+
+struct SvmmLevel {
+  const std::uint8_t* data = nullptr;  // first block of the level
+  std::uint64_t blockBytes = 0;        // bytes per block (the root: the whole root grid)
+  int shift = 0;                       // log2 of the mipmap factor: one voxel = 2^shift voxels
+  int widthLog2 = 0;                   // log2 of the block width (root: unused)
+};
+
+struct SvmmView {
+  SvmmLevel level[kSvmmMaxLevels];
+  int levels = 1;
+  int format = kSvmmDensity8;
+  bool blockCompressed = false;  // base blocks stored as 2^3 groups: bitmap + one value
+  int bias = 0;                  // stored = value + bias (int16 data)
+  int dimX = 1, dimY = 1, dimZ = 1;
+  int rootX = 1, rootY = 1, rootZ = 1;  // the root grid (padded to even when levels > 1)
+
+  VOXWALL_HD_INLINE int baseBytes() const {
+    return format == kSvmmDensity8 ? 1 : (format == kSvmmDensity16 ? 2 : 4);
+  }
+  VOXWALL_HD_INLINE std::uint32_t load(const std::uint8_t* p, int bytes) const {
+    std::uint32_t v = p[0];
+    if (bytes > 1) v |= std::uint32_t(p[1]) << 8;
+    if (bytes > 2) v |= std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
+    return v;
+  }
+  // Non-base word `index` of a block (16-bit for DENSITY8, else 32-bit; levels are aligned).
+  VOXWALL_HD_INLINE std::uint32_t word(const std::uint8_t* block, std::size_t index) const {
+    if (format == kSvmmDensity8) return reinterpret_cast<const std::uint16_t*>(block)[index];
+    return reinterpret_cast<const std::uint32_t*>(block)[index];
+  }
+  // Base voxel (lx, ly, lz) of a base block (or of the root grid when there is one level).
+  VOXWALL_HD_INLINE std::uint32_t baseValue(const std::uint8_t* block, int lx, int ly,
+                                            int lz) const {
+    const int bytes = baseBytes();
+    if (levels == 1) {
+      const std::size_t i =
+          (std::size_t(lz) * std::size_t(rootY) + std::size_t(ly)) * std::size_t(rootX) +
+          std::size_t(lx);
+      return load(block + i * std::size_t(bytes), bytes);
+    }
+    const int wl = level[0].widthLog2;
+    if (!blockCompressed)
+      return load(block + (std::size_t(lx | (ly << wl) | (lz << (2 * wl))) * std::size_t(bytes)),
+                  bytes);
+    const int gl = wl - 1;  // groups per side: w / 2
+    const std::size_t group = std::size_t((lx >> 1) | ((ly >> 1) << gl) | ((lz >> 1) << (2 * gl)));
+    const std::uint8_t* g = block + group * std::size_t(1 + bytes);
+    const int bit = (lx & 1) | ((ly & 1) << 1) | ((lz & 1) << 2);
+    return (g[0] >> bit) & 1 ? load(g + 1, bytes) : 0u;
+  }
+  // The stored value as a scalar (RGBA: its alpha).
+  VOXWALL_HD_INLINE float scalar(std::uint32_t v) const {
+    return format == kSvmmRgba32 ? float(v >> 24) : float(int(v) - bias);
+  }
+
+  // Per-ray state: the last block visited on every level, the last trilinear cell, the constant
+  // region of the last sample, and what the raycaster sets before each sample.
+  struct RayCache {
+    int kx[kSvmmMaxLevels], ky[kSvmmMaxLevels], kz[kSvmmMaxLevels];
+    const std::uint8_t* block[kSvmmMaxLevels];
+    int ix = -1, iy = -1, iz = -1, il = -1;  // cell (lower corner) and level of c[]
+    float c[8] = {};
+    int cellLevel = 0, cellStop = 0, cellVx = 0, cellVy = 0, cellVz = 0;  // see sample()
+    bool cellConstant = false;
+    // Index-space box [regionLo, regionHi) around the last sample in which every sample has the
+    // same value, valid while the footprint stays below regionFootprintMax.
+    bool regionValid = false;
+    float regionLo[3] = {}, regionHi[3] = {};
+    float regionFootprintMax = 0.0f;
+    // Set by the raycaster: the ray's footprint at this sample in voxels (0: finest level only)
+    // and nearest-voxel sampling instead of trilinear.
+    float footprint = 0.0f;
+    bool nearest = false;
+    VOXWALL_HD_INLINE RayCache() {
+      for (int i = 0; i < kSvmmMaxLevels; ++i) kx[i] = -1, ky[i] = -1, kz[i] = -1, block[i] = 0;
+    }
+  };
+  // Tells the raycaster that this view reports constant regions and takes footprints.
+  static constexpr bool kTraversal = true;
+
+  // Level-`target` voxel (gx, gy, gz) (inside the level's grid): refines from the deepest cached
+  // block containing it (the root when none) until a terminal voxel or the target level. Returns
+  // the stored value; `stop` is the level it came from (> target: a terminal voxel there).
+  VOXWALL_HD_INLINE std::uint32_t lookup(int gx, int gy, int gz, int target, RayCache& c,
+                                         int& stop) const {
+    const int top = levels - 1;
+    const int ts = level[target].shift;
+    int L = target;
+    const std::uint8_t* block = nullptr;
+    for (; L < top; ++L) {
+      const int sh = level[L].shift - ts + level[L].widthLog2;
+      if (c.kx[L] == (gx >> sh) && c.ky[L] == (gy >> sh) && c.kz[L] == (gz >> sh)) {
+        block = c.block[L];
+        break;
+      }
+    }
+    if (!block) L = top, block = level[top].data;
+    for (;;) {
+      const int sh = level[L].shift - ts;
+      const int rx = gx >> sh, ry = gy >> sh, rz = gz >> sh;
+      if (L == 0) {
+        stop = 0;
+        const int m = levels == 1 ? 0x7fffffff : (1 << level[0].widthLog2) - 1;
+        return baseValue(block, rx & m, ry & m, rz & m);
+      }
+      int lx = rx, ly = ry, lz = rz, wl = 0;
+      std::size_t idx, sy, sz;
+      if (L == top) {
+        sy = std::size_t(rootX), sz = std::size_t(rootX) * std::size_t(rootY);
+      } else {
+        wl = level[L].widthLog2;
+        const int m = (1 << wl) - 1;
+        lx &= m, ly &= m, lz &= m;
+        sy = std::size_t(1) << wl, sz = std::size_t(1) << (2 * wl);
+      }
+      idx = std::size_t(lz) * sz + std::size_t(ly) * sy + std::size_t(lx);
+      const std::uint32_t w = word(block, idx);
+      if ((w & kSvmmTerminal) || L == target) {
+        stop = L;
+        return svmmWordValue(format, w);
+      }
+      // The sub-block: one offset in its eight nibbles, then count the non-terminal voxels
+      // before this one (section 2.2.2).
+      const std::size_t s0 =
+          std::size_t(lz & ~1) * sz + std::size_t(ly & ~1) * sy + std::size_t(lx & ~1);
+      const int k = (lx & 1) | ((ly & 1) << 1) | ((lz & 1) << 2);
+      std::uint32_t offset = 0, before = 0;
+      for (int j = 0; j < 8; ++j) {
+        const std::uint32_t wj =
+            word(block, s0 + std::size_t(j & 1) + (j & 2 ? sy : 0) + (j & 4 ? sz : 0));
+        offset |= (wj & 15u) << (4 * j);
+        before += std::uint32_t(j < k && !(wj & kSvmmTerminal));
+      }
+      --L;
+      block = level[L].data + std::size_t(offset + before) * level[L].blockBytes;
+      const int shc = level[L].shift - ts + level[L].widthLog2;
+      c.kx[L] = gx >> shc, c.ky[L] = gy >> shc, c.kz[L] = gz >> shc, c.block[L] = block;
+    }
+  }
+
+  // One voxel of the full-resolution volume (clamped to the volume), uncached: the point query
+  // of section 3.1.
+  VOXWALL_HD_INLINE std::uint32_t fetch(int x, int y, int z) const {
+    RayCache c;
+    int stop;
+    return lookup(clampIndex(x, dimX), clampIndex(y, dimY), clampIndex(z, dimZ), 0, c, stop);
+  }
+  VOXWALL_HD_INLINE float voxel(int x, int y, int z) const { return scalar(fetch(x, y, z)); }
+
+  // The level whose voxels are at most `footprint` voxels wide (0 when footprint < 2).
+  VOXWALL_HD_INLINE int lodLevel(float footprint) const {
+    int L = 0;
+    while (L + 1 < levels && float(1 << level[L + 1].shift) <= footprint) ++L;
+    return L;
+  }
+
+  // Fills c[8] with the corners of cell (ix, iy, iz) of level T (clamped to the level's grid)
+  // and tells whether all eight came from one terminal voxel of level `stop` > T at level-stop
+  // coordinates (vx, vy, vz).
+  VOXWALL_HD_INLINE void corners(int ix, int iy, int iz, int T, RayCache& rc, float* c,
+                                 bool& constant, int& stopOut, int& vx, int& vy, int& vz) const {
+    const int sh = level[T].shift;
+    const int mx = ((dimX - 1) >> sh), my = ((dimY - 1) >> sh), mz = ((dimZ - 1) >> sh);
+    const int x1 = ix < mx ? ix + 1 : mx, y1 = iy < my ? iy + 1 : my, z1 = iz < mz ? iz + 1 : mz;
+    int stop0 = 0, stop;
+    const float v0 = scalar(lookup(ix, iy, iz, T, rc, stop0));
+    const int d = level[stop0].shift - sh;
+    constant =
+        stop0 > T && (ix >> d) == (x1 >> d) && (iy >> d) == (y1 >> d) && (iz >> d) == (z1 >> d);
+    stopOut = stop0, vx = ix >> d, vy = iy >> d, vz = iz >> d;
+    if (constant) {
+      for (int i = 0; i < 8; ++i) c[i] = v0;
+      return;
+    }
+    c[0] = v0;
+    c[1] = scalar(lookup(x1, iy, iz, T, rc, stop));
+    c[2] = scalar(lookup(ix, y1, iz, T, rc, stop));
+    c[3] = scalar(lookup(x1, y1, iz, T, rc, stop));
+    c[4] = scalar(lookup(ix, iy, z1, T, rc, stop));
+    c[5] = scalar(lookup(x1, iy, z1, T, rc, stop));
+    c[6] = scalar(lookup(ix, y1, z1, T, rc, stop));
+    c[7] = scalar(lookup(x1, y1, z1, T, rc, stop));
+  }
+
+  // Sample at index-space (x, y, z): trilinear (or the nearest voxel when rc.nearest) on the
+  // level rc.footprint selects. Also sets rc.region*: the box of positions with the same value.
+  VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& rc) const {
+    const int T = rc.footprint >= 2.0f ? lodLevel(rc.footprint) : 0;
+    const int sh = level[T].shift;
+    const float P = float(1 << sh);
+    if (T) x = (x + 0.5f) / P - 0.5f, y = (y + 0.5f) / P - 0.5f, z = (z + 0.5f) / P - 0.5f;
+    const float mx = float((dimX - 1) >> sh), my = float((dimY - 1) >> sh),
+                mz = float((dimZ - 1) >> sh);
+    x = x < 0.0f ? 0.0f : (x > mx ? mx : x);
+    y = y < 0.0f ? 0.0f : (y > my ? my : y);
+    z = z < 0.0f ? 0.0f : (z > mz ? mz : z);
+    rc.regionFootprintMax = T + 1 < levels ? float(1 << level[T + 1].shift) : 3.0e38f;
+    if (rc.nearest) {
+      const int ix = int(x + 0.5f), iy = int(y + 0.5f), iz = int(z + 0.5f);
+      int stop;
+      const float v = scalar(lookup(ix, iy, iz, T, rc, stop));
+      const int d = level[stop].shift - sh;
+      setRegion(rc, T, ix >> d << d, iy >> d << d, iz >> d << d, 1 << d, -0.5f);
+      return v;
+    }
+    const int ix = int(x), iy = int(y), iz = int(z);
+    if (ix != rc.ix || iy != rc.iy || iz != rc.iz || T != rc.il) {
+      int stop, vx, vy, vz;
+      corners(ix, iy, iz, T, rc, rc.c, rc.cellConstant, stop, vx, vy, vz);
+      rc.ix = ix, rc.iy = iy, rc.iz = iz, rc.il = T;
+      rc.cellStop = stop, rc.cellVx = vx, rc.cellVy = vy, rc.cellVz = vz;
+    }
+    if (rc.cellConstant) {
+      // Every cell whose lower corner lies in [lo, hi - 1) of the terminal voxel's box reads
+      // only that voxel.
+      const int d = level[rc.cellStop].shift - sh;
+      setRegion(rc, T, rc.cellVx << d, rc.cellVy << d, rc.cellVz << d, 1 << d, 0.0f, true);
+      return rc.c[0];
+    }
+    rc.regionValid = false;
+    const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
+    const float* c = rc.c;
+    const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
+    const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
+    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+    return c0 + tz * (c1 - c0);
+  }
+
+  // The region of level-T voxels [v, v + n) per axis as full-resolution index-space positions:
+  // level-T position q maps to (q + 1/2) 2^shift - 1/2. Trilinear cells need their upper corner
+  // inside too (hence hi - 1); sides on the volume's border extend to infinity since positions
+  // there are clamped. A 1/64-voxel margin keeps rounding from admitting a position outside.
+  VOXWALL_HD_INLINE void setRegion(RayCache& rc, int T, int vx, int vy, int vz, int n,
+                                   float nearestShift, bool trilinear = false) const {
+    const int sh = level[T].shift;
+    const float P = float(1 << sh);
+    const int v[3] = {vx, vy, vz};
+    const int m[3] = {(dimX - 1) >> sh, (dimY - 1) >> sh, (dimZ - 1) >> sh};
+    for (int a = 0; a < 3; ++a) {
+      const float lo = float(v[a]) + nearestShift;
+      const float hi = float(v[a] + n) + nearestShift - (trilinear ? 1.0f : 0.0f);
+      rc.regionLo[a] = v[a] <= 0 ? -3.0e38f : (lo + 0.5f) * P - 0.5f + 1.0f / 64.0f;
+      rc.regionHi[a] = v[a] + n > m[a] ? 3.0e38f : (hi + 0.5f) * P - 0.5f - 1.0f / 64.0f;
+    }
+    rc.regionValid = true;
+  }
+
+  VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
+    RayCache rc;
+    return sample(x, y, z, rc);
+  }
+
+  // A gradient neighbour on the current sample's level; leaves the cell and region alone.
+  VOXWALL_HD_INLINE float sampleNear(float x, float y, float z, RayCache& rc) const {
+    const int T = rc.il < 0 ? 0 : rc.il;
+    const int sh = level[T].shift;
+    const float P = float(1 << sh);
+    if (T) x = (x + 0.5f) / P - 0.5f, y = (y + 0.5f) / P - 0.5f, z = (z + 0.5f) / P - 0.5f;
+    const float mx = float((dimX - 1) >> sh), my = float((dimY - 1) >> sh),
+                mz = float((dimZ - 1) >> sh);
+    x = x < 0.0f ? 0.0f : (x > mx ? mx : x);
+    y = y < 0.0f ? 0.0f : (y > my ? my : y);
+    z = z < 0.0f ? 0.0f : (z > mz ? mz : z);
+    const int ix = int(x), iy = int(y), iz = int(z);
+    float c[8];
+    bool constant;
+    int stop, vx, vy, vz;
+    corners(ix, iy, iz, T, rc, c, constant, stop, vx, vy, vz);
+    const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
+    const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
+    const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
+    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+    return c0 + tz * (c1 - c0);
+  }
+};
+
+static_assert(std::is_trivially_copyable_v<SvmmView>);
+
+}  // namespace voxwall::codec::kernels

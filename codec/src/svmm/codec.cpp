@@ -1,0 +1,695 @@
+// SVMM encoder, validating reader and decoder. The format is documented in svmm_codec.hpp.
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <functional>
+#include <glm/common.hpp>
+#include <limits>
+#include <voxwall/codec/bytes.hpp>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/parallel.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
+
+namespace voxwall::codec::svmm {
+
+using kernels::kSvmmDensity16;
+using kernels::kSvmmDensity8;
+using kernels::kSvmmRgba32;
+using kernels::kSvmmTerminal;
+
+double deltaForQuality(int quality, int channels) {
+  if (quality < 0 || quality > 100) throw std::invalid_argument("quality must be in 0..100");
+  return std::sqrt(double(channels)) * (1.0 - double(quality) / 100.0);
+}
+
+namespace {
+
+constexpr int kInt16Bias = 32768;
+
+int wordBytes(int format) { return format == kSvmmDensity8 ? 2 : 4; }
+int baseBytesOf(int format) {
+  return format == kSvmmDensity8 ? 1 : (format == kSvmmDensity16 ? 2 : 4);
+}
+int channelsOf(int format) { return format == kSvmmRgba32 ? 4 : 1; }
+
+glm::ivec3 logicalDims(glm::ivec3 dims, int shift) {
+  return glm::ivec3(((dims.x - 1) >> shift) + 1, ((dims.y - 1) >> shift) + 1,
+                    ((dims.z - 1) >> shift) + 1);
+}
+glm::ivec3 evenUp(glm::ivec3 d) { return (d + 1) / 2 * 2; }
+std::size_t count3(glm::ivec3 d) { return std::size_t(d.x) * std::size_t(d.y) * std::size_t(d.z); }
+int maxOf(glm::ivec3 d) { return std::max({d.x, d.y, d.z}); }
+
+// The value a non-base word of `format` stores for `v` (RGBA: alpha to 3 bits and back).
+std::uint32_t storedNonBase(int format, std::uint32_t v) {
+  if (format != kSvmmRgba32) return v;
+  const std::uint32_t a3 = ((v >> 24) * 7u + 127u) / 255u;
+  return (v & 0x00ffffffu) | (kernels::svmmExpandAlpha3(a3) << 24);
+}
+
+std::uint32_t packWord(int format, std::uint32_t v, bool terminal, std::uint32_t nibble) {
+  const std::uint32_t low = (terminal ? kSvmmTerminal : 0u) | nibble;
+  if (format == kSvmmDensity8) return (v << 8) | low;
+  if (format == kSvmmDensity16) return (v << 16) | low;
+  const std::uint32_t a3 = ((v >> 24) * 7u + 127u) / 255u;
+  return ((v & 255u) << 24) | (((v >> 8) & 255u) << 16) | (((v >> 16) & 255u) << 8) | (a3 << 5) |
+         low;
+}
+
+std::uint64_t distance2(int format, std::uint32_t a, std::uint32_t b) {
+  if (format != kSvmmRgba32) {
+    const std::int64_t d = std::int64_t(a) - std::int64_t(b);
+    return std::uint64_t(d * d);
+  }
+  std::uint64_t s = 0;
+  for (int c = 0; c < 4; ++c) {
+    const std::int64_t d =
+        std::int64_t((a >> (8 * c)) & 255u) - std::int64_t((b >> (8 * c)) & 255u);
+    s += std::uint64_t(d * d);
+  }
+  return s;
+}
+
+// One level while encoding: values (biased scalars or packed RGBA) and terminal flags over the
+// padded grid; `logical` voxels overlap the volume.
+struct Grid {
+  glm::ivec3 logical{0}, padded{0};
+  std::vector<std::uint32_t> value;
+  std::vector<std::uint8_t> terminal;  // empty: every voxel is terminal (level 0)
+  std::size_t at(int x, int y, int z) const {
+    return (std::size_t(z) * std::size_t(padded.y) + std::size_t(y)) * std::size_t(padded.x) +
+           std::size_t(x);
+  }
+  bool inside(glm::ivec3 g) const { return g.x < padded.x && g.y < padded.y && g.z < padded.z; }
+  std::uint32_t valueAt(glm::ivec3 g) const { return inside(g) ? value[at(g.x, g.y, g.z)] : 0u; }
+  bool terminalAt(glm::ivec3 g) const {
+    return !inside(g) || terminal.empty() || terminal[at(g.x, g.y, g.z)];
+  }
+};
+
+// Level i + 1 from level i (blocks of w^3).
+Grid buildLevel(const Grid& fine, int w, int format, double threshold2, int threads,
+                Progress& progress) {
+  Grid g;
+  g.logical = (fine.logical + w - 1) / w;
+  g.padded = evenUp(g.logical);
+  g.value.assign(count3(g.padded), 0);
+  g.terminal.assign(count3(g.padded), 1);
+  const int channels = channelsOf(format);
+  parallelFor(std::size_t(g.logical.z), threads, [&](std::size_t zi) {
+    const int z = int(zi);
+    for (int y = 0; y < g.logical.y; ++y)
+      for (int x = 0; x < g.logical.x; ++x) {
+        const glm::ivec3 lo(x * w, y * w, z * w);
+        const glm::ivec3 hi = glm::min(lo + w, fine.logical);
+        std::uint64_t sum[4] = {0, 0, 0, 0}, n = 0;
+        bool allTerminal = true;
+        for (int fz = lo.z; fz < hi.z; ++fz)
+          for (int fy = lo.y; fy < hi.y; ++fy)
+            for (int fx = lo.x; fx < hi.x; ++fx) {
+              const std::size_t i = fine.at(fx, fy, fz);
+              const std::uint32_t v = fine.value[i];
+              if (!fine.terminal.empty() && !fine.terminal[i]) allTerminal = false;
+              if (channels == 1) {
+                sum[0] += v;
+              } else {
+                for (int c = 0; c < 4; ++c) sum[c] += (v >> (8 * c)) & 255u;
+              }
+              ++n;
+            }
+        std::uint32_t avg = 0;
+        if (channels == 1) {
+          avg = std::uint32_t((sum[0] + n / 2) / n);
+        } else {
+          for (int c = 0; c < 4; ++c) avg |= std::uint32_t((sum[c] + n / 2) / n) << (8 * c);
+        }
+        const std::uint32_t stored = storedNonBase(format, avg);
+        bool homogeneous = allTerminal;
+        for (int fz = lo.z; homogeneous && fz < hi.z; ++fz)
+          for (int fy = lo.y; homogeneous && fy < hi.y; ++fy)
+            for (int fx = lo.x; fx < hi.x; ++fx)
+              if (double(distance2(format, fine.value[fine.at(fx, fy, fz)], stored)) > threshold2) {
+                homogeneous = false;
+                break;
+              }
+        const std::size_t i = g.at(x, y, z);
+        g.value[i] = stored;
+        g.terminal[i] = homogeneous;
+      }
+    progress.advance();
+  });
+  return g;
+}
+
+void putValue(std::vector<std::byte>& out, std::uint32_t v, int bytes) {
+  for (int b = 0; b < bytes; ++b) out.push_back(std::byte((v >> (8 * b)) & 255u));
+}
+
+struct Input {
+  glm::ivec3 dims;
+  int format;
+  int bias;
+  double peak;
+  std::vector<std::uint32_t> values;  // x fastest
+};
+
+CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progress& progress,
+                             EncodeStats* stats,
+                             const std::function<double(const CompressedVolume&)>& measure) {
+  if (p.rootWidth < 2) throw std::invalid_argument("root width must be at least 2");
+  if (!p.stepped &&
+      (p.blockWidth < 2 || p.blockWidth > 64 || !std::has_single_bit(unsigned(p.blockWidth))))
+    throw std::invalid_argument("block width must be a power of two in 2..64");
+  const int format = in.format;
+  const int channels = channelsOf(format);
+  const double delta = deltaForQuality(p.quality, channels);
+  const double thr = delta * in.peak;
+  const double threshold2 = thr * thr;
+
+  std::vector<Grid> grids(1);
+  grids[0].logical = in.dims;
+  grids[0].padded = in.dims;
+  grids[0].value = std::move(in.values);
+  std::vector<int> widths, shifts{0};
+  while (maxOf(grids.back().logical) > p.rootWidth) {
+    if (int(grids.size()) == kernels::kSvmmMaxLevels)
+      throw std::invalid_argument("more than 16 mip levels: raise the root width");
+    const int i = int(grids.size()) - 1;
+    const int w = p.stepped ? std::min(2 << i, 256) : p.blockWidth;
+    const glm::ivec3 next = (grids.back().logical + w - 1) / w;
+    progress.begin("svmm: level " + std::to_string(i + 1), std::uint64_t(next.z));
+    grids.push_back(buildLevel(grids.back(), w, format, threshold2, p.threads, progress));
+    progress.end();
+    widths.push_back(w);
+    shifts.push_back(shifts.back() + std::countr_zero(unsigned(w)));
+    if (shifts.back() > 30) throw std::invalid_argument("mipmap factor over 2^30");
+  }
+  const int n = int(grids.size());
+  const int top = n - 1;
+  widths.push_back(0);
+  const int ws = wordBytes(format), bs = baseBytesOf(format);
+  const bool compressBase = p.baseCompression && n > 1;
+  std::vector<std::vector<std::byte>> out(static_cast<std::size_t>(n));
+  std::vector<std::uint64_t> blocks(static_cast<std::size_t>(n), 0);
+  blocks[std::size_t(top)] = 1;
+  glm::ivec3 rootGrid = n == 1 ? in.dims : grids[std::size_t(top)].padded;
+
+  progress.begin("svmm: writing blocks", std::uint64_t(n));
+  std::vector<glm::ivec3> cur{glm::ivec3(0)};  // block origins of level L, in level-L voxels
+  for (int L = top; L >= 1; --L) {
+    const Grid& G = grids[std::size_t(L)];
+    const glm::ivec3 size = L == top ? rootGrid : glm::ivec3(widths[std::size_t(L)]);
+    const int childW = widths[std::size_t(L - 1)];
+    std::vector<glm::ivec3> next;
+    std::vector<std::uint32_t> words(count3(size));
+    auto& o = out[std::size_t(L)];
+    o.reserve(cur.size() * words.size() * std::size_t(ws));
+    for (const glm::ivec3 origin : cur) {
+      for (int bz = 0; bz < size.z; bz += 2)
+        for (int by = 0; by < size.y; by += 2)
+          for (int bx = 0; bx < size.x; bx += 2) {
+            const std::size_t first = next.size();
+            bool term[8];
+            for (int j = 0; j < 8; ++j) {
+              const glm::ivec3 g =
+                  origin + glm::ivec3(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
+              term[j] = G.terminalAt(g);
+              if (!term[j]) next.push_back(g * childW);
+            }
+            if (next.size() > std::numeric_limits<std::uint32_t>::max())
+              throw std::invalid_argument("a level has more than 2^32 blocks");
+            const std::uint32_t off = next.size() > first ? std::uint32_t(first) : 0u;
+            for (int j = 0; j < 8; ++j) {
+              const glm::ivec3 l(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
+              const glm::ivec3 g = origin + l;
+              words[(std::size_t(l.z) * std::size_t(size.y) + std::size_t(l.y)) *
+                        std::size_t(size.x) +
+                    std::size_t(l.x)] =
+                  packWord(format, G.valueAt(g), term[j], (off >> (4 * j)) & 15u);
+            }
+          }
+      for (const std::uint32_t w : words) putValue(o, w, ws);
+    }
+    blocks[std::size_t(L - 1)] = next.size();
+    cur = std::move(next);
+    progress.advance();
+  }
+  // Base level.
+  {
+    const Grid& G = grids[0];
+    auto& o = out[0];
+    if (n == 1) {
+      o.reserve(G.value.size() * std::size_t(bs));
+      for (const std::uint32_t v : G.value) putValue(o, v, bs);
+    } else {
+      const int w = widths[0];
+      o.reserve(cur.size() * std::size_t(w * w * w) * std::size_t(bs));
+      for (const glm::ivec3 origin : cur) {
+        if (!compressBase) {
+          for (int z = 0; z < w; ++z)
+            for (int y = 0; y < w; ++y)
+              for (int x = 0; x < w; ++x) {
+                const glm::ivec3 q = origin + glm::ivec3(x, y, z);
+                const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
+                putValue(o, in ? G.value[G.at(q.x, q.y, q.z)] : 0u, bs);
+              }
+          continue;
+        }
+        for (int gz = 0; gz < w; gz += 2)
+          for (int gy = 0; gy < w; gy += 2)
+            for (int gx = 0; gx < w; gx += 2) {
+              std::uint32_t bitmap = 0;
+              std::uint64_t sum[4] = {0, 0, 0, 0}, cnt = 0;
+              for (int j = 0; j < 8; ++j) {
+                const glm::ivec3 q =
+                    origin + glm::ivec3(gx + (j & 1), gy + (j >> 1 & 1), gz + (j >> 2));
+                const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
+                const std::uint32_t v = in ? G.value[G.at(q.x, q.y, q.z)] : 0u;
+                const bool occupied = format == kSvmmRgba32 ? (v >> 24) != 0 : v != 0;
+                if (!occupied) continue;
+                bitmap |= 1u << j;
+                ++cnt;
+                if (channels == 1)
+                  sum[0] += v;
+                else
+                  for (int c = 0; c < 4; ++c) sum[c] += (v >> (8 * c)) & 255u;
+              }
+              std::uint32_t mean = 0;
+              if (cnt) {
+                if (channels == 1)
+                  mean = std::uint32_t((sum[0] + cnt / 2) / cnt);
+                else
+                  for (int c = 0; c < 4; ++c)
+                    mean |= std::uint32_t((sum[c] + cnt / 2) / cnt) << (8 * c);
+              }
+              o.push_back(std::byte(bitmap));
+              putValue(o, mean, bs);
+            }
+      }
+    }
+    progress.advance();
+  }
+  progress.end();
+
+  // Sections.
+  std::vector<std::byte> data;
+  std::vector<std::uint64_t> offsets(static_cast<std::size_t>(n)),
+      lengths(static_cast<std::size_t>(n));
+  for (int L = top; L >= 0; --L) {
+    while (data.size() % 8) data.push_back(std::byte{0});
+    offsets[std::size_t(L)] = data.size();
+    lengths[std::size_t(L)] = out[std::size_t(L)].size();
+    data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
+    std::vector<std::byte>().swap(out[std::size_t(L)]);
+  }
+  for (int i = 0; i < 8; ++i) data.push_back(std::byte{0});
+  auto writeParams = [&](double psnrValue) {
+    std::vector<std::byte> params;
+    ByteWriter w(params);
+    w.put<std::uint32_t>(std::uint32_t(format));
+    w.put<std::uint32_t>(compressBase ? kBlockCompressed : 0u);
+    w.put<std::int32_t>(in.bias);
+    w.put<std::uint32_t>(std::uint32_t(p.quality));
+    w.put<double>(delta);
+    w.put<double>(in.peak);
+    w.put<std::uint32_t>(std::uint32_t(p.rootWidth));
+    w.put<std::uint32_t>(p.stepped ? 1u : 0u);
+    w.put<std::uint32_t>(std::uint32_t(n));
+    w.put<std::uint32_t>(std::uint32_t(rootGrid.x));
+    w.put<std::uint32_t>(std::uint32_t(rootGrid.y));
+    w.put<std::uint32_t>(std::uint32_t(rootGrid.z));
+    for (int i = 0; i < n; ++i) {
+      w.put<std::uint32_t>(std::uint32_t(widths[std::size_t(i)]));
+      w.put<std::uint32_t>(std::uint32_t(shifts[std::size_t(i)]));
+      w.put<std::uint64_t>(blocks[std::size_t(i)]);
+      w.put<std::uint64_t>(offsets[std::size_t(i)]);
+      w.put<std::uint64_t>(lengths[std::size_t(i)]);
+    }
+    w.put<double>(psnrValue);
+    return params;
+  };
+  CompressedVolume cv;
+  cv.info = info;
+  cv.sections.emplace_back(kParams, writeParams(0.0));
+  cv.sections.emplace_back(kData, std::move(data));
+  progress.begin("svmm: measuring PSNR", 1);
+  const double psnrValue = measure(cv);
+  progress.advance();
+  progress.end();
+  cv.sections[0].second = writeParams(psnrValue);
+  if (stats) {
+    stats->levels = n;
+    stats->blocks = blocks;
+    stats->widths = widths;
+    stats->dataBytes = cv.sections[1].second.size();
+    stats->delta = delta;
+    stats->psnr = psnrValue;
+  }
+  return cv;
+}
+
+}  // namespace
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats) {
+  Input in;
+  in.dims = volume.dims;
+  in.bias = 0;
+  switch (volume.type) {
+    case ScalarType::UInt8:
+      in.format = kSvmmDensity8;
+      break;
+    case ScalarType::UInt16:
+      in.format = kSvmmDensity16;
+      break;
+    case ScalarType::Int16:
+      in.format = kSvmmDensity16;
+      in.bias = kInt16Bias;
+      break;
+    default:
+      throw std::invalid_argument("svmm codes uint8, uint16 and int16 volumes, not " +
+                                  std::string(scalarName(volume.type)));
+  }
+  in.peak = volume.valueMax - volume.valueMin;
+  if (!(in.peak > 0)) in.peak = 1;
+  in.values.resize(volume.voxelCount());
+  dispatchScalar(volume.type, [&](auto t) {
+    using T = decltype(t);
+    const T* src = volume.as<T>().data();
+    for (std::size_t i = 0; i < in.values.size(); ++i)
+      in.values[i] = std::uint32_t(int(src[i]) + in.bias);
+  });
+  const VolumeInfo info = volumeInfo(volume, CodecId::Svmm);
+  return encodeInput(std::move(in), info, params, progress, stats, [&](const CompressedVolume& cv) {
+    const Volume decoded = decode(cv.info, cv.view());
+    return psnr(volume, decoded);
+  });
+}
+
+CompressedVolume encodeRgba(const RgbaVolume& volume, const Params& params, Progress& progress,
+                            EncodeStats* stats) {
+  if (volume.dims.x < 1 || volume.dims.y < 1 || volume.dims.z < 1 ||
+      volume.rgba.size() != count3(volume.dims))
+    throw std::invalid_argument("RGBA volume: voxel count does not match its dimensions");
+  Input in;
+  in.dims = volume.dims;
+  in.format = kSvmmRgba32;
+  in.bias = 0;
+  in.peak = 255;
+  in.values = volume.rgba;
+  VolumeInfo info;
+  info.codec = CodecId::Svmm;
+  info.type = ScalarType::UInt8;
+  info.dims = volume.dims;
+  info.spacing = volume.spacing;
+  info.valueMin = 0, info.valueMax = 255;
+  return encodeInput(std::move(in), info, params, progress, stats, [&](const CompressedVolume& cv) {
+    return psnrRgba(volume, decodeRgba(cv.info, cv.view()));
+  });
+}
+
+Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
+  const std::string& src = sections.source;
+  ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
+  auto fail = [&](const std::string& what) { r.fail(what); };
+  format_ = int(r.get<std::uint32_t>());
+  flags_ = r.get<std::uint32_t>();
+  bias_ = r.get<std::int32_t>();
+  quality_ = int(r.get<std::uint32_t>());
+  delta_ = r.get<double>();
+  peak_ = r.get<double>();
+  rootWidth_ = int(r.get<std::uint32_t>());
+  const std::uint32_t stepped = r.get<std::uint32_t>();
+  const std::uint32_t levels = r.get<std::uint32_t>();
+  root_.x = int(r.get<std::uint32_t>());
+  root_.y = int(r.get<std::uint32_t>());
+  root_.z = int(r.get<std::uint32_t>());
+  if (format_ < 1 || format_ > 3) fail("voxel format " + std::to_string(format_));
+  if ((format_ == kSvmmDensity16) !=
+          (info.type == ScalarType::UInt16 || info.type == ScalarType::Int16) ||
+      (format_ != kSvmmDensity16 && info.type != ScalarType::UInt8))
+    fail("voxel format " + std::to_string(format_) + " does not match scalar type " +
+         std::string(scalarName(info.type)));
+  if (flags_ > 1) fail("flags " + std::to_string(flags_));
+  if (bias_ != (info.type == ScalarType::Int16 ? kInt16Bias : 0))
+    fail("bias " + std::to_string(bias_));
+  if (quality_ > 100) fail("quality " + std::to_string(quality_));
+  if (!(delta_ >= 0 && delta_ <= 2.0) || !(peak_ > 0 && peak_ <= 65535))
+    fail("delta or peak out of range");
+  if (rootWidth_ < 2) fail("root width " + std::to_string(rootWidth_));
+  if (stepped > 1) fail("stepped flag " + std::to_string(stepped));
+  stepped_ = stepped == 1;
+  if (levels < 1 || levels > std::uint32_t(kernels::kSvmmMaxLevels))
+    fail(std::to_string(levels) + " levels (1..16)");
+  levels_ = int(levels);
+  const int top = levels_ - 1;
+  const int ws = wordBytes(format_), bs = baseBytesOf(format_);
+  int shift = 0;
+  for (int i = 0; i < levels_; ++i) {
+    const int w = int(r.get<std::uint32_t>());
+    const int s = int(r.get<std::uint32_t>());
+    widths_.push_back(w);
+    shifts_.push_back(s);
+    blocks_.push_back(r.get<std::uint64_t>());
+    offsets_.push_back(r.get<std::uint64_t>());
+    bytes_.push_back(r.get<std::uint64_t>());
+    const std::string lv = "level " + std::to_string(i) + ": ";
+    if (i < top ? (w < 2 || w > 256 || !std::has_single_bit(unsigned(w))) : w != 0)
+      fail(lv + "block width " + std::to_string(w));
+    if (s != shift)
+      fail(lv + "shift " + std::to_string(s) + " (expected " + std::to_string(shift) + ")");
+    if (i < top) shift += std::countr_zero(unsigned(w));
+    if (shift > 30) fail(lv + "mipmap factor over 2^30");
+  }
+  psnr_ = r.get<double>();
+  const glm::ivec3 topLogical = logicalDims(info.dims, shifts_[std::size_t(top)]);
+  const glm::ivec3 wantRoot = levels_ == 1 ? info.dims : evenUp(topLogical);
+  if (root_ != wantRoot)
+    fail("root grid " + std::to_string(root_.x) + "x" + std::to_string(root_.y) + "x" +
+         std::to_string(root_.z) + " does not fit the volume");
+  if (blocks_[std::size_t(top)] != 1) fail("the root level must have one block");
+  data_ = sections.get(kData, "data");
+  ByteReader dr(data_, src, "section 'data'");
+  auto dfail = [&](const std::string& what) { dr.fail(what); };
+  std::uint64_t end = 0;
+  for (int L = top; L >= 0; --L) {
+    const std::string lv = "level " + std::to_string(L) + ": ";
+    std::uint64_t blockBytes;
+    if (L == top)
+      blockBytes = count3(root_) * std::uint64_t(levels_ == 1 ? bs : ws);
+    else if (L > 0)
+      blockBytes = std::uint64_t(widths_[std::size_t(L)]) * std::uint64_t(widths_[std::size_t(L)]) *
+                   std::uint64_t(widths_[std::size_t(L)]) * std::uint64_t(ws);
+    else {
+      const std::uint64_t w = std::uint64_t(widths_[0]);
+      blockBytes = (flags_ & kBlockCompressed) ? (w / 2) * (w / 2) * (w / 2) * std::uint64_t(1 + bs)
+                                               : w * w * w * std::uint64_t(bs);
+    }
+    const std::uint64_t off = offsets_[std::size_t(L)], len = bytes_[std::size_t(L)];
+    if (off % 8 || off < end || off > data_.size() || len > data_.size() - off)
+      dfail(lv + "bytes [" + std::to_string(off) + ", +" + std::to_string(len) +
+            ") outside the section or overlapping");
+    if (blocks_[std::size_t(L)] > data_.size() || blocks_[std::size_t(L)] * blockBytes != len)
+      dfail(lv + std::to_string(blocks_[std::size_t(L)]) + " blocks do not fill " +
+            std::to_string(len) + " bytes");
+    end = off + len;
+  }
+  // Every sub-block's offset must be the running count of blocks below: then every child index
+  // a view computes is inside its level.
+  const kernels::SvmmView v = view();
+  for (int L = top; L >= 1; --L) {
+    const glm::ivec3 size = L == top ? root_ : glm::ivec3(widths_[std::size_t(L)]);
+    const std::size_t sy = std::size_t(size.x), sz = sy * std::size_t(size.y);
+    std::uint64_t counter = 0;
+    for (std::uint64_t b = 0; b < blocks_[std::size_t(L)]; ++b) {
+      const std::uint8_t* block = v.level[L].data + b * v.level[L].blockBytes;
+      for (int bz = 0; bz < size.z; bz += 2)
+        for (int by = 0; by < size.y; by += 2)
+          for (int bx = 0; bx < size.x; bx += 2) {
+            const std::size_t s0 = std::size_t(bz) * sz + std::size_t(by) * sy + std::size_t(bx);
+            std::uint32_t offset = 0, count = 0;
+            for (int j = 0; j < 8; ++j) {
+              const std::uint32_t wj =
+                  v.word(block, s0 + std::size_t(j & 1) + (j & 2 ? sy : 0) + (j & 4 ? sz : 0));
+              offset |= (wj & 15u) << (4 * j);
+              count += !(wj & kSvmmTerminal);
+            }
+            if (count && offset != counter)
+              dfail("level " + std::to_string(L) + ", block " + std::to_string(b) +
+                    ": sub-block offset " + std::to_string(offset) + " (expected " +
+                    std::to_string(counter) + ")");
+            counter += count;
+          }
+    }
+    if (counter != blocks_[std::size_t(L - 1)])
+      dfail("level " + std::to_string(L) + " points to " + std::to_string(counter) +
+            " blocks, level " + std::to_string(L - 1) + " has " +
+            std::to_string(blocks_[std::size_t(L - 1)]));
+  }
+}
+
+kernels::SvmmView Layout::view(const std::byte* base) const {
+  kernels::SvmmView v;
+  const auto* b = reinterpret_cast<const std::uint8_t*>(base ? base : data_.data());
+  v.levels = levels_;
+  v.format = format_;
+  v.blockCompressed = (flags_ & kBlockCompressed) && levels_ > 1;
+  v.bias = bias_;
+  v.dimX = info_.dims.x, v.dimY = info_.dims.y, v.dimZ = info_.dims.z;
+  v.rootX = root_.x, v.rootY = root_.y, v.rootZ = root_.z;
+  const int top = levels_ - 1;
+  const int ws = wordBytes(format_), bs = baseBytesOf(format_);
+  for (int L = 0; L < levels_; ++L) {
+    auto& l = v.level[L];
+    l.data = b + offsets_[std::size_t(L)];
+    l.shift = shifts_[std::size_t(L)];
+    l.widthLog2 = L < top ? std::countr_zero(unsigned(widths_[std::size_t(L)])) : 0;
+    if (L == top) {
+      l.blockBytes = count3(root_) * std::size_t(levels_ == 1 ? bs : ws);
+    } else if (L > 0) {
+      const std::uint64_t w = std::uint64_t(widths_[std::size_t(L)]);
+      l.blockBytes = w * w * w * std::uint64_t(ws);
+    } else {
+      const std::uint64_t w = std::uint64_t(widths_[0]);
+      l.blockBytes = v.blockCompressed ? (w / 2) * (w / 2) * (w / 2) * std::uint64_t(1 + bs)
+                                       : w * w * w * std::uint64_t(bs);
+    }
+  }
+  return v;
+}
+
+RangeGrid Layout::rangeGrid() const {
+  RangeGrid g;
+  g.cellVoxels = 8;
+  g.cells = (info_.dims + 7) / 8;
+  const std::size_t n = g.cellCount();
+  std::vector<float> lo(n, std::numeric_limits<float>::infinity()),
+      hi(n, -std::numeric_limits<float>::infinity());
+  const kernels::SvmmView v = view();
+  auto cellIndex = [&](int cx, int cy, int cz) {
+    return (std::size_t(cz) * std::size_t(g.cells.y) + std::size_t(cy)) * std::size_t(g.cells.x) +
+           std::size_t(cx);
+  };
+  forEachLeaf(
+      [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {
+        const float s = v.scalar(value);
+        const glm::ivec3 a(x0, y0, z0);
+        const glm::ivec3 b = glm::min(a + size, info_.dims) - 1;
+        if (b.x < a.x || b.y < a.y || b.z < a.z) return;
+        for (int cz = a.z / 8; cz <= b.z / 8; ++cz)
+          for (int cy = a.y / 8; cy <= b.y / 8; ++cy)
+            for (int cx = a.x / 8; cx <= b.x / 8; ++cx) {
+              const std::size_t i = cellIndex(cx, cy, cz);
+              lo[i] = std::min(lo[i], s), hi[i] = std::max(hi[i], s);
+            }
+      },
+      [&](int x, int y, int z, std::uint32_t value) {
+        const float s = v.scalar(value);
+        const std::size_t i = cellIndex(x / 8, y / 8, z / 8);
+        lo[i] = std::min(lo[i], s), hi[i] = std::max(hi[i], s);
+      });
+  // Dilate by one cell: covers the one-voxel dilation the raycaster relies on.
+  g.lo.assign(n, 0), g.hi.assign(n, 0);
+  for (int cz = 0; cz < g.cells.z; ++cz)
+    for (int cy = 0; cy < g.cells.y; ++cy)
+      for (int cx = 0; cx < g.cells.x; ++cx) {
+        float a = std::numeric_limits<float>::infinity(), b = -a;
+        for (int dz = std::max(cz - 1, 0); dz <= std::min(cz + 1, g.cells.z - 1); ++dz)
+          for (int dy = std::max(cy - 1, 0); dy <= std::min(cy + 1, g.cells.y - 1); ++dy)
+            for (int dx = std::max(cx - 1, 0); dx <= std::min(cx + 1, g.cells.x - 1); ++dx) {
+              const std::size_t i = cellIndex(dx, dy, dz);
+              a = std::min(a, lo[i]), b = std::max(b, hi[i]);
+            }
+        g.lo[cellIndex(cx, cy, cz)] = a, g.hi[cellIndex(cx, cy, cz)] = b;
+      }
+  return g;
+}
+
+Volume decode(const VolumeInfo& info, const SectionSet& sections) {
+  const Layout layout(info, sections);
+  if (layout.format() == kSvmmRgba32)
+    throw FormatError(sections.source, "an RGBA svmm volume has no scalar decode (use decodeRgba)");
+  Volume out = Volume::allocate(info.dims, info.type, info.spacing);
+  const kernels::SvmmView v = layout.view();
+  dispatchScalar(info.type, [&](auto t) {
+    using T = decltype(t);
+    T* dst = out.as<T>().data();
+    auto at = [&](int x, int y, int z) {
+      return (std::size_t(z) * std::size_t(info.dims.y) + std::size_t(y)) *
+                 std::size_t(info.dims.x) +
+             std::size_t(x);
+    };
+    layout.forEachLeaf(
+        [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {
+          const T s = T(int(value) - v.bias);
+          const glm::ivec3 b = glm::min(glm::ivec3(x0, y0, z0) + size, info.dims);
+          for (int z = z0; z < b.z; ++z)
+            for (int y = y0; y < b.y; ++y)
+              for (int x = x0; x < b.x; ++x) dst[at(x, y, z)] = s;
+        },
+        [&](int x, int y, int z, std::uint32_t value) {
+          dst[at(x, y, z)] = T(int(value) - v.bias);
+        });
+  });
+  out.computeRange();
+  return out;
+}
+
+RgbaVolume decodeRgba(const VolumeInfo& info, const SectionSet& sections) {
+  const Layout layout(info, sections);
+  if (layout.format() != kSvmmRgba32) throw FormatError(sections.source, "not an RGBA svmm volume");
+  RgbaVolume out;
+  out.dims = info.dims;
+  out.spacing = info.spacing;
+  out.rgba.assign(info.voxelCount(), 0);
+  auto at = [&](int x, int y, int z) {
+    return (std::size_t(z) * std::size_t(info.dims.y) + std::size_t(y)) * std::size_t(info.dims.x) +
+           std::size_t(x);
+  };
+  layout.forEachLeaf(
+      [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {
+        const glm::ivec3 b = glm::min(glm::ivec3(x0, y0, z0) + size, info.dims);
+        for (int z = z0; z < b.z; ++z)
+          for (int y = y0; y < b.y; ++y)
+            for (int x = x0; x < b.x; ++x) out.rgba[at(x, y, z)] = value;
+      },
+      [&](int x, int y, int z, std::uint32_t value) { out.rgba[at(x, y, z)] = value; });
+  return out;
+}
+
+RgbaVolume generateMengerRgba(int level) {
+  const Volume m = generateMenger(level);
+  RgbaVolume out;
+  out.dims = m.dims;
+  out.rgba.assign(m.voxelCount(), 0);
+  const int n = m.dims.x;
+  const std::uint8_t* src = m.as<std::uint8_t>().data();
+  auto ramp = [&](int i) {
+    return n > 1 ? std::uint32_t((255 * i + (n - 1) / 2) / (n - 1)) : 255u;
+  };
+  std::size_t i = 0;
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x, ++i)
+        if (src[i]) out.rgba[i] = ramp(x) | (ramp(y) << 8) | (ramp(z) << 16) | (255u << 24);
+  return out;
+}
+
+double psnrRgba(const RgbaVolume& a, const RgbaVolume& b) {
+  if (a.dims != b.dims || a.rgba.size() != b.rgba.size())
+    throw std::invalid_argument("psnrRgba: volumes differ in size");
+  long double se = 0;
+  for (std::size_t i = 0; i < a.rgba.size(); ++i)
+    for (int c = 0; c < 4; ++c) {
+      const double d =
+          double((a.rgba[i] >> (8 * c)) & 255u) - double((b.rgba[i] >> (8 * c)) & 255u);
+      se += d * d;
+    }
+  if (se == 0) return std::numeric_limits<double>::infinity();
+  const double mse = double(se / (4.0L * (long double)a.rgba.size()));
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+}  // namespace voxwall::codec::svmm
