@@ -36,6 +36,12 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
   r.stepWorld = float(settings.stepVoxels * minSpacing);
   r.earlyTermination = float(settings.earlyTerminationOpacity);
   r.shading = settings.shading;
+  r.nearest = settings.nearest;
+  // A pixel spans 2 tan(fovY / 2) / height radians; in voxels of the largest spacing (the
+  // fewest voxels, so a level is never coarser than the footprint on any axis).
+  const double maxSpacing = std::max({info.spacing.x, info.spacing.y, info.spacing.z});
+  r.lodAngle =
+      settings.levelOfDetail ? float(2.0 * tanY / double(screenHeight) / maxSpacing) : 0.0f;
 
   if (reuse) {
     plan.lut = reuse->lut;

@@ -50,6 +50,14 @@ void RenderVolume::init() {
       vqLayout_.emplace(info_, sections_);
       ranges_ = vqLayout_->rangeGrid();
       return;
+    case codec::CodecId::Svmm:
+      svmmLayout_.emplace(info_, sections_);
+      if (svmmLayout_->format() == codec::kernels::kSvmmRgba32)
+        throw FormatError(sections_.source,
+                          "an RGBA svmm volume cannot be rendered: the raycaster maps scalar "
+                          "values through a transfer function");
+      ranges_ = svmmLayout_->rangeGrid();
+      return;
     default:
       throw FormatError(sections_.source, "codec '" + std::string(codec::codecName(info_.codec)) +
                                               "' cannot be rendered by this build");
@@ -57,11 +65,14 @@ void RenderVolume::init() {
 }
 
 std::span<const std::byte> RenderVolume::payload() const {
-  return vqLayout_ ? vqLayout_->dataBytes() : rawLayout_->brickBytes();
+  if (vqLayout_) return vqLayout_->dataBytes();
+  if (svmmLayout_) return svmmLayout_->dataBytes();
+  return rawLayout_->brickBytes();
 }
 
 ViewVariant RenderVolume::view(const std::byte* base) const {
   if (vqLayout_) return vqLayout_->view(base);
+  if (svmmLayout_) return svmmLayout_->view(base);
   return codec::dispatchScalar(
       info_.type, [&](auto t) -> ViewVariant { return rawLayout_->view<decltype(t)>(base); });
 }

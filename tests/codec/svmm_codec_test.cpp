@@ -140,6 +140,21 @@ TEST(SvmmCodec, LosslessRgbaAtQuality100) {
     }
 }
 
+TEST(SvmmCodec, RangeGridFromTheLeavesEqualsTheDecodedVolumes) {
+  const Volume v = mixed<std::uint16_t>({45, 38, 30}, 100, 3000, 47);
+  for (int q : {100, 80}) {
+    Progress quiet;
+    const auto c = svmm::encode(v, params(4, 4, q), quiet);
+    const Volume d = svmm::decode(c.info, c.view());
+    const RangeGrid want = computeRangeGrid(d, 4);
+    const RangeGrid got = svmm::Layout(c.info, c.view()).rangeGrid();
+    EXPECT_EQ(got.cellVoxels, 4);
+    EXPECT_EQ(got.cells, want.cells);
+    EXPECT_EQ(got.lo, want.lo) << q;
+    EXPECT_EQ(got.hi, want.hi) << q;
+  }
+}
+
 TEST(SvmmCodec, ConstantVolumeCollapsesToTheRoot) {
   Volume v = Volume::allocate({70, 50, 33}, ScalarType::UInt16);
   for (auto& x : v.as<std::uint16_t>()) x = 1234;
@@ -182,11 +197,14 @@ TEST(SvmmCodec, LossyErrorIsBoundedAndSizeShrinksWithQuality) {
     EXPECT_LE(maxErr, bound) << "q=" << q;
     EXPECT_LE(stats.dataBytes, lastBytes) << "q=" << q;
     const double measured = psnr(v, d);
-    if (std::isinf(measured))
+    if (std::isinf(measured)) {
       EXPECT_TRUE(std::isinf(stats.psnr)) << "q=" << q;
-    else
+    } else {
       EXPECT_NEAR(stats.psnr, measured, 1e-9) << "q=" << q;
-    if (q <= 65) EXPECT_FALSE(std::isinf(measured)) << "q=" << q;  // lossy for real
+    }
+    if (q <= 65) {
+      EXPECT_FALSE(std::isinf(measured)) << "q=" << q;  // lossy for real
+    }
     EXPECT_LE(stats.psnr, lastPsnr + 1e-9) << "q=" << q;
     lastBytes = stats.dataBytes, lastPsnr = stats.psnr;
     expectPointQueriesMatch(c, d);

@@ -561,49 +561,40 @@ kernels::SvmmView Layout::view(const std::byte* base) const {
 }
 
 RangeGrid Layout::rangeGrid() const {
+  constexpr int kCell = 4;  // as the raw codec's default
   RangeGrid g;
-  g.cellVoxels = 8;
-  g.cells = (info_.dims + 7) / 8;
+  g.cellVoxels = kCell;
+  g.cells = (info_.dims + kCell - 1) / kCell;
   const std::size_t n = g.cellCount();
-  std::vector<float> lo(n, std::numeric_limits<float>::infinity()),
-      hi(n, -std::numeric_limits<float>::infinity());
+  g.lo.assign(n, std::numeric_limits<float>::infinity());
+  g.hi.assign(n, -std::numeric_limits<float>::infinity());
   const kernels::SvmmView v = view();
-  auto cellIndex = [&](int cx, int cy, int cz) {
-    return (std::size_t(cz) * std::size_t(g.cells.y) + std::size_t(cy)) * std::size_t(g.cells.x) +
-           std::size_t(cx);
+  const glm::ivec3 last = info_.dims - 1;
+  // Each value goes to every cell within one voxel of where it is (the dilation the raycaster
+  // relies on: a trilinear sample whose lower corner is in a cell reads up to one voxel past it).
+  auto add = [&](glm::ivec3 a, glm::ivec3 b, float s) {
+    a = glm::max(a - 1, glm::ivec3(0)) / kCell;
+    b = glm::min(b + 1, last) / kCell;
+    for (int cz = a.z; cz <= b.z; ++cz)
+      for (int cy = a.y; cy <= b.y; ++cy)
+        for (int cx = a.x; cx <= b.x; ++cx) {
+          const std::size_t i = (std::size_t(cz) * std::size_t(g.cells.y) + std::size_t(cy)) *
+                                    std::size_t(g.cells.x) +
+                                std::size_t(cx);
+          g.lo[i] = std::min(g.lo[i], s), g.hi[i] = std::max(g.hi[i], s);
+        }
   };
   forEachLeaf(
       [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {
-        const float s = v.scalar(value);
         const glm::ivec3 a(x0, y0, z0);
-        const glm::ivec3 b = glm::min(a + size, info_.dims) - 1;
+        const glm::ivec3 b = glm::min(a + size - 1, last);
         if (b.x < a.x || b.y < a.y || b.z < a.z) return;
-        for (int cz = a.z / 8; cz <= b.z / 8; ++cz)
-          for (int cy = a.y / 8; cy <= b.y / 8; ++cy)
-            for (int cx = a.x / 8; cx <= b.x / 8; ++cx) {
-              const std::size_t i = cellIndex(cx, cy, cz);
-              lo[i] = std::min(lo[i], s), hi[i] = std::max(hi[i], s);
-            }
+        add(a, b, v.scalar(value));
       },
       [&](int x, int y, int z, std::uint32_t value) {
-        const float s = v.scalar(value);
-        const std::size_t i = cellIndex(x / 8, y / 8, z / 8);
-        lo[i] = std::min(lo[i], s), hi[i] = std::max(hi[i], s);
+        const glm::ivec3 p(x, y, z);
+        add(p, p, v.scalar(value));
       });
-  // Dilate by one cell: covers the one-voxel dilation the raycaster relies on.
-  g.lo.assign(n, 0), g.hi.assign(n, 0);
-  for (int cz = 0; cz < g.cells.z; ++cz)
-    for (int cy = 0; cy < g.cells.y; ++cy)
-      for (int cx = 0; cx < g.cells.x; ++cx) {
-        float a = std::numeric_limits<float>::infinity(), b = -a;
-        for (int dz = std::max(cz - 1, 0); dz <= std::min(cz + 1, g.cells.z - 1); ++dz)
-          for (int dy = std::max(cy - 1, 0); dy <= std::min(cy + 1, g.cells.y - 1); ++dy)
-            for (int dx = std::max(cx - 1, 0); dx <= std::min(cx + 1, g.cells.x - 1); ++dx) {
-              const std::size_t i = cellIndex(dx, dy, dz);
-              a = std::min(a, lo[i]), b = std::max(b, hi[i]);
-            }
-        g.lo[cellIndex(cx, cy, cz)] = a, g.hi[cellIndex(cx, cy, cz)] = b;
-      }
   return g;
 }
 

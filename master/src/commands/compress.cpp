@@ -5,6 +5,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 
 #include "../cli_common.hpp"
@@ -20,6 +21,11 @@ struct CompressOptions {
   int reduction = 1;
   double bitsPerVoxel = 0;
   std::string codebook = "compressed";
+  int quality = 100;
+  std::string blockWidth = "4";
+  int rootWidth = 32;
+  bool baseCompression = false;
+  bool svmmOptionGiven = false;
   int threads = 0;
   bool quiet = false;
   RawInputOptions raw;
@@ -27,9 +33,36 @@ struct CompressOptions {
 
 void runCompress(const CompressOptions& o) {
   const auto codecId = codec::parseCodecName(o.codec);
-  if (codecId != codec::CodecId::Raw && codecId != codec::CodecId::Vq)
+  if (codecId != codec::CodecId::Raw && codecId != codec::CodecId::Vq &&
+      codecId != codec::CodecId::Svmm)
     throw std::invalid_argument("codec '" + o.codec +
-                                "' is not implemented yet (available: raw, vq)");
+                                "' is not implemented yet (available: raw, vq, svmm)");
+  if (codecId != codec::CodecId::Svmm && o.svmmOptionGiven)
+    throw std::invalid_argument(
+        "--quality, --block-width, --root-width and --base-compression need --codec svmm");
+  codec::svmm::Params sp;
+  if (codecId == codec::CodecId::Svmm) {
+    sp.quality = o.quality;
+    sp.rootWidth = o.rootWidth;
+    sp.baseCompression = o.baseCompression;
+    sp.threads = o.threads;
+    if (o.blockWidth == "stepped") {
+      sp.stepped = true;
+    } else {
+      std::size_t used = 0;
+      int w = 0;
+      try {
+        w = std::stoi(o.blockWidth, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != o.blockWidth.size() || w < 2 || w > 64 || (w & (w - 1)))
+        throw std::invalid_argument(
+            "--block-width must be a power of two in 2..64 or 'stepped', not '" + o.blockWidth +
+            "'");
+      sp.blockWidth = w;
+    }
+  }
   if (o.codebook != "compressed" && o.codebook != "plain")
     throw std::invalid_argument("--codebook must be 'compressed' or 'plain', not '" + o.codebook +
                                 "'");
@@ -46,6 +79,29 @@ void runCompress(const CompressOptions& o) {
   std::string detail;
   if (codecId == codec::CodecId::Raw) {
     compressed = codec::raw::encode(v, {o.brick, o.rangeCell}, progress);
+  } else if (codecId == codec::CodecId::Svmm) {
+    codec::svmm::EncodeStats s;
+    compressed = codec::svmm::encode(v, sp, progress, &s);
+    std::string widths, blocks;
+    for (int i = 0; i < s.levels; ++i) {
+      const std::string sep = i ? ", " : "";
+      widths += sep + (i + 1 < s.levels ? std::to_string(s.widths[std::size_t(i)]) : "root");
+      blocks += sep + std::to_string(s.blocks[std::size_t(i)]);
+    }
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "\n  %d levels (block widths %s; blocks per level from the base: %s)%s"
+                  "\n  quality %d (delta %.4g of the value range): ",
+                  s.levels, widths.c_str(), blocks.c_str(),
+                  sp.baseCompression && s.levels > 1 ? ", base blocks compressed" : "", sp.quality,
+                  s.delta);
+    detail = line;
+    if (std::isinf(s.psnr)) {
+      detail += "lossless";
+    } else {
+      std::snprintf(line, sizeof line, "PSNR %.2f dB", s.psnr);
+      detail += line;
+    }
   } else {
     codec::vq::Params p;
     p.reduction = o.reduction;
@@ -109,9 +165,10 @@ void addCompressCommand(CLI::App& app) {
       ->required();
   cmd->add_option("-o,--output", o->output, "Output .vwz file")->required();
   cmd->add_option("--codec", o->codec,
-                  "Codec: 'raw' (bricked, uncompressed) or 'vq' (4^3 bricks deduplicated into a "
+                  "Codec: 'raw' (bricked, uncompressed), 'vq' (4^3 bricks deduplicated into a "
                   "codebook, lossless unless --reduction/--bits-per-voxel; 8/12/16-bit integer "
-                  "data)")
+                  "data) or 'svmm' (sparse voxel mip-map: blocks within --quality of their mean "
+                  "dropped; lossless at quality 100; 8/16-bit integer data)")
       ->capture_default_str();
   cmd->add_option(
          "--brick", o->brick,
@@ -135,12 +192,35 @@ void addCompressCommand(CLI::App& app) {
                   "vq codec: 'compressed' (RBUC variable-length codewords) or 'plain' (bit-packed "
                   "at the data's bit depth: faster to decode, larger)")
       ->capture_default_str();
+  std::vector<CLI::Option*> svmmOptions;
+  svmmOptions.push_back(
+      cmd->add_option("--quality", o->quality,
+                      "svmm codec: 0..100; a block is dropped when every voxel is within "
+                      "sqrt(channels) (1 - Q/100) of the value range of its mean; 100 is lossless")
+          ->check(CLI::Range(0, 100))
+          ->capture_default_str());
+  svmmOptions.push_back(cmd->add_option("--block-width", o->blockWidth,
+                                        "svmm codec: block width of every level (2, 4, ... 64) "
+                                        "or 'stepped' (2, 4, 8, ... from the base level up)")
+                            ->capture_default_str());
+  svmmOptions.push_back(
+      cmd->add_option("--root-width", o->rootWidth,
+                      "svmm codec: stop building levels once a level is at most this wide")
+          ->check(CLI::Range(2, 1 << 20))
+          ->capture_default_str());
+  svmmOptions.push_back(cmd->add_flag(
+      "--base-compression", o->baseCompression,
+      "svmm codec: store base blocks as 2^3 groups of an occupancy bitmap and one shared value "
+      "(lossy; the thesis's Fig. 1.2c)"));
   cmd->add_option("--threads", o->threads, "Encoder threads (0: every usable core)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", o->quiet, "No progress output");
   o->raw.addTo(*cmd);
-  cmd->callback([o] { runCompress(*o); });
+  cmd->callback([o, svmmOptions] {
+    for (const auto* opt : svmmOptions) o->svmmOptionGiven |= opt->count() > 0;
+    runCompress(*o);
+  });
 }
 
 }  // namespace voxwall::cli

@@ -3,6 +3,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 
@@ -25,6 +26,9 @@ void runDecompress(const DecompressOptions& o) {
       break;
     case codec::CodecId::Vq:
       v = codec::vq::decode(file.info(), file.sections());
+      break;
+    case codec::CodecId::Svmm:
+      v = codec::svmm::decode(file.info(), file.sections());
       break;
     default:
       throw FormatError(o.input, "codec '" + std::string(codec::codecName(file.info().codec)) +

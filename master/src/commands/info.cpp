@@ -4,6 +4,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 
 #include "../cli_common.hpp"
@@ -66,6 +67,29 @@ void runInfo(const InfoOptions& o) {
                     layout.reduction(), layout.psnr());
       else
         std::printf("quality     lossless\n");
+    }
+    if (info.codec == codec::CodecId::Svmm) {
+      const codec::svmm::Layout layout(info, file.sections());
+      static const char* kFormats[] = {"", "DENSITY8", "DENSITY16", "RGBA32"};
+      std::string widths, blocks;
+      for (int i = 0; i < layout.levels(); ++i) {
+        const std::string sep = i ? ", " : "";
+        widths += sep + (i + 1 < layout.levels() ? std::to_string(layout.widths()[std::size_t(i)])
+                                                 : std::string("root"));
+        blocks += sep + std::to_string(layout.blocks()[std::size_t(i)]);
+      }
+      std::printf("voxels      %s%s\n", kFormats[layout.format()],
+                  (layout.flags() & codec::svmm::kBlockCompressed) && layout.levels() > 1
+                      ? ", base blocks compressed (bitmap + one value per 2^3)"
+                      : "");
+      std::printf("levels      %d (block widths %s%s; root width %d)\n", layout.levels(),
+                  widths.c_str(), layout.stepped() ? ", stepped" : "", layout.rootWidth());
+      std::printf("blocks      %s (per level, from the base)\n", blocks.c_str());
+      if (std::isinf(layout.psnr()))
+        std::printf("quality     %d, lossless\n", layout.quality());
+      else
+        std::printf("quality     %d (delta %.4g), PSNR %.2f dB\n", layout.quality(), layout.delta(),
+                    layout.psnr());
     }
     return;
   }

@@ -31,6 +31,8 @@ struct RenderOptions {
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
   int testStallRank = -1, testStallCall = 0;
+  std::string sampling = "trilinear";
+  bool lod = false;
   bool shading = false, noSkip = false, noWrite = false, quiet = false, verbose = false;
   bool balanceGiven = false, masterOnly = false, dryRun = false, resume = false;
   RawInputOptions raw;
@@ -272,6 +274,8 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["tf_range"] = o.tfRange;
   m["step"] = render.stepVoxels;
   m["shading"] = render.shading;
+  if (render.nearest) m["sampling"] = "nearest";
+  if (render.levelOfDetail) m["lod"] = true;
   m["format"] = job.format;
   m["background"] = o.background;
   m["backend"] = o.backend;  // CUDA and CPU may differ in the last bit of a channel
@@ -303,6 +307,10 @@ void runRender(const RenderOptions& o) {
     s.render.stepVoxels = o.step;
     s.render.shading = o.shading;
     s.render.emptySpaceSkipping = !o.noSkip;
+    if (o.sampling != "trilinear" && o.sampling != "nearest")
+      throw std::invalid_argument("--sampling: expected trilinear or nearest");
+    s.render.nearest = o.sampling == "nearest";
+    s.render.levelOfDetail = o.lod;
     if (o.backend != "cpu" && o.backend != "cuda")
       throw std::invalid_argument("--backend: expected cpu or cuda");
     const auto baseBytes = master::processMemory().first;
@@ -319,6 +327,10 @@ void runRender(const RenderOptions& o) {
     } else {
       s.volume = node::RenderVolume::open(s.input);
     }
+    if ((s.render.nearest || s.render.levelOfDetail) &&
+        s.volume->info().codec != codec::CodecId::Svmm)
+      throw std::invalid_argument(
+          "--sampling nearest and --lod need an svmm volume (compress it with --codec svmm)");
     s.needBytes =
         estimateRankBytes(s.job, comm->rank(), comm->size(), s.volume->storedBytes(), baseBytes);
     if (!o.memoryBudget.empty()) {
@@ -585,6 +597,12 @@ void addRenderCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--shading", o->shading, "Blinn-Phong shading from central-difference gradients");
   cmd->add_flag("--no-skip", o->noSkip, "Disable empty-space skipping (for measurements)");
+  cmd->add_option("--sampling", o->sampling,
+                  "svmm volumes: trilinear, or nearest (the discrete voxels of the SVMM thesis)")
+      ->capture_default_str();
+  cmd->add_flag("--lod", o->lod,
+                "svmm volumes: sample coarser mip levels where a voxel is smaller than the "
+                "pixel's footprint");
   cmd->add_option("--backend", o->backend, "cpu or cuda")->capture_default_str();
   cmd->add_option("--threads", o->threads,
                   "CPU backend threads per rank (0 = the host's cores shared by its ranks)")

@@ -103,7 +103,7 @@ class Layout {
   Layout(const VolumeInfo& info, const SectionSet& sections);
   std::span<const std::byte> dataBytes() const { return data_; }
   kernels::SvmmView view(const std::byte* base = nullptr) const;
-  // Value ranges per 8^3 cell, dilated by one cell, from the leaves (no full decode).
+  // Value ranges per 4^3 cell, dilated by one voxel, from the leaves (no full decode).
   RangeGrid rangeGrid() const;
   int format() const { return format_; }
   int levels() const { return levels_; }

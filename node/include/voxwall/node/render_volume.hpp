@@ -10,6 +10,7 @@
 #include <voxwall/codec/kernels/raw_view.hpp>
 #include <voxwall/codec/range_grid.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 
@@ -19,7 +20,7 @@ namespace voxwall::node {
 using ViewVariant =
     std::variant<codec::kernels::RawView<std::uint8_t>, codec::kernels::RawView<std::uint16_t>,
                  codec::kernels::RawView<std::int16_t>, codec::kernels::RawView<float>,
-                 codec::kernels::VqView>;
+                 codec::kernels::VqView, codec::kernels::SvmmView>;
 
 class RenderVolume {
  public:
@@ -52,6 +53,7 @@ class RenderVolume {
   codec::SectionSet sections_;
   std::optional<codec::raw::Layout> rawLayout_;  // validated once, in init()
   std::optional<codec::vq::Layout> vqLayout_;
+  std::optional<codec::svmm::Layout> svmmLayout_;
   codec::VolumeInfo info_;
   codec::RangeGrid ranges_;
   std::uint64_t storedBytes_ = 0;

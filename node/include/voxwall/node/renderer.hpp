@@ -19,6 +19,10 @@ struct RenderSettings {
   double stepVoxels = 0.25;  // ray step in voxels (of the smallest spacing); Guthe & Goesele: 1/4
   bool shading = false;      // Blinn-Phong from central-difference gradients
   bool emptySpaceSkipping = true;
+  // Views with mip levels (svmm): nearest-voxel samples instead of trilinear, and coarser levels
+  // where a voxel is smaller than the pixel's footprint (level of detail).
+  bool nearest = false;
+  bool levelOfDetail = false;
   int coarseCellFactor = 4;  // coarse skip cells are this many fine (codec range) cells per side
   double earlyTerminationOpacity = 0.995;
   int lutEntries = 4096;

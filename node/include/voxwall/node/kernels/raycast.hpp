@@ -48,6 +48,10 @@ struct RayFrame {
   float stepWorld = 0.25f;      // step length in world units
   float earlyTermination = 0.995f;
   bool shading = false;
+  // For views with mip levels (View::kTraversal): nearest-voxel sampling, and the ray's
+  // footprint in voxels per world unit of t (0: always the finest level).
+  bool nearest = false;
+  float lodAngle = 0.0f;
   float ambient = 0.1f, diffuse = 0.7f, specular = 0.2f, shininess = 10.0f;
 };
 static_assert(std::is_trivially_copyable_v<RayFrame>);
@@ -178,6 +182,11 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
   glm::vec4 acc(0.0f);
   bool transparent = true;        // was the last sample fully transparent?
   typename View::RayCache cache;  // the view's per-ray state (e.g. the last cell's corners)
+  // Views that traverse a mip hierarchy (svmm) take the sampling mode and the ray's footprint,
+  // and report the region around a sample where every sample has its value (a terminal block):
+  // a transparent one is skipped in one step (Faas 2016, sections 3.2.2-3.2.4).
+  constexpr bool traversal = requires { View::kTraversal; };
+  if constexpr (traversal) cache.nearest = f.nearest;
   int k = 0;
   while (k < steps) {
     int kEnd = steps;
@@ -221,9 +230,29 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
           continue;
       }
       ++out.samples;
+      if constexpr (traversal) {
+        if (f.lodAngle > 0.0f)
+          cache.footprint = (tEnter + (float(k) + 0.5f) * f.stepWorld) * f.lodAngle;
+      }
       if (shadeAndComposite(view, cache, f, lut, p, dir, acc, transparent)) {
         out.rgba = acc;
         return out;
+      }
+      if constexpr (traversal) {
+        if (transparent && cache.regionValid) {
+          float tOut =
+              boxExit(o, invD, glm::vec3(cache.regionLo[0], cache.regionLo[1], cache.regionLo[2]),
+                      glm::vec3(cache.regionHi[0], cache.regionHi[1], cache.regionHi[2]));
+          // The region holds for this level only: stop where the footprint picks another.
+          if (f.lodAngle > 0.0f) {
+            const float tLevel = cache.regionFootprintMax / f.lodAngle;
+            tOut = tLevel < tOut ? tLevel : tOut;
+          }
+          // Samples before index kr lie inside the region: same value, also transparent.
+          const float kr = (tOut - tEnter) * invStep - 0.5f;
+          const int kNext = kr >= float(steps) ? steps : codec::kernels::ceilToInt(kr);
+          if (kNext > k + 1) k = kNext - 1;
+        }
       }
     }
   }
