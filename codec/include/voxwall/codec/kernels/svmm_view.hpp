@@ -93,7 +93,11 @@ struct SvmmView {
   // region of the last sample, and what the raycaster sets before each sample.
   struct RayCache {
     int kx[kSvmmMaxLevels], ky[kSvmmMaxLevels], kz[kSvmmMaxLevels];
-    const std::uint8_t* block[kSvmmMaxLevels];
+    const std::uint8_t* block[kSvmmMaxLevels];  // level 0 unused: see below
+    // Base blocks, one per parity of the block coordinates: a trilinear cell straddling block
+    // borders touches up to eight neighbouring blocks, which all fit.
+    int bx0[8], by0[8], bz0[8];
+    const std::uint8_t* block0[8];
     int ix = -1, iy = -1, iz = -1, il = -1;  // cell (lower corner) and level of c[]
     float c[8] = {};
     int cellLevel = 0, cellStop = 0, cellVx = 0, cellVy = 0, cellVz = 0;  // see sample()
@@ -109,6 +113,7 @@ struct SvmmView {
     bool nearest = false;
     VOXWALL_HD_INLINE RayCache() {
       for (int i = 0; i < kSvmmMaxLevels; ++i) kx[i] = -1, ky[i] = -1, kz[i] = -1, block[i] = 0;
+      for (int i = 0; i < 8; ++i) bx0[i] = -1, by0[i] = -1, bz0[i] = -1, block0[i] = 0;
     }
   };
   // Tells the raycaster that this view reports constant regions and takes footprints.
@@ -123,6 +128,17 @@ struct SvmmView {
     const int ts = level[target].shift;
     int L = target;
     const std::uint8_t* block = nullptr;
+    if (target == 0 && top > 0) {
+      const int wl = level[0].widthLog2;
+      const int bx = gx >> wl, by = gy >> wl, bz = gz >> wl;
+      const int slot = (bx & 1) | ((by & 1) << 1) | ((bz & 1) << 2);
+      if (c.bx0[slot] == bx && c.by0[slot] == by && c.bz0[slot] == bz) {
+        stop = 0;
+        const int m = (1 << wl) - 1;
+        return baseValue(c.block0[slot], gx & m, gy & m, gz & m);
+      }
+      L = 1;
+    }
     for (; L < top; ++L) {
       const int sh = level[L].shift - ts + level[L].widthLog2;
       if (c.kx[L] == (gx >> sh) && c.ky[L] == (gy >> sh) && c.kz[L] == (gz >> sh)) {
@@ -170,7 +186,13 @@ struct SvmmView {
       --L;
       block = level[L].data + std::size_t(offset + before) * level[L].blockBytes;
       const int shc = level[L].shift - ts + level[L].widthLog2;
-      c.kx[L] = gx >> shc, c.ky[L] = gy >> shc, c.kz[L] = gz >> shc, c.block[L] = block;
+      const int bx = gx >> shc, by = gy >> shc, bz = gz >> shc;
+      if (L == 0) {
+        const int slot = (bx & 1) | ((by & 1) << 1) | ((bz & 1) << 2);
+        c.bx0[slot] = bx, c.by0[slot] = by, c.bz0[slot] = bz, c.block0[slot] = block;
+      } else {
+        c.kx[L] = bx, c.ky[L] = by, c.kz[L] = bz, c.block[L] = block;
+      }
     }
   }
 
@@ -209,6 +231,26 @@ struct SvmmView {
       return;
     }
     c[0] = v0;
+    if (stop0 == 0 && levels > 1) {
+      // Base voxel: when the whole cell lies in its base block (three quarters of the cells for
+      // w = 8), read the other corners from the block the lookup just cached.
+      const int m = (1 << level[0].widthLog2) - 1;
+      const int lx = ix & m, ly = iy & m, lz = iz & m;
+      if (lx < m && ly < m && lz < m) {
+        const int wl = level[0].widthLog2;
+        const std::uint8_t* b =
+            rc.block0[((ix >> wl) & 1) | (((iy >> wl) & 1) << 1) | (((iz >> wl) & 1) << 2)];
+        const int dx = x1 - ix, dy = y1 - iy, dz = z1 - iz;  // 0 at the volume's far edges
+        c[1] = scalar(baseValue(b, lx + dx, ly, lz));
+        c[2] = scalar(baseValue(b, lx, ly + dy, lz));
+        c[3] = scalar(baseValue(b, lx + dx, ly + dy, lz));
+        c[4] = scalar(baseValue(b, lx, ly, lz + dz));
+        c[5] = scalar(baseValue(b, lx + dx, ly, lz + dz));
+        c[6] = scalar(baseValue(b, lx, ly + dy, lz + dz));
+        c[7] = scalar(baseValue(b, lx + dx, ly + dy, lz + dz));
+        return;
+      }
+    }
     c[1] = scalar(lookup(x1, iy, iz, T, rc, stop));
     c[2] = scalar(lookup(ix, y1, iz, T, rc, stop));
     c[3] = scalar(lookup(x1, y1, iz, T, rc, stop));
