@@ -125,9 +125,7 @@ struct SvmmView {
   VOXWALL_HD_INLINE std::uint32_t lookup(int gx, int gy, int gz, int target, RayCache& c,
                                          int& stop) const {
     const int top = levels - 1;
-    const int ts = level[target].shift;
     int L = target;
-    const std::uint8_t* block = nullptr;
     if (target == 0 && top > 0) {
       const int wl = level[0].widthLog2;
       const int bx = gx >> wl, by = gy >> wl, bz = gz >> wl;
@@ -139,6 +137,20 @@ struct SvmmView {
       }
       L = 1;
     }
+    return refine(gx, gy, gz, target, L, c, stop);
+  }
+
+  // The rest of lookup(): out of line on the host, so the cached path stays small where it is
+  // inlined (eight times per cell).
+#if defined(__CUDACC__) || !defined(__GNUC__)
+  VOXWALL_HD
+#else
+  __attribute__((noinline))
+#endif
+  std::uint32_t refine(int gx, int gy, int gz, int target, int L, RayCache& c, int& stop) const {
+    const int top = levels - 1;
+    const int ts = level[target].shift;
+    const std::uint8_t* block = nullptr;
     for (; L < top; ++L) {
       const int sh = level[L].shift - ts + level[L].widthLog2;
       if (c.kx[L] == (gx >> sh) && c.ky[L] == (gy >> sh) && c.kz[L] == (gz >> sh)) {
@@ -277,6 +289,7 @@ struct SvmmView {
       const int ix = int(x + 0.5f), iy = int(y + 0.5f), iz = int(z + 0.5f);
       int stop;
       const float v = scalar(lookup(ix, iy, iz, T, rc, stop));
+      rc.il = T;  // the level gradients use (rc.ix stays -1: no cell corners in this mode)
       const int d = level[stop].shift - sh;
       setRegion(rc, T, ix >> d << d, iy >> d << d, iz >> d << d, 1 << d, -0.5f);
       return v;
@@ -341,9 +354,35 @@ struct SvmmView {
     z = z < 0.0f ? 0.0f : (z > mz ? mz : z);
     const int ix = int(x), iy = int(y), iz = int(z);
     float c[8];
-    bool constant;
-    int stop, vx, vy, vz;
-    corners(ix, iy, iz, T, rc, c, constant, stop, vx, vy, vz);
+    const int dx = ix - rc.ix, dy = iy - rc.iy, dz = iz - rc.iz;
+    if (rc.il == T && (dx == 1 || dx == -1) + (dy == 1 || dy == -1) + (dz == 1 || dz == -1) == 1 &&
+        (dx == 0) + (dy == 0) + (dz == 0) == 2) {
+      // A neighbouring cell (central differences step one voxel along one axis): it shares a
+      // face with the sample's cell, so only the four corners of the far face are looked up.
+      // Corner i is at (ix + (i & 1), iy + (i >> 1 & 1), iz + (i >> 2)), clamped.
+      const int a = dx ? 0 : (dy ? 1 : 2), bit = 1 << a, d = dx + dy + dz;
+      const int sh2 = level[T].shift;
+      const int m[3] = {(dimX - 1) >> sh2, (dimY - 1) >> sh2, (dimZ - 1) >> sh2};
+      const int lo[3] = {ix, iy, iz};
+      int stop;
+      for (int i = 0; i < 8; ++i) {
+        const bool far = d > 0 ? (i & bit) : !(i & bit);
+        if (!far) {
+          c[i] = rc.c[i ^ bit];  // the shared face: the sample cell's opposite corner
+          continue;
+        }
+        int q[3];
+        for (int k = 0; k < 3; ++k) {
+          const int v = lo[k] + ((i >> k) & 1);
+          q[k] = v < m[k] ? v : m[k];
+        }
+        c[i] = scalar(lookup(q[0], q[1], q[2], T, rc, stop));
+      }
+    } else {
+      bool constant;
+      int stop, vx, vy, vz;
+      corners(ix, iy, iz, T, rc, c, constant, stop, vx, vy, vz);
+    }
     const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
     const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
     const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
