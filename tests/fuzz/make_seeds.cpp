@@ -3,6 +3,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 
 int main(int argc, char** argv) {
@@ -22,5 +23,15 @@ int main(int argc, char** argv) {
   writeContainer(vq::encode(generateSheppLogan(7, ScalarType::Int16), {}, quiet), dir + "/vq7.vwz");
   writeContainer(vq::encode(generateMarschnerLobb(9), lossy, quiet), dir + "/vq9-lossy.vwz");
   writeContainer(vq::encode(generateMenger(2), plain, quiet), dir + "/vq-plain.vwz");
+  svmm::Params tree;
+  tree.blockWidth = 2, tree.rootWidth = 2;
+  svmm::Params stepped;
+  stepped.stepped = true, stepped.rootWidth = 4, stepped.quality = 80,
+  stepped.baseCompression = true;
+  writeContainer(svmm::encode(generateSheppLogan(9), tree, quiet), dir + "/svmm9.vwz");
+  writeContainer(svmm::encode(generateSheppLogan(11, ScalarType::Int16), stepped, quiet),
+                 dir + "/svmm11-stepped.vwz");
+  writeContainer(svmm::encodeRgba(svmm::generateMengerRgba(2), tree, quiet),
+                 dir + "/svmm-rgba.vwz");
   return 0;
 }

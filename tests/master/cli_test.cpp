@@ -124,8 +124,16 @@ TEST(Cli, BadArgumentsGiveOneLine) {
                      "voxwall: unknown transfer-function preset");
   expectOneLineError(runVoxwall("render /nonexistent.nii"),
                      "voxwall: /nonexistent.nii: no such file");
-  expectOneLineError(runVoxwall("compress generated:menger:2 --codec svmm -o /tmp/x.vwz"),
-                     "voxwall: codec 'svmm' is not implemented");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --codec tvq -o /tmp/x.vwz"),
+                     "voxwall: codec 'tvq' is not implemented");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --quality 90 -o /tmp/x.vwz"),
+                     "voxwall: --quality, --block-width, --root-width and --base-compression need "
+                     "--codec svmm");
+  expectOneLineError(
+      runVoxwall("compress generated:menger:2 --codec svmm --block-width 3 -o /tmp/x.vwz"),
+      "voxwall: --block-width must be a power of two in 2..64 or 'stepped'");
+  expectOneLineError(runVoxwall("render generated:menger:2 --lod --size 8x8 --no-write"),
+                     "voxwall: --sampling nearest and --lod need an svmm volume");
   expectOneLineError(
       runVoxwall("compress generated:menger:2 --codec vq --codebook bogus -o /tmp/x.vwz"),
       "voxwall: --codebook must be");
@@ -155,6 +163,46 @@ TEST(Cli, VqCompressInfoDecompressRender) {
   const CliRun r = runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames"));
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
+}
+
+TEST(Cli, SvmmCompressInfoDecompressRender) {
+  test::TempDir dir;
+  const std::string vwz = dir.path("sl.vwz");
+  const CliRun c = runVoxwall(
+      "compress generated:shepp-logan:40 --codec svmm --block-width stepped --root-width 8 -q -o " +
+      vwz);
+  ASSERT_EQ(c.status, 0) << c.out;
+  EXPECT_NE(c.out.find("levels (block widths 2, 4, root;"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("quality 100 (delta 0 of the value range): lossless"), std::string::npos)
+      << c.out;
+  const CliRun info = runVoxwall("info " + vwz);
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("codec       svmm"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("levels      3 (block widths 2, 4, root, stepped; root width 8)"),
+            std::string::npos)
+      << info.out;
+  EXPECT_NE(info.out.find("quality     100, lossless"), std::string::npos) << info.out;
+  // Lossless: decompressing gives back the generated volume's voxels.
+  ASSERT_EQ(runVoxwall("decompress " + vwz + " -o " + dir.path("sl.nrrd")).status, 0);
+  ASSERT_EQ(runVoxwall("compress generated:shepp-logan:40 -q -o " + dir.path("raw.vwz")).status, 0);
+  ASSERT_EQ(runVoxwall("decompress " + dir.path("raw.vwz") + " -o " + dir.path("raw.nrrd")).status,
+            0);
+  EXPECT_EQ(test::readFile(dir.path("sl.nrrd")), test::readFile(dir.path("raw.nrrd")));
+  const CliRun lossy = runVoxwall(
+      "compress generated:shepp-logan:40 --codec svmm --quality 80 "
+      "--base-compression -q -o " +
+      dir.path("lossy.vwz"));
+  ASSERT_EQ(lossy.status, 0) << lossy.out;
+  EXPECT_NE(lossy.out.find("base blocks compressed"), std::string::npos) << lossy.out;
+  EXPECT_NE(lossy.out.find("PSNR"), std::string::npos) << lossy.out;
+  for (const char* extra : {"", " --sampling nearest", " --lod --shading"}) {
+    const CliRun r =
+        runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames") + extra);
+    EXPECT_EQ(r.status, 0) << r.out;
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
+  expectOneLineError(runVoxwall("render " + vwz + " --sampling cubic --size 8x8 --no-write"),
+                     "voxwall: --sampling: expected trilinear or nearest");
 }
 
 TEST(Cli, CudaBackendWithoutADeviceFailsCleanly) {

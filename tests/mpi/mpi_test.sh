@@ -114,6 +114,20 @@ case $scenario in
     run "$n" "${vq[@]}" --balance dynamic --cost-cell 8 --out multi || fail "mpirun -np $n exited with $?"
     same_frames ref multi
     ;;
+  svmm)
+    # A lossy svmm volume with stepped block widths: every rank refines through the sub-block
+    # offsets and skips terminal blocks; nearest-voxel sampling.
+    n=$1
+    "$voxwall" compress generated:shepp-logan:48 --codec svmm --quality 90 --block-width stepped \
+      --root-width 8 -o svmm.vwz -q || fail "compress --codec svmm"
+    sv=(render svmm.vwz --size 97x61 --frames 4 --orbit-deg 20 --shading -q --threads 1)
+    "$voxwall" "${sv[@]}" --out ref || fail "single-process reference"
+    run "$n" "${sv[@]}" --balance dynamic --cost-cell 8 --out multi || fail "mpirun -np $n exited with $?"
+    same_frames ref multi
+    "$voxwall" "${sv[@]}" --sampling nearest --out nref || fail "single-process nearest"
+    run "$n" "${sv[@]}" --sampling nearest --out nmulti || fail "mpirun nearest exited with $?"
+    same_frames nref nmulti
+    ;;
   resume)
     n=$1
     slow=(render vol.vwz --size 240x160 --frames 30 --step 0.04 --shading --threads 1)

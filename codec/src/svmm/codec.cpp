@@ -470,6 +470,9 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     fail("root grid " + std::to_string(root_.x) + "x" + std::to_string(root_.y) + "x" +
          std::to_string(root_.z) + " does not fit the volume");
   if (blocks_[std::size_t(top)] != 1) fail("the root level must have one block");
+  // Volume coordinates of every voxel of every level (and one past) must fit in an int.
+  if ((std::int64_t(maxOf(root_)) << shifts_[std::size_t(top)]) > std::int64_t(1) << 30)
+    fail("mipmap factor too large for the volume");
   data_ = sections.get(kData, "data");
   ByteReader dr(data_, src, "section 'data'");
   auto dfail = [&](const std::string& what) { dr.fail(what); };
