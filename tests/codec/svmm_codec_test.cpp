@@ -456,3 +456,57 @@ TEST(SvmmCodec, RefusesCorruptSections) {
     expectRefused(t, "level 1");
   }
 }
+
+TEST(SvmmView, BlockPoolShapeAndPlacement) {
+  // Section 3.3: U = V a power of two near the cube root, every block at its own place.
+  for (std::uint64_t n : {1ull, 2ull, 7ull, 8ull, 9ull, 63ull, 64ull, 65ull, 1000ull, 4097ull}) {
+    const auto s = kernels::svmmPoolShape(n);
+    const std::uint64_t U = 1ull << s.uLog2, V = 1ull << s.vLog2;
+    EXPECT_EQ(U, V);
+    EXPECT_LE(U * U * U, n);
+    EXPECT_GT(2 * U * 2 * U * 2 * U, n);
+    EXPECT_GE(U * V * s.w, n);
+    EXPECT_LT(U * V * (s.w - 1), n);
+    std::vector<char> seen(std::size_t(U * V * s.w), 0);
+    for (std::uint64_t b = 0; b < n; ++b) {
+      std::uint64_t u, v, w;
+      kernels::svmmPoolBlock(b, s.uLog2, s.vLog2, u, v, w);
+      ASSERT_LT(u, U);
+      ASSERT_LT(v, V);
+      ASSERT_LT(w, s.w);
+      EXPECT_EQ(seen[std::size_t((w * V + v) * U + u)]++, 0) << n << " " << b;
+    }
+  }
+}
+
+TEST(SvmmView, PooledLevelsReadTheSameVoxels) {
+  // The CUDA backend's layout, on the host: every poolable level read from its pool image.
+  for (bool bc : {false, true}) {
+    const Volume v = mixed<std::uint16_t>({45, 37, 29}, 0, 4095, 53);
+    Progress quiet;
+    const auto c = svmm::encode(v, params(0, 4, 90, true, bc), quiet);
+    const svmm::Layout layout(c.info, c.view());
+    auto pooled = layout.view();
+    std::vector<std::vector<std::uint8_t>> pools(std::size_t(layout.levels()));
+    int used = 0;
+    for (int L = 0; L < layout.levels(); ++L) {
+      if (!layout.poolable(L)) continue;
+      pools[std::size_t(L)] = layout.poolBytes(L);
+      const auto shape = layout.poolShape(L);
+      pooled.level[L].pool = pools[std::size_t(L)].data();
+      pooled.level[L].poolULog2 = shape.uLog2, pooled.level[L].poolVLog2 = shape.vLog2;
+      ++used;
+    }
+    EXPECT_EQ(used, layout.levels() - 1 - (bc ? 1 : 0));
+    const auto linear = layout.view();
+    std::size_t differ = 0;
+    for (int z = 0; z < v.dims.z; ++z)
+      for (int y = 0; y < v.dims.y; ++y)
+        for (int x = 0; x < v.dims.x; ++x) differ += pooled.fetch(x, y, z) != linear.fetch(x, y, z);
+    EXPECT_EQ(differ, 0u);
+    kernels::SvmmView::RayCache a, b;
+    for (const glm::vec3& p : positions(v.dims, 20000, 59))
+      differ += pooled.sample(p.x, p.y, p.z, a) != linear.sample(p.x, p.y, p.z, b);
+    EXPECT_EQ(differ, 0u);
+  }
+}

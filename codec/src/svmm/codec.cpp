@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <glm/common.hpp>
 #include <limits>
@@ -561,6 +562,41 @@ kernels::SvmmView Layout::view(const std::byte* base) const {
     }
   }
   return v;
+}
+
+bool Layout::poolable(int L) const {
+  return L >= 0 && L < levels_ - 1 && blocks_[std::size_t(L)] > 0 &&
+         !(L == 0 && (flags_ & kBlockCompressed));
+}
+
+kernels::SvmmPoolShape Layout::poolShape(int L) const {
+  return kernels::svmmPoolShape(blocks_[std::size_t(L)]);
+}
+
+int Layout::elementBytes(int L) const { return L == 0 ? baseBytesOf(format_) : wordBytes(format_); }
+
+std::vector<std::uint8_t> Layout::poolBytes(int L) const {
+  if (!poolable(L)) throw std::invalid_argument("level " + std::to_string(L) + " has no pool");
+  const auto shape = poolShape(L);
+  const int wl = std::countr_zero(unsigned(widths_[std::size_t(L)]));
+  const std::uint64_t w = std::uint64_t(1) << wl;
+  const std::uint64_t sx = std::uint64_t(1) << (shape.uLog2 + wl),
+                      sy = std::uint64_t(1) << (shape.vLog2 + wl), sz = shape.w << wl;
+  const std::uint64_t bytes = std::uint64_t(elementBytes(L));
+  std::vector<std::uint8_t> out(sx * sy * sz * bytes, 0);
+  const auto v = view();
+  const std::uint8_t* src = v.level[L].data;
+  for (std::uint64_t b = 0; b < blocks_[std::size_t(L)]; ++b) {
+    std::uint64_t u, vv, ww;
+    kernels::svmmPoolBlock(b, shape.uLog2, shape.vLog2, u, vv, ww);
+    for (std::uint64_t z = 0; z < w; ++z)
+      for (std::uint64_t y = 0; y < w; ++y) {
+        const std::uint64_t dst = (((ww * w + z) * sy + vv * w + y) * sx + u * w) * bytes;
+        std::memcpy(out.data() + dst, src + b * v.level[L].blockBytes + ((z * w + y) * w) * bytes,
+                    w * bytes);
+      }
+  }
+  return out;
 }
 
 RangeGrid Layout::rangeGrid() const {

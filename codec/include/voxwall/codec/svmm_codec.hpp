@@ -114,6 +114,15 @@ class Layout {
   bool stepped() const { return stepped_; }
   double psnr() const { return psnr_; }
   const std::vector<int>& widths() const { return widths_; }
+  // Whether level L's blocks can live in a block pool (every level but the root and a
+  // block-compressed base), its pool extents, and the pool's bytes: blocks at
+  // kernels::svmmPoolBlock positions of a 3D array, x fastest, unused blocks zero. A backend
+  // uploads them (a CUDA 3D texture) and sets the view's level[L].pool / poolULog2 / poolVLog2.
+  bool poolable(int L) const;
+  kernels::SvmmPoolShape poolShape(int L) const;
+  std::vector<std::uint8_t> poolBytes(int L) const;
+  // Bytes per element of level L (word or base voxel).
+  int elementBytes(int L) const;
   const std::vector<std::uint64_t>& blocks() const { return blocks_; }
 
   // Calls leaf(level, x0, y0, z0, size, value) for every terminal non-base voxel (a cube of

@@ -11,6 +11,9 @@
 #include <cstdint>
 #include <type_traits>
 #include <voxwall/codec/kernels/trilinear.hpp>
+#if defined(__CUDACC__)
+#include <cuda_runtime.h>
+#endif
 
 namespace voxwall::codec::kernels {
 
@@ -39,7 +42,40 @@ struct SvmmLevel {
   std::uint64_t blockBytes = 0;        // bytes per block (the root: the whole root grid)
   int shift = 0;                       // log2 of the mipmap factor: one voxel = 2^shift voxels
   int widthLog2 = 0;                   // log2 of the block width (root: unused)
+  // Block pool (section 3.3; not for the root or a block-compressed base): when `pool` is set,
+  // the level's blocks are read from a 3D array of 2^poolULog2 x 2^poolVLog2 x W blocks, x
+  // fastest, block b at svmmPoolBlock(b) (the layout of a CUDA 3D texture), instead of `data`.
+  // On a device, `texture` (a cudaTextureObject_t over that array, 0: none) is read instead.
+  const std::uint8_t* pool = nullptr;
+  int poolULog2 = 0, poolVLog2 = 0;
+  unsigned long long texture = 0;
 };
+
+// Block pool extents for n blocks (section 3.3): U = V = the power of two at or below the cube
+// root of n, W = ceil(n / (U V)).
+struct SvmmPoolShape {
+  int uLog2 = 0, vLog2 = 0;
+  std::uint64_t w = 0;
+};
+VOXWALL_HD_INLINE SvmmPoolShape svmmPoolShape(std::uint64_t blocks) {
+  SvmmPoolShape s;
+  if (!blocks) return s;
+  int k = 0;  // largest k with 2^(3k) <= blocks
+  while (k < 20 && (std::uint64_t(1) << (3 * (k + 1))) <= blocks) ++k;
+  s.uLog2 = s.vLog2 = k;
+  const std::uint64_t uv = std::uint64_t(1) << (2 * k);
+  s.w = (blocks + uv - 1) / uv;
+  return s;
+}
+// Block b's position in the pool, in blocks: u = b mod U, v = (b / U) mod V, w = b / (U V).
+// (The thesis prints u = o - (v + w), v = (o - w) / V, which leaves the pool for U = V = 2, o = 3;
+// this is the decomposition its shifts describe.)
+VOXWALL_HD_INLINE void svmmPoolBlock(std::uint64_t b, int uLog2, int vLog2, std::uint64_t& u,
+                                     std::uint64_t& v, std::uint64_t& w) {
+  u = b & ((std::uint64_t(1) << uLog2) - 1);
+  v = (b >> uLog2) & ((std::uint64_t(1) << vLog2) - 1);
+  w = b >> (uLog2 + vLog2);
+}
 
 struct SvmmView {
   SvmmLevel level[kSvmmMaxLevels];
@@ -58,6 +94,13 @@ struct SvmmView {
     if (bytes > 1) v |= std::uint32_t(p[1]) << 8;
     if (bytes > 2) v |= std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
     return v;
+  }
+  // An element at an address aligned to its size (every level starts at a multiple of 8 and
+  // holds elements of one size; only block-compressed groups are unaligned, and use load()).
+  VOXWALL_HD_INLINE std::uint32_t loadAligned(const std::uint8_t* p, int bytes) const {
+    if (bytes == 1) return *p;
+    if (bytes == 2) return *reinterpret_cast<const std::uint16_t*>(p);
+    return *reinterpret_cast<const std::uint32_t*>(p);
   }
   // Non-base word `index` of a block (16-bit for DENSITY8, else 32-bit; levels are aligned).
   VOXWALL_HD_INLINE std::uint32_t word(const std::uint8_t* block, std::size_t index) const {
@@ -84,6 +127,62 @@ struct SvmmView {
     const int bit = (lx & 1) | ((ly & 1) << 1) | ((lz & 1) << 2);
     return (g[0] >> bit) & 1 ? load(g + 1, bytes) : 0u;
   }
+  // A block handle: the block's address for a linear level, its index for a pooled one.
+  VOXWALL_HD_INLINE std::uint64_t handle(int L, std::uint64_t b) const {
+    const SvmmLevel& l = level[L];
+    return l.pool ? b : std::uint64_t(reinterpret_cast<std::uintptr_t>(l.data + b * l.blockBytes));
+  }
+  // Element (lx, ly, lz) of `bytes` bytes of the block with handle h of level L: the root grid
+  // (h unused), a linear block, or a pooled one (texture on a device when there is one).
+  VOXWALL_HD_INLINE std::uint32_t element(int L, std::uint64_t h, int lx, int ly, int lz,
+                                          int bytes) const {
+    const SvmmLevel& l = level[L];
+    if (L == levels - 1) {
+      const std::size_t i =
+          (std::size_t(lz) * std::size_t(rootY) + std::size_t(ly)) * std::size_t(rootX) +
+          std::size_t(lx);
+      return loadAligned(l.data + i * std::size_t(bytes), bytes);
+    }
+    const int wl = l.widthLog2;
+    if (!l.pool)
+      return loadAligned(reinterpret_cast<const std::uint8_t*>(std::uintptr_t(h)) +
+                             std::size_t(lx | (ly << wl) | (lz << (2 * wl))) * std::size_t(bytes),
+                         bytes);
+    return pooled(l, h, lx, ly, lz, bytes);
+  }
+
+  // A pooled element (out of line on the host, where pools are only used by tests).
+#if defined(__CUDACC__) || !defined(__GNUC__)
+  VOXWALL_HD
+#else
+  __attribute__((noinline))
+#endif
+  std::uint32_t pooled(const SvmmLevel& l, std::uint64_t b, int lx, int ly, int lz,
+                       int bytes) const {
+    const int wl = l.widthLog2;
+    std::uint64_t u, v, w;
+    svmmPoolBlock(b, l.poolULog2, l.poolVLog2, u, v, w);
+    const std::uint64_t x = (u << wl) + std::uint64_t(lx), y = (v << wl) + std::uint64_t(ly),
+                        z = (w << wl) + std::uint64_t(lz);
+#if defined(__CUDA_ARCH__)
+    if (l.texture) {
+      const float fx = float(x) + 0.5f, fy = float(y) + 0.5f, fz = float(z) + 0.5f;
+      if (bytes == 1) return tex3D<unsigned char>(l.texture, fx, fy, fz);
+      if (bytes == 2) return tex3D<unsigned short>(l.texture, fx, fy, fz);
+      return tex3D<unsigned int>(l.texture, fx, fy, fz);
+    }
+#endif
+    const std::uint64_t i = (((z << (l.poolVLog2 + wl)) + y) << (l.poolULog2 + wl)) + x;
+    return loadAligned(l.pool + i * std::uint64_t(bytes), bytes);
+  }
+  VOXWALL_HD_INLINE int wordBytes() const { return format == kSvmmDensity8 ? 2 : 4; }
+  // Base voxel (lx, ly, lz) of the base block with handle h (the root grid when there is one
+  // level).
+  VOXWALL_HD_INLINE std::uint32_t base(std::uint64_t h, int lx, int ly, int lz) const {
+    if (!blockCompressed) return element(0, h, lx, ly, lz, baseBytes());
+    return baseValue(reinterpret_cast<const std::uint8_t*>(std::uintptr_t(h)), lx, ly, lz);
+  }
+
   // The stored value as a scalar (RGBA: its alpha).
   VOXWALL_HD_INLINE float scalar(std::uint32_t v) const {
     return format == kSvmmRgba32 ? float(v >> 24) : float(int(v) - bias);
@@ -93,11 +192,11 @@ struct SvmmView {
   // region of the last sample, and what the raycaster sets before each sample.
   struct RayCache {
     int kx[kSvmmMaxLevels], ky[kSvmmMaxLevels], kz[kSvmmMaxLevels];
-    const std::uint8_t* block[kSvmmMaxLevels];  // level 0 unused: see below
+    std::uint64_t block[kSvmmMaxLevels];  // block handles; level 0 unused: see below
     // Base blocks, one per parity of the block coordinates: a trilinear cell straddling block
     // borders touches up to eight neighbouring blocks, which all fit.
     int bx0[8], by0[8], bz0[8];
-    const std::uint8_t* block0[8];
+    std::uint64_t block0[8];
     int ix = -1, iy = -1, iz = -1, il = -1;  // cell (lower corner) and level of c[]
     float c[8] = {};
     int cellLevel = 0, cellStop = 0, cellVx = 0, cellVy = 0, cellVz = 0;  // see sample()
@@ -133,7 +232,7 @@ struct SvmmView {
       if (c.bx0[slot] == bx && c.by0[slot] == by && c.bz0[slot] == bz) {
         stop = 0;
         const int m = (1 << wl) - 1;
-        return baseValue(c.block0[slot], gx & m, gy & m, gz & m);
+        return base(c.block0[slot], gx & m, gy & m, gz & m);
       }
       L = 1;
     }
@@ -150,53 +249,70 @@ struct SvmmView {
   std::uint32_t refine(int gx, int gy, int gz, int target, int L, RayCache& c, int& stop) const {
     const int top = levels - 1;
     const int ts = level[target].shift;
-    const std::uint8_t* block = nullptr;
+    std::uint64_t block = 0;
+    bool cached = false;
     for (; L < top; ++L) {
       const int sh = level[L].shift - ts + level[L].widthLog2;
       if (c.kx[L] == (gx >> sh) && c.ky[L] == (gy >> sh) && c.kz[L] == (gz >> sh)) {
         block = c.block[L];
+        cached = true;
         break;
       }
     }
-    if (!block) L = top, block = level[top].data;
+    if (!cached) L = top, block = 0;
+    const int wb = wordBytes();
     for (;;) {
       const int sh = level[L].shift - ts;
-      const int rx = gx >> sh, ry = gy >> sh, rz = gz >> sh;
+      int lx = gx >> sh, ly = gy >> sh, lz = gz >> sh;
       if (L == 0) {
         stop = 0;
         const int m = levels == 1 ? 0x7fffffff : (1 << level[0].widthLog2) - 1;
-        return baseValue(block, rx & m, ry & m, rz & m);
+        return base(block, lx & m, ly & m, lz & m);
       }
-      int lx = rx, ly = ry, lz = rz, wl = 0;
-      std::size_t idx, sy, sz;
-      if (L == top) {
-        sy = std::size_t(rootX), sz = std::size_t(rootX) * std::size_t(rootY);
-      } else {
-        wl = level[L].widthLog2;
-        const int m = (1 << wl) - 1;
+      if (L != top) {
+        const int m = (1 << level[L].widthLog2) - 1;
         lx &= m, ly &= m, lz &= m;
-        sy = std::size_t(1) << wl, sz = std::size_t(1) << (2 * wl);
       }
-      idx = std::size_t(lz) * sz + std::size_t(ly) * sy + std::size_t(lx);
-      const std::uint32_t w = word(block, idx);
+      const int k = (lx & 1) | ((ly & 1) << 1) | ((lz & 1) << 2);
+      std::uint32_t w, words[8] = {};
+      if (L == top || !level[L].pool) {
+        // Linear: the word and its sub-block by strides from the block's address.
+        const std::uint8_t* p = L == top
+                                    ? level[top].data
+                                    : reinterpret_cast<const std::uint8_t*>(std::uintptr_t(block));
+        std::size_t sy, sz;
+        if (L == top) {
+          sy = std::size_t(rootX), sz = std::size_t(rootX) * std::size_t(rootY);
+        } else {
+          sy = std::size_t(1) << level[L].widthLog2, sz = sy << level[L].widthLog2;
+        }
+        w = word(p, std::size_t(lz) * sz + std::size_t(ly) * sy + std::size_t(lx));
+        if (!(w & kSvmmTerminal) && L != target) {
+          const std::size_t s0 =
+              std::size_t(lz & ~1) * sz + std::size_t(ly & ~1) * sy + std::size_t(lx & ~1);
+          for (int j = 0; j < 8; ++j)
+            words[j] = word(p, s0 + std::size_t(j & 1) + (j & 2 ? sy : 0) + (j & 4 ? sz : 0));
+        }
+      } else {
+        w = element(L, block, lx, ly, lz, wb);
+        if (!(w & kSvmmTerminal) && L != target)
+          for (int j = 0; j < 8; ++j)
+            words[j] = element(L, block, (lx & ~1) + (j & 1), (ly & ~1) + ((j >> 1) & 1),
+                               (lz & ~1) + (j >> 2), wb);
+      }
       if ((w & kSvmmTerminal) || L == target) {
         stop = L;
         return svmmWordValue(format, w);
       }
       // The sub-block: one offset in its eight nibbles, then count the non-terminal voxels
       // before this one (section 2.2.2).
-      const std::size_t s0 =
-          std::size_t(lz & ~1) * sz + std::size_t(ly & ~1) * sy + std::size_t(lx & ~1);
-      const int k = (lx & 1) | ((ly & 1) << 1) | ((lz & 1) << 2);
       std::uint32_t offset = 0, before = 0;
       for (int j = 0; j < 8; ++j) {
-        const std::uint32_t wj =
-            word(block, s0 + std::size_t(j & 1) + (j & 2 ? sy : 0) + (j & 4 ? sz : 0));
-        offset |= (wj & 15u) << (4 * j);
-        before += std::uint32_t(j < k && !(wj & kSvmmTerminal));
+        offset |= (words[j] & 15u) << (4 * j);
+        before += std::uint32_t(j < k && !(words[j] & kSvmmTerminal));
       }
       --L;
-      block = level[L].data + std::size_t(offset + before) * level[L].blockBytes;
+      block = handle(L, std::uint64_t(offset) + before);
       const int shc = level[L].shift - ts + level[L].widthLog2;
       const int bx = gx >> shc, by = gy >> shc, bz = gz >> shc;
       if (L == 0) {
@@ -250,16 +366,16 @@ struct SvmmView {
       const int lx = ix & m, ly = iy & m, lz = iz & m;
       if (lx < m && ly < m && lz < m) {
         const int wl = level[0].widthLog2;
-        const std::uint8_t* b =
+        const std::uint64_t b =
             rc.block0[((ix >> wl) & 1) | (((iy >> wl) & 1) << 1) | (((iz >> wl) & 1) << 2)];
         const int dx = x1 - ix, dy = y1 - iy, dz = z1 - iz;  // 0 at the volume's far edges
-        c[1] = scalar(baseValue(b, lx + dx, ly, lz));
-        c[2] = scalar(baseValue(b, lx, ly + dy, lz));
-        c[3] = scalar(baseValue(b, lx + dx, ly + dy, lz));
-        c[4] = scalar(baseValue(b, lx, ly, lz + dz));
-        c[5] = scalar(baseValue(b, lx + dx, ly, lz + dz));
-        c[6] = scalar(baseValue(b, lx, ly + dy, lz + dz));
-        c[7] = scalar(baseValue(b, lx + dx, ly + dy, lz + dz));
+        c[1] = scalar(base(b, lx + dx, ly, lz));
+        c[2] = scalar(base(b, lx, ly + dy, lz));
+        c[3] = scalar(base(b, lx + dx, ly + dy, lz));
+        c[4] = scalar(base(b, lx, ly, lz + dz));
+        c[5] = scalar(base(b, lx + dx, ly, lz + dz));
+        c[6] = scalar(base(b, lx, ly + dy, lz + dz));
+        c[7] = scalar(base(b, lx + dx, ly + dy, lz + dz));
         return;
       }
     }
