@@ -3,8 +3,12 @@
 // CPU backend. Only allocation, upload, launch and download live here (DESIGN.md).
 #include <cuda_runtime.h>
 
+#include <bit>
 #include <chrono>
+#include <memory>
 #include <string>
+#include <type_traits>
+#include <vector>
 #include <voxwall/node/renderer.hpp>
 
 #define VOXWALL_CUDA_CHECK(call) ::voxwall::node::cudaCheck((call), #call, __FILE__, __LINE__)
@@ -49,6 +53,95 @@ class DeviceBuffer {
   std::size_t capacity_ = 0;
 };
 
+// SVMM block pools (thesis section 3.3): every level but the root (and a block-compressed base)
+// as a 3D array of blocks read through a texture object, or, when the pool is larger than the
+// device's 3D texture limit, as linear device memory in the same layout.
+class SvmmPools {
+ public:
+  SvmmPools() = default;
+  SvmmPools(const SvmmPools&) = delete;
+  SvmmPools& operator=(const SvmmPools&) = delete;
+  ~SvmmPools() { release(); }
+
+  // Builds the pools for `layout` unless they were built for it already.
+  void build(const codec::svmm::Layout& layout, const cudaDeviceProp& prop) {
+    if (&layout == builtFor_) return;
+    release();
+    levels_.assign(std::size_t(layout.levels()), Level{});
+    for (int L = 0; L < layout.levels(); ++L) {
+      if (!layout.poolable(L)) continue;
+      const auto shape = layout.poolShape(L);
+      const int wl = std::countr_zero(unsigned(layout.widths()[std::size_t(L)]));
+      const std::size_t eb = std::size_t(layout.elementBytes(L));
+      const std::size_t width = std::size_t(1) << (shape.uLog2 + wl);
+      const std::size_t height = std::size_t(1) << (shape.vLog2 + wl);
+      const std::size_t depth = std::size_t(shape.w) << wl;
+      std::vector<std::uint8_t> bytes = layout.poolBytes(L);
+      Level& level = levels_[std::size_t(L)];
+      level.uLog2 = shape.uLog2, level.vLog2 = shape.vLog2;
+      if (width <= std::size_t(prop.maxTexture3D[0]) &&
+          height <= std::size_t(prop.maxTexture3D[1]) &&
+          depth <= std::size_t(prop.maxTexture3D[2])) {
+        const cudaChannelFormatDesc desc = eb == 1   ? cudaCreateChannelDesc<unsigned char>()
+                                           : eb == 2 ? cudaCreateChannelDesc<unsigned short>()
+                                                     : cudaCreateChannelDesc<unsigned int>();
+        const cudaExtent extent = make_cudaExtent(width, height, depth);
+        VOXWALL_CUDA_CHECK(cudaMalloc3DArray(&level.array, &desc, extent));
+        cudaMemcpy3DParms copy{};
+        copy.srcPtr = make_cudaPitchedPtr(bytes.data(), width * eb, width, height);
+        copy.dstArray = level.array;
+        copy.extent = extent;
+        copy.kind = cudaMemcpyHostToDevice;
+        VOXWALL_CUDA_CHECK(cudaMemcpy3D(&copy));
+        cudaResourceDesc resource{};
+        resource.resType = cudaResourceTypeArray;
+        resource.res.array.array = level.array;
+        cudaTextureDesc texture{};
+        for (int a = 0; a < 3; ++a) texture.addressMode[a] = cudaAddressModeClamp;
+        texture.filterMode = cudaFilterModePoint;
+        texture.readMode = cudaReadModeElementType;
+        texture.normalizedCoords = 0;
+        VOXWALL_CUDA_CHECK(cudaCreateTextureObject(&level.texture, &resource, &texture, nullptr));
+      } else {
+        buffers_.push_back(std::make_unique<DeviceBuffer>());
+        buffers_.back()->upload(bytes.data(), bytes.size());
+        level.pool = buffers_.back()->as<std::uint8_t>();
+      }
+    }
+    builtFor_ = &layout;
+  }
+
+  void apply(codec::kernels::SvmmView& view) const {
+    for (std::size_t L = 0; L < levels_.size(); ++L) {
+      const Level& level = levels_[L];
+      if (!level.texture && !level.pool) continue;
+      view.level[L].pool = level.pool;
+      view.level[L].texture = level.texture;
+      view.level[L].poolULog2 = level.uLog2, view.level[L].poolVLog2 = level.vLog2;
+    }
+  }
+
+ private:
+  struct Level {
+    cudaArray_t array = nullptr;
+    cudaTextureObject_t texture = 0;
+    const std::uint8_t* pool = nullptr;
+    int uLog2 = 0, vLog2 = 0;
+  };
+  void release() {
+    for (Level& level : levels_) {
+      if (level.texture) cudaDestroyTextureObject(level.texture);
+      if (level.array) cudaFreeArray(level.array);
+    }
+    levels_.clear();
+    buffers_.clear();
+    builtFor_ = nullptr;
+  }
+  const codec::svmm::Layout* builtFor_ = nullptr;
+  std::vector<Level> levels_;
+  std::vector<std::unique_ptr<DeviceBuffer>> buffers_;
+};
+
 template <class View>
 __global__ void raycastKernel(View view, kernels::RayFrame frame, kernels::TransferLut lut,
                               kernels::SkipGrid skip, int tileX, int tileY, int tileW, int tileH,
@@ -75,6 +168,7 @@ class CudaBackend final : public Backend {
     cudaDeviceProp prop{};
     VOXWALL_CUDA_CHECK(cudaGetDeviceProperties(&prop, device));
     name_ = std::string("cuda (") + prop.name + ")";
+    prop_ = prop;
     VOXWALL_CUDA_CHECK(cudaMalloc(&samples_, sizeof(unsigned long long)));
   }
   ~CudaBackend() override {
@@ -111,7 +205,11 @@ class CudaBackend final : public Backend {
     std::visit(
         [&](const auto& hostView) {
           using View = std::decay_t<decltype(hostView)>;
-          const View view = std::get<View>(volume.view(volumeBytes_.as<std::byte>()));
+          View view = std::get<View>(volume.view(volumeBytes_.as<std::byte>()));
+          if constexpr (std::is_same_v<View, codec::kernels::SvmmView>) {
+            svmmPools_.build(*volume.svmmLayout(), prop_);
+            svmmPools_.apply(view);
+          }
           raycastKernel<<<grid, block>>>(view, plan.ray, lut, skip, tile.x, tile.y, tile.width,
                                          tile.height, image_.as<std::uint32_t>(), samples_);
         },
@@ -132,6 +230,8 @@ class CudaBackend final : public Backend {
 
  private:
   std::string name_;
+  cudaDeviceProp prop_{};
+  SvmmPools svmmPools_;
   DeviceBuffer volumeBytes_, lut_, skipCells_, fineSkipCells_, image_;
   const std::byte* uploadedFrom_ = nullptr;
   std::size_t uploadedBytes_ = 0;

@@ -41,6 +41,8 @@ class RenderVolume {
   std::span<const std::byte> payload() const;
   ViewVariant view(const std::byte* base = nullptr) const;
   const std::string& source() const { return source_; }
+  // The svmm layout when the volume is svmm-coded (a device backend builds block pools from it).
+  const codec::svmm::Layout* svmmLayout() const { return svmmLayout_ ? &*svmmLayout_ : nullptr; }
   // xxHash64 of the volume's description and every section's bytes: two ranks with the same
   // fingerprint render the same pixels. Computed on first use (reads the whole payload).
   std::uint64_t fingerprint() const;

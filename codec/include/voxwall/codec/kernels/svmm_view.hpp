@@ -45,7 +45,8 @@ struct SvmmLevel {
   // Block pool (section 3.3; not for the root or a block-compressed base): when `pool` is set,
   // the level's blocks are read from a 3D array of 2^poolULog2 x 2^poolVLog2 x W blocks, x
   // fastest, block b at svmmPoolBlock(b) (the layout of a CUDA 3D texture), instead of `data`.
-  // On a device, `texture` (a cudaTextureObject_t over that array, 0: none) is read instead.
+  // On a device, `texture` (a cudaTextureObject_t over that array, 0: none) is read instead, and
+  // `pool` may then be null.
   const std::uint8_t* pool = nullptr;
   int poolULog2 = 0, poolVLog2 = 0;
   unsigned long long texture = 0;
@@ -130,7 +131,9 @@ struct SvmmView {
   // A block handle: the block's address for a linear level, its index for a pooled one.
   VOXWALL_HD_INLINE std::uint64_t handle(int L, std::uint64_t b) const {
     const SvmmLevel& l = level[L];
-    return l.pool ? b : std::uint64_t(reinterpret_cast<std::uintptr_t>(l.data + b * l.blockBytes));
+    return l.pool || l.texture
+               ? b
+               : std::uint64_t(reinterpret_cast<std::uintptr_t>(l.data + b * l.blockBytes));
   }
   // Element (lx, ly, lz) of `bytes` bytes of the block with handle h of level L: the root grid
   // (h unused), a linear block, or a pooled one (texture on a device when there is one).
@@ -144,7 +147,7 @@ struct SvmmView {
       return loadAligned(l.data + i * std::size_t(bytes), bytes);
     }
     const int wl = l.widthLog2;
-    if (!l.pool)
+    if (!l.pool && !l.texture)
       return loadAligned(reinterpret_cast<const std::uint8_t*>(std::uintptr_t(h)) +
                              std::size_t(lx | (ly << wl) | (lz << (2 * wl))) * std::size_t(bytes),
                          bytes);
@@ -275,7 +278,7 @@ struct SvmmView {
       }
       const int k = (lx & 1) | ((ly & 1) << 1) | ((lz & 1) << 2);
       std::uint32_t w, words[8] = {};
-      if (L == top || !level[L].pool) {
+      if (L == top || (!level[L].pool && !level[L].texture)) {
         // Linear: the word and its sub-block by strides from the block's address.
         const std::uint8_t* p = L == top
                                     ? level[top].data
