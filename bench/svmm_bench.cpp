@@ -99,6 +99,7 @@ void grid(const Data& d, int threads) {
 struct Frame {
   double ms = 0;
   double msamples = 0;
+  node::Image image;
 };
 
 Frame frameMs(const node::RenderVolume& v, const node::RenderSettings& s, const std::string& tfName,
@@ -119,6 +120,7 @@ Frame frameMs(const node::RenderVolume& v, const node::RenderSettings& s, const 
   Frame out;
   out.ms = 1000.0 * seconds(start) / frames;
   out.msamples = double(samples) / frames / 1e6;
+  out.image = std::move(image);
   return out;
 }
 
@@ -127,8 +129,9 @@ void renders(const std::string& name, const codec::Volume& volume, const std::st
   std::printf("\n### %s, 1920x1080, %s transfer function, %d thread(s), mean of %d frame(s)\n\n",
               name.c_str(), tf.c_str(), threads, frames);
   std::printf(
-      "| volume | bits/voxel | frame ms | shaded frame ms | Msamples/frame | nearest frame ms | "
-      "LOD frame ms |\n|---|---|---|---|---|---|---|\n");
+      "| volume | bits/voxel | frame ms | shaded frame ms | Msamples/frame | image PSNR vs raw, "
+      "shaded | nearest frame ms | LOD frame ms |\n|---|---|---|---|---|---|---|---|\n");
+  node::Image reference;
   auto line = [&](const std::string& label, const node::RenderVolume& v, bool svmm) {
     node::RenderSettings plain, shaded, nearest, lod;
     shaded.shading = true;
@@ -144,9 +147,21 @@ void renders(const std::string& name, const codec::Volume& volume, const std::st
       std::snprintf(t, sizeof t, "%.0f", frameMs(v, lod, tf, frames, threads).ms);
       d = t;
     }
-    std::printf("| %s | %.3f | %.0f | %.0f | %.1f | %s | %s |\n", label.c_str(),
+    std::string psnr = "-";
+    if (!svmm) {
+      reference = b.image;
+    } else {
+      char t[32];
+      const double p = node::compareImages(reference, b.image).psnrDb;
+      if (std::isinf(p))
+        std::snprintf(t, sizeof t, "identical");
+      else
+        std::snprintf(t, sizeof t, "%.2f dB", p);
+      psnr = t;
+    }
+    std::printf("| %s | %.3f | %.0f | %.0f | %.1f | %s | %s | %s |\n", label.c_str(),
                 8.0 * double(v.storedBytes()) / double(volume.voxelCount()), a.ms, b.ms, a.msamples,
-                c.c_str(), d.c_str());
+                psnr.c_str(), c.c_str(), d.c_str());
     std::fflush(stdout);
   };
   line("raw (16^3 bricks)", node::RenderVolume::fromVolume(volume), false);

@@ -196,7 +196,8 @@ void addCompressCommand(CLI::App& app) {
   svmmOptions.push_back(
       cmd->add_option("--quality", o->quality,
                       "svmm codec: 0..100; a block is dropped when every voxel is within "
-                      "sqrt(channels) (1 - Q/100) of the value range of its mean; 100 is lossless")
+                      "sqrt(channels) x (1 - Q/100) x the value range of the block's mean; 100 is "
+                      "lossless")
           ->check(CLI::Range(0, 100))
           ->capture_default_str());
   svmmOptions.push_back(cmd->add_option("--block-width", o->blockWidth,
