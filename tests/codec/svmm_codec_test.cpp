@@ -300,7 +300,10 @@ TEST(SvmmView, ConstantRegionsHoldOneValue) {
         std::uniform_real_distribution<float> ux(lo[0], hi[0]), uy(lo[1], hi[1]), uz(lo[2], hi[2]);
         kernels::SvmmView::RayCache fresh;
         fresh.nearest = nearest;
-        wrong += sv.sample(ux(rng), uy(rng), uz(rng), fresh) != value;
+        const float qx = ux(rng), qy = uy(rng), qz = uz(rng);
+        wrong += sv.sample(qx, qy, qz, fresh) != value;
+        // Gradient neighbours inside the region are answered from it: the same value.
+        if (!nearest) wrong += sv.sampleNear(qx, qy, qz, rc) != value;
       }
     }
     EXPECT_GT(regions, 1000u) << nearest;
