@@ -29,10 +29,8 @@ namespace {
 
 constexpr int kInt16Bias = 32768;
 
-int wordBytes(int format) { return format == kSvmmDensity8 ? 2 : 4; }
-int baseBytesOf(int format) {
-  return format == kSvmmDensity8 ? 1 : (format == kSvmmDensity16 ? 2 : 4);
-}
+using kernels::svmmBaseBytes;
+using kernels::svmmWordBytes;
 int channelsOf(int format) { return format == kSvmmRgba32 ? 4 : 1; }
 
 glm::ivec3 logicalDims(glm::ivec3 dims, int shift) {
@@ -190,7 +188,7 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
   const int n = int(grids.size());
   const int top = n - 1;
   widths.push_back(0);
-  const int ws = wordBytes(format), bs = baseBytesOf(format);
+  const int ws = svmmWordBytes(format), bs = svmmBaseBytes(format);
   const bool compressBase = p.baseCompression && n > 1;
   std::vector<std::vector<std::byte>> out(static_cast<std::size_t>(n));
   std::vector<std::uint64_t> blocks(static_cast<std::size_t>(n), 0);
@@ -446,7 +444,6 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     fail(std::to_string(levels) + " levels (1..16)");
   levels_ = int(levels);
   const int top = levels_ - 1;
-  const int ws = wordBytes(format_), bs = baseBytesOf(format_);
   int shift = 0;
   for (int i = 0; i < levels_; ++i) {
     const int w = int(r.get<std::uint32_t>());
@@ -480,17 +477,7 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   std::uint64_t end = 0;
   for (int L = top; L >= 0; --L) {
     const std::string lv = "level " + std::to_string(L) + ": ";
-    std::uint64_t blockBytes;
-    if (L == top)
-      blockBytes = count3(root_) * std::uint64_t(levels_ == 1 ? bs : ws);
-    else if (L > 0)
-      blockBytes = std::uint64_t(widths_[std::size_t(L)]) * std::uint64_t(widths_[std::size_t(L)]) *
-                   std::uint64_t(widths_[std::size_t(L)]) * std::uint64_t(ws);
-    else {
-      const std::uint64_t w = std::uint64_t(widths_[0]);
-      blockBytes = (flags_ & kBlockCompressed) ? (w / 2) * (w / 2) * (w / 2) * std::uint64_t(1 + bs)
-                                               : w * w * w * std::uint64_t(bs);
-    }
+    const std::uint64_t blockBytes = blockBytesOf(L);
     const std::uint64_t off = offsets_[std::size_t(L)], len = bytes_[std::size_t(L)];
     if (off % 8 || off < end || off > data_.size() || len > data_.size() - off)
       dfail(lv + "bytes [" + std::to_string(off) + ", +" + std::to_string(len) +
@@ -544,24 +531,23 @@ kernels::SvmmView Layout::view(const std::byte* base) const {
   v.dimX = info_.dims.x, v.dimY = info_.dims.y, v.dimZ = info_.dims.z;
   v.rootX = root_.x, v.rootY = root_.y, v.rootZ = root_.z;
   const int top = levels_ - 1;
-  const int ws = wordBytes(format_), bs = baseBytesOf(format_);
   for (int L = 0; L < levels_; ++L) {
     auto& l = v.level[L];
     l.data = b + offsets_[std::size_t(L)];
     l.shift = shifts_[std::size_t(L)];
     l.widthLog2 = L < top ? std::countr_zero(unsigned(widths_[std::size_t(L)])) : 0;
-    if (L == top) {
-      l.blockBytes = count3(root_) * std::size_t(levels_ == 1 ? bs : ws);
-    } else if (L > 0) {
-      const std::uint64_t w = std::uint64_t(widths_[std::size_t(L)]);
-      l.blockBytes = w * w * w * std::uint64_t(ws);
-    } else {
-      const std::uint64_t w = std::uint64_t(widths_[0]);
-      l.blockBytes = v.blockCompressed ? (w / 2) * (w / 2) * (w / 2) * std::uint64_t(1 + bs)
-                                       : w * w * w * std::uint64_t(bs);
-    }
+    l.blockBytes = blockBytesOf(L);
   }
   return v;
+}
+
+std::uint64_t Layout::blockBytesOf(int L) const {
+  const std::uint64_t ws = std::uint64_t(svmmWordBytes(format_)),
+                      bs = std::uint64_t(svmmBaseBytes(format_));
+  if (L == levels_ - 1) return count3(root_) * (levels_ == 1 ? bs : ws);
+  const std::uint64_t w = std::uint64_t(widths_[std::size_t(L)]);
+  if (L > 0) return w * w * w * ws;
+  return (flags_ & kBlockCompressed) ? (w / 2) * (w / 2) * (w / 2) * (1 + bs) : w * w * w * bs;
 }
 
 bool Layout::poolable(int L) const {
@@ -573,7 +559,9 @@ kernels::SvmmPoolShape Layout::poolShape(int L) const {
   return kernels::svmmPoolShape(blocks_[std::size_t(L)]);
 }
 
-int Layout::elementBytes(int L) const { return L == 0 ? baseBytesOf(format_) : wordBytes(format_); }
+int Layout::elementBytes(int L) const {
+  return L == 0 ? svmmBaseBytes(format_) : svmmWordBytes(format_);
+}
 
 std::vector<std::uint8_t> Layout::poolBytes(int L) const {
   if (!poolable(L)) throw std::invalid_argument("level " + std::to_string(L) + " has no pool");

@@ -132,6 +132,9 @@ class Layout {
   void forEachLeaf(Leaf&& leaf, Base&& base) const;
 
  private:
+  // Bytes of one block of level L (the root: the whole root grid).
+  std::uint64_t blockBytesOf(int L) const;
+
   VolumeInfo info_;
   std::span<const std::byte> data_;
   int format_ = 1, levels_ = 1, quality_ = 100, rootWidth_ = 32, bias_ = 0;

@@ -29,6 +29,12 @@ inline constexpr std::uint32_t kSvmmTerminal = 16;
 // 3-bit alpha of an RGBA32 non-base word, expanded to 8 bits (round(a3 * 255 / 7)).
 VOXWALL_HD_INLINE std::uint32_t svmmExpandAlpha3(std::uint32_t a3) { return (a3 * 255u + 3u) / 7u; }
 
+// Bytes of a base voxel and of a non-base word of a format.
+VOXWALL_HD_INLINE int svmmBaseBytes(int format) {
+  return format == kSvmmDensity8 ? 1 : (format == kSvmmDensity16 ? 2 : 4);
+}
+VOXWALL_HD_INLINE int svmmWordBytes(int format) { return format == kSvmmDensity8 ? 2 : 4; }
+
 // RGBA values are packed r | g << 8 | b << 16 | a << 24.
 VOXWALL_HD_INLINE std::uint32_t svmmWordValue(int format, std::uint32_t w) {
   if (format == kSvmmDensity8) return w >> 8;
@@ -87,9 +93,7 @@ struct SvmmView {
   int dimX = 1, dimY = 1, dimZ = 1;
   int rootX = 1, rootY = 1, rootZ = 1;  // the root grid (padded to even when levels > 1)
 
-  VOXWALL_HD_INLINE int baseBytes() const {
-    return format == kSvmmDensity8 ? 1 : (format == kSvmmDensity16 ? 2 : 4);
-  }
+  VOXWALL_HD_INLINE int baseBytes() const { return svmmBaseBytes(format); }
   VOXWALL_HD_INLINE std::uint32_t load(const std::uint8_t* p, int bytes) const {
     std::uint32_t v = p[0];
     if (bytes > 1) v |= std::uint32_t(p[1]) << 8;
@@ -178,7 +182,7 @@ struct SvmmView {
     const std::uint64_t i = (((z << (l.poolVLog2 + wl)) + y) << (l.poolULog2 + wl)) + x;
     return loadAligned(l.pool + i * std::uint64_t(bytes), bytes);
   }
-  VOXWALL_HD_INLINE int wordBytes() const { return format == kSvmmDensity8 ? 2 : 4; }
+  VOXWALL_HD_INLINE int wordBytes() const { return svmmWordBytes(format); }
   // Base voxel (lx, ly, lz) of the base block with handle h (the root grid when there is one
   // level).
   VOXWALL_HD_INLINE std::uint32_t base(std::uint64_t h, int lx, int ly, int lz) const {
@@ -202,7 +206,7 @@ struct SvmmView {
     std::uint64_t block0[8];
     int ix = -1, iy = -1, iz = -1, il = -1;  // cell (lower corner) and level of c[]
     float c[8] = {};
-    int cellLevel = 0, cellStop = 0, cellVx = 0, cellVy = 0, cellVz = 0;  // see sample()
+    int cellStop = 0, cellVx = 0, cellVy = 0, cellVz = 0;  // see sample()
     bool cellConstant = false;
     // Index-space box [regionLo, regionHi) around the last sample in which every sample has the
     // same value, valid while the footprint stays below regionFootprintMax.
@@ -391,10 +395,9 @@ struct SvmmView {
     c[7] = scalar(lookup(x1, y1, z1, T, rc, stop));
   }
 
-  // Sample at index-space (x, y, z): trilinear (or the nearest voxel when rc.nearest) on the
-  // level rc.footprint selects. Also sets rc.region*: the box of positions with the same value.
-  VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& rc) const {
-    const int T = rc.footprint >= 2.0f ? lodLevel(rc.footprint) : 0;
+  // A volume index-space position as a position on level T's grid (voxel centres on integers:
+  // q = (p + 1/2) / 2^shift - 1/2), clamped to that grid.
+  VOXWALL_HD_INLINE void toLevel(int T, float& x, float& y, float& z) const {
     const int sh = level[T].shift;
     const float P = float(1 << sh);
     if (T) x = (x + 0.5f) / P - 0.5f, y = (y + 0.5f) / P - 0.5f, z = (z + 0.5f) / P - 0.5f;
@@ -403,6 +406,14 @@ struct SvmmView {
     x = x < 0.0f ? 0.0f : (x > mx ? mx : x);
     y = y < 0.0f ? 0.0f : (y > my ? my : y);
     z = z < 0.0f ? 0.0f : (z > mz ? mz : z);
+  }
+
+  // Sample at index-space (x, y, z): trilinear (or the nearest voxel when rc.nearest) on the
+  // level rc.footprint selects. Also sets rc.region*: the box of positions with the same value.
+  VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& rc) const {
+    const int T = rc.footprint >= 2.0f ? lodLevel(rc.footprint) : 0;
+    const int sh = level[T].shift;
+    toLevel(T, x, y, z);
     rc.regionFootprintMax = T + 1 < levels ? float(1 << level[T + 1].shift) : 3.0e38f;
     if (rc.nearest) {
       const int ix = int(x + 0.5f), iy = int(y + 0.5f), iz = int(z + 0.5f);
@@ -463,14 +474,7 @@ struct SvmmView {
   // A gradient neighbour on the current sample's level; leaves the cell and region alone.
   VOXWALL_HD_INLINE float sampleNear(float x, float y, float z, RayCache& rc) const {
     const int T = rc.il < 0 ? 0 : rc.il;
-    const int sh = level[T].shift;
-    const float P = float(1 << sh);
-    if (T) x = (x + 0.5f) / P - 0.5f, y = (y + 0.5f) / P - 0.5f, z = (z + 0.5f) / P - 0.5f;
-    const float mx = float((dimX - 1) >> sh), my = float((dimY - 1) >> sh),
-                mz = float((dimZ - 1) >> sh);
-    x = x < 0.0f ? 0.0f : (x > mx ? mx : x);
-    y = y < 0.0f ? 0.0f : (y > my ? my : y);
-    z = z < 0.0f ? 0.0f : (z > mz ? mz : z);
+    toLevel(T, x, y, z);
     const int ix = int(x), iy = int(y), iz = int(z);
     float c[8];
     const int dx = ix - rc.ix, dy = iy - rc.iy, dz = iz - rc.iz;
