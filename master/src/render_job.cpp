@@ -5,7 +5,9 @@
 #include <fstream>
 #include <future>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/files.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/frame_messages.hpp>
 #include <voxwall/net/tcp.hpp>
@@ -22,16 +24,35 @@ double since(Clock::time_point t) {
 
 constexpr const char* kManifestName = "voxwall-job.json";
 
+std::string hex(std::uint64_t v) {
+  char text[20];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(v));
+  return text;
+}
+
+void writeManifest(const std::string& outDir, const nlohmann::json& manifest) {
+  const std::string text = manifest.dump(2) + "\n";
+  codec::writeFileAtomically((fs::path(outDir) / kManifestName).string(),
+                             std::as_bytes(std::span(text)));
+}
+
 // Writes frames in a background thread, one at a time: push() waits for the previous frame.
+// After each frame is in place, its size and hash go into the job manifest (written atomically),
+// so --resume keeps exactly the frames that were finished.
 class FrameWriter {
  public:
+  FrameWriter(std::string outDir, nlohmann::json manifest)
+      : outDir_(std::move(outDir)), manifest_(std::move(manifest)) {}
   // Returns the seconds spent waiting for the previous write.
   double push(node::Image image, std::string path, std::optional<glm::dvec3> background) {
     const double wait = finish();
     pending_ = std::async(std::launch::async,
-                          [image = std::move(image), path = std::move(path), background]() {
+                          [this, image = std::move(image), path = std::move(path), background]() {
                             const auto start = Clock::now();
-                            node::writeImage(image, path, background);
+                            const auto digest = node::writeImage(image, path, background);
+                            manifest_["frames"][fs::path(path).filename().string()] = {
+                                {"bytes", digest.bytes}, {"xxh64", hex(digest.xxh64)}};
+                            writeManifest(outDir_, manifest_);
                             return since(start);
                           });
     return wait;
@@ -49,9 +70,19 @@ class FrameWriter {
   }
 
  private:
+  std::string outDir_;
+  nlohmann::json manifest_;  // touched by the one write in flight, or after finish()
   std::future<double> pending_;
   double totalWriteSeconds_ = 0;
 };
+
+// A job id the sink has not seen: random, never 0.
+std::uint64_t newJobId() {
+  std::random_device device;
+  std::uint64_t id = 0;
+  while (id == 0) id = (std::uint64_t(device()) << 32) ^ device();
+  return id;
+}
 
 std::vector<int> renderingRanks(const JobSettings& job, int ranks) {
   if (!job.masterRenders && ranks < 2)
@@ -112,8 +143,10 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
       }
       report.encodeSeconds = since(encodeStart);
       const auto before = streamer->bytesSent();
+      streamer->setJob(task.jobId);
       report.streamed = streamer->sendFrame(task.frame, encoded, task.decidedUnixMicros);
       report.streamError = streamer->lastError();
+      report.streamRefused = !streamer->refused().empty();
       report.streamedBytes = streamer->bytesSent() - before;
     }
     for (std::size_t i = 0; i < rects.size(); ++i)
@@ -201,7 +234,10 @@ std::string framePath(const JobSettings& job, int frame) {
   return (fs::path(job.outDir) / name).string();
 }
 
-std::vector<bool> prepareOutput(const JobSettings& job) {
+namespace {
+
+// prepareOutput, also giving the manifest as written (the frame writer adds to it).
+std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest) {
   std::vector<bool> done(std::size_t(job.frames), false);
   if (job.outDir.empty()) return done;
   std::error_code ec;
@@ -209,25 +245,28 @@ std::vector<bool> prepareOutput(const JobSettings& job) {
   if (ec) throw FormatError(job.outDir, "cannot create output directory: " + ec.message());
   const fs::path manifestPath = fs::path(job.outDir) / kManifestName;
   const auto wanted = nlohmann::json::parse(job.manifest);
+  nlohmann::json frames = nlohmann::json::object();
   if (job.resume) {
     // Temporaries of frames that were being written when the last run was killed.
     for (const auto& entry : fs::directory_iterator(job.outDir, ec)) {
       const auto name = entry.path().filename().string();
-      if (name.rfind("frame_", 0) == 0 && name.find(".tmp.") != std::string::npos)
+      if ((name.rfind("frame_", 0) == 0 || name.rfind(kManifestName, 0) == 0) &&
+          name.find(".tmp.") != std::string::npos)
         fs::remove(entry.path(), ec);
     }
     int existing = 0;
-    for (int f = 0; f < job.frames; ++f) {
-      const fs::path p = framePath(job, f);
-      // Frames are renamed into place only when complete, so a file that is there is whole.
-      done[std::size_t(f)] = fs::is_regular_file(p, ec) && fs::file_size(p, ec) > 0;
-      existing += done[std::size_t(f)];
-    }
+    for (int f = 0; f < job.frames; ++f) existing += fs::exists(framePath(job, f), ec);
     if (fs::exists(manifestPath)) {
       nlohmann::json found;
       try {
         std::ifstream in(manifestPath);
         found = nlohmann::json::parse(in);
+        if (found.contains("frames")) {
+          frames = found["frames"];
+          found.erase("frames");
+        }
+        if (!frames.is_object())
+          throw FormatError(manifestPath.string(), "'frames' is not an object");
       } catch (const nlohmann::json::exception& e) {
         throw FormatError(manifestPath.string(), std::string("not valid JSON: ") + e.what());
       }
@@ -246,18 +285,42 @@ std::vector<bool> prepareOutput(const JobSettings& job) {
                                         ": cannot tell how they were made; use another --out or "
                                         "drop --resume");
     }
+    // A frame is kept only when the manifest recorded it and the file still has that size and
+    // hash: a frame cut short by a full disk, or changed since, is rendered again.
+    nlohmann::json kept = nlohmann::json::object();
+    for (int f = 0; f < job.frames; ++f) {
+      const std::string path = framePath(job, f);
+      const std::string name = fs::path(path).filename().string();
+      if (!frames.contains(name)) continue;
+      codec::FileDigest digest;
+      bool same = false;
+      try {
+        same = codec::digestFile(path, &digest) &&
+               digest.bytes == frames[name].at("bytes").get<std::uint64_t>() &&
+               hex(digest.xxh64) == frames[name].at("xxh64").get<std::string>();
+      } catch (const nlohmann::json::exception&) {
+      }
+      if (same) {
+        done[std::size_t(f)] = true;
+        kept[name] = frames[name];
+      } else {
+        std::fprintf(stderr,
+                     "voxwall: %s: not as the job manifest recorded it; rendering it again\n",
+                     path.c_str());
+      }
+    }
+    frames = kept;
   }
-  const std::string text = wanted.dump(2) + "\n";
-  const std::string tmp = manifestPath.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    out << text;
-    if (!out) throw FormatError(manifestPath.string(), "cannot write");
-  }
-  fs::rename(tmp, manifestPath, ec);
-  if (ec) throw FormatError(manifestPath.string(), "cannot write: " + ec.message());
+  nlohmann::json out = wanted;
+  out["frames"] = frames;
+  writeManifest(job.outDir, out);
+  if (manifest) *manifest = out;
   return done;
 }
+
+}  // namespace
+
+std::vector<bool> prepareOutput(const JobSettings& job) { return prepareOutput(job, nullptr); }
 
 JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
                         const node::RenderVolume& volume, const node::TransferFunction& tf,
@@ -272,10 +335,12 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   std::optional<LoadBalancer> balancer;
   if (job.balance == Balance::Dynamic) balancer.emplace(job.width, job.height, slots, job.balancer);
   const auto staticCut = staticSlots(job, slots);
-  const auto done = prepareOutput(job);
+  nlohmann::json manifest;
+  const auto done = prepareOutput(job, &manifest);
+  const std::uint64_t jobId = newJobId();
 
   JobSummary summary;
-  FrameWriter writer;
+  FrameWriter writer(job.outDir, manifest);
   const auto streamer = makeStreamer(job, 0, comm.size());
   std::optional<node::FramePlan> plan;
   std::unique_ptr<net::ControlChannel> control;
@@ -283,6 +348,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     net::Hello hello;
     hello.rank = 0, hello.rankCount = comm.size();
     hello.wallId = job.stream->wallId, hello.token = job.stream->token;
+    hello.jobId = jobId;
     control = std::make_unique<net::ControlChannel>(job.stream->host, job.stream->port, hello);
   }
   CameraOffset offset;
@@ -296,6 +362,13 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     }
     const auto frameStart = Clock::now();
     int controls = 0;
+    std::vector<std::string> sinkNotes;
+    if (control) {
+      // A sink that refused the job (token, wall, version, a newer job) shows nothing of it.
+      if (const auto why = control->refused(); !why.empty())
+        throw net::SinkRefused("wall sink " + why);
+      sinkNotes = control->drainNotes();
+    }
     if (control)
       for (const auto& c : control->drain()) {
         ++controls;
@@ -317,6 +390,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     net::FrameTask task;
     task.frame = std::uint32_t(f);
     task.decidedUnixMicros = net::unixMicrosNow();
+    task.jobId = jobId;
     task.camera =
         node::orbitCamera(offset.apply(job.path.at(f)), node::boundingRadius(volume.info()));
     task.screenWidth = job.width, task.screenHeight = job.height;
@@ -339,6 +413,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     FrameSummary s;
     s.frame = f;
     s.controls = controls;
+    s.sinkNotes = std::move(sinkNotes);
     s.gatherSeconds = since(gatherStart);
     const auto assembleStart = Clock::now();
 
@@ -364,6 +439,8 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
           throw FormatError(source, "sent a tile that was not asked for");
         if (report.pixels) frameImage.paste(report.tiles[t].image, report.tiles[t].rect);
       }
+      if (report.streamRefused)
+        throw net::SinkRefused("rank " + std::to_string(r) + ": " + report.streamError);
       s.streamedRanks += report.streamed;
       if (!report.streamed && s.streamError.empty() && job.stream && !report.tiles.empty())
         s.streamError = "rank " + std::to_string(r) + ": " + report.streamError;
@@ -412,6 +489,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
   }
   writer.finish();
+  if (control) summary.sinkNotes = control->drainNotes();
   summary.writeSeconds = writer.totalWriteSeconds();
   summary.seconds = since(jobStart);
   return summary;

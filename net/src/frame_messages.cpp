@@ -20,8 +20,7 @@ node::Rect getRect(ByteReader& r, int screenWidth, int screenHeight) {
   node::Rect rect;
   rect.x = r.get<std::int32_t>(), rect.y = r.get<std::int32_t>();
   rect.width = r.get<std::int32_t>(), rect.height = r.get<std::int32_t>();
-  if (rect.x < 0 || rect.y < 0 || rect.width <= 0 || rect.height <= 0 ||
-      rect.width > screenWidth - rect.x || rect.height > screenHeight - rect.y)
+  if (!rect.fitsIn(screenWidth, screenHeight))
     r.fail("rectangle " + std::to_string(rect.width) + "x" + std::to_string(rect.height) + "+" +
            std::to_string(rect.x) + "+" + std::to_string(rect.y) + " is not on the " +
            std::to_string(screenWidth) + "x" + std::to_string(screenHeight) + " screen");
@@ -44,6 +43,7 @@ std::vector<std::byte> encode(const FrameTask& t) {
   w.put(kFrameTaskMagic), w.put(kFrameMessageVersion);
   w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>(t.stop ? 1u : 0u);
   w.put<std::uint64_t>(t.decidedUnixMicros);
+  w.put<std::uint64_t>(t.jobId);
   for (const glm::dvec3& v : {t.camera.eye, t.camera.center, t.camera.up})
     w.put(v.x), w.put(v.y), w.put(v.z);
   w.put(t.camera.fovYDeg);
@@ -67,6 +67,7 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
   t.stop = flags & 1;
   t.decidedUnixMicros = r.get<std::uint64_t>();
+  t.jobId = r.get<std::uint64_t>();
   for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
     v->x = r.get<double>(), v->y = r.get<double>(), v->z = r.get<double>();
   t.camera.fovYDeg = r.get<double>();
@@ -109,7 +110,8 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put<std::uint32_t>(rep.frame), w.put<std::int32_t>(rep.rank);
   w.put(rep.renderSeconds), w.put<std::uint64_t>(rep.samples);
   w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
-  w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u));
+  w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u) |
+                       (rep.streamRefused ? 4u : 0u));
   w.put(rep.encodeSeconds), w.put<std::uint64_t>(rep.streamedBytes);
   const std::string error = rep.streamError.substr(0, kMaxStreamError);
   w.put<std::uint16_t>(std::uint16_t(error.size()));
@@ -160,8 +162,8 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.samples = r.get<std::uint64_t>();
   rep.residentBytes = r.get<std::uint64_t>(), rep.peakResidentBytes = r.get<std::uint64_t>();
   const auto flags = r.get<std::uint32_t>();
-  if (flags > 3) r.fail("unknown flags " + std::to_string(flags));
-  rep.pixels = flags & 1, rep.streamed = flags & 2;
+  if (flags > 7) r.fail("unknown flags " + std::to_string(flags));
+  rep.pixels = flags & 1, rep.streamed = flags & 2, rep.streamRefused = flags & 4;
   rep.encodeSeconds = r.get<double>();
   rep.streamedBytes = r.get<std::uint64_t>();
   const auto errorBytes = r.get<std::uint16_t>();

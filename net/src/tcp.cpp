@@ -1,4 +1,5 @@
 #include <asio.hpp>
+#include <utility>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/net/tcp.hpp>
 
@@ -86,10 +87,18 @@ std::unique_ptr<Connection> Connection::open(const std::string& host, std::uint1
   c->send(encodeMessage(hello));
   const int left = int(std::max<long long>(
       1, std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count()));
-  const auto reply = c->receive(left);
+  std::optional<Message> reply;
+  try {
+    reply = c->receive(left);
+  } catch (const NetError& e) {
+    // A sink of another protocol version answers with a Bye this program cannot read.
+    if (std::string(e.what()).find("protocol version") != std::string::npos)
+      throw SinkRefused(e.what());
+    throw;
+  }
   if (!reply) throw NetError(name + ": no answer to Hello");
   if (reply->type == MessageType::Bye)
-    throw NetError(name + ": refused: " + decodeBye(reply->payload, name).reason);
+    throw SinkRefused(name + ": refused: " + decodeBye(reply->payload, name).reason);
   if (reply->type != MessageType::Welcome) throw NetError(name + ": unexpected answer to Hello");
   c->welcome_ = decodeWelcome(reply->payload, name);
   return c;
@@ -131,14 +140,24 @@ std::optional<Message> Connection::receive(int timeoutMs) {
 TileStreamer::TileStreamer(std::string host, std::uint16_t port, Hello hello, int timeoutMs)
     : host_(std::move(host)), port_(port), hello_(std::move(hello)), connectTimeoutMs_(timeoutMs) {}
 
+void TileStreamer::setJob(std::uint64_t jobId) {
+  if (hello_.jobId == jobId) return;
+  hello_.jobId = jobId;
+  connection_.reset();
+}
+
 bool TileStreamer::ensureConnected() {
   if (connection_) return true;
+  if (!refused_.empty()) return false;
   const auto now = Clock::now();
   if (now < nextAttempt_) return false;
   try {
     connection_ = Connection::open(host_, port_, hello_, connectTimeoutMs_);
     backoff_ = std::chrono::milliseconds(100);
     return true;
+  } catch (const SinkRefused& e) {
+    lastError_ = refused_ = e.what();
+    return false;
   } catch (const NetError& e) {
     lastError_ = e.what();
     nextAttempt_ = now + backoff_;
@@ -185,6 +204,21 @@ ControlChannel::~ControlChannel() {
   thread_.join();
 }
 
+std::vector<std::string> ControlChannel::drainNotes() {
+  std::lock_guard lock(mutex_);
+  return std::exchange(notes_, {});
+}
+
+std::uint64_t ControlChannel::framesPresented() const {
+  std::lock_guard lock(mutex_);
+  return presented_;
+}
+
+std::string ControlChannel::refused() const {
+  std::lock_guard lock(mutex_);
+  return refused_;
+}
+
 std::vector<Control> ControlChannel::drain() {
   std::lock_guard lock(mutex_);
   std::vector<Control> out(queue_.begin(), queue_.end());
@@ -202,6 +236,10 @@ void ControlChannel::run() {
     std::unique_ptr<Connection> c;
     try {
       c = Connection::open(host_, port_, hello_, 1000);
+    } catch (const SinkRefused& e) {
+      std::lock_guard lock(mutex_);
+      refused_ = e.what();
+      return;
     } catch (const NetError&) {
       for (auto waited = std::chrono::milliseconds(0); waited < backoff && !stopping();
            waited += std::chrono::milliseconds(50))
@@ -218,8 +256,19 @@ void ControlChannel::run() {
           const auto control = decodeControl(m->payload, c->name());
           std::lock_guard lock(mutex_);
           queue_.push_back(control);
+        } else if (m->type == MessageType::FrameNote) {
+          const auto note = decodeFrameNote(m->payload, c->name());
+          std::lock_guard lock(mutex_);
+          if (note.status == FrameStatus::Presented)
+            ++presented_;
+          else if (notes_.size() < 1024)
+            notes_.push_back("sink: " + describe(m->frame, note));
         } else if (m->type == MessageType::Bye) {
-          break;
+          // A Bye after the job was accepted: the sink ended it (another job took the wall).
+          const auto bye = decodeBye(m->payload, c->name());
+          std::lock_guard lock(mutex_);
+          refused_ = c->name() + ": " + bye.reason;
+          return;
         }
       }
       if (stopping()) c->send(encodeMessage(Bye{"render job finished"}));

@@ -1,8 +1,9 @@
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <voxwall/codec/errors.hpp>
@@ -11,8 +12,7 @@
 namespace voxwall::node {
 
 void Image::paste(const Image& tile, const Rect& rect) {
-  if (rect.x < 0 || rect.y < 0 || rect.x + rect.width > width || rect.y + rect.height > height ||
-      tile.width != rect.width || tile.height != rect.height)
+  if (!rect.fitsIn(width, height) || tile.width != rect.width || tile.height != rect.height)
     throw std::invalid_argument("Image::paste: tile does not fit");
   for (int y = 0; y < rect.height; ++y)
     std::copy_n(tile.pixels.begin() + std::ptrdiff_t(y) * tile.width, tile.width,
@@ -20,8 +20,7 @@ void Image::paste(const Image& tile, const Rect& rect) {
 }
 
 Image Image::crop(const Rect& rect) const {
-  if (rect.x < 0 || rect.y < 0 || rect.width <= 0 || rect.height <= 0 ||
-      rect.x + rect.width > width || rect.y + rect.height > height)
+  if (!rect.fitsIn(width, height))
     throw std::invalid_argument("Image::crop: rectangle outside the image");
   Image out(rect.width, rect.height);
   for (int y = 0; y < rect.height; ++y)
@@ -30,8 +29,8 @@ Image Image::crop(const Rect& rect) const {
   return out;
 }
 
-void writeImage(const Image& image, const std::string& path,
-                const std::optional<glm::dvec3>& background) {
+std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
+                                   const std::optional<glm::dvec3>& background) {
   // Float channels straight from the premultiplied bytes; OIIO converts to the file's type.
   std::vector<float> rgba(image.pixels.size() * 4);
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
@@ -46,25 +45,29 @@ void writeImage(const Image& image, const std::string& path,
     }
     std::copy(c, c + 4, rgba.begin() + std::ptrdiff_t(i * 4));
   }
-  // The temporary keeps the extension: OpenImageIO picks the format from it.
-  const auto dot = path.rfind('.');
-  const std::string ext = dot == std::string::npos ? ".png" : path.substr(dot);
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + ext;
-  auto out = OIIO::ImageOutput::create(tmp);
+  // Encoded in memory: OpenImageIO's writers do not all report a full disk, our writer does.
+  auto out = OIIO::ImageOutput::create(path);
   if (!out) throw FormatError(path, "cannot write images of this type: " + OIIO::geterror());
+  if (!out->supports("ioproxy"))
+    throw FormatError(path, "cannot write " + std::string(out->format_name()) + " images safely");
   const bool exr = out->format_name() == std::string("openexr");
   OIIO::ImageSpec spec(image.width, image.height, 4,
                        exr ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
-  if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) ||
-      !out->close()) {
-    const std::string err = out->geterror();
-    std::remove(tmp.c_str());
-    throw FormatError(path, "cannot write image: " + err);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw FormatError(path, "cannot rename the finished image into place");
-  }
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput memory(encoded);
+  if (!out->set_ioproxy(&memory) || !out->open(path, spec) ||
+      !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) || !out->close())
+    throw FormatError(path, "cannot encode image: " + out->geterror());
+  std::vector<std::byte> bytes(encoded.size());
+  std::memcpy(bytes.data(), encoded.data(), encoded.size());
+  return bytes;
+}
+
+codec::FileDigest writeImage(const Image& image, const std::string& path,
+                             const std::optional<glm::dvec3>& background) {
+  const auto bytes = encodeImage(image, path, background);
+  codec::writeFileAtomically(path, bytes);
+  return codec::digestOf(bytes);
 }
 
 Image readImage(const std::string& path) {

@@ -135,7 +135,7 @@ TEST(Wire, PayloadDecodersCheckEveryField) {
   poke(p, 1, std::int32_t(5));  // rank 5 of 1
   EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
   p = {payload.begin(), payload.end()};
-  poke(p, 9, std::uint16_t(60000));  // string longer than the limit
+  poke(p, 17, std::uint16_t(60000));  // string longer than the limit (after the job id)
   EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
   p = {payload.begin(), payload.end()};
   p.push_back(std::byte{0});

@@ -142,7 +142,7 @@ TEST(Sink, DropsTheOldestWhenTooManyFramesAreOpen) {
     c->send(net::encodeMessage(frame, net::TileMessage{half.rect, half.codec, 0, half.bytes}));
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesDropped == 1; }))
       << sink.log();
-  EXPECT_NE(sink.log().find("frame 1 dropped (too many frames open)"), std::string::npos)
+  EXPECT_NE(sink.log().find("frame 1 dropped: too many frames open"), std::string::npos)
       << sink.log();
   EXPECT_EQ(sink.sink().stats().framesPresented, 0);
 }

@@ -1,16 +1,16 @@
-// The sink: one Asio thread reads every peer (header, then payload, checked), decodes tiles into
-// the frame they belong to and marks which display pixels have arrived; a presenter thread
+// The sink's transport: one Asio thread accepts peers, reads each message (header, then the
+// payload in chunks as it arrives, checked) and hands it to the SinkCore; a presenter thread
 // writes complete frames. Per frame: collecting -> complete (every display pixel covered) ->
-// presented, or dropped (a newer frame completed first, or too many frames were open).
+// presented, or dropped (a newer frame completed first, too many frames were open, the memory
+// limit) or refused (outside the frame window); every outcome is logged and told to rank 0.
 #include <asio.hpp>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
-#include <cstring>
 #include <deque>
 #include <filesystem>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -18,7 +18,9 @@
 #include <thread>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/frame_files.hpp>
 #include <voxwall/walls/sink.hpp>
+#include <voxwall/walls/sink_core.hpp>
 
 namespace voxwall::walls {
 
@@ -26,19 +28,12 @@ using asio::ip::tcp;
 
 namespace {
 
-struct PendingFrame {
-  node::Image image;
-  std::vector<std::uint8_t> covered;  // per virtual-screen pixel
-  long long coveredDisplayPixels = 0;
-  std::uint64_t decidedUnixMicros = 0, bytes = 0;
-  int tiles = 0;
-  std::set<int> ranks;
+struct CompleteFrame {
+  std::uint64_t job = 0;
+  AssembledFrame data;
 };
 
-struct CompleteFrame {
-  std::uint64_t frame = 0;
-  PendingFrame data;
-};
+constexpr std::size_t kPayloadChunk = 1 << 20;  // a payload's memory grows as its bytes arrive
 
 }  // namespace
 
@@ -49,15 +44,9 @@ struct Sink::Impl {
   SinkLog log;
   asio::io_context io;
   tcp::acceptor acceptor{io};
-  std::vector<std::uint8_t> displayMask;  // 1 inside a display
-  std::map<std::uint64_t, PendingFrame> pending;
-  std::optional<std::uint64_t> lastComplete;
-  std::weak_ptr<Session> controller;
+  asio::steady_timer acceptPause{io};
+  std::unique_ptr<SinkCore> core;
   std::set<std::shared_ptr<Session>> sessions;
-
-  mutable std::mutex statsMutex;
-  SinkStats stats;
-  double latencySumMs = 0;
 
   // Presenter: the newest complete frame waits here; a newer one replaces it (stale).
   std::mutex presentMutex;
@@ -65,164 +54,145 @@ struct Sink::Impl {
   std::optional<CompleteFrame> toPresent;
   bool presenterStop = false;
   std::thread presenter;
+  std::string writeError;  // the first frame that could not be written ends the sink
+  double latencySumMs = 0;
 
   void say(const std::string& line) {
     if (log) log(line);
   }
 
   // After maxFrames frames were settled (presented, skipped or dropped), the sink stops.
-  // Call with statsMutex held.
   void stopIfDone() {
-    const int settled = stats.framesPresented + stats.framesStale + stats.framesDropped;
+    const auto s = core->stats();
+    const int settled = s.framesPresented + s.framesStale + s.framesDropped;
     if (settings.maxFrames > 0 && settled >= settings.maxFrames)
       asio::post(io, [this] { io.stop(); });
   }
 
-  struct Session : std::enable_shared_from_this<Session> {
+  struct Session : SinkPeer, std::enable_shared_from_this<Session> {
     Impl& sink;
     tcp::socket socket;
-    std::string name;
+    asio::steady_timer helloDeadline;
     std::array<std::byte, net::kHeaderBytes> header{};
     std::vector<std::byte> payload;
+    std::uint32_t payloadBytes = 0;
     net::MessageType type{};
     std::uint64_t frame = 0;
-    bool greeted = false, closing = false;
-    net::Hello hello;
+    bool closing = false, closed = false;
     std::deque<std::vector<std::byte>> outbox;
 
-    Session(Impl& s, tcp::socket sock) : sink(s), socket(std::move(sock)) {
+    static std::string nameOf(tcp::socket& socket) {
       asio::error_code ec;
       const auto ep = socket.remote_endpoint(ec);
-      name = ec ? std::string("peer")
+      return ec ? std::string("peer")
                 : "peer " + ep.address().to_string() + ":" + std::to_string(ep.port());
+    }
+
+    Session(Impl& s, tcp::socket sock)
+        : SinkPeer(nameOf(sock)), sink(s), socket(std::move(sock)), helloDeadline(s.io) {}
+
+    void start() {
+      sink.core->attach(*this);
+      auto self = shared_from_this();
+      helloDeadline.expires_after(std::chrono::milliseconds(sink.settings.helloTimeoutMs));
+      helloDeadline.async_wait([self](asio::error_code ec) {
+        if (ec || self->greeted() || self->closed) return;
+        self->drop("sent no Hello within " + std::to_string(self->sink.settings.helloTimeoutMs) +
+                   " ms");
+      });
+      readHeader();
     }
 
     void readHeader() {
       auto self = shared_from_this();
       asio::async_read(socket, asio::buffer(header), [self](asio::error_code ec, std::size_t) {
+        if (self->closed) return;
         if (ec) return self->drop(ec == asio::error::eof ? "" : ec.message());
-        std::uint32_t length = 0;
         try {
-          length = net::checkHeader(self->header, self->name, &self->type, &self->frame);
+          self->payloadBytes =
+              net::checkHeader(self->header, self->name(), &self->type, &self->frame);
         } catch (const FormatError& e) {
           return self->refuse(e.what());
         }
-        self->payload.resize(length);
+        const std::uint32_t limit = self->sink.core->payloadLimit(*self);
+        if (self->payloadBytes > limit)
+          return self->refuse(self->name() + ": payload of " + std::to_string(self->payloadBytes) +
+                              " bytes" + (self->greeted() ? "" : " before its Hello") + " (limit " +
+                              std::to_string(limit) + ")");
+        self->payload.clear();
         self->readPayload();
       });
     }
 
+    // Reads the payload a chunk at a time: memory follows the bytes that really arrived, not
+    // the length a header claims.
     void readPayload() {
+      if (payload.size() == payloadBytes) return onMessage();
+      const std::size_t have = payload.size();
+      const std::size_t chunk = std::min<std::size_t>(payloadBytes - have, kPayloadChunk);
+      payload.resize(have + chunk);
       auto self = shared_from_this();
-      asio::async_read(socket, asio::buffer(payload), [self](asio::error_code ec, std::size_t) {
-        if (ec) return self->drop(ec == asio::error::eof ? "closed mid-message" : ec.message());
-        {
-          std::lock_guard lock(self->sink.statsMutex);
-          self->sink.stats.bytesReceived += net::kHeaderBytes + self->payload.size();
-        }
-        try {
-          net::checkPayload(self->header, self->payload, self->name);
-          if (!self->handle()) return;
-        } catch (const FormatError& e) {
-          return self->drop(e.what());
-        }
-        self->readHeader();
-      });
+      asio::async_read(
+          socket, asio::buffer(payload.data() + have, chunk),
+          [self](asio::error_code ec, std::size_t) {
+            if (self->closed) return;
+            if (ec) return self->drop(ec == asio::error::eof ? "closed mid-message" : ec.message());
+            self->readPayload();
+          });
     }
 
-    // Returns false when the session ends.
-    bool handle() {
-      using net::MessageType;
-      if (!greeted) {
-        if (type != MessageType::Hello) {
-          refuse(name + ": sent a message before Hello");
-          return false;
-        }
-        hello = net::decodeHello(payload, name);
-        const auto& s = sink.settings;
-        if (!s.token.empty() && hello.token != s.token) {
-          refuse(name + ": wrong token");
-          return false;
-        }
-        if (!hello.wallId.empty() && hello.wallId != s.wall.id) {
-          refuse(name + ": renders for wall '" + hello.wallId + "', this sink shows '" + s.wall.id +
-                 "'");
-          return false;
-        }
-        greeted = true;
-        name += hello.role == net::Role::Controller ? " (controller)"
-                                                    : " (rank " + std::to_string(hello.rank) + ")";
-        {
-          std::lock_guard lock(sink.statsMutex);
-          ++sink.stats.peersAccepted;
-        }
-        if (hello.role == net::Role::Controller) {
-          sink.controller = shared_from_this();
-          std::lock_guard lock(sink.statsMutex);
-          sink.stats.controllerConnected = true;
-        }
-        send(net::encodeMessage(net::Welcome{s.wall.id, s.wall.width, s.wall.height}));
-        return true;
+    void onMessage() {
+      sink.core->updateStats(
+          [&](SinkStats& s) { s.bytesReceived += net::kHeaderBytes + payload.size(); });
+      try {
+        net::checkPayload(header, payload, name());
+        const bool goOn = sink.core->handle(*this, type, frame, payload);
+        sink.stopIfDone();
+        if (!goOn) return;
+      } catch (const FormatError& e) {
+        return drop(e.what());
       }
-      switch (type) {
-        case MessageType::Tile:
-          if (hello.role != net::Role::Renderer)
-            throw FormatError(name, "a controller sent a tile");
-          sink.onTile(frame, net::decodeTile(payload, name), hello.rank, name);
-          return true;
-        case MessageType::FrameEnd:
-          net::decodeFrameEnd(payload, name);
-          return true;
-        case MessageType::Bye:
-          close();
-          return false;
-        default:
-          throw FormatError(name, "unexpected message type " + std::to_string(int(type)));
-      }
+      if (closed) return;  // the core hung up on this peer (another job took the wall)
+      readHeader();
     }
 
-    void send(std::vector<std::byte> bytes) {
+    void send(std::vector<std::byte> bytes) override {
+      if (closed) return;
       outbox.push_back(std::move(bytes));
       if (outbox.size() == 1) writeNext();
+    }
+
+    void hangUp() override {
+      closing = true;
+      if (outbox.empty()) close();
     }
 
     void writeNext() {
       auto self = shared_from_this();
       asio::async_write(socket, asio::buffer(outbox.front()),
                         [self](asio::error_code ec, std::size_t) {
+                          if (self->closed) return;
                           self->outbox.pop_front();
-                          if (ec) return self->close();
+                          if (ec) return self->drop(ec.message());
                           if (!self->outbox.empty()) return self->writeNext();
                           if (self->closing) self->close();
                         });
     }
 
-    // Tells the peer why (Bye) and closes once that is sent.
-    void refuse(const std::string& reason) {
-      {
-        std::lock_guard lock(sink.statsMutex);
-        ++sink.stats.peersRefused;
-      }
-      sink.say("sink: refused " + reason);
-      closing = true;
-      send(net::encodeMessage(net::Bye{reason.substr(0, net::kMaxString)}));
-    }
+    void refuse(const std::string& reason) { sink.core->refuse(*this, reason); }
 
     void drop(const std::string& why) {
-      if (!why.empty()) {
-        std::lock_guard lock(sink.statsMutex);
-        ++sink.stats.peersDropped;
-      }
-      if (!why.empty()) sink.say("sink: dropped " + name + ": " + why);
+      if (closed) return;
+      sink.core->dropped(*this, why);
       close();
     }
 
     void close() {
-      if (greeted && hello.role == net::Role::Controller) {
-        std::lock_guard lock(sink.statsMutex);
-        sink.stats.controllerConnected = false;
-      }
+      if (closed) return;
+      closed = true;
+      sink.core->detach(*this);
       asio::error_code ignored;
+      helloDeadline.cancel();
       socket.shutdown(tcp::socket::shutdown_both, ignored);
       socket.close(ignored);
       sink.sessions.erase(shared_from_this());
@@ -231,80 +201,45 @@ struct Sink::Impl {
 
   void accept() {
     acceptor.async_accept([this](asio::error_code ec, tcp::socket socket) {
-      if (ec) return;  // acceptor closed
+      if (!acceptor.is_open() || ec == asio::error::operation_aborted) return;
+      if (ec) {
+        // Out of file descriptors (EMFILE/ENFILE) or a peer gone before accept: keep serving,
+        // after a pause that lets idle peers time out.
+        say("sink: cannot accept a peer: " + ec.message() + "; retrying in 100 ms");
+        acceptPause.expires_after(std::chrono::milliseconds(100));
+        acceptPause.async_wait([this](asio::error_code e) {
+          if (!e) accept();
+        });
+        return;
+      }
       asio::error_code ignored;
+      if (int(sessions.size()) >= settings.maxPeers) {
+        core->updateStats([](SinkStats& s) { ++s.peersRefused; });
+        say("sink: refused a peer: " + std::to_string(settings.maxPeers) +
+            " peers connected (--max-peers)");
+        socket.close(ignored);
+        return accept();
+      }
       socket.set_option(tcp::no_delay(true), ignored);
       auto session = std::make_shared<Session>(*this, std::move(socket));
       sessions.insert(session);
-      session->readHeader();
+      session->start();
       accept();
     });
   }
 
-  void dropFrame(std::map<std::uint64_t, PendingFrame>::iterator it, const char* why) {
-    const long long total = settings.wall.displayPixels();
-    char line[200];
-    std::snprintf(line, sizeof line, "frame %llu dropped (%s): %.1f%% of display pixels arrived",
-                  (unsigned long long)it->first, why,
-                  100.0 * double(it->second.coveredDisplayPixels) / double(total));
-    say(line);
-    {
-      std::lock_guard lock(statsMutex);
-      ++stats.framesDropped;
-      stopIfDone();
-    }
-    pending.erase(it);
-  }
-
-  void onTile(std::uint64_t frame, const net::TileMessage& tile, int rank,
-              const std::string& peer) {
-    const Wall& wall = settings.wall;
-    const auto& r = tile.rect;
-    if (r.x + r.width > wall.width || r.y + r.height > wall.height)
-      throw FormatError(peer, "tile outside the " + std::to_string(wall.width) + "x" +
-                                  std::to_string(wall.height) + " screen");
-    if (lastComplete && frame <= *lastComplete) return;  // late: that frame is settled
-    // Decode before touching the frame: a corrupt tile must not mark any pixel as arrived.
-    const node::Image image = net::decodeTile(tile.bytes, tile.codec, r.width, r.height, peer);
-    auto it = pending.find(frame);
-    if (it == pending.end()) {
-      while (int(pending.size()) >= settings.pendingFrames)
-        dropFrame(pending.begin(), "too many frames open");
-      it = pending.emplace(frame, PendingFrame{}).first;
-      it->second.image = node::Image(wall.width, wall.height);
-      it->second.covered.assign(std::size_t(wall.width) * std::size_t(wall.height), 0);
-    }
-    PendingFrame& f = it->second;
-    for (int y = 0; y < r.height; ++y) {
-      const std::size_t row = std::size_t(r.y + y) * std::size_t(wall.width) + std::size_t(r.x);
-      std::memcpy(&f.image.pixels[row], &image.pixels[std::size_t(y) * std::size_t(r.width)],
-                  std::size_t(r.width) * 4);
-      for (int x = 0; x < r.width; ++x)
-        if (!f.covered[row + std::size_t(x)]) {
-          f.covered[row + std::size_t(x)] = 1;
-          f.coveredDisplayPixels += displayMask[row + std::size_t(x)];
-        }
-    }
-    f.decidedUnixMicros = f.decidedUnixMicros
-                              ? std::min(f.decidedUnixMicros, tile.decidedUnixMicros)
-                              : tile.decidedUnixMicros;
-    f.bytes += tile.bytes.size();
-    ++f.tiles;
-    f.ranks.insert(rank);
-    if (f.coveredDisplayPixels < wall.displayPixels()) return;
-    // Complete: older frames can never be shown now.
-    while (pending.begin()->first != frame) dropFrame(pending.begin(), "a newer frame completed");
-    CompleteFrame done{frame, std::move(f)};
-    pending.erase(pending.begin());
-    lastComplete = frame;
+  // On the io thread: a complete frame goes to the presenter (replacing one it has not taken).
+  void onComplete(std::uint64_t job, AssembledFrame&& frame) {
     std::lock_guard lock(presentMutex);
     if (toPresent) {
-      say("frame " + std::to_string(toPresent->frame) + " skipped: the sink fell behind");
-      std::lock_guard s(statsMutex);
-      ++stats.framesStale;
+      const auto skipped = toPresent->data.frame;
+      say("frame " + std::to_string(skipped) + " skipped: the sink fell behind");
+      core->updateStats([](SinkStats& s) { ++s.framesStale; });
+      core->frameSettled(toPresent->job, skipped,
+                         {net::FrameStatus::Dropped, "skipped: the sink fell behind"});
       stopIfDone();
     }
-    toPresent = std::move(done);
+    toPresent = CompleteFrame{job, std::move(frame)};
     presentReady.notify_one();
   }
 
@@ -319,41 +254,51 @@ struct Sink::Impl {
         toPresent.reset();
       }
       const auto& wall = settings.wall;
-      try {
-        if (!settings.outDir.empty()) {
-          char stem[64];
-          std::snprintf(stem, sizeof stem, "frame_%05llu", (unsigned long long)frame.frame);
-          const auto base = std::filesystem::path(settings.outDir);
-          for (const auto& d : wall.displays)
-            node::writeImage(frame.data.image.crop(d.rect),
-                             (base / (std::string(stem) + "_" + d.name + ".png")).string());
-          if (settings.mosaic)
-            node::writeImage(frame.data.image,
-                             (base / (std::string(stem) + "_mosaic.png")).string());
+      const auto number = frame.data.frame;
+      if (!settings.outDir.empty()) {
+        try {
+          writeFrameFiles(settings.outDir, number, wall, frame.data.image, settings.mosaic);
+        } catch (const std::exception& e) {
+          // A full disk loses every later frame too: stop, and say so.
+          say("frame " + std::to_string(number) + " not presented: " + e.what());
+          asio::post(io, [this, job = frame.job, number, why = std::string(e.what())] {
+            core->frameSettled(job, number, {net::FrameStatus::Dropped, "not written: " + why});
+            if (writeError.empty()) writeError = why;
+            io.stop();
+          });
+          return;
         }
-      } catch (const std::exception& e) {
-        say(std::string("sink: cannot write frame: ") + e.what());
       }
       const double latencyMs =
           frame.data.decidedUnixMicros
               ? double(net::unixMicrosNow() - frame.data.decidedUnixMicros) / 1e3
               : 0.0;
-      {
-        std::lock_guard lock(statsMutex);
-        const int presented = ++stats.framesPresented;
+      core->updateStats([&](SinkStats& s) {
+        const int presented = ++s.framesPresented;
         latencySumMs += latencyMs;
-        stats.meanLatencyMs = latencySumMs / presented;
-      }
+        s.meanLatencyMs = latencySumMs / presented;
+      });
       char line[256];
       std::snprintf(line, sizeof line,
                     "frame %llu presented: %zu display(s), %d tiles from %zu rank(s), %.1f KiB, "
                     "latency %.1f ms",
-                    (unsigned long long)frame.frame, wall.displays.size(), frame.data.tiles,
+                    (unsigned long long)number, wall.displays.size(), frame.data.tiles,
                     frame.data.ranks.size(), double(frame.data.bytes) / 1024, latencyMs);
       say(line);
-      std::lock_guard lock(statsMutex);
+      asio::post(io, [this, job = frame.job, number] {
+        core->frameSettled(job, number, {net::FrameStatus::Presented, ""});
+      });
       stopIfDone();
     }
+  }
+
+  void stopPresenter() {
+    {
+      std::lock_guard lock(presentMutex);
+      presenterStop = true;
+    }
+    presentReady.notify_all();
+    if (presenter.joinable()) presenter.join();
   }
 };
 
@@ -363,17 +308,19 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
   s.log = std::move(log);
   validateWall(s.settings.wall, "wall");
   if (s.settings.pendingFrames < 1) s.settings.pendingFrames = 1;
-  const auto& wall = s.settings.wall;
-  s.displayMask.assign(std::size_t(wall.width) * std::size_t(wall.height), 0);
-  for (const auto& d : wall.displays)
-    for (int y = d.rect.y; y < d.rect.y + d.rect.height; ++y)
-      std::fill_n(s.displayMask.begin() + std::ptrdiff_t(std::size_t(y) * std::size_t(wall.width) +
-                                                         std::size_t(d.rect.x)),
-                  d.rect.width, std::uint8_t(1));
+  if (s.settings.maxPeers < 1) throw std::invalid_argument("--max-peers must be at least 1");
+  if (s.settings.helloTimeoutMs < 1)
+    throw std::invalid_argument("the Hello timeout must be positive");
+  s.core = std::make_unique<SinkCore>(
+      s.settings, s.log,
+      [this](std::uint64_t job, AssembledFrame&& f) { impl_->onComplete(job, std::move(f)); });
   if (!s.settings.outDir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(s.settings.outDir, ec);
     if (ec) throw FormatError(s.settings.outDir, "cannot create: " + ec.message());
+    if (const int removed = removeIncompleteFrames(s.settings.outDir))
+      s.say("sink: removed " + std::to_string(removed) + " file(s) of incomplete frames from " +
+            s.settings.outDir);
   }
   asio::error_code ec;
   const auto address = asio::ip::make_address(s.settings.listenHost, ec);
@@ -389,14 +336,7 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
   s.presenter = std::thread([this] { impl_->present(); });
 }
 
-Sink::~Sink() {
-  {
-    std::lock_guard lock(impl_->presentMutex);
-    impl_->presenterStop = true;
-  }
-  impl_->presentReady.notify_all();
-  if (impl_->presenter.joinable()) impl_->presenter.join();
-}
+Sink::~Sink() { impl_->stopPresenter(); }
 
 std::uint16_t Sink::port() const { return impl_->acceptor.local_endpoint().port(); }
 
@@ -406,18 +346,15 @@ void Sink::run() {
   // Stop listening and hang up on every peer, so the port is free for a new sink at once.
   asio::error_code ignored;
   impl_->acceptor.close(ignored);
-  for (const auto& session : std::set(impl_->sessions)) {
-    session->socket.shutdown(tcp::socket::shutdown_both, ignored);
-    session->socket.close(ignored);
-  }
+  impl_->acceptPause.cancel();
+  for (const auto& session : std::set(impl_->sessions)) session->close();
   impl_->sessions.clear();
   // Finish the frame being written before returning.
-  {
-    std::lock_guard lock(impl_->presentMutex);
-    impl_->presenterStop = true;
-  }
-  impl_->presentReady.notify_all();
-  if (impl_->presenter.joinable()) impl_->presenter.join();
+  impl_->stopPresenter();
+  // Handlers the presenter posted last (its frame notes, a write error) still run here.
+  impl_->io.restart();
+  impl_->io.poll();
+  if (!impl_->writeError.empty()) throw FormatError("", impl_->writeError);
 }
 
 void Sink::stop() {
@@ -426,17 +363,12 @@ void Sink::stop() {
 
 void Sink::sendControl(const net::Control& control) {
   asio::post(impl_->io, [this, control] {
-    if (auto c = impl_->controller.lock())
-      c->send(net::encodeMessage(control));
-    else
+    if (!impl_->core->sendControl(control))
       impl_->say("sink: no render job connected to take the command");
   });
 }
 
-SinkStats Sink::stats() const {
-  std::lock_guard lock(impl_->statsMutex);
-  return impl_->stats;
-}
+SinkStats Sink::stats() const { return impl_->core->stats(); }
 
 net::Control parseControlLine(const std::string& line) {
   std::istringstream in(line);

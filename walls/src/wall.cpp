@@ -199,7 +199,7 @@ void validateWall(const Wall& wall, const std::string& source) {
     if (r.width <= 0 || r.height <= 0 || r.width > kMaxDisplaySide || r.height > kMaxDisplaySide)
       throw FormatError(
           source, what + " has size " + std::to_string(r.width) + "x" + std::to_string(r.height));
-    if (r.x < 0 || r.y < 0 || r.x + r.width > wall.width || r.y + r.height > wall.height)
+    if (!r.fitsIn(wall.width, wall.height))
       throw FormatError(source, what + " lies outside the " + std::to_string(wall.width) + "x" +
                                     std::to_string(wall.height) + " screen");
     if (d.name.empty() || d.name.size() > 64 ||

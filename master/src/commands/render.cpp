@@ -466,6 +466,7 @@ void runRender(const RenderOptions& o) {
                 f.frame + 1, s.job.frames, f.frameSeconds * 1e3, f.imbalance, ranks.c_str(),
                 double(f.samples) / f.renderSeconds / 1e6, sinkText.c_str(),
                 f.path.empty() ? "" : " -> ", f.path.c_str());
+            for (const auto& note : f.sinkNotes) std::printf("  %s\n", note.c_str());
             if (o.verbose)
               for (std::size_t i = 0; i < f.ranks.size(); ++i)
                 std::printf("  rank %d:%s\n", f.ranks[i], rectList(f.rects[i]).c_str());
@@ -481,6 +482,7 @@ void runRender(const RenderOptions& o) {
     }
   }();
   if (quiet) return;
+  for (const auto& note : summary.sinkNotes) std::printf("%s\n", note.c_str());
   if (summary.framesSkipped > 0)
     std::printf("resume: %d frame(s) already complete in %s, rendered %d\n", summary.framesSkipped,
                 s.job.outDir.c_str(), summary.framesRendered);

@@ -14,7 +14,8 @@ namespace {
 
 struct SinkOptions {
   std::string wall, listen = "127.0.0.1:7400", out, token;
-  int frames = 0, pending = 4;
+  int frames = 0, pending = 4, maxPeers = 256, helloTimeoutMs = 5000;
+  std::uint64_t pendingMiB = 0;
   bool mosaic = false, quiet = false, noStdin = false;
 };
 
@@ -29,6 +30,14 @@ void runSink(const SinkOptions& o) {
   settings.maxFrames = o.frames;
   if (o.pending < 1 || o.pending > 64) throw std::invalid_argument("--pending must be in [1, 64]");
   settings.pendingFrames = o.pending;
+  if (o.maxPeers < 1 || o.maxPeers > 65536)
+    throw std::invalid_argument("--max-peers must be in [1, 65536]");
+  settings.maxPeers = o.maxPeers;
+  if (o.helloTimeoutMs < 1 || o.helloTimeoutMs > 600000)
+    throw std::invalid_argument("--hello-timeout-ms must be in [1, 600000]");
+  settings.helloTimeoutMs = o.helloTimeoutMs;
+  if (o.pendingMiB > (1u << 20)) throw std::invalid_argument("--pending-mib is over 1 TiB");
+  settings.pendingBytes = o.pendingMiB << 20;
 
   // SIGINT and SIGTERM end the sink cleanly (the frame being written is finished).
   sigset_t signals;
@@ -78,9 +87,11 @@ void runSink(const SinkOptions& o) {
   if (!quiet)
     std::printf(
         "sink: %d frame(s) presented, %d dropped incomplete, %d skipped (behind); "
+        "%d refused (frame id outside the window); "
         "peers: %d accepted, %d refused, %d dropped; %s received; mean latency %.1f ms\n",
-        st.framesPresented, st.framesDropped, st.framesStale, st.peersAccepted, st.peersRefused,
-        st.peersDropped, humanBytes(double(st.bytesReceived)).c_str(), st.meanLatencyMs);
+        st.framesPresented, st.framesDropped, st.framesStale, st.framesRefused, st.peersAccepted,
+        st.peersRefused, st.peersDropped, humanBytes(double(st.bytesReceived)).c_str(),
+        st.meanLatencyMs);
 }
 
 }  // namespace
@@ -100,13 +111,26 @@ void addSinkCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--out", o->out, "Write every presented frame as DIR/frame_NNNNN_<display>.png");
   cmd->add_flag("--mosaic", o->mosaic, "Also write the whole virtual screen, bezels included");
-  cmd->add_option("--token", o->token, "Refuse peers that do not present this token");
+  cmd->add_option("--token", o->token,
+                  "Refuse peers that do not present this token (it travels in clear text: "
+                  "tunnel the port through SSH or keep it on a private network)");
   cmd->add_option("--frames", o->frames,
                   "Exit after this many frames were presented, skipped (the sink fell behind) or "
                   "dropped (incomplete); 0: run until interrupted")
       ->capture_default_str();
   cmd->add_option("--pending", o->pending,
                   "Incomplete frames held at once before the oldest is dropped")
+      ->capture_default_str();
+  cmd->add_option("--pending-mib", o->pendingMiB,
+                  "Memory for tiles of incomplete frames; when it is full the oldest frame is "
+                  "dropped (default 0: two frames of this wall plus 64 MiB)")
+      ->capture_default_str();
+  cmd->add_option("--max-peers", o->maxPeers,
+                  "Connections at once (ranks, rank 0's control, not yet greeted); more are "
+                  "refused")
+      ->capture_default_str();
+  cmd->add_option("--hello-timeout-ms", o->helloTimeoutMs,
+                  "Drop a peer that has not said Hello by then")
       ->capture_default_str();
   cmd->add_flag("--no-stdin", o->noStdin, "Do not read camera commands from stdin");
   cmd->add_flag("-q,--quiet", o->quiet, "Print nothing but errors");

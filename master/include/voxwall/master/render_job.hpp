@@ -73,7 +73,8 @@ struct FrameSummary {
   int streamedRanks = 0;     // ranks whose tiles reached the sink
   double encodeSeconds = 0;  // the slowest rank's tile compression
   std::uint64_t streamedBytes = 0;
-  int controls = 0;  // camera commands from the wall applied to this frame
+  int controls = 0;                    // camera commands from the wall applied to this frame
+  std::vector<std::string> sinkNotes;  // what the sink said about earlier frames (drops, refusals)
 };
 
 struct RankMemory {
@@ -85,15 +86,18 @@ struct RankMemory {
 struct JobSummary {
   int framesRendered = 0, framesSkipped = 0;
   double seconds = 0;
-  double writeSeconds = 0;         // encoding and writing all frames, in the background thread
-  std::vector<RankMemory> memory;  // rank 0 only
+  double writeSeconds = 0;             // encoding and writing all frames, in the background thread
+  std::vector<RankMemory> memory;      // rank 0 only
+  std::vector<std::string> sinkNotes;  // the sink's notes that arrived after the last frame
 };
 
 // The rectangles of every rank in the first frame (what --dry-run shows). Throws
 // std::invalid_argument when the screen cannot be cut for this many ranks.
 std::vector<std::vector<node::Rect>> firstFrameRects(const JobSettings& job, int ranks);
 
-// Frames already complete in job.outDir (resume); checks and writes the manifest, removes
+// Frames already complete in job.outDir (resume): those the job manifest (voxwall-job.json)
+// records with the size and xxHash64 the file still has; any other frame is rendered again
+// (with a line on stderr). Checks and rewrites the manifest, removes
 // temporaries left by a killed run. Throws FormatError when the directory holds frames of
 // different settings. Rank 0 only.
 std::vector<bool> prepareOutput(const JobSettings& job);

@@ -11,12 +11,13 @@
 //
 // Layout (little-endian, serialized field by field):
 //   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop),
-//               u64 decidedUnixMicros, f64 eye[3], center[3], up[3], fovYDeg, u32 tfVersion, u32
-//               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, u32 rankCount, per rank:
-//               u32 rectCount, then i32 x, y, width, height per rect.
+//               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
+//               tfVersion, u32 watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, u32
+//               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
-//               pixels included, bit 1: streamed to the sink), f64 encodeSeconds,
+//               pixels included, bit 1: streamed to the sink, bit 2: the sink refused this
+//               rank for good), f64 encodeSeconds,
 //               u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
 //               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8,
 //               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
@@ -34,7 +35,7 @@ namespace voxwall::net {
 
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
-inline constexpr std::uint32_t kFrameMessageVersion = 1;
+inline constexpr std::uint32_t kFrameMessageVersion = 2;       // 2: FrameTask.jobId
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -45,6 +46,7 @@ struct FrameTask {
   std::uint32_t frame = 0;
   bool stop = false;                    // no more frames: send the final report and leave the loop
   std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the camera (for latency)
+  std::uint64_t jobId = 0;  // the render job's identity on the wall sink (net/wire.hpp Hello)
   node::Camera camera;
   std::uint32_t tfVersion = 0;   // transfer function in use (ranks hold it; fixed for now)
   std::uint32_t watchdogMs = 0;  // how long any rank waits for any other in this frame
@@ -69,6 +71,7 @@ struct RankReport {
   double encodeSeconds = 0;  // compressing tiles for the sink
   std::uint64_t streamedBytes = 0;
   std::string streamError;  // why the tiles did not reach the sink (at most kMaxStreamError bytes)
+  bool streamRefused = false;  // the sink refused this rank for good (token, wall, job, version)
   std::vector<RenderedTile> tiles;
   // Over the whole screen; only the cells under `tiles` travel (the rest decode as zero).
   // Empty (cellsX = 0) when not measured.

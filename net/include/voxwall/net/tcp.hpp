@@ -20,7 +20,8 @@ std::pair<std::string, std::uint16_t> parseEndpoint(const std::string& text,
 // One connection to the sink. Not thread-safe. Throws NetError ("<host:port>: ...").
 class Connection {
  public:
-  // Connects, sends Hello and waits for Welcome; a Bye or a silent sink is an error.
+  // Connects, sends Hello and waits for Welcome; a silent sink is a NetError, a Bye (or an answer
+  // in another protocol version) a SinkRefused.
   static std::unique_ptr<Connection> open(const std::string& host, std::uint16_t port,
                                           const Hello& hello, int timeoutMs);
   ~Connection();
@@ -43,15 +44,20 @@ class Connection {
 
 // Sends a rank's tiles to the sink, frame by frame. When the sink is unreachable or drops the
 // connection, the frame is skipped and the next attempt waits a growing back-off (0.1 s doubling
-// to 5 s), so rendering never stalls on a dead sink. Not thread-safe.
+// to 5 s), so rendering never stalls on a dead sink. A sink that refuses the peer (SinkRefused)
+// is not retried: refused() says why and the job should end. Not thread-safe.
 class TileStreamer {
  public:
   TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000);
+  // The render job the frames belong to (Hello.jobId); a change reconnects.
+  void setJob(std::uint64_t jobId);
   // Returns whether the whole frame (tiles and FrameEnd) went out.
   bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                  std::uint64_t decidedUnixMicros);
   // Why the last frame did not go out (empty when it did).
   const std::string& lastError() const { return lastError_; }
+  // Why the sink refused this peer for good (empty while it has not).
+  const std::string& refused() const { return refused_; }
   std::uint64_t bytesSent() const { return bytesSent_; }
 
  private:
@@ -63,17 +69,22 @@ class TileStreamer {
   std::unique_ptr<Connection> connection_;
   std::chrono::steady_clock::time_point nextAttempt_{};
   std::chrono::milliseconds backoff_{100};
-  std::string lastError_;
+  std::string lastError_, refused_;
   std::uint64_t bytesSent_ = 0;
 };
 
 // Rank 0's connection for camera commands from the wall: a background thread keeps it open
-// (reconnecting with back-off) and queues every Control that arrives. Thread-safe.
+// (reconnecting with back-off) and queues every Control and FrameNote that arrives; a sink that
+// refuses the job ends the thread and refused() says why. Thread-safe.
 class ControlChannel {
  public:
   ControlChannel(std::string host, std::uint16_t port, Hello hello);
   ~ControlChannel();
   std::vector<Control> drain();  // the commands received since the last call, in order
+  // What the sink said about frames (dropped or refused ones) since the last call, as lines.
+  std::vector<std::string> drainNotes();
+  std::string refused() const;            // empty while the sink has not refused the job
+  std::uint64_t framesPresented() const;  // frames of this job the sink said it presented
 
  private:
   void run();
@@ -82,6 +93,9 @@ class ControlChannel {
   Hello hello_;
   mutable std::mutex mutex_;
   std::deque<Control> queue_;
+  std::vector<std::string> notes_;
+  std::uint64_t presented_ = 0;
+  std::string refused_;
   bool stop_ = false;
   std::thread thread_;
 };

@@ -47,5 +47,10 @@ const char* tileCodecName(TileCodec codec);
 class NetError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+// The sink answered and refused this peer (wrong token, wall, job or protocol version): trying
+// again cannot help, unlike a sink that is down or restarting.
+class SinkRefused : public NetError {
+  using NetError::NetError;
+};
 
 }  // namespace voxwall::net

@@ -11,15 +11,24 @@
 //       24    4  u32 xxHash32 (seed 0) of the payload
 //       28    4  u32 xxHash32 (seed 0) of bytes 0..27
 // Payloads (str = u16 length <= kMaxString, then bytes):
-//   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, str wallId, str token
+//   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, u64 jobId, str wallId,
+//            str token                                    (at most kMaxHelloPayload bytes)
 //   Welcome  str wallId, i32 screenWidth, i32 screenHeight          (sink -> peer, after Hello)
 //   Tile     i32 x, y, width, height (virtual screen), u8 codec, u64 decidedUnixMicros, bytes
 //   FrameEnd i32 rank, u32 tiles this rank sent for the frame
 //   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
 //   Bye      str reason
+//   FrameNote u8 status (1 presented, 2 dropped, 3 refused), str reason      (sink -> controller;
+//            the header's frame id names the frame)
 // Sequence: peer connects, sends Hello; the sink answers Welcome, or Bye with the reason (wrong
 // version, token or wall) and closes. A renderer then sends, per frame, its Tiles and a
-// FrameEnd; the controller (rank 0) receives Controls. Either side may send Bye and close.
+// FrameEnd; the controller (rank 0) receives Controls and a FrameNote for every frame of its job
+// that the sink presented, dropped or refused. Either side may send Bye and close.
+// Jobs: every peer of one render job sends the same jobId. A Hello with a job id the sink has
+// not seen starts a new frame sequence there (the old job's open frames are dropped, its peers
+// are sent Bye, and a later Hello of the old job is refused).
+// Version history: 1 first release; 2 adds Hello.jobId and FrameNote.
+// The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
 
 #include <cstdint>
@@ -33,10 +42,13 @@
 namespace voxwall::net {
 
 inline constexpr std::uint32_t kWireMagic = 0x50575756;
-inline constexpr std::uint16_t kWireVersion = 1;
+inline constexpr std::uint16_t kWireVersion = 2;
 inline constexpr std::size_t kHeaderBytes = 32;
 inline constexpr std::uint32_t kMaxPayload = 64u << 20;
 inline constexpr std::size_t kMaxString = 256;
+// The largest payload a peer may send before its Hello was accepted (a Hello is at most 533
+// bytes): nobody can make the sink hold memory before proving who it is.
+inline constexpr std::uint32_t kMaxHelloPayload = 1024;
 
 enum class MessageType : std::uint16_t {
   Hello = 1,
@@ -45,6 +57,7 @@ enum class MessageType : std::uint16_t {
   FrameEnd = 4,
   Control = 5,
   Bye = 6,
+  FrameNote = 7,
 };
 enum class Role : std::uint8_t { Renderer = 1, Controller = 2 };
 enum class ControlCommand : std::uint8_t { Rotate = 1, Zoom = 2, Pan = 3, Reset = 4 };
@@ -53,6 +66,7 @@ struct Hello {
   Role role = Role::Renderer;
   int rank = 0, rankCount = 1;
   std::string wallId, token;
+  std::uint64_t jobId = 0;  // the same on every peer of one render job
 };
 struct Welcome {
   std::string wallId;
@@ -75,6 +89,11 @@ struct Control {
 struct Bye {
   std::string reason;
 };
+enum class FrameStatus : std::uint8_t { Presented = 1, Dropped = 2, Refused = 3 };
+struct FrameNote {
+  FrameStatus status = FrameStatus::Presented;
+  std::string reason;  // empty when presented
+};
 
 struct Message {
   MessageType type = MessageType::Bye;
@@ -89,12 +108,14 @@ std::vector<std::byte> encodeMessage(std::uint64_t frame, const TileMessage& m);
 std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameEnd& m);
 std::vector<std::byte> encodeMessage(const Control& m);
 std::vector<std::byte> encodeMessage(const Bye& m);
+std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameNote& m);
 
 // Header check: magic, version, type, flags, length limit, header checksum. Returns the payload
 // length. Throws FormatError(source, ...) naming what is wrong (a version mismatch says both).
 std::uint32_t checkHeader(std::span<const std::byte, kHeaderBytes> header,
                           const std::string& source, MessageType* type, std::uint64_t* frame);
-// Payload check against the header's checksum. Throws FormatError.
+// Payload check against the header's checksum. Throws FormatError. (Fuzzing builds skip both
+// checksums, so the fuzzer reaches the decoders behind them.)
 void checkPayload(std::span<const std::byte, kHeaderBytes> header,
                   std::span<const std::byte> payload, const std::string& source);
 
@@ -105,6 +126,9 @@ TileMessage decodeTile(std::span<const std::byte> payload, const std::string& so
 FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& source);
 Control decodeControl(std::span<const std::byte> payload, const std::string& source);
 Bye decodeBye(std::span<const std::byte> payload, const std::string& source);
+FrameNote decodeFrameNote(std::span<const std::byte> payload, const std::string& source);
+// One line for a FrameNote: "frame 12 dropped: too many frames open".
+std::string describe(std::uint64_t frame, const FrameNote& note);
 
 // Splits a byte stream into messages: feed() what arrived, next() returns whole messages.
 // Throws FormatError on the first bad header or payload (the stream is then unusable).

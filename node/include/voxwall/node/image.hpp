@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <vector>
+#include <voxwall/codec/files.hpp>
 #include <voxwall/node/camera.hpp>
 
 namespace voxwall::node {
@@ -29,12 +30,16 @@ struct Image {
   Image crop(const Rect& rect) const;
 };
 
-// Writes a PNG (8-bit) or any format OpenImageIO knows from the extension (EXR as half float),
-// atomically (temporary file, then rename). Colours are un-premultiplied (straight alpha in
-// files); with a background colour the image is composited onto it and written opaque.
-// Throws FormatError("<path>: ...").
-void writeImage(const Image& image, const std::string& path,
-                const std::optional<glm::dvec3>& background = std::nullopt);
+// Encodes a PNG (8-bit) or another format OpenImageIO knows from the extension of `path` (EXR
+// as half float) in memory. Colours are un-premultiplied (straight alpha in files); with a
+// background colour the image is composited onto it and written opaque. Throws FormatError.
+std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
+                                   const std::optional<glm::dvec3>& background = std::nullopt);
+// encodeImage, then codec::writeFileAtomically: a full disk or a killed writer never leaves a
+// partial file under `path`. Returns the size and hash of what was written. Throws
+// FormatError("<path>: ...") naming the reason.
+codec::FileDigest writeImage(const Image& image, const std::string& path,
+                             const std::optional<glm::dvec3>& background = std::nullopt);
 // Reads an 8-bit RGBA (or RGB) image written by writeImage back into premultiplied form.
 Image readImage(const std::string& path);
 

@@ -3,7 +3,10 @@
 // every display has arrived (never a torn or partial frame). It drops stale frames when it falls
 // behind (always keeping the newest complete one), drops and reports frames it cannot complete,
 // survives peers that join late, drop, or send garbage, writes per-display images (and
-// optionally a mosaic) and forwards camera commands to rank 0.
+// optionally a mosaic, all or nothing: frame_files.hpp) and forwards camera commands to rank 0.
+// Hostile peers: the protocol logic (sink_core.hpp) bounds what any peer can make it hold;
+// here, connections are capped (maxPeers), peers without a Hello are dropped after
+// helloTimeoutMs, and running out of file descriptors pauses accepting instead of ending it.
 #pragma once
 
 #include <atomic>
@@ -23,11 +26,15 @@ struct SinkSettings {
   std::string outDir;                    // empty: frames are assembled and counted, not written
   bool mosaic = false;                   // also write the whole virtual screen
   int maxFrames = 0;  // stop after this many frames were presented, skipped or dropped (0: never)
-  int pendingFrames = 4;  // incomplete frames held at once; the oldest is dropped
+  int pendingFrames = 4;                // incomplete frames held at once; the oldest is dropped
+  std::uint64_t pendingBytes = 0;       // bytes held for incomplete frames; 0: 2 frames + 64 MiB
+  std::uint64_t frameWindow = 1 << 16;  // frame ids accepted past the last complete one
+  int maxPeers = 256;                   // connections at once; more are refused
+  int helloTimeoutMs = 5000;            // a peer that sends no Hello by then is dropped
 };
 
 struct SinkStats {
-  int framesPresented = 0, framesDropped = 0, framesStale = 0;
+  int framesPresented = 0, framesDropped = 0, framesStale = 0, framesRefused = 0;
   int peersAccepted = 0, peersRefused = 0, peersDropped = 0;
   bool controllerConnected = false;  // rank 0's control connection is up
   std::uint64_t bytesReceived = 0;
@@ -39,11 +46,15 @@ using SinkLog = std::function<void(const std::string&)>;
 
 class Sink {
  public:
-  // Binds the listening socket. Throws net::NetError when it cannot.
+  // Binds the listening socket and, with an output folder, removes what a killed sink left
+  // there (frame_files.hpp). Throws net::NetError when it cannot listen, FormatError for the
+  // folder, std::invalid_argument for settings that cannot work.
   explicit Sink(SinkSettings settings, SinkLog log = {});
   ~Sink();
   std::uint16_t port() const;
   // Serves until maxFrames frames were settled or stop() was called. Thread: any one thread.
+  // Throws FormatError when a frame cannot be written (full disk): the sink stops then, since
+  // every later frame would be lost too.
   void run();
   // Thread-safe.
   void stop();

@@ -1,0 +1,321 @@
+// Regression tests for hostile or confused peers: each case crashed, wedged, stalled or bloated
+// the sink before it was hardened (see docs/wall.md, "What a peer cannot do").
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <unistd.h>
+#include <xxhash.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/frame_assembler.hpp>
+#include <voxwall/walls/frame_files.hpp>
+#include <voxwall/walls/sink.hpp>
+#include <voxwall/walls/sink_core.hpp>
+
+#include "support/sink_runner.hpp"
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+
+namespace {
+
+walls::Wall testWall() {
+  return walls::parseWall(R"({"wall": "t2x1", "display": {"width": 20, "height": 10},
+                              "bezel_px": {"x": 4, "y": 0}, "grid": {"columns": 2, "rows": 1}})",
+                          "test");
+}
+
+walls::SinkSettings settings() {
+  walls::SinkSettings s;
+  s.wall = testWall();
+  return s;
+}
+
+net::Hello renderer(int rank, int ranks, std::uint64_t job = 0) {
+  net::Hello h{net::Role::Renderer, rank, ranks, "t2x1", ""};
+  h.jobId = job;
+  return h;
+}
+
+net::TileMessage solidTile(const node::Rect& rect, std::uint32_t rgb) {
+  node::Image image(rect.width, rect.height);
+  for (auto& p : image.pixels) p = rgb | 0xff000000u;
+  net::TileCodecSettings s;
+  s.codec = net::TileCodec::Raw;
+  const auto t = net::encodeTiles(image, rect, {0, 0, 0}, s)[0];
+  return {t.rect, t.codec, 0, t.bytes};
+}
+
+const net::TileMessage& wholeScreen() {
+  static const auto tile = solidTile({0, 0, 44, 10}, 0x808080);
+  return tile;
+}
+
+int rawConnect(std::uint16_t port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (fd >= 0 && ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Whether the sink closed the connection within `ms`.
+bool closedWithin(int fd, int ms) {
+  for (int waited = 0; waited < ms; waited += 10) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 10) > 0) {
+      std::byte buf[4096];
+      if (::recv(fd, buf, sizeof buf, 0) <= 0) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+// Defect 1: x + width overflowed a signed int and the sink wrote far outside its frame.
+TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
+  test::SinkRunner sink(settings());
+  auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  for (const node::Rect r :
+       {node::Rect{2147483647 - 50, 0, 100, 10}, node::Rect{0, 2147483647 - 5, 44, 10}}) {
+    auto tile = solidTile({0, 0, r.width, r.height}, 0xff);
+    tile.rect = r;
+    c->send(net::encodeMessage(1, tile));
+  }
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.peersDropped >= 1; }))
+      << sink.log();
+  EXPECT_NE(sink.log().find("is not on the 44x10 screen"), std::string::npos) << sink.log();
+  auto good = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  good->send(net::encodeMessage(2, wholeScreen()));
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
+      << sink.log();
+}
+
+// Defect 2: a second job's first frames were silently discarded as "old".
+TEST(SinkHardening, ANewJobStartsANewFrameSequenceAndTheOldJobIsTurnedAway) {
+  test::SinkRunner sink(settings());
+  auto first = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
+  for (int f : {5, 6}) {
+    first->send(net::encodeMessage(std::uint64_t(f), wholeScreen()));
+    ASSERT_TRUE(
+        sink.waitFor([f](const walls::SinkStats& s) { return s.framesPresented == f - 4; }));
+  }
+  auto second = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+  second->send(net::encodeMessage(0, wholeScreen()));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 3; }))
+      << sink.log();
+  EXPECT_NE(sink.log().find("job 000000000000006f was replaced by job 00000000000000de"),
+            std::string::npos)
+      << sink.log();
+  // The old job's peer was told, and the old job cannot take the wall back.
+  EXPECT_THROW(
+      {
+        for (int i = 0; i < 100; ++i) first->receive(20);
+      },
+      net::NetError);
+  EXPECT_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000),
+               net::SinkRefused);
+}
+
+// Defect 2: one complete tile with frame id 2^64 - 1 made the sink discard every later frame.
+TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
+  test::SinkRunner sink(settings());
+  net::ControlChannel control("127.0.0.1", sink.port(), renderer(0, 1));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  c->send(net::encodeMessage(1, wholeScreen()));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }));
+  c->send(net::encodeMessage(~std::uint64_t(0), wholeScreen()));
+  c->send(net::encodeMessage(2, wholeScreen()));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
+    return s.framesPresented == 2 && s.framesRefused == 1;
+  })) << sink.log();
+  EXPECT_NE(sink.log().find("frame 18446744073709551615 refused: frame id 18446744073709551615 is "
+                            "more than 65536 frames ahead"),
+            std::string::npos)
+      << sink.log();
+  // Rank 0 hears of it too.
+  std::vector<std::string> notes;
+  for (int i = 0; i < 200 && notes.empty(); ++i) {
+    notes = control.drainNotes();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(notes.empty());
+  EXPECT_NE(notes[0].find("refused"), std::string::npos) << notes[0];
+}
+
+// Defect 3: under a descriptor limit, one failed accept ended accepting for good.
+TEST(SinkHardening, KeepsAcceptingAfterRunningOutOfFileDescriptors) {
+  auto s = settings();
+  s.helloTimeoutMs = 300;
+  test::SinkRunner sink(s);
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &old), 0);
+  // Room for a few more descriptors than this process holds now.
+  int open = 0;
+  for (int fd = 0; fd < 4096; ++fd) open += ::fcntl(fd, F_GETFD) != -1;
+  rlimit tight = old;
+  tight.rlim_cur = rlim_t(open + 24);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+  std::vector<int> flood;
+  for (int i = 0; i < 20; ++i)
+    if (const int fd = rawConnect(sink.port()); fd >= 0) flood.push_back(fd);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // The flood is dropped after the Hello timeout, then released by its owner.
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  for (const int fd : flood) ::close(fd);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &old), 0);
+  EXPECT_NE(sink.log().find("cannot accept a peer"), std::string::npos) << sink.log();
+  auto good = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 3000);
+  good->send(net::encodeMessage(1, wholeScreen()));
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }))
+      << sink.log();
+}
+
+TEST(SinkHardening, DropsPeersThatSayNoHelloAndCapsConnections) {
+  auto s = settings();
+  s.helloTimeoutMs = 200;
+  s.maxPeers = 2;
+  test::SinkRunner sink(s);
+  const int a = rawConnect(sink.port()), b = rawConnect(sink.port());
+  ASSERT_GE(a, 0);
+  ASSERT_GE(b, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const int c = rawConnect(sink.port());  // the third is over --max-peers
+  ASSERT_GE(c, 0);
+  EXPECT_TRUE(closedWithin(c, 150));
+  EXPECT_TRUE(closedWithin(a, 2000));  // no Hello within 200 ms
+  EXPECT_TRUE(closedWithin(b, 2000));
+  for (const int fd : {a, b, c}) ::close(fd);
+  EXPECT_NE(sink.log().find("sent no Hello within 200 ms"), std::string::npos) << sink.log();
+  EXPECT_NE(sink.log().find("peers connected (--max-peers)"), std::string::npos) << sink.log();
+  EXPECT_NO_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000));
+}
+
+// Defect 4: a header claiming 64 MiB was allocated and zeroed before Hello or any payload.
+TEST(SinkHardening, RefusesALargePayloadBeforeHello) {
+  test::SinkRunner sink(settings());
+  const int fd = rawConnect(sink.port());
+  ASSERT_GE(fd, 0);
+  auto hello = net::encodeMessage(renderer(0, 1));
+  const std::uint32_t claimed = 64u << 20;
+  std::memcpy(hello.data() + 12, &claimed, 4);
+  const std::uint32_t checksum = XXH32(hello.data(), 28, 0);
+  std::memcpy(hello.data() + 28, &checksum, 4);
+  (void)!::send(fd, hello.data(), net::kHeaderBytes, MSG_NOSIGNAL);
+  EXPECT_TRUE(closedWithin(fd, 2000));
+  ::close(fd);
+  EXPECT_NE(sink.log().find("before its Hello"), std::string::npos) << sink.log();
+}
+
+// Defect 4: ten one-pixel tiles for ten frames held ten wall-sized pictures (490 MB on bigeye).
+TEST(SinkHardening, OpenFramesHoldWhatArrivedNotAWallEach) {
+  const auto wall = walls::loadWall(VOXWALL_WALLS_DIR "/bigeye.json");
+  std::vector<walls::FrameEvent> events;
+  walls::FrameAssembler assembler(wall, {10, 0, walls::kDefaultFrameWindow},
+                                  [&](const walls::FrameEvent& e) { events.push_back(e); });
+  std::uint64_t peak = 0;
+  for (std::uint64_t f = 0; f < 10; ++f) {
+    EXPECT_FALSE(assembler.addTile(f, solidTile({int(f), 0, 1, 1}, 0xff), 0, "t"));
+    peak = std::max(peak, assembler.heldBytes());
+  }
+  // A coverage bit per screen pixel and the tile: about 3 MiB a frame on bigeye.
+  const std::uint64_t bitmap = (std::uint64_t(wall.width) * std::uint64_t(wall.height) + 63) / 8;
+  EXPECT_LE(peak, 10 * (bitmap + 64));
+  EXPECT_TRUE(events.empty());
+}
+
+TEST(SinkHardening, OpenFramesStayUnderTheMemoryLimit) {
+  const auto wall = testWall();  // 44x10: one frame = 1760 bytes of pixels + 56 of bitmap
+  std::vector<walls::FrameEvent> events;
+  walls::FrameAssembler assembler(wall, {64, 4000, walls::kDefaultFrameWindow},
+                                  [&](const walls::FrameEvent& e) { events.push_back(e); });
+  for (std::uint64_t f = 0; f < 8; ++f) {
+    assembler.addTile(f, solidTile({0, 0, 22, 10}, 0xff), 0, "t");
+    EXPECT_LE(assembler.heldBytes(), 4000u);
+  }
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events[0].frame, 0u);
+  EXPECT_NE(events[0].note.reason.find("memory limit"), std::string::npos);
+  EXPECT_THROW(walls::FrameAssembler(wall, {4, 1000, 16}, {}), std::invalid_argument);
+}
+
+TEST(SinkHardening, FramesPastTheWindowAreDroppedOnceAFrameCompletes) {
+  const auto wall = testWall();
+  std::vector<walls::FrameEvent> events;
+  walls::FrameAssembler assembler(wall, {4, 0, 100},
+                                  [&](const walls::FrameEvent& e) { events.push_back(e); });
+  // Before any frame completed, a bogus first frame does not keep real ones out...
+  assembler.addTile(1'000'000, solidTile({0, 0, 22, 10}, 0xff), 0, "t");
+  EXPECT_TRUE(assembler.addTile(3, wholeScreen(), 0, "t"));
+  // ...and goes once frame 3 completed.
+  EXPECT_EQ(assembler.openFrames(), 0u);
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].frame, 1'000'000u);
+  EXPECT_TRUE(assembler.addTile(4, wholeScreen(), 0, "t"));
+  EXPECT_FALSE(assembler.addTile(105, wholeScreen(), 0, "t"));  // 101 ahead of frame 4
+  EXPECT_EQ(events.back().note.status, net::FrameStatus::Refused);
+}
+
+// Defect 5: tokens compared with ==, in time that leaks the matching prefix.
+TEST(SinkHardening, SecretsCompareWholly) {
+  EXPECT_TRUE(walls::sameSecret("s3cret", "s3cret"));
+  EXPECT_TRUE(walls::sameSecret("", ""));
+  EXPECT_FALSE(walls::sameSecret("s3cret", "s3creT"));
+  EXPECT_FALSE(walls::sameSecret("s3cret", "s3cre"));
+  EXPECT_FALSE(walls::sameSecret("", "x"));
+}
+
+// Defect 5: a refused renderer kept rendering; refusal is now final and distinguishable.
+TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
+  auto s = settings();
+  s.token = "right";
+  test::SinkRunner sink(s);
+  auto hello = renderer(0, 1);
+  hello.token = "wrong";
+  net::TileStreamer streamer("127.0.0.1", sink.port(), hello);
+  EXPECT_FALSE(streamer.sendFrame(0, {}, 0));
+  EXPECT_NE(streamer.refused().find("wrong token"), std::string::npos) << streamer.refused();
+  const int refusedBefore = sink.sink().stats().peersRefused;
+  EXPECT_FALSE(streamer.sendFrame(1, {}, 0));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(sink.sink().stats().peersRefused, refusedBefore);  // no second attempt
+}
+
+// Defect 7: frames appear whole (marker last); what a killed sink left is cleared at start.
+TEST(SinkHardening, FrameFilesAppearWholeAndLeftoversAreCleared) {
+  test::TempDir dir;
+  const auto wall = testWall();
+  node::Image screen(wall.width, wall.height);
+  for (auto& p : screen.pixels) p = 0xff204060u;
+  walls::writeFrameFiles(dir.path(""), 3, wall, screen, true);
+  EXPECT_TRUE(walls::frameFilesComplete(dir.path(""), 3));
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frame_00003.done")));
+  // As a sink killed mid-frame leaves it: one picture renamed, one temporary, no marker; a
+  // render job's own frame (frame_N.png) in the same folder is not the sink's to remove.
+  test::writeFile(dir.path("frame_00004_r0c0.png"), "whole");
+  test::writeFile(dir.path("frame_00004_r0c1.png.tmp.77"), "half");
+  test::writeFile(dir.path("frame_00004.png"), "a render job's frame");
+  EXPECT_FALSE(walls::frameFilesComplete(dir.path(""), 4));
+  EXPECT_EQ(walls::removeIncompleteFrames(dir.path("")), 2);
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frame_00004.png")));
+  EXPECT_TRUE(walls::frameFilesComplete(dir.path(""), 3));
+  // A picture changed after the marker no longer counts as complete.
+  test::writeFile(dir.path("frame_00003_r0c0.png"), "cut");
+  EXPECT_FALSE(walls::frameFilesComplete(dir.path(""), 3));
+}

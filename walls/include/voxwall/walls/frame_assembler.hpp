@@ -1,0 +1,96 @@
+// Frame assembly without sockets: the tiles of a render job's frames go in, complete
+// virtual-screen pictures come out. A frame is complete when every display pixel has arrived; it
+// is never shown torn. Every frame the assembler drops or refuses is reported once, with why.
+//
+// Bounds (a peer past its Hello is trusted with the wall, not with the sink's memory):
+//   - frame ids: once a frame completed, only ids in (last complete, last complete + window]
+//     open a frame; before that, ids more than `window` above the lowest open frame are refused.
+//     A bogus id (2^64 - 1) is refused and cannot wedge the wall.
+//   - memory: tiles are kept decoded at their own size, not as a wall-sized picture per open
+//     frame; the bytes held for open frames stay under `pendingBytes` (the oldest open frames
+//     are dropped to make room), and at most `pendingFrames` frames are open.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+#include <voxwall/net/wire.hpp>
+#include <voxwall/node/image.hpp>
+#include <voxwall/walls/wall.hpp>
+
+namespace voxwall::walls {
+
+inline constexpr std::uint64_t kDefaultFrameWindow = 1 << 16;
+
+struct AssembledFrame {
+  std::uint64_t frame = 0;
+  node::Image image;                    // the whole virtual screen
+  std::uint64_t decidedUnixMicros = 0;  // earliest camera decision of its tiles (rank 0's clock)
+  std::uint64_t bytes = 0;              // encoded tile bytes received
+  int tiles = 0;
+  std::set<int> ranks;
+};
+
+struct FrameEvent {
+  std::uint64_t frame = 0;
+  net::FrameNote note;  // Dropped or Refused, with the reason
+};
+
+struct AssemblerLimits {
+  int pendingFrames = 4;           // open frames at once; the oldest is dropped
+  std::uint64_t pendingBytes = 0;  // bytes held for open frames; 0: defaultPendingBytes(wall)
+  std::uint64_t frameWindow = kDefaultFrameWindow;
+};
+
+// Two frames' decoded pixels plus 64 MiB: room for ranks a frame apart.
+std::uint64_t defaultPendingBytes(const Wall& wall);
+
+class FrameAssembler {
+ public:
+  using Events = std::function<void(const FrameEvent&)>;
+  // Throws std::invalid_argument when pendingBytes cannot hold one whole frame.
+  FrameAssembler(const Wall& wall, AssemblerLimits limits, Events events);
+
+  // Starts a new frame sequence (a new render job): open frames are dropped with `why`, and
+  // frame ids are judged afresh.
+  void startSequence(const std::string& why);
+  // Adds one tile of `frame`; returns the frame when this tile completed it. Throws
+  // FormatError(peer, ...) for a tile outside the screen or one that does not decode (no pixel
+  // is marked then). Tiles of refused or already settled frames are ignored (reported once).
+  std::optional<AssembledFrame> addTile(std::uint64_t frame, const net::TileMessage& tile, int rank,
+                                        const std::string& peer);
+
+  std::uint64_t heldBytes() const { return heldBytes_; }
+  std::size_t openFrames() const { return open_.size(); }
+  std::uint64_t pendingBytesLimit() const { return limits_.pendingBytes; }
+
+ private:
+  struct Open {
+    std::vector<std::uint64_t> covered;  // bitmap over the virtual screen
+    long long coveredDisplayPixels = 0;
+    std::vector<std::pair<node::Rect, node::Image>> tiles;  // in arrival order
+    std::uint64_t heldBytes = 0;
+    AssembledFrame info;  // everything but the image
+  };
+  void drop(std::uint64_t frame, const std::string& why);
+  void report(std::uint64_t frame, net::FrameStatus status, const std::string& why);
+  bool reported(std::uint64_t frame) const { return reported_.count(frame) > 0; }
+  std::optional<std::string> outsideWindow(std::uint64_t frame) const;
+
+  const Wall& wall_;
+  AssemblerLimits limits_;
+  Events events_;
+  std::vector<std::uint8_t> displayMask_;  // 1 inside a display, per virtual-screen pixel
+  long long displayPixels_ = 0;
+  std::uint64_t coverageBytes_ = 0;  // one open frame's coverage bitmap
+  std::map<std::uint64_t, Open> open_;
+  std::optional<std::uint64_t> lastComplete_;
+  std::set<std::uint64_t> reported_;  // frames whose fate was reported (bounded, newest kept)
+  std::uint64_t heldBytes_ = 0;
+};
+
+}  // namespace voxwall::walls

@@ -1,0 +1,107 @@
+// The sink's protocol logic without sockets: the handshake (token, wall, job), what each message
+// from a peer does, the frame assembler, the render job's identity and the statistics. The Sink
+// (sink.hpp) drives it from Asio on one thread; tests and the fuzz target drive it from bytes.
+//
+// Jobs: every peer of a render job says the job's id in its Hello. The first Hello of an id the
+// sink has not seen starts a new frame sequence (logged): the old job's open frames are dropped,
+// its peers are sent Bye, and later Hellos of the old job are refused, so two jobs never fight
+// over the wall and a new job's frame 0 is never mistaken for an old frame.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <span>
+#include <string>
+#include <vector>
+#include <voxwall/net/wire.hpp>
+#include <voxwall/walls/frame_assembler.hpp>
+#include <voxwall/walls/sink.hpp>
+
+namespace voxwall::walls {
+
+// One connection as the protocol sees it. The transport implements send and hangUp.
+class SinkPeer {
+ public:
+  explicit SinkPeer(std::string name) : name_(std::move(name)) {}
+  virtual ~SinkPeer() = default;
+  // Queues a whole message to the peer.
+  virtual void send(std::vector<std::byte> bytes) = 0;
+  // Closes the connection once what is queued was sent.
+  virtual void hangUp() = 0;
+  const std::string& name() const { return name_; }
+  bool greeted() const { return greeted_; }
+  const net::Hello& hello() const { return hello_; }
+
+ private:
+  friend class SinkCore;
+  std::string name_;
+  bool greeted_ = false;
+  net::Hello hello_;
+};
+
+// Compares secrets in time that depends on their lengths only.
+bool sameSecret(const std::string& a, const std::string& b);
+
+class SinkCore {
+ public:
+  // Gets every complete frame with the job it belongs to (on the calling thread of handle()).
+  using Present = std::function<void(std::uint64_t job, AssembledFrame&&)>;
+  // Throws std::invalid_argument for settings that cannot work (see FrameAssembler).
+  SinkCore(const SinkSettings& settings, SinkLog log, Present present);
+
+  void attach(SinkPeer& peer);
+  // The connection is gone (closed, dropped or refused); forgets the peer.
+  void detach(SinkPeer& peer);
+  // The largest payload `peer` may send now: kMaxHelloPayload before its Hello was accepted.
+  std::uint32_t payloadLimit(const SinkPeer& peer) const;
+  // One message whose header and payload were checked. Returns false when the session ends (the
+  // peer was refused and told why, or it said Bye). Throws FormatError for a peer that broke the
+  // protocol (the caller drops it and calls dropped()).
+  bool handle(SinkPeer& peer, net::MessageType type, std::uint64_t frame,
+              std::span<const std::byte> payload);
+  // Sends Bye with the reason, counts and logs the refusal, hangs up.
+  void refuse(SinkPeer& peer, const std::string& reason);
+  // Counts and logs a peer dropped for `why` (empty: it simply closed).
+  void dropped(SinkPeer& peer, const std::string& why);
+  // The presenter's word on a complete frame (presented, skipped, not written), told to the
+  // job's controller; dropped or refused frames are told by the core itself.
+  void frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note);
+  // Forwards a camera command to the current job's controller; false when none is connected.
+  bool sendControl(const net::Control& control);
+
+  // Thread-safe.
+  SinkStats stats() const;
+  template <typename F>
+  void updateStats(F f) {
+    std::lock_guard lock(statsMutex_);
+    f(stats_);
+  }
+  std::optional<std::uint64_t> currentJob() const { return job_; }
+  const FrameAssembler& assembler() const { return assembler_; }
+
+ private:
+  bool greet(SinkPeer& peer, std::span<const std::byte> payload);
+  void onEvent(const FrameEvent& event);
+  void say(const std::string& line) {
+    if (log_) log_(line);
+  }
+
+  const SinkSettings& settings_;
+  SinkLog log_;
+  Present present_;
+  FrameAssembler assembler_;
+  std::set<SinkPeer*> peers_;
+  SinkPeer* controller_ = nullptr;
+  std::optional<std::uint64_t> job_;
+  std::set<std::uint64_t> endedJobs_;
+  mutable std::mutex statsMutex_;
+  SinkStats stats_;
+};
+
+// "0123456789abcdef": how job ids are written in logs.
+std::string jobName(std::uint64_t job);
+
+}  // namespace voxwall::walls

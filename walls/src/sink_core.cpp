@@ -1,0 +1,178 @@
+#include <cstdio>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/walls/sink_core.hpp>
+
+namespace voxwall::walls {
+
+namespace {
+constexpr std::size_t kEndedJobsKept = 1024;
+}
+
+bool sameSecret(const std::string& a, const std::string& b) {
+  unsigned diff = unsigned(a.size() != b.size());
+  const std::size_t n = std::max(a.size(), b.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const unsigned char x = i < a.size() ? static_cast<unsigned char>(a[i]) : 0;
+    const unsigned char y = i < b.size() ? static_cast<unsigned char>(b[i]) : 0;
+    diff |= unsigned(x ^ y);
+  }
+  return diff == 0;
+}
+
+std::string jobName(std::uint64_t job) {
+  char text[20];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(job));
+  return text;
+}
+
+SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
+    : settings_(settings),
+      log_(std::move(log)),
+      present_(std::move(present)),
+      assembler_(
+          settings.wall,
+          AssemblerLimits{settings.pendingFrames, settings.pendingBytes, settings.frameWindow},
+          [this](const FrameEvent& e) { onEvent(e); }) {}
+
+void SinkCore::attach(SinkPeer& peer) { peers_.insert(&peer); }
+
+void SinkCore::detach(SinkPeer& peer) {
+  peers_.erase(&peer);
+  if (controller_ == &peer) {
+    controller_ = nullptr;
+    updateStats([](SinkStats& s) { s.controllerConnected = false; });
+  }
+}
+
+std::uint32_t SinkCore::payloadLimit(const SinkPeer& peer) const {
+  return peer.greeted() ? net::kMaxPayload : net::kMaxHelloPayload;
+}
+
+void SinkCore::refuse(SinkPeer& peer, const std::string& reason) {
+  updateStats([](SinkStats& s) { ++s.peersRefused; });
+  say("sink: refused " + reason);
+  peer.send(net::encodeMessage(net::Bye{reason.substr(0, net::kMaxString)}));
+  peer.hangUp();
+  detach(peer);
+}
+
+void SinkCore::dropped(SinkPeer& peer, const std::string& why) {
+  if (!why.empty()) {
+    updateStats([](SinkStats& s) { ++s.peersDropped; });
+    say("sink: dropped " + peer.name() + ": " + why);
+  }
+  detach(peer);
+}
+
+void SinkCore::onEvent(const FrameEvent& e) {
+  updateStats([&](SinkStats& s) {
+    if (e.note.status == net::FrameStatus::Dropped) ++s.framesDropped;
+    if (e.note.status == net::FrameStatus::Refused) ++s.framesRefused;
+  });
+  say(net::describe(e.frame, e.note));
+  if (controller_) controller_->send(net::encodeMessage(e.frame, e.note));
+}
+
+void SinkCore::frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note) {
+  if (controller_ && job_ == job && controller_->hello().jobId == job)
+    controller_->send(net::encodeMessage(frame, note));
+}
+
+bool SinkCore::sendControl(const net::Control& control) {
+  if (!controller_) return false;
+  controller_->send(net::encodeMessage(control));
+  return true;
+}
+
+SinkStats SinkCore::stats() const {
+  std::lock_guard lock(statsMutex_);
+  return stats_;
+}
+
+bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
+  const net::Hello hello = net::decodeHello(payload, peer.name());
+  if (!settings_.token.empty() && !sameSecret(hello.token, settings_.token)) {
+    refuse(peer, peer.name() + ": wrong token");
+    return false;
+  }
+  const Wall& wall = settings_.wall;
+  if (!hello.wallId.empty() && hello.wallId != wall.id) {
+    refuse(peer, peer.name() + ": renders for wall '" + hello.wallId + "', this sink shows '" +
+                     wall.id + "'");
+    return false;
+  }
+  if (endedJobs_.count(hello.jobId)) {
+    refuse(peer, peer.name() + ": job " + jobName(hello.jobId) +
+                     " has ended: a newer job took this wall");
+    return false;
+  }
+  if (job_ != hello.jobId) {
+    if (job_) {
+      // A new job takes the wall: the old one's frames and peers go.
+      const std::string why =
+          "job " + jobName(*job_) + " was replaced by job " + jobName(hello.jobId);
+      say("sink: " + why);
+      endedJobs_.insert(*job_);
+      if (endedJobs_.size() > kEndedJobsKept) endedJobs_.erase(endedJobs_.begin());
+      for (SinkPeer* other : std::set(peers_))
+        if (other != &peer && other->greeted() && other->hello().jobId == *job_) {
+          other->send(net::encodeMessage(net::Bye{why}));
+          other->hangUp();
+          detach(*other);
+        }
+      assembler_.startSequence(why);
+    } else {
+      say("sink: job " + jobName(hello.jobId) + " started");
+    }
+    job_ = hello.jobId;
+  }
+  peer.greeted_ = true;
+  peer.hello_ = hello;
+  peer.name_ += hello.role == net::Role::Controller ? " (controller)"
+                                                    : " (rank " + std::to_string(hello.rank) + ")";
+  updateStats([](SinkStats& s) { ++s.peersAccepted; });
+  if (hello.role == net::Role::Controller) {
+    controller_ = &peer;
+    updateStats([](SinkStats& s) { s.controllerConnected = true; });
+  }
+  peer.send(net::encodeMessage(net::Welcome{wall.id, wall.width, wall.height}));
+  return true;
+}
+
+bool SinkCore::handle(SinkPeer& peer, net::MessageType type, std::uint64_t frame,
+                      std::span<const std::byte> payload) {
+  using net::MessageType;
+  if (payload.size() > payloadLimit(peer))
+    throw FormatError(peer.name(),
+                      "payload of " + std::to_string(payload.size()) + " bytes before its Hello");
+  if (!peer.greeted()) {
+    if (type != MessageType::Hello) {
+      refuse(peer, peer.name() + ": sent a message before Hello");
+      return false;
+    }
+    return greet(peer, payload);
+  }
+  // A peer of a job that was replaced is being hung up on; what it still sends is not read.
+  if (peer.hello().jobId != job_) return false;
+  switch (type) {
+    case MessageType::Tile: {
+      if (peer.hello().role != net::Role::Renderer)
+        throw FormatError(peer.name(), "a controller sent a tile");
+      const auto tile = net::decodeTile(payload, peer.name());
+      if (auto done = assembler_.addTile(frame, tile, peer.hello().rank, peer.name()))
+        present_(*job_, std::move(*done));
+      return true;
+    }
+    case MessageType::FrameEnd:
+      net::decodeFrameEnd(payload, peer.name());
+      return true;
+    case MessageType::Bye:
+      peer.hangUp();
+      detach(peer);
+      return false;
+    default:
+      throw FormatError(peer.name(), "unexpected message type " + std::to_string(int(type)));
+  }
+}
+
+}  // namespace voxwall::walls
