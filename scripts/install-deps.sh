@@ -12,7 +12,7 @@ packages=(
   libturbojpeg0-dev libjpeg-turbo-progs
   libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libxxhash-dev
-  libnifti2-dev libteem-dev zlib1g-dev
+  libnifti2-dev libteem-dev zlib1g-dev libbz2-dev
   libasio-dev
   # tests, fuzzing (clang's libFuzzer) and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev

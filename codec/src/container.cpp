@@ -291,6 +291,8 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
 }
 
 bool isContainerFile(const std::string& path) {
+  // By name too, so a truncated or unreadable .vwz gets the container's own error message.
+  if (path.size() > 4 && path.ends_with(".vwz")) return true;
   std::ifstream in(path, std::ios::binary);
   char magic[8] = {};
   if (!in.read(magic, 8)) return false;

@@ -50,7 +50,7 @@ class FrameWriter {
                           [this, image = std::move(image), path = std::move(path), background]() {
                             const auto start = Clock::now();
                             const auto digest = node::writeImage(image, path, background);
-                            manifest_["frames"][fs::path(path).filename().string()] = {
+                            manifest_["completed"][fs::path(path).filename().string()] = {
                                 {"bytes", digest.bytes}, {"xxh64", hex(digest.xxh64)}};
                             writeManifest(outDir_, manifest_);
                             return since(start);
@@ -261,12 +261,12 @@ std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest
       try {
         std::ifstream in(manifestPath);
         found = nlohmann::json::parse(in);
-        if (found.contains("frames")) {
-          frames = found["frames"];
-          found.erase("frames");
+        if (found.contains("completed")) {
+          frames = found["completed"];
+          found.erase("completed");
         }
         if (!frames.is_object())
-          throw FormatError(manifestPath.string(), "'frames' is not an object");
+          throw FormatError(manifestPath.string(), "'completed' is not an object");
       } catch (const nlohmann::json::exception& e) {
         throw FormatError(manifestPath.string(), std::string("not valid JSON: ") + e.what());
       }
@@ -312,7 +312,7 @@ std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest
     frames = kept;
   }
   nlohmann::json out = wanted;
-  out["frames"] = frames;
+  out["completed"] = frames;
   writeManifest(job.outDir, out);
   if (manifest) *manifest = out;
   return done;

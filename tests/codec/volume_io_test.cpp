@@ -1,8 +1,12 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 #include <nifti1_io.h>
+#include <teem/nrrd.h>
 
+#include <cstring>
 #include <filesystem>
+#include <limits>
+#include <voxwall/codec/container.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/volume_io.hpp>
@@ -262,4 +266,106 @@ TEST(VolumeIo, NiftiTimeSeriesIsRefused) {
   TempDir dir;
   writeNiftiWith(dir.path("4d.nii"), 3, 1.0f, 0.0f);
   expectFormatError([&] { readVolume(dir.path("4d.nii")); }, dir.path("4d.nii"), "3D");
+}
+
+// Hardening: each of these allocated, crashed or said too little before.
+
+TEST(VolumeIo, RawChecksTheFileSizeBeforeAllocating) {
+  TempDir dir;
+  test::writeFile(dir.path("small.raw"), std::string(256 * 1024, '\0'));
+  RawLayout layout;
+  layout.dims = {2048, 2048, 2048};  // 32 GiB of float32: more than the machine could allocate
+  layout.type = ScalarType::Float32;
+  expectFormatError([&] { readVolume(dir.path("small.raw"), layout); }, dir.path("small.raw"),
+                    "truncated");
+}
+
+TEST(VolumeIo, CompressedNrrdIsJudgedByWhatItDecodesTo) {
+  TempDir dir;
+  // A valid all-zero 128^3 volume compresses far beyond 1100:1, the bound once assumed.
+  for (const char* encoding : {"bzip2", "gzip"}) {
+    const std::string nhdr = dir.path(std::string("z-") + encoding + ".nrrd");
+    {  // written by teem itself
+      Nrrd* n = nrrdNew();
+      std::vector<std::uint8_t> voxels(128 * 128 * 128, 0);
+      nrrdWrap_va(n, voxels.data(), nrrdTypeUChar, 3, size_t(128), size_t(128), size_t(128));
+      NrrdIoState* io = nrrdIoStateNew();
+      io->encoding = std::string(encoding) == "bzip2" ? nrrdEncodingBzip2 : nrrdEncodingGzip;
+      ASSERT_EQ(nrrdSave(nhdr.c_str(), n, io), 0);
+      nrrdIoStateNix(io);
+      nrrdNix(n);
+    }
+    if (std::string(encoding) == "bzip2")
+      EXPECT_LT(std::filesystem::file_size(nhdr), 128u * 128 * 128 / 1100);
+    const Volume v = readVolume(nhdr);
+    EXPECT_EQ(v.dims, glm::ivec3(128, 128, 128));
+    EXPECT_EQ(v.valueMax, 0);
+    // Cut short, it is still refused as truncated, before teem allocates the whole volume.
+    const auto bytes = test::readFile(nhdr);
+    const std::string cut = dir.path(std::string("cut-") + encoding + ".nrrd");
+    test::writeFile(cut, bytes.substr(0, bytes.size() - 20));
+    expectFormatError([&] { readVolume(cut); }, cut);
+  }
+}
+
+TEST(VolumeIo, GarbageNrrdHeadersAreNotEchoedRaw) {
+  TempDir dir;
+  test::writeFile(dir.path("g.nrrd"), std::string("NRRD0004\ntype: \x1b[31mred\x07\x01 ") +
+                                          std::string(500, 'A') + "\n\n");
+  try {
+    readVolume(dir.path("g.nrrd"));
+    FAIL() << "garbage header accepted";
+  } catch (const FormatError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find('\x1b'), std::string::npos) << what;
+    EXPECT_EQ(what.find('\x07'), std::string::npos) << what;
+    EXPECT_LT(what.size(), 400u) << what;
+  }
+}
+
+namespace {
+// Writes `volume`-less NIfTI-1 headers with one field changed.
+void writeNiftiPatched(const std::string& path, float voxOffset, float spacingX) {
+  writeNiftiWith(path, 1, 1.0f, 0.0f);
+  auto bytes = test::readFile(path);
+  std::memcpy(bytes.data() + 108, &voxOffset, 4);  // vox_offset
+  std::memcpy(bytes.data() + 80, &spacingX, 4);    // pixdim[1]
+  test::writeFile(path, bytes);
+}
+}  // namespace
+
+TEST(VolumeIo, NiftiOffsetsAndSpacingsMustMakeSense) {
+  TempDir dir;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const std::pair<float, const char*> offsets[] = {{1e12f, "past the end"},
+                                                   {-1000.0f, "not a byte offset"},
+                                                   {nan, "not a byte offset"},
+                                                   {100.0f, "inside the 348-byte header"}};
+  for (const auto& [offset, fragment] : offsets) {
+    const std::string p = dir.path("off.nii");
+    writeNiftiPatched(p, offset, 1.0f);
+    expectFormatError([&] { readVolume(p); }, p, fragment);
+  }
+  for (const float spacing : {nan, -2.0f}) {
+    const std::string p = dir.path("sp.nii");
+    writeNiftiPatched(p, 352.0f, spacing);
+    expectFormatError([&] { readVolume(p); }, p, "pixdim[1]");
+  }
+  const std::string ok = dir.path("ok.nii");
+  writeNiftiPatched(ok, 352.0f, 0.5f);
+  EXPECT_EQ(readVolume(ok).spacing.x, 0.5);
+}
+
+TEST(VolumeIo, ShortAndUnreadableVwzFilesGetTheirOwnMessages) {
+  TempDir dir;
+  for (int n = 0; n < 8; ++n) {
+    const std::string p = dir.path("short" + std::to_string(n) + ".vwz");
+    test::writeFile(p, std::string(std::size_t(n), 'V'));
+    EXPECT_TRUE(isContainerFile(p));  // so the container reader, not "unknown format", answers
+    expectFormatError([&] { ContainerFile::open(p); }, p, "shorter than");
+  }
+  const std::string folder = dir.path("folder.vwz");
+  std::filesystem::create_directory(folder);
+  EXPECT_TRUE(isContainerFile(folder));
+  expectFormatError([&] { ContainerFile::open(folder); }, folder, "not a regular file");
 }

@@ -140,8 +140,9 @@ case $scenario in
     tree="$(descendants "$pid") $pid"
     # shellcheck disable=SC2086
     kill -STOP $tree 2>/dev/null; kill -KILL $tree 2>/dev/null; wait "$pid" 2>/dev/null
-    # Complete frames only: a temporary of a frame being written also ends in .png.
-    done_before=$(ls killed | grep -cE '^frame_[0-9]+\.png$')
+    # Complete frames are those the job manifest records (with their size and hash); a frame
+    # renamed into place just before the kill, but not yet recorded, is rendered again.
+    done_before=$(grep -cE '"frame_[0-9]+\.png": \{' killed/voxwall-job.json || true)
     [ "$done_before" -lt 30 ] || fail "the run finished before it could be killed"
     out=$(run "$n" "${slow[@]}" --out killed --resume) || fail "resumed run"
     echo "$out" | grep -q "resume: $done_before frame(s) already complete" || fail "resume did not skip the $done_before complete frames: $out"

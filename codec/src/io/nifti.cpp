@@ -3,6 +3,8 @@
 #include <zlib.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -50,6 +52,35 @@ std::uint64_t gzipLength(const std::string& path) {
   return total;
 }
 
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+// The fields nifticlib converts without complaint: where the voxels start and the spacings.
+// `have` is the size of the (uncompressed) file.
+void checkRawHeader(const std::string& path, std::uint64_t have) {
+  int swapped = 0;
+  std::unique_ptr<nifti_1_header, void (*)(void*)> raw(nifti_read_header(path.c_str(), &swapped, 0),
+                                                       &std::free);
+  if (!raw) return;  // a NIfTI-2 file: nifticlib checked what it read
+  const double offset = raw->vox_offset;
+  const bool singleFile = std::strncmp(raw->magic, "n+1", 3) == 0;
+  if (!std::isfinite(offset) || offset < 0)
+    throw FormatError(path, "vox_offset " + number(offset) + " is not a byte offset");
+  if (singleFile && offset < double(sizeof(nifti_1_header)))
+    throw FormatError(path, "vox_offset " + number(offset) + " lies inside the " +
+                                std::to_string(sizeof(nifti_1_header)) + "-byte header");
+  if (singleFile && offset > double(have))
+    throw FormatError(path, "vox_offset " + number(offset) + " lies past the end of the file (" +
+                                std::to_string(have) + " bytes)");
+  for (int i = 1; i <= 3; ++i)
+    if (!std::isfinite(raw->pixdim[i]) || raw->pixdim[i] < 0)
+      throw FormatError(path, "pixdim[" + std::to_string(i) + "] = " + number(raw->pixdim[i]) +
+                                  " is not a voxel spacing");
+}
+
 }  // namespace
 
 Volume readNifti(const std::string& path) {
@@ -74,6 +105,7 @@ Volume readNifti(const std::string& path) {
     have = std::filesystem::file_size(path, ec);
     if (ec) throw FormatError(path, ec.message());
   }
+  checkRawHeader(path, have);
   if (double(have) < need)
     throw FormatError(path, "truncated: " + std::to_string(have) +
                                 " bytes of data, the header needs " +
@@ -83,9 +115,10 @@ Volume readNifti(const std::string& path) {
   NiftiPtr nim(nifti_image_read(path.c_str(), 1));
   if (!nim || !nim->data)
     throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
-  glm::dvec3 spacing(std::abs(nim->dx), std::abs(nim->dy), std::abs(nim->dz));
+  // Negative and non-finite spacings were refused above; 0 (old ANALYZE files) means unknown.
+  glm::dvec3 spacing(nim->dx, nim->dy, nim->dz);
   for (int i = 0; i < 3; ++i)
-    if (!(spacing[i] > 0) || !std::isfinite(spacing[i])) spacing[i] = 1.0;
+    if (!(spacing[i] > 0)) spacing[i] = 1.0;
 
   double slope = nim->scl_slope, inter = nim->scl_inter;
   if (slope == 0 || !std::isfinite(slope)) slope = 1.0, inter = 0.0;

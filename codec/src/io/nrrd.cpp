@@ -1,11 +1,17 @@
 // NRRD through teem: attached (.nrrd) or detached (.nhdr) headers, every encoding teem reads.
+#include <bzlib.h>
 #include <teem/nrrd.h>
+#include <unistd.h>
+#include <zlib.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <sstream>
+#include <string_view>
+#include <vector>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/volume_io.hpp>
 
@@ -36,7 +42,67 @@ std::string teemError() {
   const auto colon = last.find(": ");
   if (last.rfind("[nrrd]", 0) == 0 && colon != std::string::npos) last = last.substr(colon + 2);
   while (!last.empty() && (last.back() == '\n' || last.back() == ' ')) last.pop_back();
-  return last;
+  // teem quotes what it could not parse: from a garbage file that is anything, terminal escapes
+  // included. Keep it printable and short.
+  std::string clean;
+  for (const unsigned char c : last) {
+    if (clean.size() >= 160) {
+      clean += "...";
+      break;
+    }
+    clean += c >= 0x20 && c < 0x7f ? char(c) : '?';
+  }
+  return clean;
+}
+
+// Where an attached header ends: after the first empty line. 0 when there is none.
+std::uint64_t attachedDataOffset(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return 0;
+  std::vector<char> head(1 << 20);
+  const std::size_t n = std::fread(head.data(), 1, head.size(), f);
+  std::fclose(f);
+  const std::string_view text(head.data(), n);
+  for (const std::string_view end : {"\n\n", "\n\r\n"})
+    if (const auto at = text.find(end); at != std::string_view::npos) return at + end.size();
+  return 0;
+}
+
+// Decompresses a gzip or bzip2 stream from `offset` of `file` without keeping the output and
+// returns how many bytes it produced, stopping at `limit`: a compressed file is judged by what
+// it really holds, not by a ratio (bzip2 reaches far beyond 1000:1).
+std::uint64_t decodedBytes(const std::string& file, std::uint64_t offset, bool bzip2,
+                           std::uint64_t limit) {
+  std::FILE* f = std::fopen(file.c_str(), "rb");
+  if (!f) return 0;
+  std::vector<char> buffer(1 << 20);
+  std::uint64_t total = 0;
+  if (std::fseek(f, long(offset), SEEK_SET) != 0) {
+    std::fclose(f);
+    return 0;
+  }
+  if (bzip2) {
+    int err = BZ_OK;
+    BZFILE* bz = BZ2_bzReadOpen(&err, f, 0, 0, nullptr, 0);
+    while (err == BZ_OK && total < limit) {
+      const int got = BZ2_bzRead(&err, bz, buffer.data(), int(buffer.size()));
+      if (got > 0) total += std::uint64_t(got);
+    }
+    BZ2_bzReadClose(&err, bz);
+    std::fclose(f);
+    return total;
+  }
+  gzFile gz = gzdopen(::dup(::fileno(f)), "rb");
+  std::fclose(f);
+  if (!gz) return 0;
+  // gzdopen reads from the descriptor's position, which fseek set.
+  while (total < limit) {
+    const int got = gzread(gz, buffer.data(), unsigned(buffer.size()));
+    if (got <= 0) break;
+    total += std::uint64_t(got);
+  }
+  gzclose_r(gz);
+  return total;
 }
 
 template <class Src, class Dst>
@@ -62,25 +128,34 @@ void checkNrrdHeader(const std::string& path) {
   // What is on disk: the detached data files (relative to the header), or this file.
   namespace fs = std::filesystem;
   std::error_code ec;
-  double onDisk = 0;
+  std::vector<std::pair<std::string, std::uint64_t>> files;  // data file, where its data starts
   if (io->dataFNArr && io->dataFNArr->len > 0) {
     for (unsigned i = 0; i < io->dataFNArr->len; ++i) {
       fs::path data = io->dataFN[i];
       if (data.is_relative()) data = fs::path(path).parent_path() / data;
-      const auto bytes = fs::file_size(data, ec);
-      if (ec) return;  // teem reports a missing data file in its own words
-      onDisk += double(bytes);
+      if (!fs::is_regular_file(data, ec)) return;  // teem reports it in its own words
+      files.emplace_back(data.string(), 0);
     }
   } else {
-    onDisk = double(fs::file_size(path, ec));
-    if (ec) return;
+    files.emplace_back(path, attachedDataOffset(path));
   }
-  // gzip and bzip2 expand at most about 1000:1.
-  const double bound = io->encoding && io->encoding->isCompression ? 1100.0 * onDisk : onDisk;
-  if (need > bound)
+  const bool compressed = io->encoding && io->encoding->isCompression;
+  const bool bzip2 = compressed && io->encoding == nrrdEncodingBzip2;
+  double have = 0;
+  for (const auto& [file, offset] : files) {
+    if (compressed) {
+      have += double(decodedBytes(file, offset, bzip2, std::uint64_t(need - have) + 1));
+    } else {
+      const auto bytes = fs::file_size(file, ec);
+      if (ec) return;
+      have += double(bytes);
+    }
+  }
+  if (need > have)
     throw FormatError(path, "truncated: the header needs " + std::to_string(std::uint64_t(need)) +
                                 " bytes of data, the file holds " +
-                                std::to_string(std::uint64_t(onDisk)));
+                                std::to_string(std::uint64_t(have)) +
+                                (compressed ? " (decompressed)" : ""));
 }
 
 }  // namespace

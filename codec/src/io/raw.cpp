@@ -18,8 +18,10 @@ Volume readRaw(const std::string& path, const RawLayout& layout) {
   std::error_code ec;
   const auto fileBytes = std::filesystem::file_size(path, ec);
   if (ec) throw FormatError(path, ec.message());
-  Volume v = Volume::allocate(layout.dims, layout.type, layout.spacing);
-  const std::uint64_t need = layout.headerBytes + v.data.size();
+  // Sizes first: a wrong --dims must not allocate gigabytes before saying so.
+  const std::uint64_t need =
+      layout.headerBytes + std::uint64_t(layout.dims.x) * std::uint64_t(layout.dims.y) *
+                               std::uint64_t(layout.dims.z) * scalarBytes(layout.type);
   if (fileBytes < need)
     throw FormatError(
         path, "truncated: " + std::to_string(fileBytes) + " bytes, but " +
@@ -32,6 +34,7 @@ Volume readRaw(const std::string& path, const RawLayout& layout) {
                   std::to_string(layout.dims.y) + "x" + std::to_string(layout.dims.z) + " " +
                   std::string(scalarName(layout.type)) + " needs " + std::to_string(need) +
                   " (wrong dimensions or type, or give --header-bytes)");
+  Volume v = Volume::allocate(layout.dims, layout.type, layout.spacing);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FormatError(path, std::strerror(errno));
   in.seekg(std::streamoff(layout.headerBytes));

@@ -83,9 +83,10 @@ void readSlice(OIIO::ImageInput& in, const std::string& file, int subimage, Volu
 Volume readSliceStack(const std::string& path) {
   std::vector<std::string> files;
   if (fs::is_directory(path)) {
-    for (auto& entry : fs::directory_iterator(path))
-      if (entry.is_regular_file() && isSliceImage(entry.path()))
-        files.push_back(entry.path().string());
+    std::error_code ec;
+    for (fs::directory_iterator it(path, ec), end; !ec && it != end; it.increment(ec))
+      if (it->is_regular_file(ec) && isSliceImage(it->path())) files.push_back(it->path().string());
+    if (ec) throw FormatError(path, "cannot list the slices: " + ec.message());
     std::sort(files.begin(), files.end(), naturalLess);
     if (files.empty())
       throw FormatError(path, "directory holds no .tif/.tiff/.png/.pgm/.exr slices");

@@ -18,8 +18,9 @@ VolumeFormat volumeFormatOf(const std::string& path) {
                               "directory of slices)");
 }
 
-Volume readVolume(const std::string& path, const std::optional<RawLayout>& raw) {
-  if (!std::filesystem::exists(path)) throw FormatError(path, "no such file or directory");
+namespace {
+
+Volume readAnyVolume(const std::string& path, const std::optional<RawLayout>& raw) {
   // Raw dimensions given on the command line mean "read this as raw", whatever the name.
   if (raw && raw->dims.x > 0) return readRaw(path, *raw);
   switch (volumeFormatOf(path)) {
@@ -33,6 +34,23 @@ Volume readVolume(const std::string& path, const std::optional<RawLayout>& raw) 
       return readSliceStack(path);
   }
   throw FormatError(path, "unknown volume format");
+}
+
+}  // namespace
+
+Volume readVolume(const std::string& path, const std::optional<RawLayout>& raw) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    throw FormatError(path, "cannot read: " + ec.message());
+  if (!std::filesystem::exists(status)) throw FormatError(path, "no such file or directory");
+  try {
+    return readAnyVolume(path, raw);
+  } catch (const std::bad_alloc&) {
+    throw FormatError(path, "not enough memory to read it");
+  } catch (const std::filesystem::filesystem_error& e) {
+    throw FormatError(path, "cannot read: " + e.code().message());
+  }
 }
 
 void writeVolume(const Volume& volume, const std::string& path) {

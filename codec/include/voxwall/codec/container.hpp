@@ -101,7 +101,7 @@ class ContainerFile {
   SectionSet sections_;
 };
 
-// True when the file starts with the .vwz magic (reads 8 bytes; false if unreadable).
+// True when the file is named *.vwz or starts with the .vwz magic (reads 8 bytes).
 bool isContainerFile(const std::string& path);
 
 }  // namespace voxwall::codec
