@@ -1,4 +1,6 @@
 // Writes a few valid .vwz files as the fuzzer's seed corpus: make_seeds DIR
+#include <cstdio>
+#include <filesystem>
 #include <string>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
@@ -8,8 +10,17 @@
 
 int main(int argc, char** argv) {
   using namespace voxwall::codec;
-  if (argc != 2) return 2;
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: vwz_make_seeds DIR\n");
+    return 2;
+  }
   const std::string dir = argv[1];
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "vwz_make_seeds: %s: %s\n", dir.c_str(), ec.message().c_str());
+    return 1;
+  }
   Progress quiet;
   writeContainer(raw::encode(generateMenger(1), {4}, quiet), dir + "/menger1.vwz");
   writeContainer(raw::encode(generateMarschnerLobb(5, ScalarType::Float32), {4}, quiet),

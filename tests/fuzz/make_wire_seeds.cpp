@@ -1,4 +1,6 @@
 // Writes one valid message of every type into DIR, as seeds for wire_fuzz.
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <voxwall/net/wire.hpp>
@@ -6,8 +8,17 @@
 using namespace voxwall;
 
 int main(int argc, char** argv) {
-  if (argc != 2) return 2;
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: make_wire_seeds DIR\n");
+    return 2;
+  }
   const std::string dir = argv[1];
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "make_wire_seeds: %s: %s\n", dir.c_str(), ec.message().c_str());
+    return 1;
+  }
   node::Image image(16, 8);
   for (auto& p : image.pixels) p = 0xff336699u;
   std::vector<std::vector<std::byte>> seeds = {
@@ -16,6 +27,7 @@ int main(int argc, char** argv) {
       net::encodeMessage(3, net::FrameEnd{1, 4}),
       net::encodeMessage(net::Control{net::ControlCommand::Rotate, 10, -5}),
       net::encodeMessage(net::Bye{"done"}),
+      net::encodeMessage(4, net::FrameNote{net::FrameStatus::Dropped, "too many frames open"}),
   };
   for (auto codec : {net::TileCodec::Jpeg, net::TileCodec::Raw, net::TileCodec::Deflate}) {
     net::TileCodecSettings s;

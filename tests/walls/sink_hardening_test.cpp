@@ -107,7 +107,7 @@ TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
 }
 
 // Defect 2: a second job's first frames were silently discarded as "old".
-TEST(SinkHardening, ANewJobStartsANewFrameSequenceAndTheOldJobIsTurnedAway) {
+TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   test::SinkRunner sink(settings());
   auto first = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
   for (int f : {5, 6}) {
@@ -115,19 +115,34 @@ TEST(SinkHardening, ANewJobStartsANewFrameSequenceAndTheOldJobIsTurnedAway) {
     ASSERT_TRUE(
         sink.waitFor([f](const walls::SinkStats& s) { return s.framesPresented == f - 4; }));
   }
-  auto second = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+  // While job 111 is connected, another job is refused, with the reason.
+  try {
+    net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+    FAIL() << "a second job was let in while the first was running";
+  } catch (const net::SinkRefused& e) {
+    EXPECT_NE(std::string(e.what()).find("is showing on this wall"), std::string::npos) << e.what();
+  }
+  first->send(net::encodeMessage(net::Bye{"done"}));
+  first.reset();
+  std::unique_ptr<net::Connection> second;
+  for (int i = 0; i < 100 && !second; ++i) {
+    try {
+      second = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+    } catch (const net::SinkRefused&) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the Bye is still in flight
+    }
+  }
+  ASSERT_TRUE(second);
+  // Frame 0 of the new job is shown although frame 6 of the old one was.
   second->send(net::encodeMessage(0, wholeScreen()));
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 3; }))
       << sink.log();
-  EXPECT_NE(sink.log().find("job 000000000000006f was replaced by job 00000000000000de"),
+  EXPECT_NE(sink.log().find("job 000000000000006f ended; job 00000000000000de took the wall"),
             std::string::npos)
       << sink.log();
-  // The old job's peer was told, and the old job cannot take the wall back.
-  EXPECT_THROW(
-      {
-        for (int i = 0; i < 100; ++i) first->receive(20);
-      },
-      net::NetError);
+  // The old job cannot take the wall back.
+  second.reset();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000),
                net::SinkRefused);
 }

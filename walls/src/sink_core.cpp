@@ -108,18 +108,21 @@ bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
   }
   if (job_ != hello.jobId) {
     if (job_) {
-      // A new job takes the wall: the old one's frames and peers go.
+      // One job at a time: a running job keeps the wall; once all its peers are gone, the next
+      // job takes it and the old one can never come back (its frame ids would mean nothing).
+      int running = 0;
+      for (const SinkPeer* other : peers_)
+        running += other != &peer && other->greeted() && other->hello().jobId == *job_;
+      if (running > 0) {
+        refuse(peer, peer.name() + ": job " + jobName(*job_) + " is showing on this wall (" +
+                         std::to_string(running) + " peer(s) connected); try again when it ends");
+        return false;
+      }
       const std::string why =
-          "job " + jobName(*job_) + " was replaced by job " + jobName(hello.jobId);
+          "job " + jobName(*job_) + " ended; job " + jobName(hello.jobId) + " took the wall";
       say("sink: " + why);
       endedJobs_.insert(*job_);
       if (endedJobs_.size() > kEndedJobsKept) endedJobs_.erase(endedJobs_.begin());
-      for (SinkPeer* other : std::set(peers_))
-        if (other != &peer && other->greeted() && other->hello().jobId == *job_) {
-          other->send(net::encodeMessage(net::Bye{why}));
-          other->hangUp();
-          detach(*other);
-        }
       assembler_.startSequence(why);
     } else {
       say("sink: job " + jobName(hello.jobId) + " started");

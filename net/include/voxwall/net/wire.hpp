@@ -24,9 +24,9 @@
 // version, token or wall) and closes. A renderer then sends, per frame, its Tiles and a
 // FrameEnd; the controller (rank 0) receives Controls and a FrameNote for every frame of its job
 // that the sink presented, dropped or refused. Either side may send Bye and close.
-// Jobs: every peer of one render job sends the same jobId. A Hello with a job id the sink has
-// not seen starts a new frame sequence there (the old job's open frames are dropped, its peers
-// are sent Bye, and a later Hello of the old job is refused).
+// Jobs: every peer of one render job sends the same jobId. While a job has peers connected, the
+// sink refuses peers of another job; after that, a new job id starts a new frame sequence (the
+// old job's open frames are dropped and a later Hello of the old job is refused).
 // Version history: 1 first release; 2 adds Hello.jobId and FrameNote.
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once

@@ -2,10 +2,12 @@
 // from a peer does, the frame assembler, the render job's identity and the statistics. The Sink
 // (sink.hpp) drives it from Asio on one thread; tests and the fuzz target drive it from bytes.
 //
-// Jobs: every peer of a render job says the job's id in its Hello. The first Hello of an id the
-// sink has not seen starts a new frame sequence (logged): the old job's open frames are dropped,
-// its peers are sent Bye, and later Hellos of the old job are refused, so two jobs never fight
-// over the wall and a new job's frame 0 is never mistaken for an old frame.
+// Jobs: every peer of a render job says the job's id in its Hello. While a job has peers
+// connected, a Hello of another job is refused with the reason (so a second job fails at once
+// instead of losing frames in silence, and an unauthenticated peer cannot end a running job).
+// Once the job's peers are gone, the next job's Hello starts a new frame sequence (logged): the
+// old job's open frames are dropped and its later Hellos are refused, so a new job's frame 0 is
+// never mistaken for an old frame.
 #pragma once
 
 #include <cstdint>
