@@ -14,13 +14,20 @@
 #                     image equals (jpeg: >= 40 dB) the crop of the single-process render
 #   sink-restart N    the sink is killed (-9) and restarted mid-run: the job goes on, every frame
 #                     either sink wrote is whole and right
+#   full-disk         render --out and the sink's --out on a full filesystem (a small tmpfs, or a
+#                     file-size limit where mounting is not allowed): one line, non-zero exit, no
+#                     partial frame under a final name; --resume then redoes exactly the missing
+#                     and damaged frames
+#   killed-writer     a sink killed (-9) while writing: no frame with a marker is partial, and
+#                     the next sink on the folder clears what the killed one left
+#   refused N         a render the sink refuses (wrong token) fails with one line, non-zero
 # Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
 # scenarios; ctest sets both.
 set -uo pipefail
 voxwall=$1 mpiexec=$2 preflags=$3 scenario=$4
 shift 4
 work=$(mktemp -d "${TMPDIR:-/tmp}/voxwall-mpi.XXXXXX")
-trap 'rm -rf "$work"' EXIT
+trap 'umount "$work"/*fs 2>/dev/null; rm -rf "$work"' EXIT
 cd "$work"
 
 fail() { echo "FAIL: $*" >&2; exit 1; }
@@ -70,12 +77,17 @@ start_sink() {
   fail "the sink did not start"
 }
 
-# Every frame the sink wrote to DIR is whole (4 displays) and matches the reference frames in
-# REF (min PSNR given: at least that; else equal). Prints how many frames it checked.
+# Every frame the sink wrote to DIR (those with a frame_N.done marker) is whole (4 displays) and
+# matches the reference frames in REF (min PSNR given: at least that; else equal); no display
+# picture lies there without its marker. Prints how many frames it checked.
 check_wall_frames() {
   local dir=$1 ref=$2 psnr=${3:-} checked=0
   declare -A rects=([r0c0]="0 0" [r0c1]="100 0" [r1c0]="0 68" [r1c1]="100 68")
-  for f in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)_r0c0.png$/\1/p'); do
+  for f in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)_r[01]c[01].png$/\1/p' | sort -u); do
+    [ -f "$dir/frame_$f.done" ] || fail "frame $f in $dir has pictures but no marker (a partial frame)"
+  done
+  ls "$dir" | grep -q '\.tmp\.' && fail "temporary files left in $dir"
+  for f in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)\.done$/\1/p'); do
     for d in r0c0 r0c1 r1c0 r1c1; do
       [ -f "$dir/frame_${f}_$d.png" ] || fail "frame $f in $dir lacks display $d (a partial frame)"
       # shellcheck disable=SC2086
@@ -90,7 +102,142 @@ check_wall_frames() {
   echo "$checked"
 }
 
+# Starts a sink on DIR and stops it once it listens: it clears what a killed sink left there.
+clear_with_sink() {
+  local dir=$1
+  start_sink "$dir" 0
+  kill -TERM "$sink_pid"; wait "$sink_pid" 2>/dev/null
+  mv "$dir.log" "$dir.clear.log"
+}
+
+# Makes DIR (named *fs, so the exit trap unmounts it) a filesystem of SIZE kilobytes (tmpfs) and
+# prints "mounted"; where mounting is not allowed, prints "ulimit" and the caller runs the writer
+# under `ulimit -f` instead.
+small_fs() {
+  local dir=$1 size=$2
+  mkdir -p "$dir"
+  if mount -t tmpfs -o "size=${size}k" tmpfs "$dir" 2>/dev/null; then
+    echo mounted
+  else
+    echo ulimit
+  fi
+}
+
+# Runs the rest of the line with a per-file size limit of $1 KiB when $2 is "ulimit".
+limited() {
+  local kib=$1 how=$2
+  shift 2
+  if [ "$how" = ulimit ]; then
+    (ulimit -f "$kib"; trap '' XFSZ; exec "$@")
+  else
+    "$@"
+  fi
+}
+
 case $scenario in
+  full-disk)
+    frames=(render vol.vwz --size 240x160 --frames 12 --orbit-deg 30 --threads 1)
+    "$voxwall" "${frames[@]}" -q --out ref || fail "reference render"
+    # Frames are 13-15 KB: the disk fills after a few; a per-file limit fails the larger ones.
+    how=$(small_fs fullfs 64)
+    limited 14 "$how" "$voxwall" "${frames[@]}" -q --out fullfs/frames 2> render.err
+    status=$?
+    [ "$status" -ne 0 ] || fail "render on a full disk exited 0"
+    [ "$(grep -c 'cannot write' render.err)" -eq 1 ] || { cat render.err; fail "not one error line"; }
+    grep -qE "voxwall: .*fullfs/frames/(frame_[0-9]+\.png|voxwall-job\.json).*: cannot write: (No space left on device|File too large)" render.err \
+      || { cat render.err; fail "the error line does not name the file and the reason"; }
+    # Every frame under its final name is whole. Those the manifest recorded are kept on
+    # --resume; one renamed into place just before the manifest could be written is redone.
+    for f in $(frames_in fullfs/frames); do
+      cmp -s "fullfs/frames/$f" "ref/$f" || fail "$f under its final name differs (partial?)"
+    done
+    ls fullfs/frames | grep -q '\.tmp\.' && fail "temporaries left on the full disk"
+    recorded=$(grep -oE '"frame_[0-9]+\.png": \{' fullfs/frames/voxwall-job.json | tr -d '":{ ')
+    kept=$(echo "$recorded" | grep -c png)
+    cp -r fullfs/frames roomy
+    # A frame damaged after it was recorded is rendered again on --resume.
+    damaged=$(echo "$recorded" | grep png | head -1)
+    if [ -n "$damaged" ]; then
+      truncate -s 100 "roomy/$damaged"
+      kept=$((kept - 1))
+    fi
+    out=$("$voxwall" "${frames[@]}" --out roomy --resume 2> resume.err) || { cat resume.err; fail "resume"; }
+    if [ "$kept" -gt 0 ]; then
+      echo "$out" | grep -q "resume: $kept frame(s) already complete" || { echo "$out"; fail "resume kept other than the $kept whole frames"; }
+    else
+      echo "$out" | grep -q "resume:" && { echo "$out"; fail "resume kept frames the manifest does not hold"; }
+    fi
+    [ -z "$damaged" ] || grep -q "roomy/$damaged: not as the job manifest recorded it" resume.err \
+      || { cat resume.err; fail "the damaged frame was not named"; }
+    same_frames ref roomy
+    # The sink on a full disk: one line, non-zero, and no frame without all its pictures.
+    # A frame is about 22 KB (four displays and the 10 KB mosaic).
+    how=$(small_fs wallfs 100)
+    limited 8 "$how" "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen 127.0.0.1:0 \
+      --out wallfs/w --mosaic --frames 0 --no-stdin > wallfs.log 2> wallfs.err &
+    sink_pid=$!
+    for _ in $(seq 200); do
+      sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' wallfs.log)
+      [ -n "$sink_port" ] && break
+      sleep 0.05
+    done
+    [ -n "$sink_port" ] || fail "the sink did not start"
+    "$voxwall" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --tile-codec deflate --frames 12 --orbit-deg 30 --threads 1 -q > /dev/null 2>&1
+    timeout 30 tail --pid="$sink_pid" -f /dev/null || fail "the sink on a full disk kept running"
+    wait "$sink_pid"
+    [ $? -ne 0 ] || fail "the sink on a full disk exited 0"
+    grep -qE "voxwall: .*wallfs/w/frame_[0-9]+_.*png: cannot write: (No space left on device|File too large)" wallfs.err \
+      || { cat wallfs.log wallfs.err; fail "the sink's error does not name the file and the reason"; }
+    "$voxwall" render vol.vwz --size 196x132 --frames 12 --orbit-deg 30 --threads 1 -q \
+      --out wallref || fail "reference render"
+    shown=$(check_wall_frames wallfs/w wallref) || exit 1
+    echo "full disk ($how): render kept $kept whole frame(s) and failed with one line; resume" \
+      "redid the rest; the sink showed $shown whole frame(s) and stopped with one line"
+    ;;
+  killed-writer)
+    start_sink wall 0
+    "$voxwall" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --tile-codec deflate --frames 40 --orbit-deg 20 --threads 1 -q > render.log 2>&1 &
+    render_pid=$!
+    for _ in $(seq 400); do ls wall | grep -q '\.done$' && break; sleep 0.02; done
+    ls wall | grep -q '\.done$' || fail "the sink wrote nothing"
+    kills=0
+    # Kill it again and again mid-frame, restarting it on the same folder each time.
+    for delay in 0.01 0.03 0.05 0.07 0.11; do
+      sleep "$delay"
+      kill -KILL "$sink_pid"; wait "$sink_pid" 2>/dev/null
+      kills=$((kills + 1))
+      start_sink wall 0 "$sink_port"
+      grep -q "listening" wall.log || fail "the sink did not restart"
+    done
+    wait "$render_pid" || { cat render.log; fail "the render job did not survive"; }
+    kill -TERM "$sink_pid"; wait "$sink_pid" 2>/dev/null
+    clear_with_sink wall
+    "$voxwall" render vol.vwz --size 196x132 --frames 40 --orbit-deg 20 --threads 1 -q \
+      --out ref || fail "reference render"
+    shown=$(check_wall_frames wall ref) || exit 1
+    [ "$shown" -ge 1 ] || fail "no frame survived"
+    echo "killed the sink $kills times while writing: $shown whole frame(s), no partial one"
+    ;;
+  refused)
+    n=$1
+    "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen 127.0.0.1:0 --token right \
+      --no-stdin > sink.log 2>&1 &
+    sink_pid=$!
+    for _ in $(seq 200); do
+      sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' sink.log)
+      [ -n "$sink_port" ] && break
+      sleep 0.05
+    done
+    run "$n" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --token wrong --frames 30 --threads 1 -q > render.log 2>&1
+    status=$?
+    kill -TERM "$sink_pid"; wait "$sink_pid" 2>/dev/null
+    [ "$status" -ne 0 ] || { cat render.log; fail "a refused render exited 0"; }
+    grep -q "refused: .*wrong token" render.log || { cat render.log; fail "no line says why"; }
+    echo "refused render: exit $status, $(grep -m1 'wrong token' render.log)"
+    ;;
   equal)
     n=$1 mode=$2
     "$voxwall" "${common[@]}" --out ref || fail "single-process reference"
@@ -233,6 +380,7 @@ case $scenario in
     kill -TERM "$second_pid" 2>/dev/null; wait "$second_pid" 2>/dev/null
     "$voxwall" render vol.vwz --size 196x132 --frames $frames --orbit-deg 9 --step 0.01 \
       --threads 1 -q --out ref || fail "reference render"
+    clear_with_sink first
     a=$(check_wall_frames first ref) || exit 1
     b=$(check_wall_frames second ref) || exit 1
     [ "$b" -ge 1 ] || { cat second.log; fail "no frame reached the restarted sink"; }
