@@ -21,6 +21,8 @@
 #   killed-writer     a sink killed (-9) while writing: no frame with a marker is partial, and
 #                     the next sink on the folder clears what the killed one left
 #   refused N         a render the sink refuses (wrong token) fails with one line, non-zero
+#   hostile N         hostile peers (tests/tools/hostile_peers) flood the sink while N ranks
+#                     render to it: every frame is presented and right, the sink keeps running
 # Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
 # scenarios; ctest sets both.
 set -uo pipefail
@@ -237,6 +239,37 @@ case $scenario in
     [ "$status" -ne 0 ] || { cat render.log; fail "a refused render exited 0"; }
     grep -q "refused: .*wrong token" render.log || { cat render.log; fail "no line says why"; }
     echo "refused render: exit $status, $(grep -m1 'wrong token' render.log)"
+    ;;
+  hostile)
+    n=$1
+    frames=8
+    start_sink wall "$frames"
+    # Frames slow enough (--step) that the sink's writer keeps up and skips none for being behind.
+    run "$n" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --tile-codec deflate --frames "$frames" --orbit-deg 20 --step 0.02 --threads 1 -q \
+      > render.log 2>&1 &
+    render_pid=$!
+    # The peers come once the job holds the wall: before that, any peer without a token may take
+    # it (docs/wall.md), which is not what this test is about.
+    for _ in $(seq 400); do grep -q "job .* started" wall.log && break; sleep 0.02; done
+    "$VOXWALL_HOSTILE_PEERS" "$sink_port" 600 > hostile.log 2>&1 &
+    hostile_pid=$!
+    wait "$render_pid" || { cat render.log; fail "the render job failed"; }
+    timeout 60 tail --pid="$sink_pid" -f /dev/null || fail "the sink did not finish"
+    wait "$sink_pid" || { tail wall.log; fail "the sink exited with $?"; }
+    kill -TERM "$hostile_pid"; wait "$hostile_pid" 2>/dev/null
+    for f in $(seq 0 $((frames - 1))); do
+      grep -q "frame $f presented" wall.log || { cat wall.log; fail "frame $f was not presented"; }
+    done
+    "$voxwall" render vol.vwz --size 196x132 --frames "$frames" --orbit-deg 20 --step 0.02 \
+      --threads 1 -q --out ref || fail "reference render"
+    shown=$(check_wall_frames wall ref) || exit 1
+    cat hostile.log
+    [ "$shown" -eq "$frames" ] || fail "$shown of $frames frames on the wall"
+    refused=$(grep -c "sink: refused" wall.log)
+    dropped=$(grep -c "sink: dropped" wall.log)
+    echo "all $frames frames presented and right while the sink refused $refused and dropped" \
+      "$dropped hostile peers"
     ;;
   equal)
     n=$1 mode=$2
