@@ -18,6 +18,7 @@ net::FrameTask sampleTask() {
   t.watchdogMs = 5000;
   t.screenWidth = 64, t.screenHeight = 48;
   t.cellPixels = 16;
+  t.jobId = 0xfeedf00d12345678ull;
   t.rects = {{{0, 0, 32, 48}}, {{32, 0, 32, 20}, {32, 20, 32, 28}}, {}};
   return t;
 }
@@ -38,7 +39,8 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   r.costs = node::CostGrid(t.screenWidth, t.screenHeight, t.cellPixels);
   r.costs.add({32, 0, 32, 48}, 0.25);
   r.streamed = false;
-  r.streamError = "sink 127.0.0.1:7400: Connection refused";
+  r.streamRefused = true;
+  r.streamError = "sink 127.0.0.1:7400: refused: wrong token";
   return r;
 }
 
@@ -65,6 +67,7 @@ TEST(FrameTask, RoundTrips) {
   EXPECT_EQ(back.camera.fovYDeg, 40);
   EXPECT_EQ(back.tfVersion, 3u);
   EXPECT_EQ(back.watchdogMs, 5000u);
+  EXPECT_EQ(back.jobId, 0xfeedf00d12345678ull);
   EXPECT_EQ(back.cellPixels, 16);
   EXPECT_EQ(back.rects, t.rects);
 }
@@ -147,6 +150,7 @@ TEST(RankReport, RoundTrips) {
   }
   EXPECT_EQ(back.costs.seconds, r.costs.seconds);
   EXPECT_FALSE(back.streamed);
+  EXPECT_TRUE(back.streamRefused);
   EXPECT_EQ(back.streamError, r.streamError);
   EXPECT_NEAR(back.costs.total(), 0.25, 1e-12);
 }

@@ -42,20 +42,24 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
   auto append = [&](const std::vector<std::byte>& m) {
     stream.insert(stream.end(), m.begin(), m.end());
   };
-  append(net::encodeMessage(net::Hello{net::Role::Renderer, 2, 4, "bigeye", "secret"}));
+  net::Hello sent{net::Role::Renderer, 2, 4, "bigeye", "secret"};
+  sent.jobId = 0x0123456789abcdefull;
+  append(net::encodeMessage(sent));
   append(net::encodeMessage(net::Welcome{"bigeye", 5772, 4338}));
   append(sampleTile());
   append(net::encodeMessage(42, net::FrameEnd{2, 7}));
   append(net::encodeMessage(net::Control{net::ControlCommand::Pan, 0.5, -0.25}));
   append(net::encodeMessage(net::Bye{"done"}));
+  append(net::encodeMessage(43, net::FrameNote{net::FrameStatus::Refused, "out of the window"}));
   for (std::size_t chunk : {std::size_t(1), std::size_t(7), std::size_t(4096)}) {
     const auto m = readAll(stream, chunk);
-    ASSERT_EQ(m.size(), 6u);
+    ASSERT_EQ(m.size(), 7u);
     const auto hello = net::decodeHello(m[0].payload, "t");
     EXPECT_EQ(hello.rank, 2);
     EXPECT_EQ(hello.rankCount, 4);
     EXPECT_EQ(hello.wallId, "bigeye");
     EXPECT_EQ(hello.token, "secret");
+    EXPECT_EQ(hello.jobId, 0x0123456789abcdefull);
     EXPECT_EQ(net::decodeWelcome(m[1].payload, "t").screenHeight, 4338);
     EXPECT_EQ(m[2].type, MessageType::Tile);
     EXPECT_EQ(m[2].frame, 42u);
@@ -69,7 +73,15 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
     EXPECT_EQ(control.command, net::ControlCommand::Pan);
     EXPECT_EQ(control.b, -0.25);
     EXPECT_EQ(net::decodeBye(m[5].payload, "t").reason, "done");
+    EXPECT_EQ(m[6].frame, 43u);
+    const auto note = net::decodeFrameNote(m[6].payload, "t");
+    EXPECT_EQ(note.status, net::FrameStatus::Refused);
+    EXPECT_EQ(net::describe(m[6].frame, note), "frame 43 refused: out of the window");
   }
+  auto note = net::encodeMessage(1, net::FrameNote{net::FrameStatus::Dropped, ""});
+  std::vector<std::byte> p(note.begin() + net::kHeaderBytes, note.end());
+  p[0] = std::byte{9};  // unknown status
+  EXPECT_THROW(net::decodeFrameNote(p, "t"), FormatError);
 }
 
 TEST(Wire, TruncatedStreamsWaitForMoreAndNeverYieldHalfAMessage) {
