@@ -71,6 +71,15 @@ std::string writeTemporary(const std::string& path, std::span<const std::byte> b
   return tmp;
 }
 
+void syncFile(const std::string& file, const std::string& path) {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw FormatError(path, std::string("cannot write: ") + std::strerror(errno));
+  const bool synced = ::fsync(fd) == 0 || errno == EINVAL || errno == EROFS;
+  const int err = errno;
+  ::close(fd);
+  if (!synced) throw FormatError(path, std::string("cannot write: ") + std::strerror(err));
+}
+
 void commitTemporary(const std::string& temporary, const std::string& path) {
   if (std::rename(temporary.c_str(), path.c_str()) != 0) {
     const int err = errno;

@@ -1,8 +1,10 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 #include <nifti1_io.h>
+#include <sys/resource.h>
 #include <teem/nrrd.h>
 
+#include <csignal>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -368,4 +370,28 @@ TEST(VolumeIo, ShortAndUnreadableVwzFilesGetTheirOwnMessages) {
   std::filesystem::create_directory(folder);
   EXPECT_TRUE(isContainerFile(folder));
   expectFormatError([&] { ContainerFile::open(folder); }, folder, "not a regular file");
+}
+
+// Defect 6: writers on a full disk. A file-size limit makes every write past it fail as a full
+// disk does (EFBIG instead of ENOSPC), in this process only.
+TEST(VolumeIo, WritersOnAFullDiskFailWithOneLineAndLeaveNothingBehind) {
+  TempDir dir;
+  const Volume v = patterned(ScalarType::Float32, {40, 40, 40});  // 256000 bytes of voxels
+  std::signal(SIGXFSZ, SIG_IGN);
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+  rlimit tight = old;
+  tight.rlim_cur = 16 * 1024;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &tight), 0);
+  for (const char* name : {"v.raw", "v.nrrd", "v.nii", "v.nii.gz"}) {
+    const std::string p = dir.path(name);
+    expectFormatError([&] { writeVolume(v, p); }, p, "cannot write");
+    EXPECT_FALSE(std::filesystem::exists(p)) << name;
+  }
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path("")))
+    ADD_FAILURE() << "left behind: " << entry.path();
+  // With room, the same writes work.
+  writeVolume(v, dir.path("v.nii.gz"));
+  expectSameVoxels(readVolume(dir.path("v.nii.gz")), v);
 }

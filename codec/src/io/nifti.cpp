@@ -202,12 +202,25 @@ void writeNifti(const Volume& volume, const std::string& path) {
   std::filesystem::remove(tmp);
   if (nifti_set_filenames(nim.get(), tmp.c_str(), 0, 1) != 0)
     throw FormatError(path, "cannot set NIfTI file name");
+  nifti_set_debug_level(0);      // the error is reported below, in one line
   nifti_image_write(nim.get());  // returns void: check the result on disk
-  std::error_code ec;
-  const auto written = std::filesystem::file_size(tmp, ec);
-  if (ec || written == 0) {
-    std::filesystem::remove(tmp, ec);
-    throw FormatError(path, "write failed");
+  // A full disk leaves a short file (or a cut gzip stream): it must hold the header and every
+  // voxel before it is renamed into place.
+  const std::uint64_t want = std::uint64_t(sizeof(nifti_1_header)) + 4 + volume.data.size();
+  std::uint64_t written = 0;
+  try {
+    std::error_code ec;
+    written = gz ? gzipLength(tmp) : std::uint64_t(std::filesystem::file_size(tmp, ec));
+    if (ec) written = 0;
+    if (written < want)
+      throw FormatError(path, "cannot write: " + std::to_string(written) + " of " +
+                                  std::to_string(want) + " bytes reached the disk (full?)");
+    syncFile(tmp, path);
+  } catch (const FormatError& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    if (e.file() == path) throw;
+    throw FormatError(path, "cannot write: the file written is cut short (disk full?)");
   }
   commitTemporary(tmp, path);
 }

@@ -255,7 +255,17 @@ void writeNrrd(const Volume& volume, const std::string& path) {
   if (nrrdSave(target.c_str(), nout.get(), io.get())) {
     std::error_code ec;
     if (!detached) std::filesystem::remove(target, ec);
-    throw FormatError(path, teemError());
+    throw FormatError(path, "cannot write: " + teemError());
+  }
+  // teem does not notice every failed write (a full disk cuts the gzip stream): read back what
+  // reached the disk before the file gets its name.
+  try {
+    checkNrrdHeader(target);
+    syncFile(target, path);
+  } catch (const FormatError&) {
+    std::error_code ec;
+    if (!detached) std::filesystem::remove(target, ec);
+    throw FormatError(path, "cannot write: the file written is cut short (disk full?)");
   }
   if (!detached) commitTemporary(target, path);
 }
