@@ -44,6 +44,17 @@ bool digestFile(const std::string& path, FileDigest* digest) {
   return ok;
 }
 
+std::string hex64(std::uint64_t value) {
+  char text[20];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(value));
+  return text;
+}
+
+bool fileHasDigest(const std::string& path, std::uint64_t bytes, const std::string& xxh64Hex) {
+  FileDigest digest;
+  return digestFile(path, &digest) && digest.bytes == bytes && hex64(digest.xxh64) == xxh64Hex;
+}
+
 std::string writeTemporary(const std::string& path, std::span<const std::byte> bytes) {
   const std::string tmp = temporaryNameFor(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);

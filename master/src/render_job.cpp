@@ -24,12 +24,6 @@ double since(Clock::time_point t) {
 
 constexpr const char* kManifestName = "voxwall-job.json";
 
-std::string hex(std::uint64_t v) {
-  char text[20];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(v));
-  return text;
-}
-
 void writeManifest(const std::string& outDir, const nlohmann::json& manifest) {
   const std::string text = manifest.dump(2) + "\n";
   codec::writeFileAtomically((fs::path(outDir) / kManifestName).string(),
@@ -51,7 +45,7 @@ class FrameWriter {
                             const auto start = Clock::now();
                             const auto digest = node::writeImage(image, path, background);
                             manifest_["completed"][fs::path(path).filename().string()] = {
-                                {"bytes", digest.bytes}, {"xxh64", hex(digest.xxh64)}};
+                                {"bytes", digest.bytes}, {"xxh64", codec::hex64(digest.xxh64)}};
                             writeManifest(outDir_, manifest_);
                             return since(start);
                           });
@@ -292,12 +286,10 @@ std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest
       const std::string path = framePath(job, f);
       const std::string name = fs::path(path).filename().string();
       if (!frames.contains(name)) continue;
-      codec::FileDigest digest;
       bool same = false;
       try {
-        same = codec::digestFile(path, &digest) &&
-               digest.bytes == frames[name].at("bytes").get<std::uint64_t>() &&
-               hex(digest.xxh64) == frames[name].at("xxh64").get<std::string>();
+        same = codec::fileHasDigest(path, frames[name].at("bytes").get<std::uint64_t>(),
+                                    frames[name].at("xxh64").get<std::string>());
       } catch (const nlohmann::json::exception&) {
       }
       if (same) {

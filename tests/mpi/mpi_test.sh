@@ -70,12 +70,17 @@ start_sink() {
   "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen "127.0.0.1:$port" --out "$out" \
     --frames "$frames" --no-stdin > "$out.log" 2>&1 &
   sink_pid=$!
+  wait_port "$out.log"
+}
+
+# Waits until the sink logging to LOG listens; sets sink_port.
+wait_port() {
   for _ in $(seq 200); do
-    sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$out.log" 2>/dev/null)
+    sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$1" 2>/dev/null)
     [ -n "$sink_port" ] && return 0
     sleep 0.05
   done
-  cat "$out.log"
+  cat "$1"
   fail "the sink did not start"
 }
 
@@ -178,12 +183,7 @@ case $scenario in
     limited 8 "$how" "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen 127.0.0.1:0 \
       --out wallfs/w --mosaic --frames 0 --no-stdin > wallfs.log 2> wallfs.err &
     sink_pid=$!
-    for _ in $(seq 200); do
-      sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' wallfs.log)
-      [ -n "$sink_port" ] && break
-      sleep 0.05
-    done
-    [ -n "$sink_port" ] || fail "the sink did not start"
+    wait_port wallfs.log
     "$voxwall" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
       --tile-codec deflate --frames 12 --orbit-deg 30 --threads 1 -q > /dev/null 2>&1
     timeout 30 tail --pid="$sink_pid" -f /dev/null || fail "the sink on a full disk kept running"
@@ -227,11 +227,7 @@ case $scenario in
     "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen 127.0.0.1:0 --token right \
       --no-stdin > sink.log 2>&1 &
     sink_pid=$!
-    for _ in $(seq 200); do
-      sink_port=$(sed -n 's/.*listening on 127.0.0.1:\([0-9]*\).*/\1/p' sink.log)
-      [ -n "$sink_port" ] && break
-      sleep 0.05
-    done
+    wait_port sink.log
     run "$n" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
       --token wrong --frames 30 --threads 1 -q > render.log 2>&1
     status=$?

@@ -10,6 +10,21 @@
 
 namespace voxwall::test {
 
+// Two 20x10 displays side by side with a 4-pixel gap: a 44x10 virtual screen.
+inline walls::Wall twoDisplayWall() {
+  return walls::parseWall(R"({"wall": "t2x1", "display": {"width": 20, "height": 10},
+                              "bezel_px": {"x": 4, "y": 0}, "grid": {"columns": 2, "rows": 1}})",
+                          "test");
+}
+
+// Settings of a sink for that wall on a free loopback port, writing to `outDir` if given.
+inline walls::SinkSettings twoDisplaySink(const std::string& outDir = "") {
+  walls::SinkSettings s;
+  s.wall = twoDisplayWall();
+  s.outDir = outDir;
+  return s;
+}
+
 class SinkRunner {
  public:
   explicit SinkRunner(walls::SinkSettings settings)

@@ -28,17 +28,8 @@ using namespace voxwall;
 
 namespace {
 
-walls::Wall testWall() {
-  return walls::parseWall(R"({"wall": "t2x1", "display": {"width": 20, "height": 10},
-                              "bezel_px": {"x": 4, "y": 0}, "grid": {"columns": 2, "rows": 1}})",
-                          "test");
-}
-
-walls::SinkSettings settings() {
-  walls::SinkSettings s;
-  s.wall = testWall();
-  return s;
-}
+const auto testWall = test::twoDisplayWall;
+const auto settings = [] { return test::twoDisplaySink(); };
 
 net::Hello renderer(int rank, int ranks, std::uint64_t job = 0) {
   net::Hello h{net::Role::Renderer, rank, ranks, "t2x1", ""};

@@ -21,20 +21,9 @@ using namespace voxwall;
 
 namespace {
 
-walls::Wall testWall() {
-  return walls::parseWall(R"({"wall": "t2x1", "display": {"width": 20, "height": 10},
-                              "bezel_px": {"x": 4, "y": 0}, "grid": {"columns": 2, "rows": 1}})",
-                          "test");
-}
-
 using RunningSink = test::SinkRunner;
-
-walls::SinkSettings settings(const std::string& out = "") {
-  walls::SinkSettings s;
-  s.wall = testWall();
-  s.outDir = out;
-  return s;
-}
+const auto testWall = test::twoDisplayWall;
+const auto settings = [](const std::string& out = "") { return test::twoDisplaySink(out); };
 
 // A raw TCP peer: sends whatever it is given and reads what comes back until the sink closes.
 class RawPeer {

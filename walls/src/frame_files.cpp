@@ -14,12 +14,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string hex(std::uint64_t v) {
-  char text[20];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(v));
-  return text;
-}
-
 // "frame_00012_r0c1.png" -> 12 (and '_', the character after the number); nullopt for names
 // that are not a frame's.
 std::optional<std::uint64_t> frameOf(const std::string& name, char* next) {
@@ -64,7 +58,7 @@ void writeFrameFiles(const std::string& dir, std::uint64_t frame, const Wall& wa
       written.emplace_back(codec::writeTemporary(path, bytes), path);
       const auto digest = codec::digestOf(bytes);
       files[fs::path(path).filename().string()] = {{"bytes", digest.bytes},
-                                                   {"xxh64", hex(digest.xxh64)}};
+                                                   {"xxh64", codec::hex64(digest.xxh64)}};
     };
     for (const auto& [path, image] : pictures) add(path, image);
     if (mosaic) add((fs::path(dir) / (stem + "_mosaic.png")).string(), screen);
@@ -84,13 +78,11 @@ bool frameFilesComplete(const std::string& dir, std::uint64_t frame) {
     std::ifstream in(frameMarkerPath(dir, frame));
     if (!in) return false;
     marker = nlohmann::json::parse(in);
-    for (const auto& [name, want] : marker.at("files").items()) {
-      codec::FileDigest digest;
-      if (!codec::digestFile((fs::path(dir) / name).string(), &digest)) return false;
-      if (digest.bytes != want.at("bytes").get<std::uint64_t>() ||
-          hex(digest.xxh64) != want.at("xxh64").get<std::string>())
+    for (const auto& [name, want] : marker.at("files").items())
+      if (!codec::fileHasDigest((fs::path(dir) / name).string(),
+                                want.at("bytes").get<std::uint64_t>(),
+                                want.at("xxh64").get<std::string>()))
         return false;
-    }
   } catch (const nlohmann::json::exception&) {
     return false;
   }

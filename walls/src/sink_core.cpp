@@ -1,5 +1,6 @@
 #include <cstdio>
 #include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/files.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
 namespace voxwall::walls {
@@ -19,11 +20,7 @@ bool sameSecret(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
-std::string jobName(std::uint64_t job) {
-  char text[20];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(job));
-  return text;
-}
+std::string jobName(std::uint64_t job) { return codec::hex64(job); }
 
 SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
     : settings_(settings),

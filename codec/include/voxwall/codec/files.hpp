@@ -17,8 +17,12 @@ struct FileDigest {
   bool operator==(const FileDigest&) const = default;
 };
 FileDigest digestOf(std::span<const std::byte> bytes);
-// Reads the file and digests it; nullopt-like {0, 0} with `ok` false when it cannot be read.
+// Reads the file and digests it; false when it cannot be read.
 bool digestFile(const std::string& path, FileDigest* digest);
+// A 64-bit value as 16 lower-case hex digits, as manifests and logs write hashes and ids.
+std::string hex64(std::uint64_t value);
+// Whether the file can be read and has this size and hash (as hex64 writes it).
+bool fileHasDigest(const std::string& path, std::uint64_t bytes, const std::string& xxh64Hex);
 
 // Writes `bytes` durably to the temporary name of `path` and returns that name. Throws
 // FormatError naming `path` and the reason (e.g. "No space left on device"); nothing is left
