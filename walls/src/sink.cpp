@@ -3,6 +3,10 @@
 // writes complete frames. Per frame: collecting -> complete (every display pixel covered) ->
 // presented, or dropped (a newer frame completed first, too many frames were open, the memory
 // limit) or refused (outside the frame window); every outcome is logged and told to rank 0.
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+
 #include <asio.hpp>
 #include <cerrno>
 #include <chrono>
@@ -221,6 +225,12 @@ struct Sink::Impl {
         return accept();
       }
       socket.set_option(tcp::no_delay(true), ignored);
+      // A render host that vanishes (power, network) leaves a half-open connection that would
+      // hold the wall for its job forever: TCP keep-alive closes it within about a minute.
+      socket.set_option(asio::socket_base::keep_alive(true), ignored);
+      for (const auto& [option, value] :
+           {std::pair{TCP_KEEPIDLE, 30}, std::pair{TCP_KEEPINTVL, 10}, std::pair{TCP_KEEPCNT, 3}})
+        ::setsockopt(socket.native_handle(), IPPROTO_TCP, option, &value, sizeof value);
       auto session = std::make_shared<Session>(*this, std::move(socket));
       sessions.insert(session);
       session->start();
