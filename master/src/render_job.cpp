@@ -341,6 +341,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     hello.rank = 0, hello.rankCount = comm.size();
     hello.wallId = job.stream->wallId, hello.token = job.stream->token;
     hello.jobId = jobId;
+    hello.nextFrame = std::uint64_t(std::find(done.begin(), done.end(), false) - done.begin());
     control = std::make_unique<net::ControlChannel>(job.stream->host, job.stream->port, hello);
   }
   CameraOffset offset;
@@ -356,6 +357,7 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     int controls = 0;
     std::vector<std::string> sinkNotes;
     if (control) {
+      control->setNextFrame(std::uint64_t(f));
       // A sink that refused the job (token, wall, version, a newer job) shows nothing of it.
       if (const auto why = control->refused(); !why.empty())
         throw net::SinkRefused("wall sink " + why);

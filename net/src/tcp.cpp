@@ -168,6 +168,7 @@ bool TileStreamer::ensureConnected() {
 
 bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                              std::uint64_t decidedUnixMicros) {
+  hello_.nextFrame = frame;
   if (!ensureConnected()) {
     if (lastError_.empty()) lastError_ = "waiting to reconnect";
     return false;
@@ -214,6 +215,11 @@ std::uint64_t ControlChannel::framesPresented() const {
   return presented_;
 }
 
+void ControlChannel::setNextFrame(std::uint64_t frame) {
+  std::lock_guard lock(mutex_);
+  hello_.nextFrame = frame;
+}
+
 std::string ControlChannel::refused() const {
   std::lock_guard lock(mutex_);
   return refused_;
@@ -234,8 +240,13 @@ void ControlChannel::run() {
   };
   while (!stopping()) {
     std::unique_ptr<Connection> c;
+    Hello hello;
+    {
+      std::lock_guard lock(mutex_);
+      hello = hello_;
+    }
     try {
-      c = Connection::open(host_, port_, hello_, 1000);
+      c = Connection::open(host_, port_, hello, 1000);
     } catch (const SinkRefused& e) {
       std::lock_guard lock(mutex_);
       refused_ = e.what();

@@ -13,8 +13,8 @@ using codec::ByteReader;
 using codec::ByteWriter;
 
 static_assert(kHeaderBytes == 4 + 2 + 2 + 4 + 4 + 8 + 4 + 4, "header layout");
-// role, rank, rankCount, jobId, two strings at their limit
-static_assert(1 + 4 + 4 + 8 + 2 * (2 + kMaxString) <= kMaxHelloPayload, "a Hello fits");
+// role, rank, rankCount, jobId, nextFrame, two strings at their limit
+static_assert(1 + 4 + 4 + 8 + 8 + 2 * (2 + kMaxString) <= kMaxHelloPayload, "a Hello fits");
 
 std::vector<std::byte> frameMessage(MessageType type, std::uint64_t frame,
                                     const std::vector<std::byte>& payload) {
@@ -59,7 +59,7 @@ std::vector<std::byte> encodeMessage(const Hello& m) {
   ByteWriter w(p);
   w.put(std::uint8_t(m.role));
   w.put(std::int32_t(m.rank)), w.put(std::int32_t(m.rankCount));
-  w.put(m.jobId);
+  w.put(m.jobId), w.put(m.nextFrame);
   putString(w, m.wallId), putString(w, m.token);
   return frameMessage(MessageType::Hello, 0, p);
 }
@@ -164,6 +164,7 @@ Hello decodeHello(std::span<const std::byte> payload, const std::string& source)
   if (m.rankCount < 1 || m.rankCount > (1 << 16) || m.rank < 0 || m.rank >= m.rankCount)
     r.fail("rank " + std::to_string(m.rank) + " of " + std::to_string(m.rankCount));
   m.jobId = r.get<std::uint64_t>();
+  m.nextFrame = r.get<std::uint64_t>();
   m.wallId = getString(r), m.token = getString(r);
   expectEnd(r);
   return m;

@@ -44,6 +44,7 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
   };
   net::Hello sent{net::Role::Renderer, 2, 4, "bigeye", "secret"};
   sent.jobId = 0x0123456789abcdefull;
+  sent.nextFrame = 77;
   append(net::encodeMessage(sent));
   append(net::encodeMessage(net::Welcome{"bigeye", 5772, 4338}));
   append(sampleTile());
@@ -60,6 +61,7 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
     EXPECT_EQ(hello.wallId, "bigeye");
     EXPECT_EQ(hello.token, "secret");
     EXPECT_EQ(hello.jobId, 0x0123456789abcdefull);
+    EXPECT_EQ(hello.nextFrame, 77u);
     EXPECT_EQ(net::decodeWelcome(m[1].payload, "t").screenHeight, 4338);
     EXPECT_EQ(m[2].type, MessageType::Tile);
     EXPECT_EQ(m[2].frame, 42u);
@@ -147,7 +149,7 @@ TEST(Wire, PayloadDecodersCheckEveryField) {
   poke(p, 1, std::int32_t(5));  // rank 5 of 1
   EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
   p = {payload.begin(), payload.end()};
-  poke(p, 17, std::uint16_t(60000));  // string longer than the limit (after the job id)
+  poke(p, 25, std::uint16_t(60000));  // string longer than the limit (after the frame ids)
   EXPECT_THROW(net::decodeHello(p, "t"), FormatError);
   p = {payload.begin(), payload.end()};
   p.push_back(std::byte{0});

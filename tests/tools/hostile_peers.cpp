@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
         kind = "Hello with a 60000-byte string";
         auto m = net::encodeMessage(other);
         const std::uint16_t n = 60000;
-        std::memcpy(m.data() + net::kHeaderBytes + 17, &n, 2);
+        std::memcpy(m.data() + net::kHeaderBytes + 25, &n, 2);
         sendAll(fd, m);
         break;
       }

@@ -261,21 +261,31 @@ TEST(SinkHardening, OpenFramesStayUnderTheMemoryLimit) {
   EXPECT_THROW(walls::FrameAssembler(wall, {4, 1000, 16}, {}), std::invalid_argument);
 }
 
-TEST(SinkHardening, FramesPastTheWindowAreDroppedOnceAFrameCompletes) {
+TEST(SinkHardening, FrameIdsOutsideTheJobsWindowAreRefused) {
   const auto wall = testWall();
   std::vector<walls::FrameEvent> events;
   walls::FrameAssembler assembler(wall, {4, 0, 100},
                                   [&](const walls::FrameEvent& e) { events.push_back(e); });
-  // Before any frame completed, a bogus first frame does not keep real ones out...
-  assembler.addTile(1'000'000, solidTile({0, 0, 22, 10}, 0xff), 0, "t");
-  EXPECT_TRUE(assembler.addTile(3, wholeScreen(), 0, "t"));
-  // ...and goes once frame 3 completed.
-  EXPECT_EQ(assembler.openFrames(), 0u);
+  // Before any frame completed, the window starts at the job's first frame (0 here): a bogus
+  // first frame cannot become the reference that keeps real ones out.
+  EXPECT_FALSE(assembler.addTile(1'000'000, wholeScreen(), 0, "t"));
   ASSERT_EQ(events.size(), 1u);
-  EXPECT_EQ(events[0].frame, 1'000'000u);
+  EXPECT_EQ(events[0].note.status, net::FrameStatus::Refused);
+  EXPECT_NE(events[0].note.reason.find("where the job starts"), std::string::npos);
+  // A frame far ahead but inside the window opens, and goes when frame 3 completes far behind.
+  assembler.addTile(99, solidTile({0, 0, 22, 10}, 0xff), 0, "t");
+  EXPECT_TRUE(assembler.addTile(3, wholeScreen(), 0, "t"));
+  EXPECT_EQ(assembler.openFrames(), 1u);  // 99 - 3 is inside the window
   EXPECT_TRUE(assembler.addTile(4, wholeScreen(), 0, "t"));
   EXPECT_FALSE(assembler.addTile(105, wholeScreen(), 0, "t"));  // 101 ahead of frame 4
   EXPECT_EQ(events.back().note.status, net::FrameStatus::Refused);
+  // A new job starting at frame 500: its frame 10 is refused, its frame 500 shown.
+  assembler.startSequence(500, "a new job");
+  EXPECT_EQ(events.back().frame, 99u);  // the old job's open frame was dropped
+  EXPECT_EQ(events.back().note.status, net::FrameStatus::Dropped);
+  EXPECT_FALSE(assembler.addTile(10, wholeScreen(), 0, "t"));
+  EXPECT_NE(events.back().note.reason.find("before frame 500"), std::string::npos);
+  EXPECT_TRUE(assembler.addTile(500, wholeScreen(), 0, "t"));
 }
 
 // Defect 5: tokens compared with ==, in time that leaks the matching prefix.

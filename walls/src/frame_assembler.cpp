@@ -54,8 +54,9 @@ void FrameAssembler::drop(std::uint64_t frame, const std::string& why) {
   report(frame, net::FrameStatus::Dropped, why + share);
 }
 
-void FrameAssembler::startSequence(const std::string& why) {
+void FrameAssembler::startSequence(std::uint64_t firstFrame, const std::string& why) {
   while (!open_.empty()) drop(open_.begin()->first, why);
+  firstFrame_ = firstFrame;
   lastComplete_.reset();
   reported_.clear();
 }
@@ -70,10 +71,11 @@ std::optional<std::string> FrameAssembler::outsideWindow(std::uint64_t frame) co
              std::to_string(*lastComplete_) + ", the last complete one";
     return std::nullopt;
   }
-  if (open_.empty() || frame < open_.begin()->first) return std::nullopt;
-  if (frame - open_.begin()->first > w)
+  if (frame < firstFrame_)
+    return "before frame " + std::to_string(firstFrame_) + ", where the job starts";
+  if (frame - firstFrame_ > w)
     return "more than " + std::to_string(w) + " frames ahead of frame " +
-           std::to_string(open_.begin()->first) + ", the oldest open one";
+           std::to_string(firstFrame_) + ", where the job starts";
   return std::nullopt;
 }
 

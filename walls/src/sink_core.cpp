@@ -120,9 +120,10 @@ bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
       say("sink: " + why);
       endedJobs_.insert(*job_);
       if (endedJobs_.size() > kEndedJobsKept) endedJobs_.erase(endedJobs_.begin());
-      assembler_.startSequence(why);
+      assembler_.startSequence(hello.nextFrame, why);
     } else {
       say("sink: job " + jobName(hello.jobId) + " started");
+      assembler_.startSequence(hello.nextFrame, "");
     }
     job_ = hello.jobId;
   }

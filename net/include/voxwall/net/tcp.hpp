@@ -51,7 +51,8 @@ class TileStreamer {
   TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000);
   // The render job the frames belong to (Hello.jobId); a change reconnects.
   void setJob(std::uint64_t jobId);
-  // Returns whether the whole frame (tiles and FrameEnd) went out.
+  // Returns whether the whole frame (tiles and FrameEnd) went out. A (re)connection announces
+  // `frame` as the next one in its Hello.
   bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                  std::uint64_t decidedUnixMicros);
   // Why the last frame did not go out (empty when it did).
@@ -85,6 +86,8 @@ class ControlChannel {
   std::vector<std::string> drainNotes();
   std::string refused() const;            // empty while the sink has not refused the job
   std::uint64_t framesPresented() const;  // frames of this job the sink said it presented
+  // The frame the job renders next: a (re)connection announces it in its Hello.
+  void setNextFrame(std::uint64_t frame);
 
  private:
   void run();

@@ -11,8 +11,8 @@
 //       24    4  u32 xxHash32 (seed 0) of the payload
 //       28    4  u32 xxHash32 (seed 0) of bytes 0..27
 // Payloads (str = u16 length <= kMaxString, then bytes):
-//   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, u64 jobId, str wallId,
-//            str token                                    (at most kMaxHelloPayload bytes)
+//   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, u64 jobId,
+//            u64 nextFrame, str wallId, str token         (at most kMaxHelloPayload bytes)
 //   Welcome  str wallId, i32 screenWidth, i32 screenHeight          (sink -> peer, after Hello)
 //   Tile     i32 x, y, width, height (virtual screen), u8 codec, u64 decidedUnixMicros, bytes
 //   FrameEnd i32 rank, u32 tiles this rank sent for the frame
@@ -26,7 +26,8 @@
 // that the sink presented, dropped or refused. Either side may send Bye and close.
 // Jobs: every peer of one render job sends the same jobId. While a job has peers connected, the
 // sink refuses peers of another job; after that, a new job id starts a new frame sequence (the
-// old job's open frames are dropped and a later Hello of the old job is refused).
+// old job's open frames are dropped and a later Hello of the old job is refused) whose frame
+// window starts at the Hello's nextFrame (the frame the peer sends next).
 // Version history: 1 first release; 2 adds Hello.jobId and FrameNote.
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
@@ -66,7 +67,8 @@ struct Hello {
   Role role = Role::Renderer;
   int rank = 0, rankCount = 1;
   std::string wallId, token;
-  std::uint64_t jobId = 0;  // the same on every peer of one render job
+  std::uint64_t jobId = 0;      // the same on every peer of one render job
+  std::uint64_t nextFrame = 0;  // the frame id this peer sends (or asks about) next
 };
 struct Welcome {
   std::string wallId;

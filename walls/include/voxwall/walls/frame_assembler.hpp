@@ -3,9 +3,10 @@
 // is never shown torn. Every frame the assembler drops or refuses is reported once, with why.
 //
 // Bounds (a peer past its Hello is trusted with the wall, not with the sink's memory):
-//   - frame ids: once a frame completed, only ids in (last complete, last complete + window]
-//     open a frame; before that, ids more than `window` above the lowest open frame are refused.
-//     A bogus id (2^64 - 1) is refused and cannot wedge the wall.
+//   - frame ids: a sequence starts at a first frame (the job's, from its Hello); before any
+//     frame completed, only ids in [first, first + window] open a frame, after that only ids in
+//     (last complete, last complete + window]. A bogus id (2^64 - 1) is refused and cannot
+//     wedge the wall.
 //   - memory: tiles are kept decoded at their own size, not as a wall-sized picture per open
 //     frame; the bytes held for open frames stay under `pendingBytes` (the oldest open frames
 //     are dropped to make room), and at most `pendingFrames` frames are open.
@@ -55,9 +56,9 @@ class FrameAssembler {
   // Throws std::invalid_argument when pendingBytes cannot hold one whole frame.
   FrameAssembler(const Wall& wall, AssemblerLimits limits, Events events);
 
-  // Starts a new frame sequence (a new render job): open frames are dropped with `why`, and
-  // frame ids are judged afresh.
-  void startSequence(const std::string& why);
+  // Starts a new frame sequence (a new render job) at `firstFrame`: open frames are dropped with
+  // `why`, and frame ids are judged afresh.
+  void startSequence(std::uint64_t firstFrame, const std::string& why);
   // Adds one tile of `frame`; returns the frame when this tile completed it. Throws
   // FormatError(peer, ...) for a tile outside the screen or one that does not decode (no pixel
   // is marked then). Tiles of refused or already settled frames are ignored (reported once).
@@ -88,6 +89,7 @@ class FrameAssembler {
   long long displayPixels_ = 0;
   std::uint64_t coverageBytes_ = 0;  // one open frame's coverage bitmap
   std::map<std::uint64_t, Open> open_;
+  std::uint64_t firstFrame_ = 0;
   std::optional<std::uint64_t> lastComplete_;
   std::set<std::uint64_t> reported_;  // frames whose fate was reported (bounded, newest kept)
   std::uint64_t heldBytes_ = 0;
