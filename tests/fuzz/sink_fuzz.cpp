@@ -5,6 +5,7 @@
 // tiles into the FrameAssembler). A peer that breaks the protocol is dropped and the next bytes
 // come from a new peer. Anything but a clean return is a bug; so is an open frame holding more
 // than the memory limit.
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <voxwall/codec/errors.hpp>
@@ -50,26 +51,35 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   auto peer = std::make_unique<FuzzPeer>();
   core.attach(*peer);
   std::span rest(reinterpret_cast<const std::byte*>(data + 1), size - 1);
+  // After a peer is dropped, the next peer's bytes start at the next magic (a real sink hangs
+  // up; searching instead of stepping byte by byte keeps each input cheap).
+  auto skipToNextMessage = [&](std::size_t from) {
+    const std::byte magic[4] = {std::byte{0x56}, std::byte{0x57}, std::byte{0x57}, std::byte{0x50}};
+    const auto at = std::search(rest.begin() + std::ptrdiff_t(std::min(from, rest.size())),
+                                rest.end(), magic, magic + 4);
+    rest = rest.subspan(std::size_t(at - rest.begin()));
+  };
   while (rest.size() >= net::kHeaderBytes) {
     const std::span<const std::byte, net::kHeaderBytes> header(rest.data(), net::kHeaderBytes);
-    bool ok = true;
+    bool ok = true, consumed = false;
     try {
       net::MessageType type{};
       std::uint64_t frame = 0;
       const std::uint32_t length = net::checkHeader(header, peer->name(), &type, &frame);
       if (length > core.payloadLimit(*peer) || length > rest.size() - net::kHeaderBytes) {
         ok = false;
-        rest = rest.subspan(net::kHeaderBytes);
+        skipToNextMessage(1);
       } else {
         const auto payload = rest.subspan(net::kHeaderBytes, length);
         rest = rest.subspan(net::kHeaderBytes + length);
+        consumed = true;
         net::checkPayload(header, payload, peer->name());
         ok = core.handle(*peer, type, frame, payload) && !peer->hungUp;
       }
     } catch (const FormatError&) {
       core.dropped(*peer, "fuzz");
       ok = false;
-      rest = rest.size() > net::kHeaderBytes ? rest.subspan(1) : rest.subspan(rest.size());
+      skipToNextMessage(consumed ? 0 : 1);
     }
     if (!ok) {
       core.detach(*peer);
