@@ -310,6 +310,15 @@ TEST(Cli, WallAndSinkOptionsAreCheckedWithOneLine) {
                      "voxwall: " + dir.path("overlap.json") + ": display 'b' overlaps");
   expectOneLineError(runVoxwall("sink --wall " + wall + " --listen 10.1.2.3.4:80"),
                      "voxwall: --listen: '10.1.2.3.4' is not an IP address");
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --max-peers 0"),
+                     "voxwall: --max-peers must be in [1, 65536]");
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --hello-timeout-ms 0"),
+                     "voxwall: --hello-timeout-ms must be in [1, 600000]");
+  // Memory for open frames must hold at least one frame of the wall (bigeye: 99 MiB).
+  expectOneLineError(
+      runVoxwall("sink --wall " + std::string(VOXWALL_WALLS_DIR) + "/bigeye.json --pending-mib 10"),
+      "voxwall: memory for open frames (--pending-mib) is 10 MiB, less than one "
+      "frame of this wall (99 MiB)");
   // A wall rendered without a sink: the frame has the wall's size.
   const CliRun r =
       runVoxwall("render generated:shepp-logan:16 -q --wall " + wall + " --out " + dir.path("f"));

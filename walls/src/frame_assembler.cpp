@@ -23,9 +23,9 @@ FrameAssembler::FrameAssembler(const Wall& wall, AssemblerLimits limits, Events 
   coverageBytes_ = (pixels + 63) / 64 * 8;
   const std::uint64_t frameBytes = std::uint64_t(pixels) * 4 + coverageBytes_;
   if (limits_.pendingBytes < frameBytes)
-    throw std::invalid_argument("the pending-bytes limit (" +
+    throw std::invalid_argument("memory for open frames (--pending-mib) is " +
                                 std::to_string(limits_.pendingBytes >> 20) +
-                                " MiB) cannot hold one frame of this wall (" +
+                                " MiB, less than one frame of this wall (" +
                                 std::to_string((frameBytes + (1 << 20) - 1) >> 20) + " MiB)");
   displayMask_.assign(pixels, 0);
   for (const auto& d : wall.displays)
