@@ -56,7 +56,9 @@ void SinkCore::refuse(SinkPeer& peer, const std::string& reason) {
 void SinkCore::dropped(SinkPeer& peer, const std::string& why) {
   if (!why.empty()) {
     updateStats([](SinkStats& s) { ++s.peersDropped; });
-    say("sink: dropped " + peer.name() + ": " + why);
+    // Errors about the peer already start with its name.
+    const std::string prefix = peer.name() + ": ";
+    say("sink: dropped " + prefix + (why.rfind(prefix, 0) == 0 ? why.substr(prefix.size()) : why));
   }
   detach(peer);
 }
