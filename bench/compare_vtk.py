@@ -10,7 +10,7 @@ side-by-side picture to --out.
 Needs Debian's python3-vtk9 and an X server for VTK's window: run it under `xvfb-run -a` with a
 screen larger than the image (`-s "-screen 0 3000x2000x24"`): pixels of a window that does not fit
 the screen are undefined.
-Use Debian's /usr/bin/python3 (numpy, vtk); see ../shared/PLATFORM.md.
+Use Debian's /usr/bin/python3 (numpy, vtk); see docs/platform.md.
 """
 import argparse
 import math

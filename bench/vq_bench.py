@@ -8,7 +8,7 @@ and compared with the input by the same PSNR (peak = the input's value range, as
 voxwall::codec::psnr). Prints a table per volume, writes results.json and rd-<volume>.png.
 
 Run from the repository root after building: /usr/bin/python3 bench/vq_bench.py
-(Debian's python3 with numpy and matplotlib; see ../shared/PLATFORM.md.)
+(Debian's python3 with numpy and matplotlib; see docs/platform.md.)
 """
 import argparse
 import json

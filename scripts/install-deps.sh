@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   # build
   build-essential cmake ninja-build pkg-config git clang-format
-  # libraries (see ../shared/PLATFORM.md for how CMake finds each)
+  # libraries (docs/platform.md says how CMake finds each)
   libopenmpi-dev openmpi-bin procps
   libglm-dev
   libturbojpeg0-dev libjpeg-turbo-progs

@@ -1,6 +1,6 @@
 // The CUDA backend: uploads the compressed volume once, the transfer-function table and the
 // skip grid per frame, and launches one thread per pixel running the same raycastPixel as the
-// CPU backend. Only allocation, upload, launch and download live here (DESIGN.md).
+// CPU backend. Only allocation, upload, launch and download live here (docs/architecture.md).
 #include <cuda_runtime.h>
 
 #include <bit>

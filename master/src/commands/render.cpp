@@ -297,7 +297,7 @@ void runRender(const RenderOptions& o) {
   const bool quiet = o.quiet || !leader;
   const int setupTimeoutMs = int(std::max(1.0, o.watchdogSeconds) * 1000);
   Setup s;
-  // Setup errors are agreed on by all ranks before anyone goes on (STYLE.md "Errors").
+  // Setup errors are agreed on by all ranks before anyone goes on (docs/architecture.md).
   std::string error;
   std::exception_ptr setupError;
   try {

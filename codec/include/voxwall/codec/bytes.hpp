@@ -1,4 +1,4 @@
-// Field-by-field little-endian serialization (STYLE.md: never memcpy a struct onto disk).
+// Field-by-field little-endian serialization: never memcpy a struct onto disk or the wire.
 #pragma once
 
 #include <bit>

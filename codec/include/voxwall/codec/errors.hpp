@@ -1,4 +1,4 @@
-// Exceptions for data and environment problems (STYLE.md "Errors").
+// Exceptions for data and environment problems (docs/architecture.md, "Conventions").
 #pragma once
 
 #include <stdexcept>

@@ -1,4 +1,5 @@
-// The SVMM codec: Sparse Voxel Mip-Maps (Faas 2016, ../shared/papers/004_*.txt).
+// The SVMM codec (M. E. Faas, "Sparse Voxel Mip-Maps: Versatile Lossy Compression of
+// Volumetric Data", Leiden bachelor thesis, 2016).
 //
 // Levels. Level 0 is the volume. Level i + 1 averages w_i^3 blocks of level i (w_i a power of
 // two: one width for every level, or the thesis's stepped widths 2, 4, 8, ... for levels

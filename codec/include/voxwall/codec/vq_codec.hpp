@@ -1,5 +1,5 @@
 // The `vq` codec (Guthe & Goesele, "Variable Length Coding for GPU-Based Direct Volume
-// Rendering", ../shared/papers/000_*.txt, sections 3-5).
+// Rendering", sections 3-5).
 //
 // The volume is cut into 4^3 bricks (the border padded by repeating the edge voxel). Equal bricks
 // are stored once, in a *codebook*; an *offset volume* of ceil(X/4) x ceil(Y/4) x ceil(Z/4)
