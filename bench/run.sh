@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Runs every benchmark and prints the comparison tables. Build first (scripts/build.sh).
+# Runs every benchmark and prints the comparison tables. Installs the peers it compares with
+# (VTK, Xvfb, ...: scripts/install-deps.sh bench); build first (scripts/build.sh).
 # Numbers depend on the machine: report them with the machine they came from.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh bench
 build=${VOXWALL_BUILD_DIR:-build}
 echo "== Google Benchmark: CPU raycaster, 1920x1080, 1/4-voxel step"
 "$build/bench/voxwall_bench_raycast" --benchmark_counters_tabular=true

@@ -39,7 +39,7 @@ double decodeRate(const node::RenderVolume& v) {
             for (int bz = 0; bz < (dims.z + 3) / 4; ++bz)
               for (int by = 0; by < (dims.y + 3) / 4; ++by)
                 for (int bx = 0; bx < (dims.x + 3) / 4; ++bx) {
-                  view.decodeAt(view.codewordAddress(bx, by, bz), vox);
+                  view.decoder.decode(view.decoder.key(bx, by, bz), vox);
                   acc += vox[21];
                 }
           } else {  // raw: read every voxel through the view

@@ -1,26 +1,40 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package voxwall needs to build, test and benchmark.
-# Shared by the README's two commands and .ci/run. Run as root (or with sudo).
+# Installs the Debian 12 packages voxwall needs, by purpose:
+#   install-deps.sh main    build the product and run the main job (scripts/run-main.sh)
+#   install-deps.sh test    main + tests, fuzzing and formatting (scripts/test.sh, CI) [default]
+#   install-deps.sh bench   test + the benchmark peers and plots (bench/run.sh and friends)
+# Run as root (or with sudo). docs/platform.md says how CMake finds each library.
 set -euo pipefail
 
-packages=(
-  # build
-  build-essential cmake ninja-build pkg-config git clang-format
-  # libraries (docs/platform.md says how CMake finds each)
-  libopenmpi-dev openmpi-bin procps
+purpose=${1:-test}
+main=(
+  build-essential cmake ninja-build pkg-config git procps
+  libopenmpi-dev openmpi-bin
   libglm-dev
-  libturbojpeg0-dev libjpeg-turbo-progs
+  libturbojpeg0-dev
   libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libxxhash-dev
   libnifti2-dev libteem-dev zlib1g-dev libbz2-dev
   libasio-dev
-  # tests, fuzzing (clang's libFuzzer) and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev
   # real data: the MRI template used as the default volume
   mricron-data
-  # benchmark peers and plots
+)
+test=(
+  clang-format
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # fuzzing: clang's libFuzzer
+  clang libclang-rt-14-dev
+)
+bench=(
+  libjpeg-turbo-progs
   python3-numpy python3-matplotlib python3-vtk9 xvfb xauth zfp libzfp-dev astcenc
 )
+case $purpose in
+  main) packages=("${main[@]}") ;;
+  test) packages=("${main[@]}" "${test[@]}") ;;
+  bench) packages=("${main[@]}" "${test[@]}" "${bench[@]}") ;;
+  *) echo "usage: install-deps.sh [main|test|bench]" >&2; exit 2 ;;
+esac
 
 if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
 export DEBIAN_FRONTEND=noninteractive
@@ -29,9 +43,9 @@ for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ]; then
-  echo "install-deps: installing ${#missing[@]} packages: ${missing[*]}"
+  echo "install-deps ($purpose): installing ${#missing[@]} packages: ${missing[*]}"
   $SUDO apt-get update -q
   $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
 else
-  echo "install-deps: all ${#packages[@]} packages present"
+  echo "install-deps ($purpose): all ${#packages[@]} packages present"
 fi

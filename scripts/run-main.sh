@@ -10,8 +10,9 @@
 #   VOXWALL_FRAMES=6 VOXWALL_RANKS=2 frames and ranks
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
-bash scripts/build.sh
+bash scripts/install-deps.sh main
+# The product only: tests and benchmarks need more packages (install-deps.sh test / bench).
+bash scripts/build.sh -DBUILD_TESTING=OFF -DVOXWALL_BUILD_BENCH=OFF
 voxwall=build/master/voxwall
 mri=/usr/share/mricron/templates/ch2better.nii.gz
 if [ -f "$mri" ]; then input=$mri; else input=generated:shepp-logan:256; fi

@@ -5,13 +5,13 @@
 # short while (clang build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
+bash scripts/install-deps.sh test
 
 echo "== formatting (clang-format --dry-run)"
 git ls-files '*.cpp' '*.hpp' '*.cu' | xargs clang-format --dry-run --Werror
 
 echo "== release build and tests"
-bash scripts/build.sh
+bash scripts/build.sh -DBUILD_TESTING=ON -DVOXWALL_BUILD_BENCH=ON
 ctest --test-dir build --output-on-failure -j "$(nproc)"
 
 echo "== sanitizer build and tests (ASan + UBSan, CPU only)"

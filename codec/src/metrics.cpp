@@ -1,4 +1,5 @@
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <voxwall/codec/metrics.hpp>
@@ -31,6 +32,15 @@ double psnr(const Volume& reference, const Volume& test) {
   if (sum == 0) return std::numeric_limits<double>::infinity();
   const double mse = sum / double(n);
   return 10.0 * std::log10(peak * peak / mse);
+}
+
+std::string humanBytes(double bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, u ? "%.1f %s" : "%.0f %s", bytes, units[u]);
+  return buf;
 }
 
 }  // namespace voxwall::codec

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <optional>
 #include <string>
+#include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/volume_io.hpp>
 
@@ -33,7 +34,7 @@ codec::Volume loadVolume(const std::string& spec, const std::optional<codec::Raw
 // Prints a progress bar on stderr when it is a terminal, one line per stage otherwise.
 codec::Progress makeProgress(bool quiet);
 
-std::string humanBytes(double bytes);
+using codec::humanBytes;  // codec/metrics.hpp
 
 // Thrown by a rank other than rank 0 when the job fails for a reason rank 0 reports: main exits
 // with status 1 without printing, so the user reads one line, not one per rank.

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   voxwall::cli::addCompressCommand(app);
   voxwall::cli::addDecompressCommand(app);
   voxwall::cli::addInfoCommand(app);
+  voxwall::cli::addCodecsCommand(app);
   voxwall::cli::addRenderCommand(app);
   voxwall::cli::addSinkCommand(app);
   try {

@@ -47,7 +47,7 @@ std::vector<std::byte> encode(const FrameTask& t) {
   for (const glm::dvec3& v : {t.camera.eye, t.camera.center, t.camera.up})
     w.put(v.x), w.put(v.y), w.put(v.z);
   w.put(t.camera.fovYDeg);
-  w.put<std::uint32_t>(t.tfVersion), w.put<std::uint32_t>(t.watchdogMs);
+  w.put<std::uint32_t>(t.watchdogMs);
   w.put<std::int32_t>(t.screenWidth), w.put<std::int32_t>(t.screenHeight);
   w.put<std::int32_t>(t.cellPixels);
   w.put<std::uint32_t>(std::uint32_t(t.rects.size()));
@@ -76,7 +76,7 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
         t.camera.center.z, t.camera.up.x, t.camera.up.y, t.camera.up.z})
     if (!std::isfinite(v)) r.fail("camera is not finite");
   if (!(t.camera.fovYDeg > 0 && t.camera.fovYDeg < 180)) r.fail("camera field of view");
-  t.tfVersion = r.get<std::uint32_t>(), t.watchdogMs = r.get<std::uint32_t>();
+  t.watchdogMs = r.get<std::uint32_t>();
   t.screenWidth = r.get<std::int32_t>(), t.screenHeight = r.get<std::int32_t>();
   t.cellPixels = r.get<std::int32_t>();
   if (t.screenWidth <= 0 || t.screenHeight <= 0 || t.screenWidth > kMaxScreenSide ||

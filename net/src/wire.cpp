@@ -181,7 +181,7 @@ Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& sou
   return m;
 }
 
-TileMessage decodeTile(std::span<const std::byte> payload, const std::string& source) {
+TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::string& source) {
   ByteReader r(payload, source, "Tile");
   TileMessage m;
   m.rect.x = r.get<std::int32_t>(), m.rect.y = r.get<std::int32_t>();

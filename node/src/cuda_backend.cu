@@ -3,9 +3,9 @@
 // CPU backend. Only allocation, upload, launch and download live here (docs/architecture.md).
 #include <cuda_runtime.h>
 
-#include <bit>
 #include <chrono>
 #include <memory>
+#include <span>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -53,92 +53,77 @@ class DeviceBuffer {
   std::size_t capacity_ = 0;
 };
 
-// SVMM block pools (thesis section 3.3): every level but the root (and a block-compressed base)
-// as a 3D array of blocks read through a texture object, or, when the pool is larger than the
-// device's 3D texture limit, as linear device memory in the same layout.
-class SvmmPools {
+// The 3D arrays a payload asks for (render_payload.hpp): each a texture object over a CUDA
+// array, or, when larger than the device's 3D texture limits, linear device memory in the same
+// layout. Built once per payload.
+class DeviceArrays {
  public:
-  SvmmPools() = default;
-  SvmmPools(const SvmmPools&) = delete;
-  SvmmPools& operator=(const SvmmPools&) = delete;
-  ~SvmmPools() { release(); }
+  DeviceArrays() = default;
+  DeviceArrays(const DeviceArrays&) = delete;
+  DeviceArrays& operator=(const DeviceArrays&) = delete;
+  ~DeviceArrays() { release(); }
 
-  // Builds the pools for `layout` unless they were built for it already.
-  void build(const codec::svmm::Layout& layout, const cudaDeviceProp& prop) {
-    if (&layout == builtFor_) return;
+  std::span<const codec::DeviceArray> build(const codec::RenderPayload& payload,
+                                            const cudaDeviceProp& prop) {
+    if (&payload == builtFor_) return handles_;
     release();
-    levels_.assign(std::size_t(layout.levels()), Level{});
-    for (int L = 0; L < layout.levels(); ++L) {
-      if (!layout.poolable(L)) continue;
-      const auto shape = layout.poolShape(L);
-      const int wl = std::countr_zero(unsigned(layout.widths()[std::size_t(L)]));
-      const std::size_t eb = std::size_t(layout.elementBytes(L));
-      const std::size_t width = std::size_t(1) << (shape.uLog2 + wl);
-      const std::size_t height = std::size_t(1) << (shape.vLog2 + wl);
-      const std::size_t depth = std::size_t(shape.w) << wl;
-      std::vector<std::uint8_t> bytes = layout.poolBytes(L);
-      Level& level = levels_[std::size_t(L)];
-      level.uLog2 = shape.uLog2, level.vLog2 = shape.vLog2;
-      if (width <= std::size_t(prop.maxTexture3D[0]) &&
-          height <= std::size_t(prop.maxTexture3D[1]) &&
-          depth <= std::size_t(prop.maxTexture3D[2])) {
-        const cudaChannelFormatDesc desc = eb == 1   ? cudaCreateChannelDesc<unsigned char>()
-                                           : eb == 2 ? cudaCreateChannelDesc<unsigned short>()
-                                                     : cudaCreateChannelDesc<unsigned int>();
-        const cudaExtent extent = make_cudaExtent(width, height, depth);
-        VOXWALL_CUDA_CHECK(cudaMalloc3DArray(&level.array, &desc, extent));
-        cudaMemcpy3DParms copy{};
-        copy.srcPtr = make_cudaPitchedPtr(bytes.data(), width * eb, width, height);
-        copy.dstArray = level.array;
-        copy.extent = extent;
-        copy.kind = cudaMemcpyHostToDevice;
-        VOXWALL_CUDA_CHECK(cudaMemcpy3D(&copy));
-        cudaResourceDesc resource{};
-        resource.resType = cudaResourceTypeArray;
-        resource.res.array.array = level.array;
-        cudaTextureDesc texture{};
-        for (int a = 0; a < 3; ++a) texture.addressMode[a] = cudaAddressModeClamp;
-        texture.filterMode = cudaFilterModePoint;
-        texture.readMode = cudaReadModeElementType;
-        texture.normalizedCoords = 0;
-        VOXWALL_CUDA_CHECK(cudaCreateTextureObject(&level.texture, &resource, &texture, nullptr));
+    for (const codec::DeviceArraySpec& spec : payload.deviceArrays()) {
+      codec::DeviceArray handle;
+      if (spec.width <= std::size_t(prop.maxTexture3D[0]) &&
+          spec.height <= std::size_t(prop.maxTexture3D[1]) &&
+          spec.depth <= std::size_t(prop.maxTexture3D[2])) {
+        handle.texture = makeTexture(spec);
       } else {
         buffers_.push_back(std::make_unique<DeviceBuffer>());
-        buffers_.back()->upload(bytes.data(), bytes.size());
-        level.pool = buffers_.back()->as<std::uint8_t>();
+        buffers_.back()->upload(spec.bytes.data(), spec.bytes.size());
+        handle.linear = buffers_.back()->as<std::uint8_t>();
       }
+      handles_.push_back(handle);
     }
-    builtFor_ = &layout;
-  }
-
-  void apply(codec::kernels::SvmmView& view) const {
-    for (std::size_t L = 0; L < levels_.size(); ++L) {
-      const Level& level = levels_[L];
-      if (!level.texture && !level.pool) continue;
-      view.level[L].pool = level.pool;
-      view.level[L].texture = level.texture;
-      view.level[L].poolULog2 = level.uLog2, view.level[L].poolVLog2 = level.vLog2;
-    }
+    builtFor_ = &payload;
+    return handles_;
   }
 
  private:
-  struct Level {
+  cudaTextureObject_t makeTexture(const codec::DeviceArraySpec& spec) {
+    const std::size_t eb = std::size_t(spec.elementBytes);
+    const cudaChannelFormatDesc desc = eb == 1   ? cudaCreateChannelDesc<unsigned char>()
+                                       : eb == 2 ? cudaCreateChannelDesc<unsigned short>()
+                                                 : cudaCreateChannelDesc<unsigned int>();
+    const cudaExtent extent = make_cudaExtent(spec.width, spec.height, spec.depth);
     cudaArray_t array = nullptr;
-    cudaTextureObject_t texture = 0;
-    const std::uint8_t* pool = nullptr;
-    int uLog2 = 0, vLog2 = 0;
-  };
+    VOXWALL_CUDA_CHECK(cudaMalloc3DArray(&array, &desc, extent));
+    arrays_.push_back(array);
+    cudaMemcpy3DParms copy{};
+    copy.srcPtr = make_cudaPitchedPtr(const_cast<std::uint8_t*>(spec.bytes.data()), spec.width * eb,
+                                      spec.width, spec.height);
+    copy.dstArray = array;
+    copy.extent = extent;
+    copy.kind = cudaMemcpyHostToDevice;
+    VOXWALL_CUDA_CHECK(cudaMemcpy3D(&copy));
+    cudaResourceDesc resource{};
+    resource.resType = cudaResourceTypeArray;
+    resource.res.array.array = array;
+    cudaTextureDesc texture{};
+    for (int a = 0; a < 3; ++a) texture.addressMode[a] = cudaAddressModeClamp;
+    texture.filterMode = cudaFilterModePoint;
+    texture.readMode = cudaReadModeElementType;
+    texture.normalizedCoords = 0;
+    cudaTextureObject_t object = 0;
+    VOXWALL_CUDA_CHECK(cudaCreateTextureObject(&object, &resource, &texture, nullptr));
+    textures_.push_back(object);
+    return object;
+  }
   void release() {
-    for (Level& level : levels_) {
-      if (level.texture) cudaDestroyTextureObject(level.texture);
-      if (level.array) cudaFreeArray(level.array);
-    }
-    levels_.clear();
-    buffers_.clear();
+    for (cudaTextureObject_t t : textures_) cudaDestroyTextureObject(t);
+    for (cudaArray_t a : arrays_) cudaFreeArray(a);
+    textures_.clear(), arrays_.clear(), buffers_.clear(), handles_.clear();
     builtFor_ = nullptr;
   }
-  const codec::svmm::Layout* builtFor_ = nullptr;
-  std::vector<Level> levels_;
+  const codec::RenderPayload* builtFor_ = nullptr;
+  std::vector<codec::DeviceArray> handles_;
+  std::vector<cudaTextureObject_t> textures_;
+  std::vector<cudaArray_t> arrays_;
   std::vector<std::unique_ptr<DeviceBuffer>> buffers_;
 };
 
@@ -180,11 +165,12 @@ class CudaBackend final : public Backend {
                        Image& out, CostGrid* costs) override {
     if (tile.width <= 0 || tile.height <= 0) throw std::invalid_argument("empty tile");
     const auto start = std::chrono::steady_clock::now();
-    const auto payload = volume.payload();
-    if (payload.data() != uploadedFrom_ || payload.size() != uploadedBytes_) {
-      volumeBytes_.upload(payload.data(), payload.size());
-      uploadedFrom_ = payload.data();
-      uploadedBytes_ = payload.size();
+    const codec::RenderPayload& payload = volume.payload();
+    const auto bytes = payload.bytes();
+    if (bytes.data() != uploadedFrom_ || bytes.size() != uploadedBytes_) {
+      volumeBytes_.upload(bytes.data(), bytes.size());
+      uploadedFrom_ = bytes.data();
+      uploadedBytes_ = bytes.size();
     }
     lut_.upload(plan.lut.entries.data(), plan.lut.entries.size() * sizeof(glm::vec4));
     kernels::SkipGrid skip = plan.skip;
@@ -202,18 +188,13 @@ class CudaBackend final : public Backend {
     const dim3 block(16, 8);
     const dim3 grid((tile.width + 15) / 16, (tile.height + 7) / 8);
     const auto lut = plan.lut.view(lut_.as<glm::vec4>());
+    const auto arrays = deviceArrays_.build(payload, prop_);
     std::visit(
-        [&](const auto& hostView) {
-          using View = std::decay_t<decltype(hostView)>;
-          View view = std::get<View>(volume.view(volumeBytes_.as<std::byte>()));
-          if constexpr (std::is_same_v<View, codec::kernels::SvmmView>) {
-            svmmPools_.build(*volume.svmmLayout(), prop_);
-            svmmPools_.apply(view);
-          }
+        [&](const auto& view) {
           raycastKernel<<<grid, block>>>(view, plan.ray, lut, skip, tile.x, tile.y, tile.width,
                                          tile.height, image_.as<std::uint32_t>(), samples_);
         },
-        volume.view());
+        payload.deviceView(volumeBytes_.as<std::byte>(), arrays));
     VOXWALL_CUDA_CHECK(cudaGetLastError());
     out = Image(tile.width, tile.height);
     VOXWALL_CUDA_CHECK(cudaMemcpy(out.pixels.data(), image_.as<std::uint32_t>(),
@@ -231,7 +212,7 @@ class CudaBackend final : public Backend {
  private:
   std::string name_;
   cudaDeviceProp prop_{};
-  SvmmPools svmmPools_;
+  DeviceArrays deviceArrays_;
   DeviceBuffer volumeBytes_, lut_, skipCells_, fineSkipCells_, image_;
   const std::byte* uploadedFrom_ = nullptr;
   std::size_t uploadedBytes_ = 0;

@@ -29,9 +29,12 @@ RenderVolume RenderVolume::fromContainer(codec::ContainerFile file) {
 
 RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxels) {
   codec::Progress quiet;
+  return fromCompressed(codec::raw::encode(volume, {brickVoxels}, quiet));
+}
+
+RenderVolume RenderVolume::fromCompressed(codec::CompressedVolume volume) {
   RenderVolume v;
-  v.memory_ =
-      std::make_shared<codec::CompressedVolume>(codec::raw::encode(volume, {brickVoxels}, quiet));
+  v.memory_ = std::make_shared<codec::CompressedVolume>(std::move(volume));
   v.sections_ = v.memory_->view();
   v.info_ = v.memory_->info;
   v.storedBytes_ = v.memory_->payloadBytes();
@@ -41,40 +44,16 @@ RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxe
 }
 
 void RenderVolume::init() {
-  switch (info_.codec) {
-    case codec::CodecId::Raw:
-      rawLayout_.emplace(info_, sections_);
-      ranges_ = rawLayout_->rangeGrid();
-      return;
-    case codec::CodecId::Vq:
-      vqLayout_.emplace(info_, sections_);
-      ranges_ = vqLayout_->rangeGrid();
-      return;
-    case codec::CodecId::Svmm:
-      svmmLayout_.emplace(info_, sections_);
-      if (svmmLayout_->format() == codec::kernels::kSvmmRgba32)
-        throw FormatError(sections_.source,
-                          "an RGBA svmm volume cannot be rendered: the raycaster maps scalar "
-                          "values through a transfer function");
-      ranges_ = svmmLayout_->rangeGrid();
-      return;
-    default:
-      throw FormatError(sections_.source, "codec '" + std::string(codec::codecName(info_.codec)) +
-                                              "' cannot be rendered by this build");
-  }
+  payload_ = codec::codecOf(info_, sections_.source).open(info_, sections_);
+  ranges_ = payload_->rangeGrid();
 }
 
-std::span<const std::byte> RenderVolume::payload() const {
-  if (vqLayout_) return vqLayout_->dataBytes();
-  if (svmmLayout_) return svmmLayout_->dataBytes();
-  return rawLayout_->brickBytes();
-}
-
-ViewVariant RenderVolume::view(const std::byte* base) const {
-  if (vqLayout_) return vqLayout_->view(base);
-  if (svmmLayout_) return svmmLayout_->view(base);
-  return codec::dispatchScalar(
-      info_.type, [&](auto t) -> ViewVariant { return rawLayout_->view<decltype(t)>(base); });
+bool RenderVolume::traversal() const {
+  return std::visit(
+      [](const auto& v) {
+        return requires { std::decay_t<decltype(v)>::kTraversal; };
+      },
+      view());
 }
 
 std::uint64_t RenderVolume::fingerprint() const {

@@ -28,7 +28,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
             net::decodeWelcome(m->payload, "fuzz");
             break;
           case net::MessageType::Tile: {
-            const auto t = net::decodeTile(m->payload, "fuzz");
+            const auto t = net::decodeTileMessage(m->payload, "fuzz");
             if (t.rect.area() <= 256 * 256)
               net::decodeTile(t.bytes, t.codec, t.rect.width, t.rect.height, "fuzz");
             break;

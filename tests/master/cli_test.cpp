@@ -127,18 +127,19 @@ TEST(Cli, BadArgumentsGiveOneLine) {
   expectOneLineError(runVoxwall("compress generated:menger:2 --codec tvq -o /tmp/x.vwz"),
                      "voxwall: codec 'tvq' is not implemented");
   expectOneLineError(runVoxwall("compress generated:menger:2 --quality 90 -o /tmp/x.vwz"),
-                     "voxwall: --quality, --block-width, --root-width and --base-compression need "
-                     "--codec svmm");
+                     "voxwall: --quality needs --codec svmm");
   expectOneLineError(
       runVoxwall("compress generated:menger:2 --codec svmm --block-width 3 -o /tmp/x.vwz"),
       "voxwall: --block-width must be a power of two in 2..64 or 'stepped'");
-  expectOneLineError(runVoxwall("render generated:menger:2 --lod --size 8x8 --no-write"),
-                     "voxwall: --sampling nearest and --lod need an svmm volume");
+  expectOneLineError(
+      runVoxwall("render generated:menger:2 --lod --size 8x8 --no-write"),
+      "voxwall: --sampling nearest and --lod need a volume with mip levels (compress it "
+      "with --codec svmm)");
   expectOneLineError(
       runVoxwall("compress generated:menger:2 --codec vq --codebook bogus -o /tmp/x.vwz"),
       "voxwall: --codebook must be");
   expectOneLineError(runVoxwall("compress generated:menger:2 --reduction 4 -o /tmp/x.vwz"),
-                     "voxwall: --reduction, --bits-per-voxel and --codebook need --codec vq");
+                     "voxwall: --reduction needs --codec vq");
   expectOneLineError(
       runVoxwall(
           "compress generated:menger:2 --codec vq --reduction 4 --bits-per-voxel 1 -o /tmp/x.vwz"),

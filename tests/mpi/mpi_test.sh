@@ -8,6 +8,7 @@
 #   bad-volume N      a missing or truncated volume on one rank ends the job with one message
 #   other-volume      a rank holding a different volume is refused
 #   stall N           a rank that stops answering is named by the watchdog; the job ends
+#   codecs N          for every codec of the build: N ranks give the same frames as 1 rank
 #   dry-run N         prints the rank -> tile map, hosts and memory, renders nothing
 #   memory-budget     a budget smaller than the volume is refused with the memory needed
 #   sink N CODEC      N ranks stream to a `voxwall sink` on loopback (ci-2x2 wall): every display
@@ -280,29 +281,31 @@ case $scenario in
     run "$n" "${common[@]}" "${extra[@]}" --out multi || fail "mpirun -np $n exited with $?"
     same_frames ref multi
     ;;
-  vq)
-    # A lossy vq volume: every rank renders from the compressed bricks through its own caches.
+  codecs)
+    # Every codec of the build (`voxwall codecs --list`), with its example options (lossy where
+    # the codec can be): every rank renders from the compressed volume through its own view and
+    # caches, byte for byte like one process; codecs with mip levels also with nearest sampling.
     n=$1
-    "$voxwall" compress generated:shepp-logan:48 --codec vq --reduction 4 -o vq.vwz -q ||
-      fail "compress --codec vq"
-    vq=(render vq.vwz --size 97x61 --frames 4 --orbit-deg 20 --shading -q --threads 1)
-    "$voxwall" "${vq[@]}" --out ref || fail "single-process reference"
-    run "$n" "${vq[@]}" --balance dynamic --cost-cell 8 --out multi || fail "mpirun -np $n exited with $?"
-    same_frames ref multi
-    ;;
-  svmm)
-    # A lossy svmm volume with stepped block widths: every rank refines through the sub-block
-    # offsets and skips terminal blocks; nearest-voxel sampling.
-    n=$1
-    "$voxwall" compress generated:shepp-logan:48 --codec svmm --quality 90 --block-width stepped \
-      --root-width 8 -o svmm.vwz -q || fail "compress --codec svmm"
-    sv=(render svmm.vwz --size 97x61 --frames 4 --orbit-deg 20 --shading -q --threads 1)
-    "$voxwall" "${sv[@]}" --out ref || fail "single-process reference"
-    run "$n" "${sv[@]}" --balance dynamic --cost-cell 8 --out multi || fail "mpirun -np $n exited with $?"
-    same_frames ref multi
-    "$voxwall" "${sv[@]}" --sampling nearest --out nref || fail "single-process nearest"
-    run "$n" "${sv[@]}" --sampling nearest --out nmulti || fail "mpirun nearest exited with $?"
-    same_frames nref nmulti
+    "$voxwall" codecs --list > codecs.txt || fail "voxwall codecs --list"
+    [ -s codecs.txt ] || fail "no codecs listed"
+    while IFS=$'\t' read -r name _id levels options; do
+      # shellcheck disable=SC2086
+      "$voxwall" compress generated:shepp-logan:48 --codec "$name" $options -o "$name.vwz" -q ||
+        fail "compress --codec $name $options"
+      args=(render "$name.vwz" --size 97x61 --frames 4 --orbit-deg 20 --shading -q --threads 1)
+      "$voxwall" "${args[@]}" --out "ref-$name" || fail "$name: single-process reference"
+      run "$n" "${args[@]}" --balance dynamic --cost-cell 8 --out "multi-$name" ||
+        fail "$name: mpirun -np $n exited with $?"
+      same_frames "ref-$name" "multi-$name"
+      if [ "$levels" = levels ]; then
+        "$voxwall" "${args[@]}" --sampling nearest --out "nref-$name" ||
+          fail "$name: single-process nearest"
+        run "$n" "${args[@]}" --sampling nearest --out "nmulti-$name" ||
+          fail "$name: mpirun nearest exited with $?"
+        same_frames "nref-$name" "nmulti-$name"
+      fi
+      echo "$name: $n ranks equal one process"
+    done < codecs.txt
     ;;
   resume)
     n=$1

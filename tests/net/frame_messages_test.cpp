@@ -14,7 +14,6 @@ net::FrameTask sampleTask() {
   t.frame = 7;
   t.camera.eye = {1, -2, 3};
   t.camera.fovYDeg = 40;
-  t.tfVersion = 3;
   t.watchdogMs = 5000;
   t.screenWidth = 64, t.screenHeight = 48;
   t.cellPixels = 16;
@@ -65,7 +64,6 @@ TEST(FrameTask, RoundTrips) {
   EXPECT_FALSE(back.stop);
   EXPECT_EQ(back.camera.eye, t.camera.eye);
   EXPECT_EQ(back.camera.fovYDeg, 40);
-  EXPECT_EQ(back.tfVersion, 3u);
   EXPECT_EQ(back.watchdogMs, 5000u);
   EXPECT_EQ(back.jobId, 0xfeedf00d12345678ull);
   EXPECT_EQ(back.cellPixels, 16);

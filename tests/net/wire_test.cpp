@@ -65,7 +65,7 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
     EXPECT_EQ(net::decodeWelcome(m[1].payload, "t").screenHeight, 4338);
     EXPECT_EQ(m[2].type, MessageType::Tile);
     EXPECT_EQ(m[2].frame, 42u);
-    const auto tile = net::decodeTile(m[2].payload, "t");
+    const auto tile = net::decodeTileMessage(m[2].payload, "t");
     EXPECT_EQ(tile.rect, (node::Rect{10, 20, 30, 40}));
     EXPECT_EQ(tile.codec, net::TileCodec::Deflate);
     EXPECT_EQ(tile.decidedUnixMicros, 123456789u);
@@ -165,10 +165,10 @@ TEST(Wire, PayloadDecodersCheckEveryField) {
   auto tile = sampleTile();
   std::vector<std::byte> t(tile.begin() + net::kHeaderBytes, tile.end());
   poke(t, 8, std::int32_t(0));  // zero width
-  EXPECT_THROW(net::decodeTile(t, "t"), FormatError);
+  EXPECT_THROW(net::decodeTileMessage(t, "t"), FormatError);
   t.assign(tile.begin() + net::kHeaderBytes, tile.end());
   t[16] = std::byte{7};  // codec
-  EXPECT_THROW(net::decodeTile(t, "t"), FormatError);
+  EXPECT_THROW(net::decodeTileMessage(t, "t"), FormatError);
 }
 
 TEST(Wire, RandomCorruptionNeverCrashes) {
@@ -180,7 +180,7 @@ TEST(Wire, RandomCorruptionNeverCrashes) {
     net::MessageReader reader("fuzz");
     reader.feed(bytes);
     try {
-      if (auto m = reader.next()) net::decodeTile(m->payload, "fuzz");
+      if (auto m = reader.next()) net::decodeTileMessage(m->payload, "fuzz");
     } catch (const FormatError&) {
     }
   }

@@ -2,7 +2,10 @@
 // usable device, and in builds without CUDA.
 #include <gtest/gtest.h>
 
+#include <optional>
+#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/registry.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "support/image_expect.hpp"
@@ -42,6 +45,40 @@ INSTANTIATE_TEST_SUITE_P(ScalarTypes, BackendEquivalence,
                          [](const auto& info) {
                            return std::string(codec::scalarName(info.param));
                          });
+
+// Every registered codec's view (each of its sample files that can be rendered) on the device
+// against the CPU: the same per-ray code through the payload's device view and arrays.
+TEST(BackendEquivalence, EveryCodecsViewMatchesTheCpu) {
+  std::string reason;
+  if (!cudaAvailable(&reason)) GTEST_SKIP() << reason;
+  int rendered = 0;
+  for (const codec::Codec* c : codec::codecs())
+    for (codec::CodecSample& sample : c->samples()) {
+      SCOPED_TRACE(sample.name);
+      std::optional<RenderVolume> volume;
+      try {
+        volume = RenderVolume::fromCompressed(std::move(sample.volume));
+      } catch (const FormatError&) {
+        continue;  // a file the codec holds but cannot render (RGBA svmm)
+      }
+      Orbit o;
+      const Camera cam = orbitCamera(o, boundingRadius(volume->info()));
+      const auto tf = TransferFunction::preset("ct-soft").rescaled(volume->info().valueMin,
+                                                                   volume->info().valueMax);
+      for (bool shading : {false, true}) {
+        RenderSettings s;
+        s.shading = shading;
+        const auto plan = planFrame(*volume, cam, 64, 48, tf, s);
+        Image cpu, gpu;
+        const Rect tile{0, 0, 64, 48};
+        makeCpuBackend(2)->render(*volume, plan, tile, cpu);
+        makeCudaBackend()->render(*volume, plan, tile, gpu);
+        test::expectImagesNear(cpu, gpu, 3, 45.0, sample.name + (shading ? " shaded" : ""));
+      }
+      ++rendered;
+    }
+  EXPECT_GE(rendered, int(codec::codecs().size()));
+}
 
 TEST(CudaBackend, WithoutADeviceItRefusesWithAReason) {
   std::string reason;

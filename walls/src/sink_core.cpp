@@ -161,7 +161,7 @@ bool SinkCore::handle(SinkPeer& peer, net::MessageType type, std::uint64_t frame
     case MessageType::Tile: {
       if (peer.hello().role != net::Role::Renderer)
         throw FormatError(peer.name(), "a controller sent a tile");
-      const auto tile = net::decodeTile(payload, peer.name());
+      const auto tile = net::decodeTileMessage(payload, peer.name());
       if (auto done = assembler_.addTile(frame, tile, peer.hello().rank, peer.name()))
         present_(*job_, std::move(*done));
       return true;

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <unordered_map>
+#include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/bytes.hpp>
 #include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/metrics.hpp>
@@ -540,92 +541,23 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
 
 kernels::VqView Layout::view(const std::byte* base) const {
   kernels::VqView v;
-  v.data = reinterpret_cast<const std::uint8_t*>(base ? base : data_.data());
-  v.indexTableAt = indexTableAt_, v.codebookAt = codebookAt_;
-  v.dimX = info_.dims.x, v.dimY = info_.dims.y, v.dimZ = info_.dims.z;
-  v.bricksX = (info_.dims.x + 3) / 4, v.bricksY = (info_.dims.y + 3) / 4;
-  v.bits = bits_, v.offsetBits = offsetBits_, v.addressBits = addressBits_;
-  v.compressed = flags_ & kCompressed, v.indirect = flags_ & kIndirect;
-  v.bias = float(bias_);
+  kernels::VqDecoder& d = v.decoder;
+  d.data = reinterpret_cast<const std::uint8_t*>(base ? base : data_.data());
+  d.indexTableAt = indexTableAt_, d.codebookAt = codebookAt_;
+  d.bricksX = (info_.dims.x + 3) / 4, d.bricksY = (info_.dims.y + 3) / 4;
+  d.bits = bits_, d.offsetBits = offsetBits_, d.addressBits = addressBits_;
+  d.compressed = flags_ & kCompressed, d.indirect = flags_ & kIndirect;
+  d.bias = float(bias_);
+  v.setDims(info_.dims.x, info_.dims.y, info_.dims.z);
   v.cacheId = cacheId_;
-  v.maxX = float(info_.dims.x - 1), v.maxY = float(info_.dims.y - 1),
-  v.maxZ = float(info_.dims.z - 1);
   return v;
 }
 
-RangeGrid Layout::rangeGrid() const {
-  const kernels::VqView v = view();
-  RangeGrid g;
-  g.cellVoxels = 4;
-  g.cells = (info_.dims + 3) / 4;
-  const std::size_t n = g.cellCount();
-  std::vector<float> lo(n), hi(n);
-  parallelFor(std::size_t(g.cells.z), 0, [&](std::size_t bz) {
-    std::uint16_t vox[kN];
-    for (int by = 0; by < g.cells.y; ++by)
-      for (int bx = 0; bx < g.cells.x; ++bx) {
-        v.decodeAt(v.codewordAddress(bx, by, int(bz)), vox);
-        const auto [a, b] = std::minmax_element(vox, vox + kN);
-        const std::size_t i =
-            (bz * std::size_t(g.cells.y) + std::size_t(by)) * std::size_t(g.cells.x) +
-            std::size_t(bx);
-        lo[i] = float(*a) + v.bias, hi[i] = float(*b) + v.bias;
-      }
-  });
-  // Dilate by one brick: covers the one-voxel dilation the raycaster relies on.
-  g.lo.resize(n), g.hi.resize(n);
-  parallelFor(std::size_t(g.cells.z), 0, [&](std::size_t zs) {
-    const int z = int(zs);
-    for (int y = 0; y < g.cells.y; ++y)
-      for (int x = 0; x < g.cells.x; ++x) {
-        float l = std::numeric_limits<float>::infinity(), h = -l;
-        for (int dz = std::max(0, z - 1); dz <= std::min(g.cells.z - 1, z + 1); ++dz)
-          for (int dy = std::max(0, y - 1); dy <= std::min(g.cells.y - 1, y + 1); ++dy)
-            for (int dx = std::max(0, x - 1); dx <= std::min(g.cells.x - 1, x + 1); ++dx) {
-              const std::size_t j = (std::size_t(dz) * std::size_t(g.cells.y) + std::size_t(dy)) *
-                                        std::size_t(g.cells.x) +
-                                    std::size_t(dx);
-              l = std::min(l, lo[j]), h = std::max(h, hi[j]);
-            }
-        const std::size_t i =
-            (std::size_t(z) * std::size_t(g.cells.y) + std::size_t(y)) * std::size_t(g.cells.x) +
-            std::size_t(x);
-        g.lo[i] = l, g.hi[i] = h;
-      }
-  });
-  return g;
-}
+RangeGrid Layout::rangeGrid() const { return brickRangeGrid(view()); }
 
 Volume decode(const VolumeInfo& info, const SectionSet& sections) {
   const Layout layout(info, sections);
-  const kernels::VqView v = layout.view();
-  Volume out = Volume::allocate(info.dims, info.type, info.spacing);
-  const glm::ivec3 bricks = (info.dims + 3) / 4;
-  dispatchScalar(info.type, [&](auto t) {
-    using T = decltype(t);
-    if constexpr (std::is_integral_v<T>) {
-      auto dst = out.as<T>();
-      parallelFor(std::size_t(bricks.z), 0, [&](std::size_t bz) {
-        std::uint16_t vox[kN];
-        for (int by = 0; by < bricks.y; ++by)
-          for (int bx = 0; bx < bricks.x; ++bx) {
-            v.decodeAt(v.codewordAddress(bx, by, int(bz)), vox);
-            for (int z = 0; z < 4; ++z)
-              for (int y = 0; y < 4; ++y)
-                for (int x = 0; x < 4; ++x) {
-                  const int vx = bx * 4 + x, vy = by * 4 + y, vz = int(bz) * 4 + z;
-                  if (vx >= info.dims.x || vy >= info.dims.y || vz >= info.dims.z) continue;
-                  const long value = long(vox[x + 4 * y + 16 * z]) + long(v.bias);
-                  dst[out.index(vx, vy, vz)] =
-                      T(std::clamp<long>(value, long(std::numeric_limits<T>::min()),
-                                         long(std::numeric_limits<T>::max())));
-                }
-          }
-      });
-    }
-  });
-  out.computeRange();
-  return out;
+  return decodeBricks(layout.view(), info.type, info.spacing);
 }
 
 }  // namespace voxwall::codec::vq

@@ -9,6 +9,7 @@ void addGenerateCommand(CLI::App& app);
 void addCompressCommand(CLI::App& app);
 void addDecompressCommand(CLI::App& app);
 void addInfoCommand(CLI::App& app);
+void addCodecsCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
 void addSinkCommand(CLI::App& app);
 

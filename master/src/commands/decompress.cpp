@@ -1,11 +1,8 @@
 #include <cstdio>
 #include <memory>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/raw_codec.hpp>
-#include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/codec/registry.hpp>
 #include <voxwall/codec/volume_io.hpp>
-#include <voxwall/codec/vq_codec.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"
@@ -19,21 +16,7 @@ struct DecompressOptions {
 
 void runDecompress(const DecompressOptions& o) {
   const auto file = codec::ContainerFile::open(o.input);
-  codec::Volume v;
-  switch (file.info().codec) {
-    case codec::CodecId::Raw:
-      v = codec::raw::decode(file.info(), file.sections());
-      break;
-    case codec::CodecId::Vq:
-      v = codec::vq::decode(file.info(), file.sections());
-      break;
-    case codec::CodecId::Svmm:
-      v = codec::svmm::decode(file.info(), file.sections());
-      break;
-    default:
-      throw FormatError(o.input, "codec '" + std::string(codec::codecName(file.info().codec)) +
-                                     "' cannot be decoded by this build");
-  }
+  const codec::Volume v = codec::codecOf(file.info(), o.input).decode(file.info(), file.sections());
   codec::writeVolume(v, o.output);
   std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
               std::string(codec::scalarName(v.type)).c_str());

@@ -9,6 +9,7 @@
 #include <thread>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/parallel.hpp>
+#include <voxwall/codec/registry.hpp>
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
@@ -327,10 +328,13 @@ void runRender(const RenderOptions& o) {
     } else {
       s.volume = node::RenderVolume::open(s.input);
     }
-    if ((s.render.nearest || s.render.levelOfDetail) &&
-        s.volume->info().codec != codec::CodecId::Svmm)
+    if ((s.render.nearest || s.render.levelOfDetail) && !s.volume->traversal()) {
+      const std::string names = codec::RegisteredCodecs::traversalCodecNames();
       throw std::invalid_argument(
-          "--sampling nearest and --lod need an svmm volume (compress it with --codec svmm)");
+          "--sampling nearest and --lod need a volume with mip levels "
+          "(compress it with --codec " +
+          names + ")");
+    }
     s.needBytes =
         estimateRankBytes(s.job, comm->rank(), comm->size(), s.volume->storedBytes(), baseBytes);
     if (!o.memoryBudget.empty()) {

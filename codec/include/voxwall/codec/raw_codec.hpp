@@ -13,6 +13,7 @@
 //             two bricks; voxels past the volume's edge repeat the edge voxel
 #pragma once
 
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
 #include <voxwall/codec/progress.hpp>
@@ -60,5 +61,13 @@ class Layout {
 
 // Full reconstruction.
 Volume decode(const VolumeInfo& info, const SectionSet& sections);
+
+// The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
+// object (src/raw/registration.cpp).
+struct RawCodecEntry {
+  using Views = ViewList<kernels::RawView<std::uint8_t>, kernels::RawView<std::uint16_t>,
+                         kernels::RawView<std::int16_t>, kernels::RawView<float>>;
+  static const Codec& instance();
+};
 
 }  // namespace voxwall::codec::raw

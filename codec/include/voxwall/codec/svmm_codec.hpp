@@ -53,6 +53,7 @@
 #include <glm/common.hpp>
 #include <string>
 #include <vector>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/svmm_view.hpp>
 #include <voxwall/codec/progress.hpp>
@@ -156,6 +157,13 @@ RgbaVolume generateMengerRgba(int level);
 
 // PSNR over the four channels, peak 255 (+inf when equal).
 double psnrRgba(const RgbaVolume& a, const RgbaVolume& b);
+
+// The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
+// object (src/svmm/registration.cpp).
+struct SvmmCodecEntry {
+  using Views = ViewList<kernels::SvmmView>;
+  static const Codec& instance();
+};
 
 // ---- implementation of the template ----
 

@@ -48,6 +48,7 @@
 #include <cstdint>
 #include <string>
 #include <vector>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/vq_view.hpp>
 #include <voxwall/codec/progress.hpp>
@@ -145,5 +146,12 @@ class Layout {
 
 // Full reconstruction, in the volume's scalar type.
 Volume decode(const VolumeInfo& info, const SectionSet& sections);
+
+// The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
+// object (src/vq/registration.cpp).
+struct VqCodecEntry {
+  using Views = ViewList<kernels::VqView>;
+  static const Codec& instance();
+};
 
 }  // namespace voxwall::codec::vq

@@ -12,7 +12,7 @@
 // Layout (little-endian, serialized field by field):
 //   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop),
 //               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
-//               tfVersion, u32 watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, u32
+//               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, u32
 //               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
@@ -35,7 +35,7 @@ namespace voxwall::net {
 
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
-inline constexpr std::uint32_t kFrameMessageVersion = 2;       // 2: FrameTask.jobId
+inline constexpr std::uint32_t kFrameMessageVersion = 3;  // 2: FrameTask.jobId; 3: no tfVersion
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -48,7 +48,6 @@ struct FrameTask {
   std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the camera (for latency)
   std::uint64_t jobId = 0;  // the render job's identity on the wall sink (net/wire.hpp Hello)
   node::Camera camera;
-  std::uint32_t tfVersion = 0;   // transfer function in use (ranks hold it; fixed for now)
   std::uint32_t watchdogMs = 0;  // how long any rank waits for any other in this frame
   int screenWidth = 0, screenHeight = 0;
   int cellPixels = 32;                         // cost grid cell size

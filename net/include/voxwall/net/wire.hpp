@@ -124,7 +124,7 @@ void checkPayload(std::span<const std::byte, kHeaderBytes> header,
 // Payload decoders: every length is checked, trailing bytes are an error. Throw FormatError.
 Hello decodeHello(std::span<const std::byte> payload, const std::string& source);
 Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& source);
-TileMessage decodeTile(std::span<const std::byte> payload, const std::string& source);
+TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::string& source);
 FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& source);
 Control decodeControl(std::span<const std::byte> payload, const std::string& source);
 Bye decodeBye(std::span<const std::byte> payload, const std::string& source);

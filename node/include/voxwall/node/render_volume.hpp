@@ -5,22 +5,17 @@
 #include <memory>
 #include <optional>
 #include <string>
-#include <variant>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/kernels/raw_view.hpp>
 #include <voxwall/codec/range_grid.hpp>
 #include <voxwall/codec/raw_codec.hpp>
-#include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/volume_io.hpp>
-#include <voxwall/codec/vq_codec.hpp>
 
 namespace voxwall::node {
 
-// Every view type the raycaster is instantiated for (one per codec and scalar type).
-using ViewVariant =
-    std::variant<codec::kernels::RawView<std::uint8_t>, codec::kernels::RawView<std::uint16_t>,
-                 codec::kernels::RawView<std::int16_t>, codec::kernels::RawView<float>,
-                 codec::kernels::VqView, codec::kernels::SvmmView>;
+// Every view type the raycaster is instantiated for: one or more per registered codec
+// (codec/registry.hpp).
+using ViewVariant = codec::AnyView;
 
 class RenderVolume {
  public:
@@ -29,6 +24,8 @@ class RenderVolume {
   static RenderVolume open(const std::string& path,
                            const std::optional<codec::RawLayout>& raw = std::nullopt);
   static RenderVolume fromContainer(codec::ContainerFile file);
+  // A compressed volume held in memory (any registered codec).
+  static RenderVolume fromCompressed(codec::CompressedVolume volume);
   static RenderVolume fromVolume(const codec::Volume& volume,
                                  int brickVoxels = codec::raw::Params{}.brickVoxels);
 
@@ -36,13 +33,13 @@ class RenderVolume {
   const codec::RangeGrid& ranges() const { return ranges_; }
   // Bytes of the compressed representation a backend has to hold (file size for a .vwz).
   std::uint64_t storedBytes() const { return storedBytes_; }
-  // The voxel payload a device backend uploads, and the view with its data at `base`
-  // (host memory when null).
-  std::span<const std::byte> payload() const;
-  ViewVariant view(const std::byte* base = nullptr) const;
+  // The codec's render payload: the bytes a device backend uploads, the view with its data at a
+  // base address (host memory when null), the arrays a device builds (render_payload.hpp).
+  const codec::RenderPayload& payload() const { return *payload_; }
+  ViewVariant view(const std::byte* base = nullptr) const { return payload_->view(base); }
+  // Whether the view traverses mip levels (--lod, nearest sampling).
+  bool traversal() const;
   const std::string& source() const { return source_; }
-  // The svmm layout when the volume is svmm-coded (a device backend builds block pools from it).
-  const codec::svmm::Layout* svmmLayout() const { return svmmLayout_ ? &*svmmLayout_ : nullptr; }
   // xxHash64 of the volume's description and every section's bytes: two ranks with the same
   // fingerprint render the same pixels. Computed on first use (reads the whole payload).
   std::uint64_t fingerprint() const;
@@ -53,9 +50,8 @@ class RenderVolume {
   std::shared_ptr<codec::ContainerFile> file_;
   std::shared_ptr<codec::CompressedVolume> memory_;
   codec::SectionSet sections_;
-  std::optional<codec::raw::Layout> rawLayout_;  // validated once, in init()
-  std::optional<codec::vq::Layout> vqLayout_;
-  std::optional<codec::svmm::Layout> svmmLayout_;
+  // Validated once, in init(); points into file_ or memory_ (declared after them: destroyed first).
+  std::shared_ptr<const codec::RenderPayload> payload_;
   codec::VolumeInfo info_;
   codec::RangeGrid ranges_;
   std::uint64_t storedBytes_ = 0;

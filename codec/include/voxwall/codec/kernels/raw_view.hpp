@@ -73,9 +73,7 @@ struct RawView {
   }
 
   VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& cache) const {
-    x = x < 0.0f ? 0.0f : (x > maxX ? maxX : x);
-    y = y < 0.0f ? 0.0f : (y > maxY ? maxY : y);
-    z = z < 0.0f ? 0.0f : (z > maxZ ? maxZ : z);
+    x = clampPosition(x, maxX), y = clampPosition(y, maxY), z = clampPosition(z, maxZ);
     const int ix = int(x), iy = int(y), iz = int(z);
     const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
     float* c = cache.c;
@@ -87,10 +85,7 @@ struct RawView {
       c[7] = float(p[sz + sy + 1]);
       cache.ix = ix, cache.iy = iy, cache.iz = iz;
     }
-    const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
-    const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
-    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
-    return c0 + tz * (c1 - c0);
+    return blendCorners(c, tx, ty, tz);
   }
 };
 

@@ -403,9 +403,7 @@ struct SvmmView {
     if (T) x = (x + 0.5f) / P - 0.5f, y = (y + 0.5f) / P - 0.5f, z = (z + 0.5f) / P - 0.5f;
     const float mx = float((dimX - 1) >> sh), my = float((dimY - 1) >> sh),
                 mz = float((dimZ - 1) >> sh);
-    x = x < 0.0f ? 0.0f : (x > mx ? mx : x);
-    y = y < 0.0f ? 0.0f : (y > my ? my : y);
-    z = z < 0.0f ? 0.0f : (z > mz ? mz : z);
+    x = clampPosition(x, mx), y = clampPosition(y, my), z = clampPosition(z, mz);
   }
 
   // Sample at index-space (x, y, z): trilinear (or the nearest voxel when rc.nearest) on the
@@ -440,11 +438,7 @@ struct SvmmView {
     }
     rc.regionValid = false;
     const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
-    const float* c = rc.c;
-    const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
-    const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
-    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
-    return c0 + tz * (c1 - c0);
+    return blendCorners(rc.c, tx, ty, tz);
   }
 
   // The region of level-T voxels [v, v + n) per axis as full-resolution index-space positions:
@@ -507,10 +501,7 @@ struct SvmmView {
       corners(ix, iy, iz, T, rc, c, constant, stop, vx, vy, vz);
     }
     const float tx = x - float(ix), ty = y - float(iy), tz = z - float(iz);
-    const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
-    const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
-    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
-    return c0 + tz * (c1 - c0);
+    return blendCorners(c, tx, ty, tz);
   }
 };
 

@@ -17,6 +17,7 @@
 #include <type_traits>
 #include <voxwall/codec/kernels/host_device.hpp>
 #include <voxwall/codec/kernels/trilinear.hpp>
+#include <voxwall/codec/kernels/view_concept.hpp>
 #include <voxwall/node/kernels/transfer_lut.hpp>
 
 namespace voxwall::node::kernels {
@@ -127,7 +128,7 @@ VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& invD, const
 
 // Composites one sample at index-space position p; returns true when the ray is opaque enough
 // to stop. `transparent` tells whether the sample's opacity was zero.
-template <class View>
+template <codec::kernels::VolumeView View>
 VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCache& cache,
                                          const RayFrame& f, const TransferLut& lut,
                                          const glm::vec3& p, const glm::vec3& dir, glm::vec4& acc,
@@ -153,17 +154,16 @@ VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCac
   return acc.a >= f.earlyTermination;
 }
 
-// Renders one pixel of the virtual screen. `View` answers sample(x, y, z),
-// sample(x, y, z, View::RayCache&) (trilinear, index space; the cache is per-ray state the view
-// may use to reuse work between consecutive samples) and sampleNear(x, y, z, RayCache&) (a
-// sample next to the last one, for gradients: a view whose cache holds decoded bricks reuses
-// them); its values are looked up in `lut`. Samples
+// Renders one pixel of the virtual screen. `View` meets the view contract (VolumeView in
+// view_concept.hpp: sample(x, y, z, RayCache&) is the trilinear sample in index space, the cache
+// per-ray state the view may use to reuse work between consecutive samples, sampleNear the
+// gradient's neighbours); its values are looked up in `lut`. Samples
 // sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid the ray walks coarse cells: a
 // cell's emptiness is looked up once per crossing and an empty cell is jumped over; inside a
 // non-empty cell, a sample whose fine cell is empty is skipped (checked only after a transparent
 // sample). A skipped sample would have had opacity exactly zero, and positions are computed from
 // k, never accumulated, so the image is the same with and without skipping.
-template <class View>
+template <codec::kernels::VolumeView View>
 VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
                                            const TransferLut& lut, const SkipGrid& skip, int px,
                                            int py) {
@@ -186,6 +186,9 @@ VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
   // and report the region around a sample where every sample has its value (a terminal block):
   // a transparent one is skipped in one step (Faas 2016, sections 3.2.2-3.2.4).
   constexpr bool traversal = requires { View::kTraversal; };
+  static_assert(!traversal || codec::kernels::TraversalView<View>,
+                "a view that declares kTraversal must meet TraversalView: its RayCache needs "
+                "footprint, nearest, regionValid, regionLo/Hi and regionFootprintMax");
   if constexpr (traversal) cache.nearest = f.nearest;
   int k = 0;
   while (k < steps) {

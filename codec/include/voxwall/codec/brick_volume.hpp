@@ -1,0 +1,99 @@
+// Host-side work over a CachedBrickView's decoder, shared by every brick-decoding codec: the
+// value-range grid for empty-space skipping and the full reconstruction of the volume.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <type_traits>
+#include <voxwall/codec/kernels/cached_brick_view.hpp>
+#include <voxwall/codec/parallel.hpp>
+#include <voxwall/codec/range_grid.hpp>
+#include <voxwall/codec/volume.hpp>
+
+namespace voxwall::codec {
+
+// Value ranges per brick (one cell per brick), dilated by one brick: a superset of the
+// one-voxel dilation the raycaster relies on. Decodes every brick once, on every core.
+template <class View>
+RangeGrid brickRangeGrid(const View& v) {
+  constexpr int kVoxels = View::kVoxels;
+  RangeGrid g;
+  g.cellVoxels = View::kSide;
+  g.cells = {v.bricksX, v.bricksY, (v.dimZ + View::kMask) >> View::kLog2};
+  const std::size_t n = g.cellCount();
+  std::vector<float> lo(n), hi(n);
+  auto cell = [&](int x, int y, int z) {
+    return (std::size_t(z) * std::size_t(g.cells.y) + std::size_t(y)) * std::size_t(g.cells.x) +
+           std::size_t(x);
+  };
+  parallelFor(std::size_t(g.cells.z), 0, [&](std::size_t bz) {
+    typename View::Value vox[kVoxels];
+    for (int by = 0; by < g.cells.y; ++by)
+      for (int bx = 0; bx < g.cells.x; ++bx) {
+        v.decoder.decode(v.decoder.key(bx, by, int(bz)), vox);
+        float l = std::numeric_limits<float>::infinity(), h = -l;
+        for (int i = 0; i < kVoxels; ++i) {
+          const float s = v.decoder.scalar(vox[i]);
+          l = std::min(l, s), h = std::max(h, s);
+        }
+        const std::size_t i = cell(bx, by, int(bz));
+        lo[i] = l, hi[i] = h;
+      }
+  });
+  g.lo.resize(n), g.hi.resize(n);
+  parallelFor(std::size_t(g.cells.z), 0, [&](std::size_t zs) {
+    const int z = int(zs);
+    for (int y = 0; y < g.cells.y; ++y)
+      for (int x = 0; x < g.cells.x; ++x) {
+        float l = std::numeric_limits<float>::infinity(), h = -l;
+        for (int dz = std::max(0, z - 1); dz <= std::min(g.cells.z - 1, z + 1); ++dz)
+          for (int dy = std::max(0, y - 1); dy <= std::min(g.cells.y - 1, y + 1); ++dy)
+            for (int dx = std::max(0, x - 1); dx <= std::min(g.cells.x - 1, x + 1); ++dx) {
+              const std::size_t j = cell(dx, dy, dz);
+              l = std::min(l, lo[j]), h = std::max(h, hi[j]);
+            }
+        const std::size_t i = cell(x, y, z);
+        g.lo[i] = l, g.hi[i] = h;
+      }
+  });
+  return g;
+}
+
+// The whole volume from its bricks, in `info`'s scalar type (integer types clamp and round the
+// decoded values to the type's range). Decodes every brick once, on every core.
+template <class View>
+Volume decodeBricks(const View& v, ScalarType type, glm::dvec3 spacing) {
+  constexpr int kSide = View::kSide;
+  Volume out = Volume::allocate({v.dimX, v.dimY, v.dimZ}, type, spacing);
+  const int bricksZ = (v.dimZ + View::kMask) >> View::kLog2;
+  dispatchScalar(type, [&](auto t) {
+    using T = decltype(t);
+    auto dst = out.as<T>();
+    parallelFor(std::size_t(bricksZ), 0, [&](std::size_t bz) {
+      typename View::Value vox[View::kVoxels];
+      for (int by = 0; by < v.bricksY; ++by)
+        for (int bx = 0; bx < v.bricksX; ++bx) {
+          v.decoder.decode(v.decoder.key(bx, by, int(bz)), vox);
+          for (int z = 0; z < kSide; ++z)
+            for (int y = 0; y < kSide; ++y)
+              for (int x = 0; x < kSide; ++x) {
+                const int vx = bx * kSide + x, vy = by * kSide + y, vz = int(bz) * kSide + z;
+                if (vx >= v.dimX || vy >= v.dimY || vz >= v.dimZ) continue;
+                const float value = v.decoder.scalar(vox[x + kSide * (y + kSide * z)]);
+                if constexpr (std::is_integral_v<T>) {
+                  const float lo = float(std::numeric_limits<T>::min());
+                  const float hi = float(std::numeric_limits<T>::max());
+                  dst[out.index(vx, vy, vz)] = T(std::clamp(std::nearbyint(value), lo, hi));
+                } else {
+                  dst[out.index(vx, vy, vz)] = T(value);
+                }
+              }
+        }
+    });
+  });
+  out.computeRange();
+  return out;
+}
+
+}  // namespace voxwall::codec

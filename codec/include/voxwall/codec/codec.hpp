@@ -1,0 +1,106 @@
+// What a codec gives the rest of voxwall: one object per codec, listed in registry.hpp. The
+// commands (`compress`, `decompress`, `info`, `codecs`, `render`), RenderVolume, the fuzz target,
+// the round-trip tests and the multi-rank scenarios all iterate over the registry; none of them
+// names a codec. docs/adding-a-codec.md walks through adding one.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/progress.hpp>
+#include <voxwall/codec/volume.hpp>
+
+namespace voxwall::codec {
+
+class RenderPayload;  // render_payload.hpp
+
+// A command-line option a codec adds to `compress` (e.g. "--quality"). Values arrive as text and
+// the codec parses them (CodecOptionValues); an option given with another codec is refused.
+struct CodecOption {
+  std::string flag;          // "--quality"
+  std::string help;          // shown by `compress --help`
+  std::string defaultValue;  // shown in the help; empty: none
+  bool isFlag = false;       // takes no value
+};
+
+// The options given on the command line for the chosen codec, and the options every codec takes.
+class CodecOptionValues {
+ public:
+  int threads = 0;  // encoder threads, 0: every usable core
+
+  void set(const std::string& flag, std::string value) { values_[flag] = std::move(value); }
+  bool given(const std::string& flag) const { return values_.count(flag) > 0; }
+  // The option's value, or `fallback` when it was not given. The numeric forms throw
+  // std::invalid_argument("--flag must be ...") for text that is not a number in [lo, hi].
+  std::string text(const std::string& flag, const std::string& fallback) const;
+  int integer(const std::string& flag, int fallback, int lo, int hi) const;
+  double number(const std::string& flag, double fallback, double lo, double hi) const;
+  bool flag(const std::string& flag) const { return given(flag); }
+
+ private:
+  std::map<std::string, std::string> values_;
+};
+
+// `info` lines: a label (padded to a column) and its text.
+using InfoLines = std::vector<std::pair<std::string, std::string>>;
+
+// A small encoded volume for the fuzzer's seed corpus and the tests that run every codec.
+struct CodecSample {
+  std::string name;  // file-name friendly: "vq-lossy"
+  CompressedVolume volume;
+};
+
+// The view types a codec's payloads produce (a codec class's `Views`).
+template <class... Views>
+struct ViewList {};
+
+class Codec {
+ public:
+  virtual ~Codec() = default;
+  virtual CodecId id() const = 0;
+  std::string_view name() const { return codecName(id()); }
+  // One sentence for `compress --help` and `voxwall codecs`: what it does, which data it takes.
+  virtual std::string_view summary() const = 0;
+  virtual std::vector<CodecOption> options() const { return {}; }
+  // Encodes `volume`. `report` receives what `compress` prints under its summary line: lines
+  // that each start with "\n  ". Throws std::invalid_argument for options or data it refuses.
+  virtual CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
+                                  Progress& progress, std::string& report) const = 0;
+  // The full volume. Throws FormatError for sections that do not describe one.
+  virtual Volume decode(const VolumeInfo& info, const SectionSet& sections) const = 0;
+  // The codec's `info` lines (after the container's).
+  virtual InfoLines describe(const VolumeInfo& info, const SectionSet& sections) const = 0;
+  // Validates the sections and makes them ready to render (views, value ranges). Throws
+  // FormatError, also for a file this codec holds but cannot render. The sections must outlive
+  // the payload.
+  virtual std::unique_ptr<RenderPayload> open(const VolumeInfo& info,
+                                              const SectionSet& sections) const = 0;
+  // Reads and checks everything a reader can be handed (the fuzz target calls it on untrusted
+  // bytes): by default decode(). Throws FormatError.
+  virtual void verify(const VolumeInfo& info, const SectionSet& sections) const {
+    (void)decode(info, sections);
+  }
+  // Small encoded volumes of every kind the codec writes (lossless, lossy, each layout).
+  virtual std::vector<CodecSample> samples() const = 0;
+  // `compress` options that make a lossy (or otherwise typical) file of this codec from a small
+  // volume, for `voxwall codecs` and the multi-rank scenarios.
+  virtual std::vector<std::string> exampleOptions() const = 0;
+};
+
+// Every codec this build carries, in id order.
+const std::vector<const Codec*>& codecs();
+// The codec with this id; null when this build does not carry it.
+const Codec* findCodec(CodecId id);
+// The codec with this name; throws std::invalid_argument naming the ones there are.
+const Codec& codecNamed(std::string_view name);
+// The codec of a container's volume; throws FormatError("<source>: codec 'x' ...") when this
+// build does not carry it.
+const Codec& codecOf(const VolumeInfo& info, const std::string& source);
+// "raw, vq, svmm"
+std::string codecNames();
+
+}  // namespace voxwall::codec

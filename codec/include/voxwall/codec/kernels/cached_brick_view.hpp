@@ -1,0 +1,212 @@
+// A view for any codec that stores the volume as bricks of M^3 voxels and decodes a whole brick
+// at a time (vq; sparse coding and transform VQ next). The codec supplies a Decoder ("which
+// stored brick is at (bx, by, bz)" and "decode it into M^3 values"); this view supplies the rest:
+// the decoded-brick caches, the per-parity memo, the cell corners across brick borders, the
+// position clamp and the trilinear blend. Host-side helpers over the same decoder (value ranges,
+// full decode) are in brick_volume.hpp.
+#pragma once
+
+#include <concepts>
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#if !defined(__CUDA_ARCH__)
+#include <memory>
+#endif
+#include <voxwall/codec/kernels/trilinear.hpp>
+
+namespace voxwall::codec::kernels {
+
+// What a codec gives CachedBrickView:
+//   kBrickLog2        log2 of M, the brick side in voxels (1..4)
+//   Value             the type of a decoded voxel (kept in the caches; uint16_t, float, ...)
+//   key(bx, by, bz)   a key of brick (bx, by, bz)'s stored form: equal keys decode to equal
+//                     voxels (a codeword address, a block index); never ~0
+//   decode(key, out)  writes the brick's M^3 values, x fastest
+//   scalar(value)     a decoded value as the float the raycaster samples (bias, scale)
+// A decoder is a small trivially copyable value, like the view that holds it.
+template <class D>
+concept BrickDecoder = std::is_trivially_copyable_v<D> &&
+                       (D::kBrickLog2 >= 1 && D::kBrickLog2 <= 4) &&
+                       requires(const D& d, int b, std::uint64_t key, typename D::Value* out,
+                                typename D::Value v) {
+  { d.key(b, b, b) } -> std::same_as<std::uint64_t>;
+  d.decode(key, out);
+  { d.scalar(v) } -> std::same_as<float>;
+};
+
+// Slots of the per-thread host cache: about 256 KiB of decoded voxels (2048 bricks of 4^3
+// 16-bit voxels), a power of two.
+constexpr int cachedBrickSlotLog2(std::size_t brickBytes) {
+  int log2 = 4;
+  while (log2 < 16 && (std::size_t(2) << log2) * brickBytes <= (std::size_t(256) << 10)) ++log2;
+  return log2;
+}
+
+template <BrickDecoder Decoder>
+struct CachedBrickView {
+  using Value = typename Decoder::Value;
+  static constexpr int kLog2 = Decoder::kBrickLog2;
+  static constexpr int kSide = 1 << kLog2;
+  static constexpr int kMask = kSide - 1;
+  static constexpr int kVoxels = kSide * kSide * kSide;
+
+  Decoder decoder;
+  int dimX = 0, dimY = 0, dimZ = 0;
+  int bricksX = 0, bricksY = 0;
+  float maxX = 0, maxY = 0, maxZ = 0;  // dim - 1, for clamping positions
+  // Unique per loaded volume: keys the per-thread host cache, which outlives views.
+  std::uint64_t cacheId = 0;
+
+  // Sets the geometry from the volume's size (the decoder is set by the caller).
+  VOXWALL_HD_INLINE void setDims(int x, int y, int z) {
+    dimX = x, dimY = y, dimZ = z;
+    bricksX = (x + kMask) >> kLog2, bricksY = (y + kMask) >> kLog2;
+    maxX = float(x - 1), maxY = float(y - 1), maxZ = float(z - 1);
+  }
+
+  // Decoded bricks are cached. On the host, in a direct-mapped cache per thread that lives
+  // across rays (neighbouring rays of a tile cross the same bricks, so most lookups hit); on a
+  // device, in a few slots per ray. Host entries are keyed by cacheId and the brick's key.
+  static constexpr int kRaySlots = 4;
+  struct HostCache {
+    static constexpr int kSlotLog2 = cachedBrickSlotLog2(sizeof(Value) * kVoxels);
+    static constexpr int kSlots = 1 << kSlotLog2;
+    std::uint64_t id[kSlots];
+    std::uint64_t key[kSlots];
+    Value voxels[kSlots][kVoxels];
+    std::uint64_t writes = 0;  // slots (re)filled so far: a change invalidates rays' memos
+  };
+  struct RayCache {
+#if defined(__CUDA_ARCH__)
+    std::uint64_t key[kRaySlots] = {~0ull, ~0ull, ~0ull, ~0ull};
+    Value voxels[kRaySlots][kVoxels];
+#else
+    HostCache* host = nullptr;
+    // The bricks this ray used last, one per parity of (bx, by, bz), so the up to 2x2x2
+    // bricks around a cell or a gradient never evict each other: brick index and its voxels in
+    // the host cache, valid while the cache has not refilled a slot since (memoWrites).
+    std::uint64_t memoBrick[8] = {~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull};
+    const Value* memoVoxels[8] = {};
+    std::uint64_t memoWrites = ~0ull;
+#endif
+    int ix = -1, iy = -1, iz = -1;  // the last voxel cell and its eight corners
+    float c[8] = {};
+  };
+
+#if !defined(__CUDA_ARCH__)
+  static HostCache& hostCache() {
+    thread_local const std::unique_ptr<HostCache> cache = [] {
+      auto c = std::make_unique<HostCache>();
+      for (int i = 0; i < HostCache::kSlots; ++i) c->id[i] = 0, c->key[i] = ~0ull;
+      return c;
+    }();
+    return *cache;
+  }
+#endif
+
+  // The decoded voxels of brick (bx, by, bz), through the cache.
+  VOXWALL_HD_INLINE const Value* brick(int bx, int by, int bz, RayCache& cache) const {
+#if defined(__CUDA_ARCH__)
+    const std::uint64_t key = decoder.key(bx, by, bz);
+    const int slot = int(((key + 1) * 0x9E3779B97F4A7C15ull) >> 62);
+    if (cache.key[slot] != key) {
+      decoder.decode(key, cache.voxels[slot]);
+      cache.key[slot] = key;
+    }
+    return cache.voxels[slot];
+#else
+    if (!cache.host) cache.host = &hostCache();
+    HostCache& h = *cache.host;
+    const std::uint64_t index =
+        (std::uint64_t(bz) * std::uint64_t(bricksY) + std::uint64_t(by)) * std::uint64_t(bricksX) +
+        std::uint64_t(bx);
+    const int m = (bx & 1) | ((by & 1) << 1) | ((bz & 1) << 2);
+    if (cache.memoWrites == h.writes && cache.memoBrick[m] == index) return cache.memoVoxels[m];
+    const std::uint64_t key = decoder.key(bx, by, bz);
+    const int slot =
+        int(((key ^ (cacheId << 40)) * 0x9E3779B97F4A7C15ull) >> (64 - HostCache::kSlotLog2));
+    if (h.key[slot] != key || h.id[slot] != cacheId) {
+      decoder.decode(key, h.voxels[slot]);
+      h.key[slot] = key, h.id[slot] = cacheId;
+      ++h.writes;
+    }
+    if (cache.memoWrites != h.writes) {  // a slot was refilled: forget every memo
+      for (int i = 0; i < 8; ++i) cache.memoBrick[i] = ~0ull;
+      cache.memoWrites = h.writes;
+    }
+    cache.memoBrick[m] = index, cache.memoVoxels[m] = h.voxels[slot];
+    return h.voxels[slot];
+#endif
+  }
+
+  // Voxel (x, y, z), clamped to the volume.
+  VOXWALL_HD_INLINE float voxel(int x, int y, int z, RayCache& cache) const {
+    x = clampIndex(x, dimX), y = clampIndex(y, dimY), z = clampIndex(z, dimZ);
+    const Value* b = brick(x >> kLog2, y >> kLog2, z >> kLog2, cache);
+    return decoder.scalar(b[(x & kMask) + ((y & kMask) << kLog2) + ((z & kMask) << (2 * kLog2))]);
+  }
+  VOXWALL_HD_INLINE float voxel(int x, int y, int z) const {
+    RayCache cache;
+    return voxel(x, y, z, cache);
+  }
+
+  // The eight corners of voxel cell (ix, iy, iz) (clamped at the far faces), from the up to
+  // 2x2x2 bricks the cell touches: each brick is looked up once, and its corners are read
+  // before the next lookup (which may reuse its cache slot).
+  VOXWALL_HD_INLINE void corners(int ix, int iy, int iz, RayCache& cache, float* c) const {
+    const int x1 = ix + 1 < dimX ? ix + 1 : ix, y1 = iy + 1 < dimY ? iy + 1 : iy;
+    const int z1 = iz + 1 < dimZ ? iz + 1 : iz;
+    const int bx[2] = {ix >> kLog2, x1 >> kLog2}, by[2] = {iy >> kLog2, y1 >> kLog2};
+    const int bz[2] = {iz >> kLog2, z1 >> kLog2};
+    // Bit a of `split` is set when the cell crosses a brick border along axis a; corner i
+    // (bit 0: x + 1, bit 1: y + 1, bit 2: z + 1) lies in the brick of corner (i & split).
+    const int split = int(bx[1] != bx[0]) | (int(by[1] != by[0]) << 1) | (int(bz[1] != bz[0]) << 2);
+    if (split == 0) {  // the common case: the whole cell in one brick
+      const Value* b = brick(bx[0], by[0], bz[0], cache);
+      const int i0 = (ix & kMask) + ((iy & kMask) << kLog2) + ((iz & kMask) << (2 * kLog2));
+      const int dx = x1 - ix, dy = (y1 - iy) << kLog2, dz = (z1 - iz) << (2 * kLog2);
+      c[0] = decoder.scalar(b[i0]), c[1] = decoder.scalar(b[i0 + dx]);
+      c[2] = decoder.scalar(b[i0 + dy]), c[3] = decoder.scalar(b[i0 + dy + dx]);
+      c[4] = decoder.scalar(b[i0 + dz]), c[5] = decoder.scalar(b[i0 + dz + dx]);
+      c[6] = decoder.scalar(b[i0 + dz + dy]), c[7] = decoder.scalar(b[i0 + dz + dy + dx]);
+      return;
+    }
+    const int lx[2] = {ix & kMask, x1 & kMask};
+    const int ly[2] = {(iy & kMask) << kLog2, (y1 & kMask) << kLog2};
+    const int lz[2] = {(iz & kMask) << (2 * kLog2), (z1 & kMask) << (2 * kLog2)};
+    for (int j = 0; j < 8; ++j) {
+      if ((j & split) != j) continue;
+      const Value* b = brick(bx[j & 1], by[(j >> 1) & 1], bz[j >> 2], cache);
+      for (int i = j; i < 8; ++i)
+        if ((i & split) == j) c[i] = decoder.scalar(b[lx[i & 1] + ly[(i >> 1) & 1] + lz[i >> 2]]);
+    }
+  }
+
+  // A gradient neighbour: shares the decoded bricks of the ray's cache but leaves its last
+  // cell (the main sample's) alone.
+  VOXWALL_HD_INLINE float sampleNear(float x, float y, float z, RayCache& cache) const {
+    x = clampPosition(x, maxX), y = clampPosition(y, maxY), z = clampPosition(z, maxZ);
+    const int ix = int(x), iy = int(y), iz = int(z);
+    float c[8];
+    corners(ix, iy, iz, cache, c);
+    return blendCorners(c, x - float(ix), y - float(iy), z - float(iz));
+  }
+
+  // Trilinear sample with clamp-to-edge, like RawView::sample.
+  VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& cache) const {
+    x = clampPosition(x, maxX), y = clampPosition(y, maxY), z = clampPosition(z, maxZ);
+    const int ix = int(x), iy = int(y), iz = int(z);
+    if (ix != cache.ix || iy != cache.iy || iz != cache.iz) {
+      corners(ix, iy, iz, cache, cache.c);
+      cache.ix = ix, cache.iy = iy, cache.iz = iz;
+    }
+    return blendCorners(cache.c, x - float(ix), y - float(iy), z - float(iz));
+  }
+  VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
+    RayCache cache;
+    return sample(x, y, z, cache);
+  }
+};
+
+}  // namespace voxwall::codec::kernels

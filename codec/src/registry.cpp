@@ -1,0 +1,84 @@
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <voxwall/codec/errors.hpp>
+#include <voxwall/codec/registry.hpp>
+
+namespace voxwall::codec {
+
+std::string CodecOptionValues::text(const std::string& flag, const std::string& fallback) const {
+  const auto it = values_.find(flag);
+  return it == values_.end() ? fallback : it->second;
+}
+
+int CodecOptionValues::integer(const std::string& flag, int fallback, int lo, int hi) const {
+  const auto it = values_.find(flag);
+  if (it == values_.end()) return fallback;
+  std::size_t used = 0;
+  long long value = 0;
+  try {
+    value = std::stoll(it->second, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != it->second.size() || value < lo || value > hi)
+    throw std::invalid_argument(flag + " must be an integer in " + std::to_string(lo) + ".." +
+                                std::to_string(hi) + ", not '" + it->second + "'");
+  return int(value);
+}
+
+double CodecOptionValues::number(const std::string& flag, double fallback, double lo,
+                                 double hi) const {
+  const auto it = values_.find(flag);
+  if (it == values_.end()) return fallback;
+  std::size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(it->second, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != it->second.size() || !std::isfinite(value) || value < lo || value > hi) {
+    char range[96];
+    std::snprintf(range, sizeof range, "a number in [%g, %g]", lo, hi);
+    throw std::invalid_argument(flag + " must be " + range + ", not '" + it->second + "'");
+  }
+  return value;
+}
+
+const std::vector<const Codec*>& codecs() { return RegisteredCodecs::objects(); }
+
+const Codec* findCodec(CodecId id) {
+  for (const Codec* c : codecs())
+    if (c->id() == id) return c;
+  return nullptr;
+}
+
+std::string codecNames() {
+  std::string names;
+  for (const Codec* c : codecs()) names += (names.empty() ? "" : ", ") + std::string(c->name());
+  return names;
+}
+
+const Codec& codecNamed(std::string_view name) {
+  for (const Codec* c : codecs())
+    if (c->name() == name) return *c;
+  bool known = true;  // a file-format id this build does not carry yet
+  try {
+    (void)parseCodecName(name);
+  } catch (const std::invalid_argument&) {
+    known = false;
+  }
+  throw std::invalid_argument((known ? "codec '" + std::string(name) + "' is not implemented"
+                                     : "unknown codec '" + std::string(name) + "'") +
+                              " (this build has: " + codecNames() + ")");
+}
+
+const Codec& codecOf(const VolumeInfo& info, const std::string& source) {
+  if (const Codec* c = findCodec(info.codec)) return *c;
+  throw FormatError(source, "codec '" + std::string(codecName(info.codec)) +
+                                "' is not in this build (it has: " + codecNames() + ")");
+}
+
+}  // namespace voxwall::codec

@@ -1,0 +1,160 @@
+// CachedBrickView with decoders of other brick sizes and value types than vq's: every sample,
+// cached or not, equals trilinear interpolation of the voxels the decoder produces; and the view
+// contract (kernels/view_concept.hpp) accepts every view and refuses what breaks it.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <voxwall/codec/brick_volume.hpp>
+#include <voxwall/codec/kernels/raw_view.hpp>
+#include <voxwall/codec/kernels/svmm_view.hpp>
+#include <voxwall/codec/kernels/view_concept.hpp>
+#include <voxwall/codec/kernels/vq_view.hpp>
+
+using namespace voxwall::codec;
+using namespace voxwall::codec::kernels;
+
+namespace {
+
+// A volume given by a formula, "stored" as bricks of 2^Log2 voxels: the key is the brick's index
+// and decoding evaluates the formula. Counts decodes so the cache can be observed.
+template <int Log2, class V>
+struct FormulaDecoder {
+  static constexpr int kBrickLog2 = Log2;
+  using Value = V;
+  int bricksX = 0, bricksY = 0;
+  float offset = 0;
+  int* decodes = nullptr;
+  static float value(int x, int y, int z) {
+    return float((x * 7 + y * 13 + z * 29) % 97) + 0.25f * float((x ^ y ^ z) & 3);
+  }
+  std::uint64_t key(int bx, int by, int bz) const {
+    return (std::uint64_t(bz) * std::uint64_t(bricksY) + std::uint64_t(by)) *
+               std::uint64_t(bricksX) +
+           std::uint64_t(bx);
+  }
+  void decode(std::uint64_t key, Value* out) const {
+    if (decodes) ++*decodes;
+    const int n = 1 << Log2;
+    const int bx = int(key % std::uint64_t(bricksX)),
+              by = int(key / std::uint64_t(bricksX)) % bricksY,
+              bz = int(key / (std::uint64_t(bricksX) * std::uint64_t(bricksY)));
+    for (int z = 0; z < n; ++z)
+      for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x)
+          out[x + n * (y + n * z)] = Value(value(bx * n + x, by * n + y, bz * n + z));
+  }
+  float scalar(Value v) const { return float(v) + offset; }
+};
+
+template <int Log2, class V>
+CachedBrickView<FormulaDecoder<Log2, V>> makeView(glm::ivec3 dims, std::uint64_t id, int* decodes) {
+  CachedBrickView<FormulaDecoder<Log2, V>> v;
+  v.setDims(dims.x, dims.y, dims.z);
+  v.decoder.bricksX = v.bricksX, v.decoder.bricksY = v.bricksY;
+  v.decoder.offset = -3.0f;
+  v.decoder.decodes = decodes;
+  v.cacheId = id;
+  return v;
+}
+
+template <int Log2, class V>
+void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
+  const auto view = makeView<Log2, V>(dims, id, nullptr);
+  struct Reference {
+    glm::ivec3 n;
+    float voxel(int x, int y, int z) const {
+      x = clampIndex(x, n.x), y = clampIndex(y, n.y), z = clampIndex(z, n.z);
+      return float(V(FormulaDecoder<Log2, V>::value(x, y, z))) - 3.0f;
+    }
+  } ref{dims};
+  std::mt19937 rng{unsigned(id)};
+  std::uniform_real_distribution<float> u(-2.0f, float(std::max({dims.x, dims.y, dims.z})) + 1.0f);
+  typename decltype(view)::RayCache cache;
+  for (int i = 0; i < 50000; ++i) {
+    const float x = u(rng), y = u(rng), z = u(rng);
+    const float want =
+        trilinear(ref, std::clamp(x, 0.0f, float(dims.x - 1)),
+                  std::clamp(y, 0.0f, float(dims.y - 1)), std::clamp(z, 0.0f, float(dims.z - 1)));
+    ASSERT_FLOAT_EQ(view.sample(x, y, z, cache), want) << x << "," << y << "," << z;
+    ASSERT_FLOAT_EQ(
+        view.sampleNear(x + 0.5f, y, z, cache),
+        trilinear(ref, std::clamp(x + 0.5f, 0.0f, float(dims.x - 1)),
+                  std::clamp(y, 0.0f, float(dims.y - 1)), std::clamp(z, 0.0f, float(dims.z - 1))));
+    ASSERT_FLOAT_EQ(view.sample(x, y, z), want);
+  }
+  // The value ranges cover every voxel of their cell (and its neighbours').
+  const RangeGrid g = brickRangeGrid(view);
+  EXPECT_EQ(g.cellVoxels, 1 << Log2);
+  for (int z = 0; z < dims.z; ++z)
+    for (int y = 0; y < dims.y; ++y)
+      for (int x = 0; x < dims.x; ++x) {
+        const std::size_t c =
+            (std::size_t(z >> Log2) * std::size_t(g.cells.y) + std::size_t(y >> Log2)) *
+                std::size_t(g.cells.x) +
+            std::size_t(x >> Log2);
+        ASSERT_LE(g.lo[c], ref.voxel(x, y, z));
+        ASSERT_GE(g.hi[c], ref.voxel(x, y, z));
+      }
+  // The full decode holds every voxel.
+  const Volume d = decodeBricks(view, ScalarType::Float32, {1, 1, 1});
+  ASSERT_EQ(d.dims, dims);
+  EXPECT_EQ(d.as<float>()[d.index(dims.x - 1, 0, dims.z - 1)],
+            ref.voxel(dims.x - 1, 0, dims.z - 1));
+}
+
+}  // namespace
+
+TEST(CachedBrickView, SamplesEqualTrilinearForEveryBrickSizeAndValueType) {
+  expectTrilinearEverywhere<1, std::uint8_t>({9, 6, 5}, 101);
+  expectTrilinearEverywhere<2, std::uint16_t>({13, 9, 17}, 102);
+  expectTrilinearEverywhere<3, float>({21, 16, 11}, 103);
+  expectTrilinearEverywhere<4, float>({33, 18, 20}, 104);
+}
+
+TEST(CachedBrickView, ABrickIsDecodedOnceWhileItStaysCached) {
+  int decodes = 0;
+  const auto view = makeView<3, float>({16, 16, 16}, 201, &decodes);
+  decltype(view)::RayCache cache;
+  for (int i = 0; i < 100; ++i) (void)view.sample(2.5f + 0.01f * float(i), 3.5f, 4.5f, cache);
+  EXPECT_EQ(decodes, 1);
+  // Another ray on the same thread finds the brick in the host cache.
+  decltype(view)::RayCache other;
+  (void)view.sample(5.5f, 5.5f, 5.5f, other);
+  EXPECT_EQ(decodes, 1);
+  // A cell across the corner of eight bricks decodes each of them once.
+  (void)view.sample(7.5f, 7.5f, 7.5f, other);
+  EXPECT_EQ(decodes, 8);
+  // A different volume (cacheId) never reads this one's bricks.
+  const auto second = makeView<3, float>({16, 16, 16}, 202, &decodes);
+  decltype(second)::RayCache c2;
+  (void)second.sample(2.5f, 3.5f, 4.5f, c2);
+  EXPECT_EQ(decodes, 9);
+}
+
+// The contract is checked at compile time; these pin what it accepts and refuses.
+struct NoNeighbour {  // lacks sampleNear
+  struct RayCache {};
+  int dimX = 0, dimY = 0, dimZ = 0;
+  float sample(float, float, float, RayCache&) const { return 0; }
+  float sample(float, float, float) const { return 0; }
+  float voxel(int, int, int) const { return 0; }
+};
+struct TraversalWithoutRegion {  // declares kTraversal but its cache lacks the region fields
+  static constexpr bool kTraversal = true;
+  struct RayCache {
+    float footprint = 0;
+    bool nearest = false;
+  };
+  int dimX = 0, dimY = 0, dimZ = 0;
+  float sample(float, float, float, RayCache&) const { return 0; }
+  float sampleNear(float, float, float, RayCache&) const { return 0; }
+  float sample(float, float, float) const { return 0; }
+  float voxel(int, int, int) const { return 0; }
+};
+static_assert(VolumeView<RawView<std::uint8_t>> && VolumeView<RawView<float>>);
+static_assert(VolumeView<VqView> && !TraversalView<VqView>);
+static_assert(VolumeView<SvmmView> && TraversalView<SvmmView>);
+static_assert(VolumeView<CachedBrickView<FormulaDecoder<3, float>>>);
+static_assert(!VolumeView<NoNeighbour>);
+static_assert(VolumeView<TraversalWithoutRegion> && !TraversalView<TraversalWithoutRegion>);
+static_assert(!BrickDecoder<int>);
