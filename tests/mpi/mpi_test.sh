@@ -287,8 +287,11 @@ case $scenario in
     # caches, byte for byte like one process; codecs with mip levels also with nearest sampling.
     n=$1
     "$voxwall" codecs --list > codecs.txt || fail "voxwall codecs --list"
-    [ -s codecs.txt ] || fail "no codecs listed"
-    while IFS=$'\t' read -r name _id levels options; do
+    # Read the list first: mpirun forwards its stdin to rank 0 and would eat the rest of it.
+    mapfile -t codec_lines < codecs.txt
+    [ ${#codec_lines[@]} -gt 0 ] || fail "no codecs listed"
+    for line in "${codec_lines[@]}"; do
+      IFS=$'\t' read -r name _id levels options <<< "$line"
       # shellcheck disable=SC2086
       "$voxwall" compress generated:shepp-logan:48 --codec "$name" $options -o "$name.vwz" -q ||
         fail "compress --codec $name $options"
@@ -305,7 +308,7 @@ case $scenario in
         same_frames "nref-$name" "nmulti-$name"
       fi
       echo "$name: $n ranks equal one process"
-    done < codecs.txt
+    done
     ;;
   resume)
     n=$1
