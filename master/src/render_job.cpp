@@ -314,177 +314,235 @@ std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest
 
 std::vector<bool> prepareOutput(const JobSettings& job) { return prepareOutput(job, nullptr); }
 
+namespace {
+
+// Rank 0's side of the frame loop: every frame it decides the camera (the path plus what the wall
+// sent back), cuts the screen, broadcasts the task, renders its own part, checks and assembles
+// every rank's report, re-balances and hands the frame to the writer.
+class MasterLoop {
+ public:
+  MasterLoop(Communicator& comm, node::Backend& backend, const node::RenderVolume& volume,
+             const node::TransferFunction& tf, const node::RenderSettings& render,
+             const JobSettings& job)
+      : comm_(comm),
+        backend_(backend),
+        volume_(volume),
+        tf_(tf),
+        render_(render),
+        job_(job),
+        renderers_(renderingRanks(job, comm.size())),
+        slots_(int(renderers_.size())),
+        staticCut_(staticSlots(job, slots_)),
+        done_(prepareOutput(job, &manifest_)),
+        jobId_(newJobId()),
+        writer_(job.outDir, manifest_),
+        streamer_(makeStreamer(job, 0, comm.size())),
+        timeoutMs_(job.watchdogMs) {
+    if (job.balance == Balance::Dynamic)
+      balancer_.emplace(job.width, job.height, slots_, job.balancer);
+    if (job.stream) {
+      net::Hello hello;
+      hello.rank = 0, hello.rankCount = comm.size();
+      hello.wallId = job.stream->wallId, hello.token = job.stream->token;
+      hello.jobId = jobId_;
+      hello.nextFrame = std::uint64_t(std::find(done_.begin(), done_.end(), false) - done_.begin());
+      control_ = std::make_unique<net::ControlChannel>(job.stream->host, job.stream->port, hello);
+    }
+  }
+
+  bool done(int f) const { return done_[std::size_t(f)]; }
+
+  FrameSummary frame(int f) {
+    const auto frameStart = Clock::now();
+    FrameSummary s;
+    s.frame = f;
+    readWall(f, s);
+    s.rects = cut();
+    net::FrameTask t = task(f, s.rects);
+    auto taskBytes = net::encode(t);
+    comm_.broadcast(taskBytes, timeoutMs_);
+    auto own = renderRects(0, backend_, volume_, tf_, render_, job_, streamer_.get(), plan_, t,
+                           t.rects[0]);
+    const auto gatherStart = Clock::now();
+    // Rank 0 keeps its own report as it is; only the others' travel.
+    auto reportBytes = comm_.gather({}, timeoutMs_);
+    s.gatherSeconds = since(gatherStart);
+    const auto assembleStart = Clock::now();
+    node::Image image = job_.outDir.empty() ? node::Image() : node::Image(job_.width, job_.height);
+    std::vector<node::CostGrid> grids(static_cast<std::size_t>(slots_));
+    for (int i = 0; i < slots_; ++i) {
+      const int r = renderers_[std::size_t(i)];
+      const std::string source = "report of rank " + std::to_string(r);
+      auto report =
+          r == 0 ? std::move(own) : net::decodeRankReport(reportBytes[std::size_t(r)], t, source);
+      take(report, r, t, source, s, image);
+      grids[std::size_t(i)] = std::move(report.costs);
+    }
+    s.imbalance = imbalance(s.rankSeconds);
+    if (balancer_) {
+      balancer_->update(grids, s.rankSeconds);
+      s.recuts = balancer_->recuts();
+    }
+    s.assembleSeconds = since(assembleStart);
+    if (!job_.outDir.empty()) {
+      s.path = framePath(job_, f);
+      s.writeWaitSeconds = writer_.push(std::move(image), s.path, job_.background);
+    }
+    s.frameSeconds = since(frameStart);
+    slowestFrame_ = std::max(slowestFrame_, s.frameSeconds);
+    timeoutMs_ = std::max(job_.watchdogMs, int(std::min(4e3 * slowestFrame_, 3.6e6)));
+    return s;
+  }
+
+  // Stop: every rank answers with its memory and leaves the loop.
+  void finish(JobSummary& summary) {
+    net::FrameTask stop;
+    stop.frame = std::uint32_t(job_.frames);
+    stop.stop = true;
+    stop.screenWidth = job_.width, stop.screenHeight = job_.height;
+    stop.cellPixels = job_.balancer.cellPixels;
+    stop.rects.resize(std::size_t(comm_.size()));
+    stop.watchdogMs = std::uint32_t(timeoutMs_);
+    auto stopBytes = net::encode(stop);
+    comm_.broadcast(stopBytes, timeoutMs_);
+    const auto ownLast =
+        renderRects(0, backend_, volume_, tf_, render_, job_, nullptr, plan_, stop, {});
+    const auto finals = comm_.gather({}, timeoutMs_);
+    for (int r = 0; r < comm_.size(); ++r) {
+      const auto rep = r == 0 ? ownLast
+                              : net::decodeRankReport(finals[std::size_t(r)], stop,
+                                                      "final report of rank " + std::to_string(r));
+      summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
+    }
+    writer_.finish();
+    if (control_) summary.sinkNotes = control_->drainNotes();
+    summary.writeSeconds = writer_.totalWriteSeconds();
+  }
+
+ private:
+  // What the wall sent since the last frame: its notes and camera commands. A sink that refused
+  // the job (token, wall, version, a newer job) shows nothing of it: the job ends.
+  void readWall(int f, FrameSummary& s) {
+    if (!control_) return;
+    control_->setNextFrame(std::uint64_t(f));
+    if (const auto why = control_->refused(); !why.empty())
+      throw net::SinkRefused("wall sink " + why);
+    s.sinkNotes = control_->drainNotes();
+    for (const auto& c : control_->drain()) {
+      ++s.controls;
+      switch (c.command) {
+        case net::ControlCommand::Rotate:
+          offset_.azimuthDeg += c.a, offset_.elevationDeg += c.b;
+          break;
+        case net::ControlCommand::Zoom:
+          offset_.zoom = std::clamp(offset_.zoom / c.a, 0.05, 20.0);
+          break;
+        case net::ControlCommand::Pan:
+          offset_.panX += c.a, offset_.panY += c.b;
+          break;
+        case net::ControlCommand::Reset:
+          offset_ = {};
+          break;
+      }
+    }
+  }
+
+  // Each rendering slot's rectangles this frame.
+  std::vector<std::vector<node::Rect>> cut() const {
+    if (!balancer_) return staticCut_;
+    std::vector<std::vector<node::Rect>> slotRects(std::size_t(slots_));
+    for (int i = 0; i < slots_; ++i) slotRects[std::size_t(i)] = {balancer_->cut()[std::size_t(i)]};
+    return slotRects;
+  }
+
+  net::FrameTask task(int f, const std::vector<std::vector<node::Rect>>& slotRects) const {
+    net::FrameTask t;
+    t.frame = std::uint32_t(f);
+    t.decidedUnixMicros = net::unixMicrosNow();
+    t.jobId = jobId_;
+    t.camera =
+        node::orbitCamera(offset_.apply(job_.path.at(f)), node::boundingRadius(volume_.info()));
+    t.screenWidth = job_.width, t.screenHeight = job_.height;
+    t.cellPixels = job_.balancer.cellPixels;
+    t.rects = byRank(slotRects, renderers_, comm_.size());
+    t.watchdogMs = std::uint32_t(timeoutMs_);
+    return t;
+  }
+
+  // Checks rank r's report against the task (every assigned rectangle must come back, or the
+  // frame would be shown incomplete), pastes its pixels and adds it to the frame's summary.
+  void take(const net::RankReport& report, int r, const net::FrameTask& t,
+            const std::string& source, FrameSummary& s, node::Image& image) const {
+    const auto& asked = t.rects[std::size_t(r)];
+    if (report.rank != r)
+      throw FormatError(source, "claims to be rank " + std::to_string(report.rank));
+    if (report.tiles.size() != asked.size())
+      throw FormatError(source, "has " + std::to_string(report.tiles.size()) + " tiles, " +
+                                    std::to_string(asked.size()) + " were asked for");
+    if (report.pixels != !job_.outDir.empty())
+      throw FormatError(source, report.pixels ? "sent pixels nobody asked for"
+                                              : "sent no pixels, the frame is to be written");
+    for (std::size_t i = 0; i < report.tiles.size(); ++i) {
+      if (!(report.tiles[i].rect == asked[i]))
+        throw FormatError(source, "sent a tile that was not asked for");
+      if (report.pixels) image.paste(report.tiles[i].image, report.tiles[i].rect);
+    }
+    if (report.streamRefused)
+      throw net::SinkRefused("rank " + std::to_string(r) + ": " + report.streamError);
+    s.streamedRanks += report.streamed;
+    if (!report.streamed && s.streamError.empty() && job_.stream && !report.tiles.empty())
+      s.streamError = "rank " + std::to_string(r) + ": " + report.streamError;
+    s.encodeSeconds = std::max(s.encodeSeconds, report.encodeSeconds);
+    s.streamedBytes += report.streamedBytes;
+    s.ranks.push_back(r);
+    s.rankSeconds.push_back(report.renderSeconds);
+    s.samples += report.samples;
+    s.renderSeconds = std::max(s.renderSeconds, report.renderSeconds);
+  }
+
+  Communicator& comm_;
+  node::Backend& backend_;
+  const node::RenderVolume& volume_;
+  const node::TransferFunction& tf_;
+  const node::RenderSettings& render_;
+  const JobSettings& job_;
+  const std::vector<int> renderers_;
+  const int slots_;
+  const std::vector<std::vector<node::Rect>> staticCut_;
+  nlohmann::json manifest_;
+  const std::vector<bool> done_;
+  const std::uint64_t jobId_;
+  FrameWriter writer_;
+  const std::unique_ptr<net::TileStreamer> streamer_;
+  std::optional<LoadBalancer> balancer_;
+  std::optional<node::FramePlan> plan_;
+  std::unique_ptr<net::ControlChannel> control_;
+  CameraOffset offset_;
+  double slowestFrame_ = 0;
+  int timeoutMs_;
+};
+
+}  // namespace
+
 JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
                         const node::RenderVolume& volume, const node::TransferFunction& tf,
                         const node::RenderSettings& render, const JobSettings& job,
                         const std::function<void(const FrameSummary&)>& onFrame) {
   if (job.frames < 1) throw std::invalid_argument("--frames must be at least 1");
   if (comm.rank() != 0) return runWorker(comm, backend, volume, tf, render, job);
-
   const auto jobStart = Clock::now();
-  const auto renderers = renderingRanks(job, comm.size());
-  const int slots = int(renderers.size());
-  std::optional<LoadBalancer> balancer;
-  if (job.balance == Balance::Dynamic) balancer.emplace(job.width, job.height, slots, job.balancer);
-  const auto staticCut = staticSlots(job, slots);
-  nlohmann::json manifest;
-  const auto done = prepareOutput(job, &manifest);
-  const std::uint64_t jobId = newJobId();
-
+  MasterLoop loop(comm, backend, volume, tf, render, job);
   JobSummary summary;
-  FrameWriter writer(job.outDir, manifest);
-  const auto streamer = makeStreamer(job, 0, comm.size());
-  std::optional<node::FramePlan> plan;
-  std::unique_ptr<net::ControlChannel> control;
-  if (job.stream) {
-    net::Hello hello;
-    hello.rank = 0, hello.rankCount = comm.size();
-    hello.wallId = job.stream->wallId, hello.token = job.stream->token;
-    hello.jobId = jobId;
-    hello.nextFrame = std::uint64_t(std::find(done.begin(), done.end(), false) - done.begin());
-    control = std::make_unique<net::ControlChannel>(job.stream->host, job.stream->port, hello);
-  }
-  CameraOffset offset;
-  node::Image frameImage;
-  double slowestFrame = 0;
-  int timeoutMs = job.watchdogMs;
   for (int f = 0; f < job.frames; ++f) {
-    if (done[std::size_t(f)]) {
+    if (loop.done(f)) {
       ++summary.framesSkipped;
       continue;
     }
-    const auto frameStart = Clock::now();
-    int controls = 0;
-    std::vector<std::string> sinkNotes;
-    if (control) {
-      control->setNextFrame(std::uint64_t(f));
-      // A sink that refused the job (token, wall, version, a newer job) shows nothing of it.
-      if (const auto why = control->refused(); !why.empty())
-        throw net::SinkRefused("wall sink " + why);
-      sinkNotes = control->drainNotes();
-    }
-    if (control)
-      for (const auto& c : control->drain()) {
-        ++controls;
-        switch (c.command) {
-          case net::ControlCommand::Rotate:
-            offset.azimuthDeg += c.a, offset.elevationDeg += c.b;
-            break;
-          case net::ControlCommand::Zoom:
-            offset.zoom = std::clamp(offset.zoom / c.a, 0.05, 20.0);
-            break;
-          case net::ControlCommand::Pan:
-            offset.panX += c.a, offset.panY += c.b;
-            break;
-          case net::ControlCommand::Reset:
-            offset = {};
-            break;
-        }
-      }
-    net::FrameTask task;
-    task.frame = std::uint32_t(f);
-    task.decidedUnixMicros = net::unixMicrosNow();
-    task.jobId = jobId;
-    task.camera =
-        node::orbitCamera(offset.apply(job.path.at(f)), node::boundingRadius(volume.info()));
-    task.screenWidth = job.width, task.screenHeight = job.height;
-    task.cellPixels = job.balancer.cellPixels;
-    std::vector<std::vector<node::Rect>> slotRects = staticCut;
-    if (balancer) {
-      slotRects.assign(std::size_t(slots), {});
-      for (int i = 0; i < slots; ++i) slotRects[std::size_t(i)] = {balancer->cut()[std::size_t(i)]};
-    }
-    task.rects = byRank(slotRects, renderers, comm.size());
-    task.watchdogMs = std::uint32_t(timeoutMs);
-    auto taskBytes = net::encode(task);
-    comm.broadcast(taskBytes, timeoutMs);
-
-    auto own =
-        renderRects(0, backend, volume, tf, render, job, streamer.get(), plan, task, task.rects[0]);
-    const auto gatherStart = Clock::now();
-    // Rank 0 keeps its own report as it is; only the others' travel.
-    auto reportBytes = comm.gather({}, timeoutMs);
-    FrameSummary s;
-    s.frame = f;
-    s.controls = controls;
-    s.sinkNotes = std::move(sinkNotes);
-    s.gatherSeconds = since(gatherStart);
-    const auto assembleStart = Clock::now();
-
-    frameImage = job.outDir.empty() ? node::Image() : node::Image(job.width, job.height);
-    std::vector<node::CostGrid> grids(static_cast<std::size_t>(slots));
-    for (int i = 0; i < slots; ++i) {
-      const int r = renderers[std::size_t(i)];
-      const std::string source = "report of rank " + std::to_string(r);
-      auto report = r == 0 ? std::move(own)
-                           : net::decodeRankReport(reportBytes[std::size_t(r)], task, source);
-      if (report.rank != r)
-        throw FormatError(source, "claims to be rank " + std::to_string(report.rank));
-      // Every assigned rectangle must come back, or the frame would be shown incomplete.
-      if (report.tiles.size() != task.rects[std::size_t(r)].size())
-        throw FormatError(source, "has " + std::to_string(report.tiles.size()) + " tiles, " +
-                                      std::to_string(task.rects[std::size_t(r)].size()) +
-                                      " were asked for");
-      if (report.pixels != !job.outDir.empty())
-        throw FormatError(source, report.pixels ? "sent pixels nobody asked for"
-                                                : "sent no pixels, the frame is to be written");
-      for (std::size_t t = 0; t < report.tiles.size(); ++t) {
-        if (!(report.tiles[t].rect == task.rects[std::size_t(r)][t]))
-          throw FormatError(source, "sent a tile that was not asked for");
-        if (report.pixels) frameImage.paste(report.tiles[t].image, report.tiles[t].rect);
-      }
-      if (report.streamRefused)
-        throw net::SinkRefused("rank " + std::to_string(r) + ": " + report.streamError);
-      s.streamedRanks += report.streamed;
-      if (!report.streamed && s.streamError.empty() && job.stream && !report.tiles.empty())
-        s.streamError = "rank " + std::to_string(r) + ": " + report.streamError;
-      s.encodeSeconds = std::max(s.encodeSeconds, report.encodeSeconds);
-      s.streamedBytes += report.streamedBytes;
-      s.ranks.push_back(r);
-      s.rankSeconds.push_back(report.renderSeconds);
-      s.samples += report.samples;
-      s.renderSeconds = std::max(s.renderSeconds, report.renderSeconds);
-      grids[std::size_t(i)] = std::move(report.costs);
-    }
-    s.rects = slotRects;
-    s.imbalance = imbalance(s.rankSeconds);
-    if (balancer) {
-      balancer->update(grids, s.rankSeconds);
-      s.recuts = balancer->recuts();
-    }
-    s.assembleSeconds = since(assembleStart);
-    if (!job.outDir.empty()) {
-      s.path = framePath(job, f);
-      s.writeWaitSeconds = writer.push(std::move(frameImage), s.path, job.background);
-    }
-    s.frameSeconds = since(frameStart);
-    slowestFrame = std::max(slowestFrame, s.frameSeconds);
-    timeoutMs = std::max(job.watchdogMs, int(std::min(4e3 * slowestFrame, 3.6e6)));
+    const FrameSummary s = loop.frame(f);
     ++summary.framesRendered;
     if (onFrame) onFrame(s);
   }
-
-  // Stop: every rank answers with its memory and leaves the loop.
-  net::FrameTask stop;
-  stop.frame = std::uint32_t(job.frames);
-  stop.stop = true;
-  stop.screenWidth = job.width, stop.screenHeight = job.height;
-  stop.cellPixels = job.balancer.cellPixels;
-  stop.rects.resize(std::size_t(comm.size()));
-  stop.watchdogMs = std::uint32_t(timeoutMs);
-  auto stopBytes = net::encode(stop);
-  comm.broadcast(stopBytes, timeoutMs);
-  const auto ownLast = renderRects(0, backend, volume, tf, render, job, nullptr, plan, stop, {});
-  const auto finals = comm.gather({}, timeoutMs);
-  for (int r = 0; r < comm.size(); ++r) {
-    const auto rep = r == 0 ? ownLast
-                            : net::decodeRankReport(finals[std::size_t(r)], stop,
-                                                    "final report of rank " + std::to_string(r));
-    summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
-  }
-  writer.finish();
-  if (control) summary.sinkNotes = control->drainNotes();
-  summary.writeSeconds = writer.totalWriteSeconds();
+  loop.finish(summary);
   summary.seconds = since(jobStart);
   return summary;
 }

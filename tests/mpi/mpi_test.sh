@@ -357,17 +357,35 @@ case $scenario in
     grep -q "rank 1 (.*) holds a different volume" err.txt || { cat err.txt; fail "no message"; }
     ;;
   stall)
+    # The last rank stops answering mid-job, as a hung rank would: it is stopped (SIGSTOP) once
+    # the job has rendered a frame. The watchdog on rank 0 must name it and end the job.
     n=$1
+    victim_rank=$((n - 1))
     start=$(date +%s)
-    run "$n" render vol.vwz --size 64x48 --frames 6 --no-write --watchdog 2 \
-      --test-stall-rank $((n - 1)) --test-stall-call 1 > out.txt 2> err.txt
+    run "$n" render vol.vwz --size 64x48 --frames 100000 --no-write --watchdog 2 --threads 1 \
+      > out.txt 2> err.txt &
+    job=$!
+    for _ in $(seq 300); do grep -q '^frame 2/' out.txt && break; sleep 0.1; done
+    grep -q '^frame 2/' out.txt || { cat err.txt; fail "the job did not start rendering"; }
+    victim=
+    for p in $(descendants "$job"); do
+      if tr '\0' '\n' < "/proc/$p/environ" 2> /dev/null |
+        grep -qx "OMPI_COMM_WORLD_RANK=$victim_rank"; then
+        victim=$p
+        break
+      fi
+    done
+    [ -n "$victim" ] || fail "found no process of rank $victim_rank"
+    kill -STOP "$victim"
+    wait "$job"
     status=$?
+    kill -KILL "$victim" 2> /dev/null
     elapsed=$(($(date +%s) - start))
     [ "$status" -ne 0 ] || fail "a stalled rank went unnoticed"
     [ "$status" -ne 124 ] && [ "$status" -ne 137 ] || fail "the job hung until the test's timeout"
-    grep -q "watchdog: rank $((n - 1)) did not report" err.txt || { cat err.txt; fail "the watchdog did not name rank $((n - 1))"; }
+    grep -q "watchdog: rank $victim_rank did not report" err.txt || { cat err.txt; fail "the watchdog did not name rank $victim_rank"; }
     [ "$elapsed" -lt 60 ] || fail "took $elapsed s to notice"
-    echo "stalled rank $((n - 1)) named after $elapsed s"
+    echo "stalled rank $victim_rank named after $elapsed s"
     ;;
   dry-run)
     n=$1

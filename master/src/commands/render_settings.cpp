@@ -1,0 +1,380 @@
+#include "render_settings.hpp"
+
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/wall.hpp>
+
+namespace voxwall::cli {
+
+std::optional<glm::dvec3> parseBackground(const std::string& text) {
+  if (text == "none" || text == "transparent") return std::nullopt;
+  if (text == "black") return glm::dvec3(0.0);
+  if (text == "white") return glm::dvec3(1.0);
+  const auto v = parseNumbers(text, "--background");
+  if (v.size() != 3 || v[0] < 0 || v[0] > 1 || v[1] < 0 || v[1] > 1 || v[2] < 0 || v[2] > 1)
+    throw std::invalid_argument("--background: expected none, black, white or R,G,B in [0, 1]");
+  return glm::dvec3(v[0], v[1], v[2]);
+}
+
+std::uint64_t parseBytes(const std::string& text, const std::string& option) {
+  std::size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  std::string unit = text.substr(used);
+  if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
+  if (!unit.empty() && unit.back() == 'i') unit.pop_back();
+  const std::string units = "KMGT";
+  double scale = 1;
+  if (unit.size() == 1 && units.find(char(std::toupper(unit[0]))) != std::string::npos)
+    scale = std::pow(1024.0, double(units.find(char(std::toupper(unit[0]))) + 1));
+  else if (!unit.empty())
+    used = 0;
+  if (used == 0 || !(value > 0) || !std::isfinite(value * scale))
+    throw std::invalid_argument(option + ": expected a size such as 512M, 2G or 1.5GiB");
+  return std::uint64_t(value * scale);
+}
+
+// Memory a rank needs: the mapped volume, its frame buffers (the whole screen for a dynamic cut,
+// which may give one rank nearly everything), and on rank 0 the assembled frame, the reports it
+// receives and the writer's float copy.
+std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,
+                                std::uint64_t volumeBytes, std::uint64_t baseBytes) {
+  const auto rects = master::firstFrameRects(job, ranks);
+  std::uint64_t pixels = 0;
+  if (job.balance == master::Balance::Dynamic && !rects[std::size_t(rank)].empty())
+    pixels = std::uint64_t(job.width) * std::uint64_t(job.height);
+  else
+    for (const auto& r : rects[std::size_t(rank)]) pixels += std::uint64_t(r.area());
+  const std::uint64_t screen = std::uint64_t(job.width) * std::uint64_t(job.height);
+  const std::uint64_t cells =
+      std::uint64_t((job.width + job.balancer.cellPixels - 1) / job.balancer.cellPixels) *
+      std::uint64_t((job.height + job.balancer.cellPixels - 1) / job.balancer.cellPixels);
+  std::uint64_t bytes = baseBytes + volumeBytes + pixels * 8 + cells * 16 + (1u << 20);
+  if (rank == 0) bytes += screen * (4 + 4 + 16 + 8) + std::uint64_t(ranks) * cells * 16;
+  return bytes;
+}
+
+std::string rectText(const node::Rect& r) {
+  return std::to_string(r.width) + "x" + std::to_string(r.height) + "+" + std::to_string(r.x) +
+         "+" + std::to_string(r.y);
+}
+
+std::string rectList(const std::vector<node::Rect>& rects) {
+  std::string list;
+  for (const auto& rect : rects) {
+    list += ' ';
+    list += rectText(rect);
+  }
+  return list;
+}
+
+namespace {
+
+// --wall or --size: the virtual screen.
+std::optional<walls::Wall> screen(const RenderOptions& o, master::JobSettings& job) {
+  std::optional<walls::Wall> wall;
+  if (!o.wall.empty()) {
+    if (o.sizeGiven)
+      throw std::invalid_argument("--size and --wall both set the screen: give one of them");
+    wall = walls::loadWall(o.wall);
+    job.width = wall->width, job.height = wall->height;
+  } else {
+    std::tie(job.width, job.height) = parseSize(o.size, "--size");
+  }
+  if (job.width > 65536 || job.height > 65536)
+    throw std::invalid_argument("--size: at most 65536 pixels per side");
+  return wall;
+}
+
+// --sink and how tiles travel to it.
+std::optional<master::StreamSettings> streamSettings(const RenderOptions& o,
+                                                     const std::optional<walls::Wall>& wall) {
+  if (o.sink.empty()) {
+    if (!o.token.empty()) throw std::invalid_argument("--token goes with --sink");
+    return std::nullopt;
+  }
+  if (!wall) throw std::invalid_argument("--sink needs --wall: the same wall file the sink shows");
+  master::StreamSettings st;
+  std::tie(st.host, st.port) = net::parseEndpoint(o.sink, "--sink");
+  st.token = o.token;
+  st.wallId = wall->id;
+  st.background = wall->background;
+  if (o.tileCodec == "jpeg")
+    st.codec.codec = net::TileCodec::Jpeg;
+  else if (o.tileCodec == "raw")
+    st.codec.codec = net::TileCodec::Raw;
+  else if (o.tileCodec == "deflate")
+    st.codec.codec = net::TileCodec::Deflate;
+  else
+    throw std::invalid_argument("--tile-codec: expected jpeg, raw or deflate");
+  if (o.jpegQuality < 1 || o.jpegQuality > 100)
+    throw std::invalid_argument("--jpeg-quality must be in [1, 100]");
+  st.codec.jpegQuality = o.jpegQuality;
+  if (o.subsampling == "444")
+    st.codec.subsampling = net::Subsampling::S444;
+  else if (o.subsampling == "422")
+    st.codec.subsampling = net::Subsampling::S422;
+  else if (o.subsampling == "420")
+    st.codec.subsampling = net::Subsampling::S420;
+  else
+    throw std::invalid_argument("--subsampling: expected 444, 422 or 420");
+  return st;
+}
+
+// --camera, --fov, --pan, --path and --frames: the camera of every frame.
+master::CameraPath cameraPath(const RenderOptions& o) {
+  const auto cam = parseNumbers(o.camera, "--camera");
+  if (cam.size() < 2 || cam.size() > 3)
+    throw std::invalid_argument("--camera: expected AZIMUTH,ELEVATION[,DISTANCE]");
+  node::Orbit orbit;
+  orbit.azimuthDeg = cam[0];
+  orbit.elevationDeg = cam[1];
+  if (cam.size() == 3) orbit.distance = cam[2];
+  if (!(orbit.distance > 0)) throw std::invalid_argument("--camera: distance must be positive");
+  if (!(o.fov > 0 && o.fov < 180)) throw std::invalid_argument("--fov must be in (0, 180) degrees");
+  orbit.fovYDeg = o.fov;
+  if (!o.pan.empty()) {
+    const auto pan = parseNumbers(o.pan, "--pan");
+    if (pan.size() != 2) throw std::invalid_argument("--pan: expected X,Y in bounding radii");
+    orbit.panX = pan[0], orbit.panY = pan[1];
+  }
+  if (o.frames < 1) throw std::invalid_argument("--frames must be at least 1");
+  if (o.path == "orbit")
+    return master::CameraPath::orbit(orbit, o.orbitDeg != 0 ? o.orbitDeg : 360.0 / o.frames);
+  if (o.path == "orbit-zoom") {
+    const int orbitFrames = std::max(1, o.frames / 2);
+    return master::CameraPath::orbitThenZoom(orbit, orbitFrames, o.frames - orbitFrames, o.zoomTo);
+  }
+  return master::CameraPath::fromJsonFile(o.path);
+}
+
+// --balance, --tiles, --master-only, --watchdog, --cost-cell: how the screen is cut.
+void cutSettings(const RenderOptions& o, master::JobSettings& job) {
+  if (o.balance != "static" && o.balance != "dynamic")
+    throw std::invalid_argument("--balance: expected static or dynamic");
+  job.balance = o.balance == "static" ? master::Balance::Static : master::Balance::Dynamic;
+  if (o.tiles != "1x1") {
+    if (o.balanceGiven && job.balance == master::Balance::Dynamic)
+      throw std::invalid_argument(
+          "--tiles cuts the screen statically: it cannot go with --balance dynamic");
+    job.balance = master::Balance::Static;
+    std::tie(job.staticTilesX, job.staticTilesY) = parseSize(o.tiles, "--tiles");
+  }
+  job.masterRenders = !o.masterOnly;
+  if (!(o.watchdogSeconds >= 1 && o.watchdogSeconds <= 86400))
+    throw std::invalid_argument("--watchdog must be in [1, 86400] seconds");
+  job.watchdogMs = int(o.watchdogSeconds * 1000);
+  if (o.costCell < 4 || o.costCell > 1024)
+    throw std::invalid_argument("--cost-cell must be in [4, 1024] pixels");
+  job.balancer.cellPixels = o.costCell;
+}
+
+}  // namespace
+
+master::JobSettings jobSettings(const RenderOptions& o) {
+  master::JobSettings job;
+  const auto wall = screen(o, job);
+  job.stream = streamSettings(o, wall);
+  job.path = cameraPath(o);
+  job.frames = o.frames;
+  // Streaming to a sink writes no frames on rank 0 unless --out asks for them too.
+  job.outDir = o.noWrite || (job.stream && !o.outGiven) ? "" : o.out;
+  if (o.format != "png" && o.format != "exr")
+    throw std::invalid_argument("--format: expected png or exr");
+  job.format = o.format;
+  job.background = parseBackground(o.background);
+  job.resume = o.resume;
+  if (o.resume && o.noWrite)
+    throw std::invalid_argument("--resume needs frames on disk, not --no-write");
+  cutSettings(o, job);
+  return job;
+}
+
+node::RenderSettings renderSettings(const RenderOptions& o) {
+  node::RenderSettings render;
+  if (!(o.step > 0 && o.step <= 8)) throw std::invalid_argument("--step must be in (0, 8] voxels");
+  render.stepVoxels = o.step;
+  render.shading = o.shading;
+  render.emptySpaceSkipping = !o.noSkip;
+  if (o.sampling != "trilinear" && o.sampling != "nearest")
+    throw std::invalid_argument("--sampling: expected trilinear or nearest");
+  render.nearest = o.sampling == "nearest";
+  render.levelOfDetail = o.lod;
+  if (o.backend != "cpu" && o.backend != "cuda")
+    throw std::invalid_argument("--backend: expected cpu or cuda");
+  return render;
+}
+
+std::string manifest(const RenderOptions& o, const master::JobSettings& job,
+                     const node::RenderSettings& render, std::uint64_t fingerprint) {
+  char hex[32];
+  std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)fingerprint);
+  nlohmann::json m;
+  m["voxwall_job"] = 1;
+  m["volume_fingerprint"] = hex;
+  m["size"] = {job.width, job.height};
+  m["wall"] = o.wall;
+  m["frames"] = job.frames;
+  m["path"] = o.path;
+  m["camera"] = o.camera;
+  m["fov"] = o.fov;
+  m["pan"] = o.pan;
+  m["orbit_deg"] = o.orbitDeg;
+  m["zoom_to"] = o.zoomTo;
+  m["tf"] = o.tf;
+  m["tf_range"] = o.tfRange;
+  m["step"] = render.stepVoxels;
+  m["shading"] = render.shading;
+  if (render.nearest) m["sampling"] = "nearest";
+  if (render.levelOfDetail) m["lod"] = true;
+  m["format"] = job.format;
+  m["background"] = o.background;
+  m["backend"] = o.backend;  // CUDA and CPU may differ in the last bit of a channel
+  // Files named by the settings count by their contents: an edited file is another render.
+  for (const auto& [key, file] : {std::pair{"path_file", o.path}, std::pair{"tf_file", o.tf}}) {
+    if (!std::filesystem::is_regular_file(file)) continue;
+    std::ifstream in(file, std::ios::binary);
+    m[key] = std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  return m.dump();
+}
+
+namespace {
+
+// The volume, the screen, and streaming to a wall sink.
+void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
+  cmd.add_option("input", o.input,
+                 "A .vwz file or any volume input (.nii/.nii.gz, .nrrd/.nhdr, .raw with --dims, "
+                 ".tif, a slice directory, generated:KIND:SIZE). Default: the MRI template from "
+                 "Debian's mricron-data if installed, else a generated Shepp-Logan phantom");
+  h.size = cmd.add_option("--size", o.size, "Virtual screen size in pixels, WIDTHxHEIGHT")
+               ->capture_default_str();
+  cmd.add_option("--wall", o.wall,
+                 "Render the virtual screen of this wall (walls/*.json or a Tide configuration; "
+                 "bezel gaps included) instead of --size");
+  cmd.add_option("--sink", o.sink,
+                 "Stream every rank's tiles to the wall sink at HOST:PORT (voxwall sink); needs "
+                 "--wall. Frames are then written by rank 0 only if --out is given too");
+  cmd.add_option("--token", o.token, "Token the sink asks for");
+  cmd.add_option("--tile-codec", o.tileCodec,
+                 "How tiles travel to the sink: jpeg, raw (exact) or deflate (exact, zlib)")
+      ->capture_default_str();
+  cmd.add_option("--jpeg-quality", o.jpegQuality, "JPEG quality of streamed tiles, 1-100")
+      ->capture_default_str();
+  cmd.add_option("--subsampling", o.subsampling, "JPEG chroma subsampling: 444, 422 or 420")
+      ->capture_default_str();
+}
+
+// How the screen is cut among the ranks, and the job's limits.
+void addCutOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
+  cmd.add_option("--tiles", o.tiles,
+                 "Static cut: a grid of COLSxROWS tiles dealt to the ranks in turn (implies "
+                 "--balance static)")
+      ->capture_default_str();
+  h.balance = cmd.add_option("--balance", o.balance,
+                             "How the screen is cut among the ranks: static (equal strips, "
+                             "or --tiles) or dynamic (re-cut every frame from the measured "
+                             "costs of the last one)")
+                  ->capture_default_str();
+  cmd.add_flag("--master-only", o.masterOnly,
+               "Rank 0 only assembles and writes frames; the other ranks render");
+  cmd.add_flag("--dry-run", o.dryRun,
+               "Load the volume on every rank, print the rank -> tile map, each rank's host and "
+               "the memory it needs, then exit");
+  cmd.add_option("--memory-budget", o.memoryBudget,
+                 "Refuse to start when a rank would need more memory than this (e.g. 2G, 512M)");
+  cmd.add_option("--watchdog", o.watchdogSeconds,
+                 "Seconds any rank waits for another before the job is ended with a message "
+                 "naming it (grows to 4x the slowest frame)")
+      ->capture_default_str();
+  cmd.add_option("--cost-cell", o.costCell,
+                 "Cell size in pixels of the cost grid the dynamic balancer measures")
+      ->capture_default_str();
+}
+
+// The camera path and the frames.
+void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
+  cmd.add_option("--path", o.path,
+                 "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), "
+                 "orbit-zoom (a turn in half the frames, then a zoom to --zoom-to), or a key-frame "
+                 "JSON file ({\"keyframes\": [{\"frame\": 0, \"azimuth\": 30, \"elevation\": "
+                 "20, \"distance\": 2.6, \"fov\": 30, \"pan_x\": 0, \"pan_y\": 0}, ...]})")
+      ->capture_default_str();
+  cmd.add_option("--zoom-to", o.zoomTo, "orbit-zoom: final camera distance in bounding radii")
+      ->capture_default_str();
+  cmd.add_option("--camera", o.camera,
+                 "Orbit camera of frame 0: AZIMUTH,ELEVATION[,DISTANCE] in degrees around +z and "
+                 "multiples of the volume's bounding radius")
+      ->capture_default_str();
+  cmd.add_option("--pan", o.pan,
+                 "Slide the camera across the view by X,Y bounding radii (the volume moves the "
+                 "other way on the screen)");
+  cmd.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str();
+  cmd.add_option("--frames", o.frames, "Number of frames")->capture_default_str();
+  cmd.add_option("--orbit-deg", o.orbitDeg,
+                 "Azimuth step per frame in degrees (default: one full turn over --frames)");
+}
+
+// Transfer function, sampling and the backend.
+void addLookOptions(CLI::App& cmd, RenderOptions& o) {
+  cmd.add_option("--tf", o.tf,
+                 "Transfer function: a built-in preset (mri, grey, ct-bone, ct-soft, hot, "
+                 "cool-warm; stretched over the data range) or a ParaView preset .json (RGBPoints "
+                 "and Points in data values)")
+      ->capture_default_str();
+  cmd.add_option("--tf-range", o.tfRange, "Stretch the transfer function over data values LO,HI");
+  cmd.add_option("--step", o.step, "Ray step in voxels (of the smallest spacing)")
+      ->capture_default_str();
+  cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
+  cmd.add_flag("--no-skip", o.noSkip, "Disable empty-space skipping (for measurements)");
+  cmd.add_option("--sampling", o.sampling,
+                 "svmm volumes: trilinear, or nearest (the discrete voxels of the SVMM thesis)")
+      ->capture_default_str();
+  cmd.add_flag("--lod", o.lod,
+               "svmm volumes: sample coarser mip levels where a voxel is smaller than the "
+               "pixel's footprint");
+  cmd.add_option("--backend", o.backend, "cpu or cuda")->capture_default_str();
+  cmd.add_option("--threads", o.threads,
+                 "CPU backend threads per rank (0 = the host's cores shared by its ranks)")
+      ->capture_default_str();
+}
+
+// Frame files and what is printed.
+void addOutputOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
+  cmd.add_flag("--resume", o.resume,
+               "Skip frames already complete in --out (made with the same settings)");
+  h.out = cmd.add_option("--out", o.out, "Directory for frame_NNNNN.<format> files")
+              ->capture_default_str();
+  cmd.add_option("--format", o.format,
+                 "Frame file format: png (8-bit) or exr (half float, keeps alpha)")
+      ->capture_default_str();
+  cmd.add_option("--background", o.background,
+                 "Composite onto black, white, R,G,B in [0,1], or none (straight alpha in files)")
+      ->capture_default_str();
+  cmd.add_flag("--no-write", o.noWrite, "Render without writing frames (for timing)");
+  cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
+  cmd.add_flag("-v,--verbose", o.verbose, "Print every rank's rectangles every frame");
+}
+
+}  // namespace
+
+RenderOptionHandles addRenderOptions(CLI::App& cmd, RenderOptions& o) {
+  RenderOptionHandles h;
+  addScreenOptions(cmd, o, h);
+  addCutOptions(cmd, o, h);
+  addCameraOptions(cmd, o);
+  addLookOptions(cmd, o);
+  addOutputOptions(cmd, o, h);
+  o.raw.addTo(cmd);
+  return h;
+}
+
+}  // namespace voxwall::cli

@@ -1,0 +1,65 @@
+// `voxwall render`'s options and what they mean: the command line as a plain struct, and pure
+// functions from it to the job's and the renderer's settings (unit-tested in
+// tests/master/render_settings_test.cpp). The orchestration is in render.cpp.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+#include <voxwall/master/render_job.hpp>
+#include <voxwall/node/renderer.hpp>
+
+#include "../cli_common.hpp"
+
+namespace voxwall::cli {
+
+struct RenderOptions {
+  std::string input, size = "1920x1080", tf = "mri", tfRange, camera = "30,20,2.6", out = "frames";
+  std::string backend = "cpu", background = "black", format = "png", tiles = "1x1";
+  std::string path = "orbit", balance = "dynamic", memoryBudget, pan;
+  std::string sink, token, wall, subsampling = "420", tileCodec = "jpeg";
+  int jpegQuality = 90;
+  bool sizeGiven = false, outGiven = false;
+  double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
+  int frames = 1, threads = 0, costCell = 32;
+  std::string sampling = "trilinear";
+  bool lod = false;
+  bool shading = false, noSkip = false, noWrite = false, quiet = false, verbose = false;
+  bool balanceGiven = false, masterOnly = false, dryRun = false, resume = false;
+  RawInputOptions raw;
+};
+
+// Registers every render option with `cmd`; the callback must call noteGiven() before use.
+struct RenderOptionHandles {
+  CLI::Option *balance = nullptr, *size = nullptr, *out = nullptr;
+  void noteGiven(RenderOptions& o) const {
+    o.balanceGiven = balance->count() > 0;
+    o.sizeGiven = size->count() > 0;
+    o.outGiven = out->count() > 0;
+  }
+};
+RenderOptionHandles addRenderOptions(CLI::App& cmd, RenderOptions& o);
+
+// The job: screen (--size or --wall), sink, camera path, output, cut and watchdog. Reads the wall
+// and key-frame files it names; throws std::invalid_argument naming the option.
+master::JobSettings jobSettings(const RenderOptions& o);
+// The renderer: step, shading, skipping, sampling, level of detail (and checks --backend).
+node::RenderSettings renderSettings(const RenderOptions& o);
+
+// --background: none/transparent, black, white or R,G,B in [0, 1].
+std::optional<glm::dvec3> parseBackground(const std::string& text);
+// "512M", "2G", "1.5GiB", "4096" as bytes; throws std::invalid_argument naming `option`.
+std::uint64_t parseBytes(const std::string& text, const std::string& option);
+// Memory a rank needs for this job (docs/distributed.md).
+std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,
+                                std::uint64_t volumeBytes, std::uint64_t baseBytes);
+// "WxH+X+Y", and a list of them each after a space.
+std::string rectText(const node::Rect& r);
+std::string rectList(const std::vector<node::Rect>& rects);
+// The job manifest rank 0 stores with the frames (--resume compares it).
+std::string manifest(const RenderOptions& o, const master::JobSettings& job,
+                     const node::RenderSettings& render, std::uint64_t fingerprint);
+
+}  // namespace voxwall::cli

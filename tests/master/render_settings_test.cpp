@@ -1,0 +1,163 @@
+// `voxwall render`'s options to settings, without running anything: defaults, every option that
+// changes a setting, and the combinations that are refused with the option's name.
+#include "commands/render_settings.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+using namespace voxwall;
+using namespace voxwall::cli;
+
+namespace {
+
+// Expects std::invalid_argument whose message starts with `prefix`.
+template <class F>
+void expectRefused(F&& f, const std::string& prefix) {
+  try {
+    f();
+    ADD_FAILURE() << "accepted; expected: " << prefix;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(prefix, 0), 0u) << e.what();
+  }
+}
+
+}  // namespace
+
+TEST(RenderSettings, Defaults) {
+  const RenderOptions o;
+  const auto job = jobSettings(o);
+  EXPECT_EQ(job.width, 1920);
+  EXPECT_EQ(job.height, 1080);
+  EXPECT_EQ(job.frames, 1);
+  EXPECT_EQ(job.balance, master::Balance::Dynamic);
+  EXPECT_EQ(job.outDir, "frames");
+  EXPECT_EQ(job.watchdogMs, 120000);
+  EXPECT_TRUE(job.masterRenders);
+  EXPECT_FALSE(job.stream);
+  EXPECT_TRUE(job.background.has_value());
+  const auto render = renderSettings(o);
+  EXPECT_FLOAT_EQ(float(render.stepVoxels), 0.25f);
+  EXPECT_FALSE(render.nearest);
+  EXPECT_TRUE(render.emptySpaceSkipping);
+}
+
+TEST(RenderSettings, ScreenFromSizeOrWallNotBoth) {
+  RenderOptions o;
+  o.size = "640x480";
+  EXPECT_EQ(jobSettings(o).width, 640);
+  o.wall = std::string(VOXWALL_WALLS_DIR) + "/ci-2x2.json";
+  o.sizeGiven = true;
+  expectRefused([&] { (void)jobSettings(o); }, "--size and --wall both set the screen");
+  o.sizeGiven = false;
+  const auto job = jobSettings(o);
+  EXPECT_GT(job.width, 0);
+  EXPECT_NE(job.width, 640);
+  o.wall.clear();
+  o.size = "70000x10";
+  expectRefused([&] { (void)jobSettings(o); }, "--size: at most 65536");
+}
+
+TEST(RenderSettings, StreamingNeedsAWallAndWritesNoFramesUnlessAsked) {
+  RenderOptions o;
+  o.sink = "127.0.0.1:9";
+  expectRefused([&] { (void)jobSettings(o); }, "--sink needs --wall");
+  o.wall = std::string(VOXWALL_WALLS_DIR) + "/ci-2x2.json";
+  auto job = jobSettings(o);
+  ASSERT_TRUE(job.stream);
+  EXPECT_EQ(job.stream->port, 9);
+  EXPECT_EQ(job.outDir, "");
+  o.outGiven = true;
+  EXPECT_EQ(jobSettings(o).outDir, "frames");
+  o.tileCodec = "png";
+  expectRefused([&] { (void)jobSettings(o); }, "--tile-codec");
+  o.tileCodec = "jpeg";
+  o.subsampling = "411";
+  expectRefused([&] { (void)jobSettings(o); }, "--subsampling");
+  RenderOptions t;
+  t.token = "secret";
+  expectRefused([&] { (void)jobSettings(t); }, "--token goes with --sink");
+}
+
+TEST(RenderSettings, TilesCutStaticallyAndRefuseDynamic) {
+  RenderOptions o;
+  o.tiles = "3x2";
+  auto job = jobSettings(o);
+  EXPECT_EQ(job.balance, master::Balance::Static);
+  EXPECT_EQ(job.staticTilesX, 3);
+  EXPECT_EQ(job.staticTilesY, 2);
+  o.balanceGiven = true;
+  expectRefused([&] { (void)jobSettings(o); }, "--tiles cuts the screen statically");
+  o.balance = "fair";
+  expectRefused([&] { (void)jobSettings(o); }, "--balance");
+}
+
+TEST(RenderSettings, CameraFramesAndLimitsAreChecked) {
+  RenderOptions o;
+  o.camera = "30";
+  expectRefused([&] { (void)jobSettings(o); }, "--camera");
+  o.camera = "30,20,-1";
+  expectRefused([&] { (void)jobSettings(o); }, "--camera: distance");
+  o.camera = "30,20";
+  o.frames = 0;
+  expectRefused([&] { (void)jobSettings(o); }, "--frames");
+  o.frames = 8;
+  o.fov = 180;
+  expectRefused([&] { (void)jobSettings(o); }, "--fov");
+  o.fov = 30;
+  o.watchdogSeconds = 0.5;
+  expectRefused([&] { (void)jobSettings(o); }, "--watchdog");
+  o.watchdogSeconds = 3;
+  o.costCell = 2;
+  expectRefused([&] { (void)jobSettings(o); }, "--cost-cell");
+  o.costCell = 16;
+  o.resume = true;
+  o.noWrite = true;
+  expectRefused([&] { (void)jobSettings(o); }, "--resume needs frames on disk");
+  o.noWrite = false;
+  const auto job = jobSettings(o);
+  EXPECT_EQ(job.frames, 8);
+  EXPECT_EQ(job.watchdogMs, 3000);
+  EXPECT_EQ(job.balancer.cellPixels, 16);
+  EXPECT_TRUE(job.resume);
+}
+
+TEST(RenderSettings, RendererOptions) {
+  RenderOptions o;
+  o.step = 0;
+  expectRefused([&] { (void)renderSettings(o); }, "--step");
+  o.step = 0.5;
+  o.sampling = "cubic";
+  expectRefused([&] { (void)renderSettings(o); }, "--sampling");
+  o.sampling = "nearest";
+  o.backend = "opengl";
+  expectRefused([&] { (void)renderSettings(o); }, "--backend");
+  o.backend = "cpu";
+  o.shading = o.noSkip = o.lod = true;
+  const auto r = renderSettings(o);
+  EXPECT_TRUE(r.nearest && r.shading && r.levelOfDetail && !r.emptySpaceSkipping);
+  EXPECT_FLOAT_EQ(float(r.stepVoxels), 0.5f);
+}
+
+TEST(RenderSettings, BytesBackgroundsAndRects) {
+  EXPECT_EQ(parseBytes("512M", "--memory-budget"), 512ull << 20);
+  EXPECT_EQ(parseBytes("1.5GiB", "--memory-budget"), 3ull << 29);
+  EXPECT_EQ(parseBytes("4096", "--memory-budget"), 4096u);
+  expectRefused([] { (void)parseBytes("12Q", "--memory-budget"); }, "--memory-budget");
+  expectRefused([] { (void)parseBytes("-1G", "--memory-budget"); }, "--memory-budget");
+  EXPECT_FALSE(parseBackground("none"));
+  EXPECT_EQ(*parseBackground("white"), glm::dvec3(1.0));
+  EXPECT_EQ(*parseBackground("0.5,0.25,0"), glm::dvec3(0.5, 0.25, 0));
+  expectRefused([] { (void)parseBackground("2,0,0"); }, "--background");
+  EXPECT_EQ(rectList({{0, 0, 4, 3}, {4, 0, 2, 3}}), " 4x3+0+0 2x3+4+0");
+}
+
+TEST(RenderSettings, RankZeroNeedsMoreMemoryForTheFrame) {
+  RenderOptions o;
+  const auto job = jobSettings(o);
+  const auto zero = estimateRankBytes(job, 0, 2, 1 << 20, 0);
+  const auto one = estimateRankBytes(job, 1, 2, 1 << 20, 0);
+  EXPECT_GT(zero, one);
+  EXPECT_GT(one, std::uint64_t(1) << 20);
+}
