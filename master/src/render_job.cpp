@@ -450,7 +450,7 @@ class MasterLoop {
   // Each rendering slot's rectangles this frame.
   std::vector<std::vector<node::Rect>> cut() const {
     if (!balancer_) return staticCut_;
-    std::vector<std::vector<node::Rect>> slotRects(std::size_t(slots_));
+    std::vector<std::vector<node::Rect>> slotRects(static_cast<std::size_t>(slots_));
     for (int i = 0; i < slots_; ++i) slotRects[std::size_t(i)] = {balancer_->cut()[std::size_t(i)]};
     return slotRects;
   }
