@@ -158,3 +158,4 @@ static_assert(VolumeView<CachedBrickView<FormulaDecoder<3, float>>>);
 static_assert(!VolumeView<NoNeighbour>);
 static_assert(VolumeView<TraversalWithoutRegion> && !TraversalView<TraversalWithoutRegion>);
 static_assert(!BrickDecoder<int>);
+static_assert(BrickView<VqView> && !BrickView<RawView<float>> && !BrickView<SvmmView>);

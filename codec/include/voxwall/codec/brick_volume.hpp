@@ -15,7 +15,7 @@ namespace voxwall::codec {
 
 // Value ranges per brick (one cell per brick), dilated by one brick: a superset of the
 // one-voxel dilation the raycaster relies on. Decodes every brick once, on every core.
-template <class View>
+template <kernels::BrickView View>
 RangeGrid brickRangeGrid(const View& v) {
   constexpr int kVoxels = View::kVoxels;
   RangeGrid g;
@@ -62,7 +62,7 @@ RangeGrid brickRangeGrid(const View& v) {
 
 // The whole volume from its bricks, in `info`'s scalar type (integer types clamp and round the
 // decoded values to the type's range). Decodes every brick once, on every core.
-template <class View>
+template <kernels::BrickView View>
 Volume decodeBricks(const View& v, ScalarType type, glm::dvec3 spacing) {
   constexpr int kSide = View::kSide;
   Volume out = Volume::allocate({v.dimX, v.dimY, v.dimZ}, type, spacing);

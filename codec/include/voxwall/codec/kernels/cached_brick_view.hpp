@@ -45,6 +45,7 @@ constexpr int cachedBrickSlotLog2(std::size_t brickBytes) {
 
 template <BrickDecoder Decoder>
 struct CachedBrickView {
+  using DecoderType = Decoder;
   using Value = typename Decoder::Value;
   static constexpr int kLog2 = Decoder::kBrickLog2;
   static constexpr int kSide = 1 << kLog2;
@@ -208,5 +209,10 @@ struct CachedBrickView {
     return sample(x, y, z, cache);
   }
 };
+
+// A CachedBrickView of some decoder (what the host-side helpers in brick_volume.hpp take).
+template <class V>
+concept BrickView = requires { typename V::DecoderType; } &&
+                    std::same_as<V, CachedBrickView<typename V::DecoderType>>;
 
 }  // namespace voxwall::codec::kernels
