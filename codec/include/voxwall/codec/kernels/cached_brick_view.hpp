@@ -212,7 +212,9 @@ struct CachedBrickView {
 
 // A CachedBrickView of some decoder (what the host-side helpers in brick_volume.hpp take).
 template <class V>
-concept BrickView = requires { typename V::DecoderType; } &&
-                    std::same_as<V, CachedBrickView<typename V::DecoderType>>;
+concept BrickView = requires {
+  typename V::DecoderType;
+}
+&&std::same_as<V, CachedBrickView<typename V::DecoderType>>;
 
 }  // namespace voxwall::codec::kernels
