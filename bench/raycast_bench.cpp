@@ -39,7 +39,7 @@ void BM_RaycastFrame(benchmark::State& state) {
   const auto camera = node::orbitCamera(orbit, node::boundingRadius(volume().info()));
   const auto plan = node::planFrame(volume(), camera, 1920, 1080, comparisonTf(), settings);
   auto backend = node::makeCpuBackend(threads);
-  node::Image image;
+  voxwall::Image image;
   std::uint64_t samples = 0;
   for (auto _ : state) {
     samples += backend->render(volume(), plan, {0, 0, 1920, 1080}, image).samples;

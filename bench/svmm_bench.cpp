@@ -41,7 +41,7 @@ struct Result {
 };
 
 Result encode(const Data& d, const codec::svmm::Params& p) {
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   codec::svmm::EncodeStats stats;
   const auto start = std::chrono::steady_clock::now();
   const auto c = d.rgba ? codec::svmm::encodeRgba(d.rgbaVolume, p, quiet, &stats)
@@ -99,7 +99,7 @@ void grid(const Data& d, int threads) {
 struct Frame {
   double ms = 0;
   double msamples = 0;
-  node::Image image;
+  voxwall::Image image;
 };
 
 Frame frameMs(const node::RenderVolume& v, const node::RenderSettings& s, const std::string& tfName,
@@ -112,7 +112,7 @@ Frame frameMs(const node::RenderVolume& v, const node::RenderSettings& s, const 
   const int w = 1920, h = 1080;
   const auto plan = node::planFrame(v, camera, w, h, tf, s);
   auto backend = node::makeCpuBackend(threads);
-  node::Image image;
+  voxwall::Image image;
   backend->render(v, plan, {0, 0, w, h}, image);  // warm-up
   std::uint64_t samples = 0;
   const auto start = std::chrono::steady_clock::now();
@@ -131,7 +131,7 @@ void renders(const std::string& name, const codec::Volume& volume, const std::st
   std::printf(
       "| volume | bits/voxel | frame ms | shaded frame ms | Msamples/frame | image PSNR vs raw, "
       "shaded | nearest frame ms | LOD frame ms |\n|---|---|---|---|---|---|---|---|\n");
-  node::Image reference;
+  voxwall::Image reference;
   auto line = [&](const std::string& label, const node::RenderVolume& v, bool svmm) {
     node::RenderSettings plain, shaded, nearest, lod;
     shaded.shading = true;
@@ -152,7 +152,7 @@ void renders(const std::string& name, const codec::Volume& volume, const std::st
       reference = b.image;
     } else {
       char t[32];
-      const double p = node::compareImages(reference, b.image).psnrDb;
+      const double p = voxwall::compareImages(reference, b.image).psnrDb;
       if (std::isinf(p))
         std::snprintf(t, sizeof t, "identical");
       else
@@ -179,7 +179,7 @@ void renders(const std::string& name, const codec::Volume& volume, const std::st
     codec::svmm::Params p;
     p.blockWidth = c.w, p.rootWidth = c.r, p.quality = c.q, p.stepped = c.stepped;
     p.baseCompression = c.bc;
-    codec::Progress quiet;
+    voxwall::Progress quiet;
     auto compressed = codec::svmm::encode(volume, p, quiet);
     const std::string path = "/tmp/voxwall_bench_svmm.vwz";
     codec::writeContainer(compressed, path);

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <string>
-#include <voxwall/codec/parallel.hpp>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/net/tile_codec.hpp>
 
 using namespace voxwall;
@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
                  argv[0]);
     return 2;
   }
-  const auto image = node::readImage(argv[1]);
+  const auto image = voxwall::readImage(argv[1]);
   const int quality = argc > 3 ? std::atoi(argv[3]) : 90;
   const std::string sub = argc > 4 ? argv[4] : "420";
   const double seconds = argc > 5 ? std::atof(argv[5]) : 3.0;
@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
               megapixels * 3);
   std::printf("| codec | threads | MP/s | MP/s per core | bytes/frame | bits/pixel |\n");
   std::printf("|---|---|---|---|---|---|\n");
-  const int cores = codec::usableCores();
+  const int cores = voxwall::usableCores();
   for (auto codecKind : {net::TileCodec::Jpeg, net::TileCodec::Deflate}) {
     for (int threads : {1, cores}) {
       if (threads == cores && cores == 1 && codecKind != net::TileCodec::Jpeg) continue;

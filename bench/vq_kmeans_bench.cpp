@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
       "by norm bound | computed (plain) |\n|---|---|---|---|---|---|---|---|\n");
   for (int r : reductions) {
     const std::size_t k = std::max<std::size_t>(1, points.size() / std::size_t(r));
-    Progress quiet;
+    voxwall::Progress quiet;
     auto t0 = std::chrono::steady_clock::now();
     const auto fast = vq::kmeans(points, weights, k, iterations, 1, quiet);
     const double fastS =

@@ -89,7 +89,7 @@ double frameMs(const node::RenderVolume& v, int w, int h, int frames, int thread
       node::TransferFunction::preset("mri").rescaled(v.info().valueMin, v.info().valueMax);
   const auto plan = node::planFrame(v, camera, w, h, tf, s);
   auto backend = node::makeCpuBackend(threads);
-  node::Image image;
+  voxwall::Image image;
   backend->render(v, plan, {0, 0, w, h}, image);  // warm-up (fills the caches)
   const auto start = std::chrono::steady_clock::now();
   for (int f = 0; f < frames; ++f) backend->render(v, plan, {0, 0, w, h}, image);

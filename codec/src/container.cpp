@@ -9,9 +9,10 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <voxwall/codec/bytes.hpp>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 
 #include "file_util.hpp"
 

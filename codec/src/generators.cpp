@@ -2,7 +2,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/parallel.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec {
 namespace {

@@ -1,7 +1,7 @@
 #include <algorithm>
 #include <limits>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec {
 

@@ -2,8 +2,8 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/core/errors.hpp>
 
 namespace voxwall::codec {
 

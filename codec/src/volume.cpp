@@ -1,9 +1,8 @@
 #include <algorithm>
 #include <limits>
 #include <stdexcept>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/volume.hpp>
+#include <voxwall/core/errors.hpp>
 
 namespace voxwall::codec {
 
@@ -70,29 +69,6 @@ void Volume::computeRange() {
     valueMin = double(*lo);
     valueMax = double(*hi);
   });
-}
-
-void Progress::begin(std::string stage, std::uint64_t total) {
-  std::lock_guard lock(mutex_);
-  stage_ = std::move(stage);
-  total_ = total;
-  done_ = lastReported_ = 0;
-  if (cb_) cb_(stage_, 0, total_);
-}
-
-void Progress::advance(std::uint64_t n) {
-  std::lock_guard lock(mutex_);
-  done_ += n;
-  if (cb_ && (done_ - lastReported_) * 200 >= std::max<std::uint64_t>(total_, 1)) {
-    lastReported_ = done_;
-    cb_(stage_, std::min(done_, total_), total_);
-  }
-}
-
-void Progress::end() {
-  std::lock_guard lock(mutex_);
-  if (cb_ && lastReported_ != total_) cb_(stage_, total_, total_);
-  lastReported_ = total_;
 }
 
 }  // namespace voxwall::codec

@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/core/errors.hpp>
 
 namespace voxwall::cli {
 
@@ -102,22 +102,23 @@ codec::Volume loadVolume(const std::string& spec, const std::optional<codec::Raw
   return codec::readVolume(spec, raw);
 }
 
-codec::Progress makeProgress(bool quiet) {
-  if (quiet) return codec::Progress{};
+voxwall::Progress makeProgress(bool quiet) {
+  if (quiet) return voxwall::Progress{};
   const bool tty = ::isatty(2);
-  return codec::Progress([tty](const std::string& stage, std::uint64_t done, std::uint64_t total) {
-    const int percent = total ? int(100 * done / total) : 100;
-    if (tty) {
-      const int width = 30, filled = percent * width / 100;
-      std::fprintf(stderr, "\r%-12s [%s%s] %3d%%", stage.c_str(),
-                   std::string(std::size_t(filled), '#').c_str(),
-                   std::string(std::size_t(width - filled), '.').c_str(), percent);
-      if (done >= total) std::fputc('\n', stderr);
-    } else if (done >= total) {
-      std::fprintf(stderr, "%s: done\n", stage.c_str());
-    }
-    std::fflush(stderr);
-  });
+  return voxwall::Progress(
+      [tty](const std::string& stage, std::uint64_t done, std::uint64_t total) {
+        const int percent = total ? int(100 * done / total) : 100;
+        if (tty) {
+          const int width = 30, filled = percent * width / 100;
+          std::fprintf(stderr, "\r%-12s [%s%s] %3d%%", stage.c_str(),
+                       std::string(std::size_t(filled), '#').c_str(),
+                       std::string(std::size_t(width - filled), '.').c_str(), percent);
+          if (done >= total) std::fputc('\n', stderr);
+        } else if (done >= total) {
+          std::fprintf(stderr, "%s: done\n", stage.c_str());
+        }
+        std::fflush(stderr);
+      });
 }
 
 bool isNonZeroRank() {

@@ -5,8 +5,8 @@
 #include <optional>
 #include <string>
 #include <voxwall/codec/metrics.hpp>
-#include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/progress.hpp>
 
 namespace voxwall::cli {
 
@@ -32,7 +32,7 @@ std::vector<double> parseNumbers(const std::string& text, const std::string& opt
 codec::Volume loadVolume(const std::string& spec, const std::optional<codec::RawLayout>& raw);
 
 // Prints a progress bar on stderr when it is a terminal, one line per stage otherwise.
-codec::Progress makeProgress(bool quiet);
+voxwall::Progress makeProgress(bool quiet);
 
 using codec::humanBytes;  // codec/metrics.hpp
 

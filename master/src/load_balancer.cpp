@@ -9,7 +9,7 @@
 namespace voxwall::master {
 
 using node::CostGrid;
-using node::Rect;
+using voxwall::Rect;
 
 std::vector<Rect> stripCut(int width, int height, int count) {
   if (count < 1 || count > height || width < 1)

@@ -2,7 +2,7 @@
 // Errors reach the user as one line, "voxwall: <file>: <what is wrong>", and exit status 1.
 #include <cstdio>
 #include <exception>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 

@@ -6,8 +6,8 @@
 #include <future>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/files.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/frame_messages.hpp>
 #include <voxwall/net/tcp.hpp>
@@ -26,8 +26,8 @@ constexpr const char* kManifestName = "voxwall-job.json";
 
 void writeManifest(const std::string& outDir, const nlohmann::json& manifest) {
   const std::string text = manifest.dump(2) + "\n";
-  codec::writeFileAtomically((fs::path(outDir) / kManifestName).string(),
-                             std::as_bytes(std::span(text)));
+  voxwall::writeFileAtomically((fs::path(outDir) / kManifestName).string(),
+                               std::as_bytes(std::span(text)));
 }
 
 // Writes frames in a background thread, one at a time: push() waits for the previous frame.
@@ -38,14 +38,14 @@ class FrameWriter {
   FrameWriter(std::string outDir, nlohmann::json manifest)
       : outDir_(std::move(outDir)), manifest_(std::move(manifest)) {}
   // Returns the seconds spent waiting for the previous write.
-  double push(node::Image image, std::string path, std::optional<glm::dvec3> background) {
+  double push(voxwall::Image image, std::string path, std::optional<glm::dvec3> background) {
     const double wait = finish();
     pending_ = std::async(std::launch::async,
                           [this, image = std::move(image), path = std::move(path), background]() {
                             const auto start = Clock::now();
-                            const auto digest = node::writeImage(image, path, background);
+                            const auto digest = voxwall::writeImage(image, path, background);
                             manifest_["completed"][fs::path(path).filename().string()] = {
-                                {"bytes", digest.bytes}, {"xxh64", codec::hex64(digest.xxh64)}};
+                                {"bytes", digest.bytes}, {"xxh64", voxwall::hex64(digest.xxh64)}};
                             writeManifest(outDir_, manifest_);
                             return since(start);
                           });
@@ -87,8 +87,8 @@ std::vector<int> renderingRanks(const JobSettings& job, int ranks) {
 }
 
 // The static cut: per rendering slot, its list of rectangles.
-std::vector<std::vector<node::Rect>> staticSlots(const JobSettings& job, int slots) {
-  std::vector<std::vector<node::Rect>> out(static_cast<std::size_t>(slots));
+std::vector<std::vector<voxwall::Rect>> staticSlots(const JobSettings& job, int slots) {
+  std::vector<std::vector<voxwall::Rect>> out(static_cast<std::size_t>(slots));
   if (job.staticTilesX > 0 && job.staticTilesY > 0) {
     const auto tiles = gridCut(job.width, job.height, job.staticTilesX, job.staticTilesY);
     for (std::size_t i = 0; i < tiles.size(); ++i) out[i % std::size_t(slots)].push_back(tiles[i]);
@@ -99,9 +99,9 @@ std::vector<std::vector<node::Rect>> staticSlots(const JobSettings& job, int slo
   return out;
 }
 
-std::vector<std::vector<node::Rect>> byRank(const std::vector<std::vector<node::Rect>>& slots,
-                                            const std::vector<int>& ranks, int size) {
-  std::vector<std::vector<node::Rect>> out(static_cast<std::size_t>(size));
+std::vector<std::vector<voxwall::Rect>> byRank(const std::vector<std::vector<voxwall::Rect>>& slots,
+                                               const std::vector<int>& ranks, int size) {
+  std::vector<std::vector<voxwall::Rect>> out(static_cast<std::size_t>(size));
   for (std::size_t i = 0; i < ranks.size(); ++i) out[std::size_t(ranks[i])] = slots[i];
   return out;
 }
@@ -111,7 +111,7 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
                             const node::TransferFunction& tf, const node::RenderSettings& render,
                             const JobSettings& job, net::TileStreamer* streamer,
                             std::optional<node::FramePlan>& lastPlan, const net::FrameTask& task,
-                            const std::vector<node::Rect>& rects) {
+                            const std::vector<voxwall::Rect>& rects) {
   net::RankReport report;
   report.frame = task.frame;
   report.rank = rank;
@@ -123,7 +123,7 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
                                lastPlan ? &*lastPlan : nullptr);
     const auto& plan = *lastPlan;
     report.costs = node::CostGrid(task.screenWidth, task.screenHeight, task.cellPixels);
-    std::vector<node::Image> images(rects.size());
+    std::vector<voxwall::Image> images(rects.size());
     for (std::size_t i = 0; i < rects.size(); ++i)
       report.samples += backend.render(volume, plan, rects[i], images[i], &report.costs).samples;
     report.renderSeconds = since(start);
@@ -144,7 +144,7 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
       report.streamedBytes = streamer->bytesSent() - before;
     }
     for (std::size_t i = 0; i < rects.size(); ++i)
-      report.tiles.push_back({rects[i], report.pixels ? std::move(images[i]) : node::Image()});
+      report.tiles.push_back({rects[i], report.pixels ? std::move(images[i]) : voxwall::Image()});
   }
   std::tie(report.residentBytes, report.peakResidentBytes) = processMemory();
   return report;
@@ -192,7 +192,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     timeoutMs = int(std::clamp<std::uint32_t>(task.watchdogMs, 1000, 86400000));
     const auto& mine = task.rects[std::size_t(comm.rank())];
     const auto report = renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(),
-                                    plan, task, task.stop ? std::vector<node::Rect>{} : mine);
+                                    plan, task, task.stop ? std::vector<voxwall::Rect>{} : mine);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(net::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -217,7 +217,7 @@ std::pair<std::uint64_t, std::uint64_t> processMemory() {
   return {rss, peak};
 }
 
-std::vector<std::vector<node::Rect>> firstFrameRects(const JobSettings& job, int ranks) {
+std::vector<std::vector<voxwall::Rect>> firstFrameRects(const JobSettings& job, int ranks) {
   const auto renderers = renderingRanks(job, ranks);
   return byRank(staticSlots(job, int(renderers.size())), renderers, ranks);
 }
@@ -288,8 +288,8 @@ std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest
       if (!frames.contains(name)) continue;
       bool same = false;
       try {
-        same = codec::fileHasDigest(path, frames[name].at("bytes").get<std::uint64_t>(),
-                                    frames[name].at("xxh64").get<std::string>());
+        same = voxwall::fileHasDigest(path, frames[name].at("bytes").get<std::uint64_t>(),
+                                      frames[name].at("xxh64").get<std::string>());
       } catch (const nlohmann::json::exception&) {
       }
       if (same) {
@@ -368,7 +368,8 @@ class MasterLoop {
     auto reportBytes = comm_.gather({}, timeoutMs_);
     s.gatherSeconds = since(gatherStart);
     const auto assembleStart = Clock::now();
-    node::Image image = job_.outDir.empty() ? node::Image() : node::Image(job_.width, job_.height);
+    voxwall::Image image =
+        job_.outDir.empty() ? voxwall::Image() : voxwall::Image(job_.width, job_.height);
     std::vector<node::CostGrid> grids(static_cast<std::size_t>(slots_));
     for (int i = 0; i < slots_; ++i) {
       const int r = renderers_[std::size_t(i)];
@@ -448,14 +449,14 @@ class MasterLoop {
   }
 
   // Each rendering slot's rectangles this frame.
-  std::vector<std::vector<node::Rect>> cut() const {
+  std::vector<std::vector<voxwall::Rect>> cut() const {
     if (!balancer_) return staticCut_;
-    std::vector<std::vector<node::Rect>> slotRects(static_cast<std::size_t>(slots_));
+    std::vector<std::vector<voxwall::Rect>> slotRects(static_cast<std::size_t>(slots_));
     for (int i = 0; i < slots_; ++i) slotRects[std::size_t(i)] = {balancer_->cut()[std::size_t(i)]};
     return slotRects;
   }
 
-  net::FrameTask task(int f, const std::vector<std::vector<node::Rect>>& slotRects) const {
+  net::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects) const {
     net::FrameTask t;
     t.frame = std::uint32_t(f);
     t.decidedUnixMicros = net::unixMicrosNow();
@@ -472,7 +473,7 @@ class MasterLoop {
   // Checks rank r's report against the task (every assigned rectangle must come back, or the
   // frame would be shown incomplete), pastes its pixels and adds it to the frame's summary.
   void take(const net::RankReport& report, int r, const net::FrameTask& t,
-            const std::string& source, FrameSummary& s, node::Image& image) const {
+            const std::string& source, FrameSummary& s, voxwall::Image& image) const {
     const auto& asked = t.rects[std::size_t(r)];
     if (report.rank != r)
       throw FormatError(source, "claims to be rank " + std::to_string(report.rank));
@@ -508,7 +509,7 @@ class MasterLoop {
   const JobSettings& job_;
   const std::vector<int> renderers_;
   const int slots_;
-  const std::vector<std::vector<node::Rect>> staticCut_;
+  const std::vector<std::vector<voxwall::Rect>> staticCut_;
   nlohmann::json manifest_;
   const std::vector<bool> done_;
   const std::uint64_t jobId_;

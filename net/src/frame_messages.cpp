@@ -1,23 +1,23 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <voxwall/codec/bytes.hpp>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/frame_messages.hpp>
 
 namespace voxwall::net {
 namespace {
 
-using codec::ByteReader;
-using codec::ByteWriter;
+using voxwall::ByteReader;
+using voxwall::ByteWriter;
 
-void putRect(ByteWriter& w, const node::Rect& r) {
+void putRect(ByteWriter& w, const voxwall::Rect& r) {
   w.put<std::int32_t>(r.x), w.put<std::int32_t>(r.y);
   w.put<std::int32_t>(r.width), w.put<std::int32_t>(r.height);
 }
 
-node::Rect getRect(ByteReader& r, int screenWidth, int screenHeight) {
-  node::Rect rect;
+voxwall::Rect getRect(ByteReader& r, int screenWidth, int screenHeight) {
+  voxwall::Rect rect;
   rect.x = r.get<std::int32_t>(), rect.y = r.get<std::int32_t>();
   rect.width = r.get<std::int32_t>(), rect.height = r.get<std::int32_t>();
   if (!rect.fitsIn(screenWidth, screenHeight))
@@ -180,7 +180,7 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
     if (!rep.pixels) continue;
     const std::size_t n = std::size_t(t.rect.width) * std::size_t(t.rect.height);
     if (n > r.remaining() / 4) r.fail("tile pixels truncated");
-    t.image = node::Image(t.rect.width, t.rect.height);
+    t.image = voxwall::Image(t.rect.width, t.rect.height);
     const auto src = r.getBytes(n * 4);
     std::memcpy(t.image.pixels.data(), src.data(), n * 4);
   }

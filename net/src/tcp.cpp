@@ -1,6 +1,6 @@
 #include <asio.hpp>
 #include <utility>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/tcp.hpp>
 
 namespace voxwall::net {

@@ -7,8 +7,8 @@
 #include <memory>
 #include <mutex>
 #include <utility>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/parallel.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/net/tile_codec.hpp>
 
 namespace voxwall::net {
@@ -20,7 +20,7 @@ struct TjDeleter {
 using TjHandle = std::unique_ptr<void, TjDeleter>;
 
 // Premultiplied RGBA over an opaque background -> RGB8.
-std::vector<unsigned char> compositeRgb(const node::Image& image, const node::Rect& part,
+std::vector<unsigned char> compositeRgb(const voxwall::Image& image, const voxwall::Rect& part,
                                         const glm::dvec3& background) {
   std::vector<unsigned char> rgb(std::size_t(part.width) * std::size_t(part.height) * 3);
   const int bg[3] = {int(std::lround(background.r * 255)), int(std::lround(background.g * 255)),
@@ -118,7 +118,7 @@ std::vector<std::byte> compressJpeg(const unsigned char* src, int w, int pitch, 
   return out;
 }
 
-std::vector<std::byte> encodeSegment(const node::Image& image, const node::Rect& part,
+std::vector<std::byte> encodeSegment(const voxwall::Image& image, const voxwall::Rect& part,
                                      const glm::dvec3& background, const TileCodecSettings& s) {
   if (s.codec == TileCodec::Jpeg && background == glm::dvec3(0.0)) {
     // Premultiplied colour over black is the colour as stored: compress straight from the
@@ -163,21 +163,21 @@ const char* tileCodecName(TileCodec codec) {
   return "unknown";
 }
 
-std::vector<EncodedTile> encodeTiles(const node::Image& image, const node::Rect& rect,
+std::vector<EncodedTile> encodeTiles(const voxwall::Image& image, const voxwall::Rect& rect,
                                      const glm::dvec3& background, const TileCodecSettings& s) {
   if (image.width != rect.width || image.height != rect.height)
     throw std::invalid_argument("encodeTiles: image and rectangle differ in size");
   if (s.jpegQuality < 1 || s.jpegQuality > 100)
     throw std::invalid_argument("JPEG quality must be in [1, 100]");
   if (s.segmentPixels < 8) throw std::invalid_argument("segments must be at least 8 pixels");
-  std::vector<node::Rect> parts;  // in tile coordinates
+  std::vector<voxwall::Rect> parts;  // in tile coordinates
   for (int y = 0; y < rect.height; y += s.segmentPixels)
     for (int x = 0; x < rect.width; x += s.segmentPixels)
       parts.push_back({x, y, std::min(s.segmentPixels, rect.width - x),
                        std::min(s.segmentPixels, rect.height - y)});
   std::vector<EncodedTile> out(parts.size());
-  codec::parallelFor(parts.size(), s.threads, [&](std::size_t i) {
-    const node::Rect& p = parts[i];
+  voxwall::parallelFor(parts.size(), s.threads, [&](std::size_t i) {
+    const voxwall::Rect& p = parts[i];
     out[i].rect = {rect.x + p.x, rect.y + p.y, p.width, p.height};
     out[i].codec = s.codec;
     out[i].bytes = encodeSegment(image, p, background, s);
@@ -185,12 +185,12 @@ std::vector<EncodedTile> encodeTiles(const node::Image& image, const node::Rect&
   return out;
 }
 
-node::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
-                       const std::string& source) {
+voxwall::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
+                          const std::string& source) {
   if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
     throw FormatError(source, "tile size " + std::to_string(width) + "x" + std::to_string(height));
   const std::size_t pixels = std::size_t(width) * std::size_t(height);
-  node::Image image(width, height);
+  voxwall::Image image(width, height);
   auto fromRgb = [&](const unsigned char* rgb) {
     for (std::size_t i = 0; i < pixels; ++i)
       image.pixels[i] = std::uint32_t(rgb[3 * i]) | std::uint32_t(rgb[3 * i + 1]) << 8 |

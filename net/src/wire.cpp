@@ -2,15 +2,15 @@
 
 #include <cmath>
 #include <cstring>
-#include <voxwall/codec/bytes.hpp>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/wire.hpp>
 
 namespace voxwall::net {
 namespace {
 
-using codec::ByteReader;
-using codec::ByteWriter;
+using voxwall::ByteReader;
+using voxwall::ByteWriter;
 
 static_assert(kHeaderBytes == 4 + 2 + 2 + 4 + 4 + 8 + 4 + 4, "header layout");
 // role, rank, rankCount, jobId, nextFrame, two strings at their limit

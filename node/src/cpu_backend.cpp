@@ -2,7 +2,7 @@
 // Every pixel is independent of the others, so the image is the same for any thread count.
 #include <atomic>
 #include <chrono>
-#include <voxwall/codec/parallel.hpp>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/node/renderer.hpp>
 
 namespace voxwall::node {
@@ -12,7 +12,7 @@ constexpr int kBlockPixels = 16;
 
 class CpuBackend final : public Backend {
  public:
-  explicit CpuBackend(int threads) : threads_(codec::resolveThreads(threads)) {}
+  explicit CpuBackend(int threads) : threads_(voxwall::resolveThreads(threads)) {}
   std::string name() const override { return "cpu (" + std::to_string(threads_) + " threads)"; }
 
   TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
@@ -28,7 +28,7 @@ class CpuBackend final : public Backend {
     const auto lut = plan.lut.view();
     std::visit(
         [&](const auto& view) {
-          codec::parallelFor(std::size_t(bx) * std::size_t(by), threads_, [&](std::size_t b) {
+          voxwall::parallelFor(std::size_t(bx) * std::size_t(by), threads_, [&](std::size_t b) {
             const auto blockStart =
                 costs ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
             const int x0 = int(b % std::size_t(bx)) * kBlockPixels;

@@ -1,8 +1,8 @@
 #include <xxhash.h>
 
 #include <glm/geometric.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/node/render_volume.hpp>
 
 namespace voxwall::node {
@@ -28,7 +28,7 @@ RenderVolume RenderVolume::fromContainer(codec::ContainerFile file) {
 }
 
 RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxels) {
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   return fromCompressed(codec::raw::encode(volume, {brickVoxels}, quiet));
 }
 

@@ -3,9 +3,9 @@
 
 #include <cstring>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/core/errors.hpp>
 
 #include "support/temp_dir.hpp"
 

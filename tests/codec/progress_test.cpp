@@ -2,9 +2,9 @@
 
 #include <thread>
 #include <vector>
-#include <voxwall/codec/progress.hpp>
+#include <voxwall/core/progress.hpp>
 
-using voxwall::codec::Progress;
+using voxwall::Progress;
 
 TEST(Progress, ReportsStartEndAndBoundedUpdatesFromManyThreads) {
   std::vector<std::pair<std::uint64_t, std::uint64_t>> calls;

@@ -1,9 +1,9 @@
 #include <gtest/gtest.h>
 
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/core/errors.hpp>
 
 using namespace voxwall;
 using namespace voxwall::codec;

@@ -5,10 +5,10 @@
 #include <random>
 #include <set>
 #include <variant>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/kernels/trilinear.hpp>
 #include <voxwall/codec/render_payload.hpp>
+#include <voxwall/core/errors.hpp>
 
 using namespace voxwall::codec;
 
@@ -62,7 +62,7 @@ TEST(Registry, EveryCodecEncodesWithItsExampleOptions) {
       values.set(opts[i], isFlag ? "1" : opts[i + 1]);
       if (!isFlag) ++i;
     }
-    Progress quiet;
+    voxwall::Progress quiet;
     std::string report;
     const CompressedVolume cv = c->encode(volume, values, quiet, report);
     EXPECT_EQ(cv.info.codec, c->id());

@@ -3,12 +3,12 @@
 #include <cmath>
 #include <cstring>
 #include <random>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/core/errors.hpp>
 
 using namespace voxwall;
 using namespace voxwall::codec;

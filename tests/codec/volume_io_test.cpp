@@ -9,9 +9,9 @@
 #include <filesystem>
 #include <limits>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
 
 #include "support/temp_dir.hpp"
 

@@ -2,10 +2,10 @@
 
 #include <cstring>
 #include <random>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/vq_codec.hpp>
+#include <voxwall/core/errors.hpp>
 
 using namespace voxwall;
 using namespace voxwall::codec;

@@ -40,7 +40,7 @@ TEST_P(KMeansMatchesBruteForce, SameCentresAndAssignment) {
   const auto [n, k, spread] = GetParam();
   const auto points = clustered(n, 7, spread, unsigned(n * 31 + k));
   const auto weights = randomWeights(n, unsigned(k));
-  Progress quiet;
+  voxwall::Progress quiet;
   const KMeansResult fast = kmeans(points, weights, k, 100, 2, quiet);
   const KMeansResult ref = kmeansBruteForce(points, weights, k, 100);
   ASSERT_EQ(fast.centers.size(), std::min(k, n));
@@ -81,7 +81,7 @@ INSTANTIATE_TEST_SUITE_P(Sizes, KMeansMatchesBruteForce,
 TEST(KMeans, DeterministicForAnyThreadCount) {
   const auto points = clustered(2000, 12, 300, 4);
   const auto weights = randomWeights(points.size(), 9);
-  Progress quiet;
+  voxwall::Progress quiet;
   const auto one = kmeans(points, weights, 40, 30, 1, quiet);
   const auto two = kmeans(points, weights, 40, 30, 2, quiet);
   const auto four = kmeans(points, weights, 40, 30, 4, quiet);
@@ -93,7 +93,7 @@ TEST(KMeans, DeterministicForAnyThreadCount) {
 TEST(KMeans, MoreCentresThanPointsKeepsEveryPoint) {
   const auto points = clustered(30, 3, 10, 2);
   const std::vector<std::uint32_t> weights(30, 1);
-  Progress quiet;
+  voxwall::Progress quiet;
   const auto r = kmeans(points, weights, 100, 10, 1, quiet);
   ASSERT_EQ(r.centers.size(), 30u);
   for (std::size_t i = 0; i < 30; ++i)
@@ -106,14 +106,14 @@ TEST(KMeans, WeightsPullTheCentre) {
   b.fill(100);
   const std::vector<Point> points = {a, b};
   const std::vector<std::uint32_t> weights = {3, 1};
-  Progress quiet;
+  voxwall::Progress quiet;
   const auto r = kmeans(points, weights, 1, 10, 1, quiet);
   ASSERT_EQ(r.centers.size(), 1u);
   EXPECT_DOUBLE_EQ(r.centers[0][0], 25.0);
 }
 
 TEST(KMeans, RefusesBadInput) {
-  Progress quiet;
+  voxwall::Progress quiet;
   const std::vector<Point> points(3);
   const std::vector<std::uint32_t> weights(2, 1);
   EXPECT_THROW(kmeans(points, weights, 2, 10, 1, quiet), std::invalid_argument);

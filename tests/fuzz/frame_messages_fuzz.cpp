@@ -3,7 +3,7 @@
 // keeps every promise (rectangles on the screen, pixel counts matching); anything else is a bug.
 #include <cstdint>
 #include <cstdlib>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/frame_messages.hpp>
 
 using namespace voxwall;

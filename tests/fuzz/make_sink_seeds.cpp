@@ -10,8 +10,8 @@ using namespace voxwall;
 
 namespace {
 
-std::vector<std::byte> tile(std::uint64_t frame, node::Rect rect, net::TileCodec codec) {
-  node::Image image(rect.width, rect.height);
+std::vector<std::byte> tile(std::uint64_t frame, voxwall::Rect rect, net::TileCodec codec) {
+  voxwall::Image image(rect.width, rect.height);
   for (auto& p : image.pixels) p = 0xff336699u;
   net::TileCodecSettings s;
   s.codec = codec;
@@ -43,7 +43,8 @@ int main(int argc, char** argv) {
   controller.role = net::Role::Controller;
   std::vector<std::vector<std::byte>> seeds;
   for (std::uint8_t settings : {0, 1}) {
-    const node::Rect whole = settings & 1 ? node::Rect{0, 0, 64, 48} : node::Rect{0, 0, 84, 62};
+    const voxwall::Rect whole =
+        settings & 1 ? voxwall::Rect{0, 0, 64, 48} : voxwall::Rect{0, 0, 84, 62};
     for (auto codec : {net::TileCodec::Raw, net::TileCodec::Jpeg, net::TileCodec::Deflate}) {
       std::vector<std::byte> s{std::byte{settings}};
       append(s, net::encodeMessage(renderer));

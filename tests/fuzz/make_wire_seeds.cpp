@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "make_wire_seeds: %s: %s\n", dir.c_str(), ec.message().c_str());
     return 1;
   }
-  node::Image image(16, 8);
+  voxwall::Image image(16, 8);
   for (auto& p : image.pixels) p = 0xff336699u;
   std::vector<std::vector<std::byte>> seeds = {
       net::encodeMessage(net::Hello{net::Role::Renderer, 1, 4, "ci-2x2", "token"}),

@@ -8,15 +8,15 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
 using namespace voxwall;
 
 namespace {
 
-struct FuzzPeer final : walls::SinkPeer {
-  FuzzPeer() : SinkPeer("fuzz peer") {}
+struct FuzzPeer final : net::Peer {
+  FuzzPeer() : net::Peer("fuzz peer") {}
   void send(std::vector<std::byte> bytes) override { sent += bytes.size(); }
   void hangUp() override { hungUp = true; }
   std::size_t sent = 0;

@@ -6,8 +6,8 @@
 #include <span>
 #include <variant>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/render_payload.hpp>
+#include <voxwall/core/errors.hpp>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace voxwall::codec;

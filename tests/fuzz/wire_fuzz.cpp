@@ -4,7 +4,7 @@
 // builds skip the wire checksums (FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION), so mutated
 // messages reach the decoders.
 #include <cstdint>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/wire.hpp>
 
 using namespace voxwall;

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/master/camera_path.hpp>
 
 #include "support/temp_dir.hpp"

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/image.hpp>
 
 #include "support/temp_dir.hpp"
 
@@ -94,7 +94,7 @@ TEST(Cli, RenderWritesPngFrames) {
       "render generated:shepp-logan:40 --size 48x32 --frames 2 --shading --out " + dir.path("f"));
   ASSERT_EQ(r.status, 0) << r.out;
   for (const char* f : {"f/frame_00000.png", "f/frame_00001.png"}) {
-    const auto img = node::readImage(dir.path(f));
+    const auto img = voxwall::readImage(dir.path(f));
     EXPECT_EQ(img.width, 48);
     EXPECT_EQ(img.height, 32);
   }
@@ -237,8 +237,8 @@ TEST(Cli, TiledRenderWritesTheSameFrame) {
   const std::string common = "render generated:shepp-logan:32 --size 37x23 --shading -q --out ";
   ASSERT_EQ(runVoxwall(common + dir.path("one")).status, 0);
   ASSERT_EQ(runVoxwall(common + dir.path("tiled") + " --tiles 3x2").status, 0);
-  EXPECT_EQ(node::readImage(dir.path("one/frame_00000.png")).pixels,
-            node::readImage(dir.path("tiled/frame_00000.png")).pixels);
+  EXPECT_EQ(voxwall::readImage(dir.path("one/frame_00000.png")).pixels,
+            voxwall::readImage(dir.path("tiled/frame_00000.png")).pixels);
   expectOneLineError(runVoxwall(common + dir.path("bad") + " --tiles 40x1"),
                      "voxwall: tile grid 40x1");
 }
@@ -249,8 +249,8 @@ TEST(Cli, TfRangeMovesTheTransferFunction) {
   ASSERT_EQ(runVoxwall(common + dir.path("a")).status, 0);
   // Stretched far above the data: everything is transparent.
   ASSERT_EQ(runVoxwall(common + dir.path("b") + " --tf-range 1000,2000").status, 0);
-  const auto a = node::readImage(dir.path("a/frame_00000.png"));
-  const auto b = node::readImage(dir.path("b/frame_00000.png"));
+  const auto a = voxwall::readImage(dir.path("a/frame_00000.png"));
+  const auto b = voxwall::readImage(dir.path("b/frame_00000.png"));
   EXPECT_NE(a.pixels, b.pixels);
   for (auto p : b.pixels) ASSERT_EQ(p, 0xff000000u);  // black background, nothing in front
   expectOneLineError(runVoxwall(common + dir.path("c") + " --tf-range 5,1"), "voxwall: --tf-range");
@@ -302,12 +302,12 @@ TEST(Cli, OrbitZoomPathApproachesTheVolume) {
       dir.path("f"));
   ASSERT_EQ(r.status, 0) << r.out;
   // The zoomed frame covers more pixels than the first one.
-  auto covered = [](const node::Image& im) {
+  auto covered = [](const voxwall::Image& im) {
     return std::count_if(im.pixels.begin(), im.pixels.end(),
                          [](std::uint32_t p) { return (p & 0xffffffu) != 0; });
   };
-  EXPECT_GT(covered(node::readImage(dir.path("f/frame_00003.png"))),
-            covered(node::readImage(dir.path("f/frame_00000.png"))));
+  EXPECT_GT(covered(voxwall::readImage(dir.path("f/frame_00003.png"))),
+            covered(voxwall::readImage(dir.path("f/frame_00000.png"))));
 }
 
 TEST(Cli, WallAndSinkOptionsAreCheckedWithOneLine) {
@@ -344,5 +344,5 @@ TEST(Cli, WallAndSinkOptionsAreCheckedWithOneLine) {
   const CliRun r =
       runVoxwall("render generated:shepp-logan:16 -q --wall " + wall + " --out " + dir.path("f"));
   ASSERT_EQ(r.status, 0) << r.out;
-  EXPECT_EQ(node::readImage(dir.path("f/frame_00000.png")).width, 196);
+  EXPECT_EQ(voxwall::readImage(dir.path("f/frame_00000.png")).width, 196);
 }

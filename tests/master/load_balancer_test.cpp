@@ -6,7 +6,7 @@
 
 using namespace voxwall;
 using node::CostGrid;
-using node::Rect;
+using voxwall::Rect;
 
 namespace {
 

@@ -1,8 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/master/render_job.hpp>
 
 #include "support/fake_communicator.hpp"
@@ -53,8 +53,8 @@ void expectSameFrames(const std::string& a, const std::string& b, int frames) {
   for (int f = 0; f < frames; ++f) {
     char name[32];
     std::snprintf(name, sizeof name, "frame_%05d.png", f);
-    const auto ia = node::readImage((fs::path(a) / name).string());
-    const auto ib = node::readImage((fs::path(b) / name).string());
+    const auto ia = voxwall::readImage((fs::path(a) / name).string());
+    const auto ib = voxwall::readImage((fs::path(b) / name).string());
     ASSERT_EQ(ia.width, ib.width);
     EXPECT_EQ(ia.pixels, ib.pixels) << name << " differs between " << a << " and " << b;
   }
@@ -72,7 +72,7 @@ TEST(RenderJob, SingleRankWritesOneFilePerFrameAndOrbits) {
     EXPECT_TRUE(fs::exists(frames[std::size_t(f)].path));
     EXPECT_GT(frames[std::size_t(f)].samples, 0u);
   }
-  EXPECT_NE(node::readImage(frames[0].path).pixels, node::readImage(frames[1].path).pixels);
+  EXPECT_NE(voxwall::readImage(frames[0].path).pixels, voxwall::readImage(frames[1].path).pixels);
   // Only the frames and the job manifest are left (no temporaries).
   int files = 0;
   for (auto& e : fs::directory_iterator(dir.path("one"))) files += e.is_regular_file();
@@ -147,7 +147,8 @@ class SlowBackend final : public node::Backend {
 
  protected:
   node::TileStats renderTile(const node::RenderVolume& v, const node::FramePlan& p,
-                             const node::Rect& t, node::Image& out, node::CostGrid* c) override {
+                             const voxwall::Rect& t, voxwall::Image& out,
+                             node::CostGrid* c) override {
     std::this_thread::sleep_for(std::chrono::milliseconds(ms_));
     return inner_->render(v, p, t, out, c);
   }

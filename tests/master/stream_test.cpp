@@ -66,12 +66,12 @@ void runJob(int ranks, const master::JobSettings& job,
 }
 
 // The single-rank reference frame over black, as the sink shows it.
-node::Image reference(const master::JobSettings& job, int frame,
-                      const master::CameraOffset& offset = {}) {
+voxwall::Image reference(const master::JobSettings& job, int frame,
+                         const master::CameraOffset& offset = {}) {
   const auto camera =
       node::orbitCamera(offset.apply(job.path.at(frame)), node::boundingRadius(volume().info()));
   const auto plan = node::planFrame(volume(), camera, job.width, job.height, tf(), {});
-  node::Image image;
+  voxwall::Image image;
   node::makeCpuBackend(1)->render(volume(), plan, {0, 0, job.width, job.height}, image);
   for (auto& p : image.pixels) p |= 0xff000000u;
   return image;
@@ -101,11 +101,11 @@ int checkShownFrames(const std::string& dir, const master::JobSettings& job, dou
     EXPECT_EQ(present, 4) << "frame " << f << " was written partly";
     const auto ref = reference(job, f);
     for (const auto& d : wall().displays) {
-      const auto image = node::readImage(displayFile(dir, f, d.name));
+      const auto image = voxwall::readImage(displayFile(dir, f, d.name));
       if (minPsnrDb == 0)
         EXPECT_EQ(image.pixels, ref.crop(d.rect).pixels) << "frame " << f << " " << d.name;
       else
-        EXPECT_GE(node::compareImages(image, ref.crop(d.rect)).psnrDb, minPsnrDb)
+        EXPECT_GE(voxwall::compareImages(image, ref.crop(d.rect)).psnrDb, minPsnrDb)
             << "frame " << f << " " << d.name;
     }
     ++shown;
@@ -161,9 +161,9 @@ TEST(Stream, ControlFromTheWallMovesTheCamera) {
   const auto before = reference(job, 0), after = reference(job, 3, turned);
   const auto screen = wall();
   const auto& d = screen.displays[0];
-  EXPECT_EQ(node::readImage(displayFile(dir.path("wall"), 0, d.name)).pixels,
+  EXPECT_EQ(voxwall::readImage(displayFile(dir.path("wall"), 0, d.name)).pixels,
             before.crop(d.rect).pixels);
-  EXPECT_EQ(node::readImage(displayFile(dir.path("wall"), 3, d.name)).pixels,
+  EXPECT_EQ(voxwall::readImage(displayFile(dir.path("wall"), 3, d.name)).pixels,
             after.crop(d.rect).pixels);
   EXPECT_NE(before.pixels, after.pixels);
 }

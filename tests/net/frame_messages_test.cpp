@@ -2,7 +2,7 @@
 
 #include <cstring>
 #include <random>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/frame_messages.hpp>
 
 using namespace voxwall;
@@ -30,7 +30,7 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   r.samples = 12345;
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
   for (const auto& rect : t.rects[1]) {
-    net::RenderedTile tile{rect, node::Image(rect.width, rect.height)};
+    net::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
     for (std::size_t i = 0; i < tile.image.pixels.size(); ++i)
       tile.image.pixels[i] = std::uint32_t(i * 2654435761u);
     r.tiles.push_back(tile);

@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -10,7 +10,7 @@ using namespace voxwall;
 namespace {
 
 // A real rendered tile: what the ranks compress.
-node::Image renderedImage(int w, int h) {
+voxwall::Image renderedImage(int w, int h) {
   const auto volume = node::RenderVolume::fromVolume(codec::generateSheppLogan(48), 8);
   const auto tf = node::TransferFunction::preset("mri").rescaled(0, 255);
   node::Orbit orbit;
@@ -18,20 +18,20 @@ node::Image renderedImage(int w, int h) {
   node::RenderSettings settings;
   settings.shading = true;
   const auto plan = node::planFrame(volume, camera, w, h, tf, settings);
-  node::Image image;
+  voxwall::Image image;
   node::makeCpuBackend(2)->render(volume, plan, {0, 0, w, h}, image);
   return image;
 }
 
 // The premultiplied image over an opaque background, as the sink should show it.
-node::Image overBlack(const node::Image& im) {
-  node::Image out = im;
+voxwall::Image overBlack(const voxwall::Image& im) {
+  voxwall::Image out = im;
   for (auto& p : out.pixels) p |= 0xff000000u;
   return out;
 }
 
-node::Image decodeAll(const std::vector<net::EncodedTile>& tiles, int w, int h, int x0, int y0) {
-  node::Image out(w, h);
+voxwall::Image decodeAll(const std::vector<net::EncodedTile>& tiles, int w, int h, int x0, int y0) {
+  voxwall::Image out(w, h);
   for (const auto& t : tiles) {
     const auto part = net::decodeTile(t.bytes, t.codec, t.rect.width, t.rect.height, "test");
     out.paste(part, {t.rect.x - x0, t.rect.y - y0, t.rect.width, t.rect.height});
@@ -65,7 +65,7 @@ TEST(TileCodec, JpegAtTheDefaultsKeeps40Decibels) {
     s.subsampling = sub;
     const auto tiles = net::encodeTiles(image, {0, 0, 320, 240}, {0, 0, 0}, s);
     const auto decoded = decodeAll(tiles, 320, 240, 0, 0);
-    const auto diff = node::compareImages(decoded, reference);
+    const auto diff = voxwall::compareImages(decoded, reference);
     EXPECT_GE(diff.psnrDb, 40.0) << "subsampling " << int(sub);
     std::size_t bytes = 0;
     for (const auto& t : tiles) bytes += t.bytes.size();
@@ -74,7 +74,7 @@ TEST(TileCodec, JpegAtTheDefaultsKeeps40Decibels) {
 }
 
 TEST(TileCodec, CompositesOntoTheBackground) {
-  node::Image clear(8, 8);  // fully transparent
+  voxwall::Image clear(8, 8);  // fully transparent
   net::TileCodecSettings s;
   s.codec = net::TileCodec::Raw;
   const auto tiles = net::encodeTiles(clear, {0, 0, 8, 8}, {1.0, 0.5, 0.0}, s);

@@ -2,7 +2,7 @@
 
 #include <cstring>
 #include <random>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/net/wire.hpp>
 
@@ -66,7 +66,7 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
     EXPECT_EQ(m[2].type, MessageType::Tile);
     EXPECT_EQ(m[2].frame, 42u);
     const auto tile = net::decodeTileMessage(m[2].payload, "t");
-    EXPECT_EQ(tile.rect, (node::Rect{10, 20, 30, 40}));
+    EXPECT_EQ(tile.rect, (voxwall::Rect{10, 20, 30, 40}));
     EXPECT_EQ(tile.codec, net::TileCodec::Deflate);
     EXPECT_EQ(tile.decidedUnixMicros, 123456789u);
     EXPECT_EQ(tile.bytes.size(), 3u);

@@ -38,7 +38,7 @@ TEST(Camera, PixelRaysLieInsideTheirTilesFrustum) {
   const auto volume = RenderVolume::fromVolume(v, 4);
   Camera c = orbitCamera({}, 1.0);
   const auto plan = planFrame(volume, c, 64, 48, TransferFunction::preset("grey"), {});
-  const Rect tile{16, 8, 20, 10};
+  const voxwall::Rect tile{16, 8, 20, 10};
   const Frustum f = tileFrustum(c, 64, 48, tile, 1.0, 10.0);
   for (int y = tile.y; y < tile.y + tile.height; ++y)
     for (int x = tile.x; x < tile.x + tile.width; ++x) {

@@ -3,9 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <optional>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "support/image_expect.hpp"

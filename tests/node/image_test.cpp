@@ -1,12 +1,11 @@
 #include <gtest/gtest.h>
 
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/image.hpp>
 
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
-using namespace voxwall::node;
 
 namespace {
 std::uint32_t rgba(int r, int g, int b, int a) {

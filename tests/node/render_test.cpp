@@ -149,7 +149,7 @@ TEST(Render, EmptySpaceSkippingChangesNothingButTheWork) {
 TEST(Render, AVwzFileRendersLikeTheVolumeItCameFrom) {
   test::TempDir dir;
   const codec::Volume v = codec::generateMarschnerLobb(40);
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   codec::writeContainer(codec::raw::encode(v, {16}, quiet), dir.path("ml.vwz"));
   const auto fromFile = RenderVolume::open(dir.path("ml.vwz"));
   const auto fromMemory = RenderVolume::fromVolume(v, 8);  // other brick size, same voxels

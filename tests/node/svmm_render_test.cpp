@@ -4,10 +4,10 @@
 
 #include <cstdio>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "support/image_expect.hpp"
@@ -54,7 +54,7 @@ std::string fileName(int w, int r, int q, bool stepped) {
 
 RenderVolume svmmFile(const test::TempDir& dir, const codec::Volume& v, int w, int r, int q,
                       bool stepped = false, codec::svmm::EncodeStats* stats = nullptr) {
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   codec::svmm::Params p;
   p.blockWidth = w, p.rootWidth = r, p.quality = q, p.stepped = stepped;
   const std::string name = fileName(w, r, q, stepped);
@@ -122,7 +122,7 @@ TEST(SvmmRender, LossyRendersLikeItsDecodedVolume) {
     test::expectImagesNear(
         render(RenderVolume::fromVolume(decoded), 64, 64, tf, shaded(true)).image, image, 1, 70,
         std::string("q ") += std::to_string(q));
-    const double imagePsnr = node::compareImages(reference, image).psnrDb;
+    const double imagePsnr = voxwall::compareImages(reference, image).psnrDb;
     RecordProperty(std::string("image_psnr_q") += std::to_string(q), std::to_string(imagePsnr));
     std::printf("q %d: volume PSNR %.2f dB, image PSNR %.2f dB\n", q, stats.psnr, imagePsnr);
     if (q == 100) {
@@ -150,7 +150,7 @@ TEST(SvmmRender, NearestSamplingIsTheSameWhateverTheTree) {
   // And it is not the trilinear image.
   RenderSettings t;
   EXPECT_GT(
-      node::compareImages(render(svmmFile(dir, v, 4, 4, 100), 64, 48, tf, t).image, tree.image)
+      voxwall::compareImages(render(svmmFile(dir, v, 4, 4, 100), 64, 48, tf, t).image, tree.image)
           .maxAbs,
       5);
 }
@@ -166,7 +166,7 @@ TEST(SvmmRender, LevelOfDetailUsesCoarseLevelsForSmallImages) {
   lod.levelOfDetail = true;
   const Rendered a = render(svmm, 16, 12, tf, fine);
   const Rendered b = render(svmm, 16, 12, tf, lod);
-  const auto cmp = node::compareImages(a.image, b.image);
+  const auto cmp = voxwall::compareImages(a.image, b.image);
   EXPECT_GT(cmp.maxAbs, 0);     // coarse levels were used
   EXPECT_GT(cmp.psnrDb, 20.0);  // and they are the same picture
   // At full size the footprint is below one voxel: level 0 only, identical pixels.
@@ -176,7 +176,7 @@ TEST(SvmmRender, LevelOfDetailUsesCoarseLevelsForSmallImages) {
 
 TEST(SvmmRender, RgbaVolumesAreRefusedWithOneLine) {
   test::TempDir dir;
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   codec::writeContainer(codec::svmm::encodeRgba(codec::svmm::generateMengerRgba(2), {}, quiet),
                         dir.path("rgba.vwz"));
   try {

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/node/transfer_function.hpp>
 
 using namespace voxwall;

@@ -37,7 +37,7 @@ Image render(const RenderVolume& volume, int w, int h, const TransferFunction& t
 
 RenderVolume vqFile(const test::TempDir& dir, const codec::Volume& v, const codec::vq::Params& p,
                     const std::string& name, codec::vq::EncodeStats* stats = nullptr) {
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   codec::writeContainer(codec::vq::encode(v, p, quiet, stats), dir.path(name));
   return RenderVolume::open(dir.path(name));
 }
@@ -82,7 +82,7 @@ TEST(VqRender, TwoVolumesInOneThreadDoNotShareCachedBricks) {
   const auto tf = TransferFunction::preset("hot").rescaled(0, 255);
   const Image first = render(a, 48, 48, tf, false, 1);
   const Image other = render(b, 48, 48, tf, false, 1);
-  EXPECT_GT(node::compareImages(first, other).maxAbs, 10);
+  EXPECT_GT(voxwall::compareImages(first, other).maxAbs, 10);
   test::expectImagesNear(first, render(a, 48, 48, tf, false, 1), 0);
 }
 
@@ -106,7 +106,7 @@ TEST(VqRender, LossyRendersLikeItsDecodedVolumeAndCloseToRaw) {
                            70, "reduction " + std::to_string(k));
     // Against the raw render: within 4 dB of the volume PSNR the codec reports, and a loss that
     // grows with the reduction.
-    const double imagePsnr = node::compareImages(reference, image).psnrDb;
+    const double imagePsnr = voxwall::compareImages(reference, image).psnrDb;
     RecordProperty("image_psnr_reduction_" + std::to_string(k), std::to_string(imagePsnr));
     EXPECT_GT(imagePsnr, stats.psnr - 4.0) << "reduction " << k;
     std::printf("reduction %d: volume PSNR %.2f dB, image PSNR %.2f dB\n", k, stats.psnr,
@@ -122,7 +122,7 @@ TEST_P(VqViewSamples, EqualTheRawViewOfTheDecodedVolumeEverywhere) {
   // Trilinear samples, cached and uncached, inside, on the edges and outside the volume; a
   // lossy codebook gives many distinct codewords, so cells whose bricks share a cache slot occur.
   const codec::Volume v = codec::generateMarschnerLobb(45);
-  codec::Progress quiet;
+  voxwall::Progress quiet;
   codec::vq::Params p;
   p.reduction = GetParam();
   const auto vc = codec::vq::encode(v, p, quiet);

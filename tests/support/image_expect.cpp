@@ -6,11 +6,11 @@
 
 namespace voxwall::test {
 
-void expectImagesNear(const node::Image& baseline, const node::Image& rendered, int maxAbs,
+void expectImagesNear(const voxwall::Image& baseline, const voxwall::Image& rendered, int maxAbs,
                       double minPsnrDb, const std::string& label) {
   ASSERT_EQ(baseline.width, rendered.width);
   ASSERT_EQ(baseline.height, rendered.height);
-  const auto diff = node::compareImages(baseline, rendered);
+  const auto diff = voxwall::compareImages(baseline, rendered);
   const bool ok = diff.maxAbs <= maxAbs && (minPsnrDb <= 0 || diff.psnrDb >= minPsnrDb);
   EXPECT_TRUE(ok) << label << ": max channel difference " << diff.maxAbs << " (allowed " << maxAbs
                   << "), mean " << diff.meanAbs << ", PSNR " << diff.psnrDb << " dB (needed "
@@ -23,7 +23,7 @@ void expectImagesNear(const node::Image& baseline, const node::Image& rendered, 
     if (c == '/' || c == ' ') c = '_';
   const std::filesystem::path dir = VOXWALL_TEST_OUTPUT_DIR;
   std::filesystem::create_directories(dir);
-  node::Image d(baseline.width, baseline.height);
+  voxwall::Image d(baseline.width, baseline.height);
   for (std::size_t i = 0; i < d.pixels.size(); ++i) {
     std::uint32_t out = 0xff000000u;
     for (int c = 0; c < 3; ++c) {
@@ -33,9 +33,9 @@ void expectImagesNear(const node::Image& baseline, const node::Image& rendered, 
     }
     d.pixels[i] = out;
   }
-  node::writeImage(baseline, (dir / (name + "-baseline.png")).string());
-  node::writeImage(rendered, (dir / (name + "-rendered.png")).string());
-  node::writeImage(d, (dir / (name + "-diff.png")).string());
+  voxwall::writeImage(baseline, (dir / (name + "-baseline.png")).string());
+  voxwall::writeImage(rendered, (dir / (name + "-rendered.png")).string());
+  voxwall::writeImage(d, (dir / (name + "-diff.png")).string());
   ADD_FAILURE() << "images written to " << (dir / (name + "-*.png")).string();
 }
 

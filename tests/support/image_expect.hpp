@@ -3,12 +3,12 @@
 #pragma once
 
 #include <string>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/image.hpp>
 
 namespace voxwall::test {
 
 // Expects every channel within maxAbs (0 = identical) and, when minPsnrDb > 0, PSNR above it.
-void expectImagesNear(const node::Image& baseline, const node::Image& rendered, int maxAbs,
+void expectImagesNear(const voxwall::Image& baseline, const voxwall::Image& rendered, int maxAbs,
                       double minPsnrDb = 0.0, const std::string& label = "");
 
 }  // namespace voxwall::test

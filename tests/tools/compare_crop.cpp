@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/image.hpp>
 
 int main(int argc, char** argv) {
   if (argc != 7 && argc != 8) {
@@ -12,11 +12,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    const auto full = voxwall::node::readImage(argv[1]);
-    const voxwall::node::Rect rect{std::atoi(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]),
-                                   std::atoi(argv[5])};
-    const auto part = voxwall::node::readImage(argv[6]);
-    const auto diff = voxwall::node::compareImages(full.crop(rect), part);
+    const auto full = voxwall::readImage(argv[1]);
+    const voxwall::Rect rect{std::atoi(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]),
+                             std::atoi(argv[5])};
+    const auto part = voxwall::readImage(argv[6]);
+    const auto diff = voxwall::compareImages(full.crop(rect), part);
     const double minPsnr = argc == 8 ? std::atof(argv[7]) : 0;
     const bool ok = argc == 8 ? diff.psnrDb >= minPsnr : diff.maxAbs == 0;
     std::printf("%s: max difference %d, PSNR %.2f dB%s\n", argv[6], diff.maxAbs, diff.psnrDb,

@@ -14,7 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <thread>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/frame_assembler.hpp>
 #include <voxwall/walls/frame_files.hpp>
@@ -37,8 +37,8 @@ net::Hello renderer(int rank, int ranks, std::uint64_t job = 0) {
   return h;
 }
 
-net::TileMessage solidTile(const node::Rect& rect, std::uint32_t rgb) {
-  node::Image image(rect.width, rect.height);
+net::TileMessage solidTile(const voxwall::Rect& rect, std::uint32_t rgb) {
+  voxwall::Image image(rect.width, rect.height);
   for (auto& p : image.pixels) p = rgb | 0xff000000u;
   net::TileCodecSettings s;
   s.codec = net::TileCodec::Raw;
@@ -82,8 +82,8 @@ bool closedWithin(int fd, int ms) {
 TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
   test::SinkRunner sink(settings());
   auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
-  for (const node::Rect r :
-       {node::Rect{2147483647 - 50, 0, 100, 10}, node::Rect{0, 2147483647 - 5, 44, 10}}) {
+  for (const voxwall::Rect r :
+       {voxwall::Rect{2147483647 - 50, 0, 100, 10}, voxwall::Rect{0, 2147483647 - 5, 44, 10}}) {
     auto tile = solidTile({0, 0, r.width, r.height}, 0xff);
     tile.rect = r;
     c->send(net::encodeMessage(1, tile));
@@ -324,7 +324,7 @@ TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
 TEST(SinkHardening, FrameFilesAppearWholeAndLeftoversAreCleared) {
   test::TempDir dir;
   const auto wall = testWall();
-  node::Image screen(wall.width, wall.height);
+  voxwall::Image screen(wall.width, wall.height);
   for (auto& p : screen.pixels) p = 0xff204060u;
   walls::writeFrameFiles(dir.path(""), 3, wall, screen, true);
   EXPECT_TRUE(walls::frameFilesComplete(dir.path(""), 3));

@@ -77,8 +77,8 @@ net::Hello renderer(int rank, int ranks, const std::string& token = "") {
 }
 
 // A solid tile of colour `rgb` (opaque) at `rect`.
-net::EncodedTile solidTile(const node::Rect& rect, std::uint32_t rgb) {
-  node::Image image(rect.width, rect.height);
+net::EncodedTile solidTile(const voxwall::Rect& rect, std::uint32_t rgb) {
+  voxwall::Image image(rect.width, rect.height);
   for (auto& p : image.pixels) p = rgb | 0xff000000u;
   net::TileCodecSettings s;
   s.codec = net::TileCodec::Raw;
@@ -98,8 +98,9 @@ TEST(Sink, PresentsAFrameOnlyWhenEveryDisplayPixelHasArrived) {
       1, net::TileMessage{
              {0, 0, 22, 10}, net::TileCodec::Raw, 0, solidTile({0, 0, 22, 10}, 0x0000ff).bytes}));
   // Frame 2: both halves (the bezel column 20..23 belongs to no display).
-  for (auto& [c, rect, color] : {std::tuple{left.get(), node::Rect{0, 0, 22, 10}, 0x00ff00u},
-                                 std::tuple{right.get(), node::Rect{22, 0, 22, 10}, 0xff0000u}}) {
+  for (auto& [c, rect, color] :
+       {std::tuple{left.get(), voxwall::Rect{0, 0, 22, 10}, 0x00ff00u},
+        std::tuple{right.get(), voxwall::Rect{22, 0, 22, 10}, 0xff0000u}}) {
     const auto tile = solidTile(rect, color);
     c->send(net::encodeMessage(2, net::TileMessage{rect, tile.codec, 0, tile.bytes}));
   }
@@ -107,8 +108,8 @@ TEST(Sink, PresentsAFrameOnlyWhenEveryDisplayPixelHasArrived) {
       << sink.log();
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesDropped == 1; }));
   EXPECT_FALSE(std::filesystem::exists(dir.path("out/frame_00001_r0c0.png")));
-  const auto l = node::readImage(dir.path("out/frame_00002_r0c0.png"));
-  const auto r = node::readImage(dir.path("out/frame_00002_r0c1.png"));
+  const auto l = voxwall::readImage(dir.path("out/frame_00002_r0c0.png"));
+  const auto r = voxwall::readImage(dir.path("out/frame_00002_r0c1.png"));
   ASSERT_EQ(l.width, 20);
   EXPECT_EQ(l.pixels[0], 0xff00ff00u);
   EXPECT_EQ(r.pixels[0], 0xffff0000u);  // 0xff0000 with red in the lowest byte: blue

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/walls/wall.hpp>
 
 using namespace voxwall;
@@ -18,7 +18,7 @@ TEST(Wall, ShippedWallsLoad) {
   EXPECT_EQ(bigeye.width, 5760 + 2 * 6);
   EXPECT_EQ(bigeye.height, 4320 + 3 * 6);
   EXPECT_EQ(bigeye.displays[4].name, "r1c1");
-  EXPECT_EQ(bigeye.displays[4].rect, (node::Rect{1926, 1086, 1920, 1080}));
+  EXPECT_EQ(bigeye.displays[4].rect, (voxwall::Rect{1926, 1086, 1920, 1080}));
   const auto ci = walls::loadWall(kWalls + "/ci-2x2.json");
   EXPECT_EQ(ci.displays.size(), 4u);
   EXPECT_EQ(ci.width, 196);
@@ -38,7 +38,7 @@ TEST(Wall, ReadsTideConfiguration) {
   EXPECT_EQ(wall.displays.size(), 6u);
   EXPECT_EQ(wall.width, 3 * 400 + 2 * 10);
   EXPECT_EQ(wall.height, 2 * 300 + 20);
-  EXPECT_EQ(wall.displays[5].rect, (node::Rect{820, 320, 400, 300}));
+  EXPECT_EQ(wall.displays[5].rect, (voxwall::Rect{820, 320, 400, 300}));
   EXPECT_NEAR(wall.background.r, 1.0, 1e-9);
   EXPECT_NEAR(wall.background.g, 128 / 255.0, 1e-9);
   // Tide's defaults: one screen, no bezel.

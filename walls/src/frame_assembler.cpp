@@ -1,6 +1,6 @@
 #include <algorithm>
 #include <bit>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/walls/frame_assembler.hpp>
 
@@ -112,7 +112,7 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
     while (int(open_.size()) >= limits_.pendingFrames)
       drop(open_.begin()->first, "too many frames open");
   // Decode before touching the frame: a corrupt tile must not mark any pixel as arrived.
-  node::Image image = net::decodeTile(tile.bytes, tile.codec, r.width, r.height, peer);
+  voxwall::Image image = net::decodeTile(tile.bytes, tile.codec, r.width, r.height, peer);
   it = open_.find(frame);
   if (it == open_.end()) {
     it = open_.emplace(frame, Open{}).first;
@@ -148,7 +148,7 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
   // Complete: older frames can never be shown now, and frames far ahead are bogus.
   while (open_.begin()->first != frame) drop(open_.begin()->first, "a newer frame completed");
   AssembledFrame done = std::move(f.info);
-  done.image = node::Image(wall_.width, wall_.height);
+  done.image = voxwall::Image(wall_.width, wall_.height);
   for (const auto& [rect, pixels] : f.tiles) done.image.paste(pixels, rect);
   heldBytes_ -= f.heldBytes;
   open_.erase(open_.begin());

@@ -5,8 +5,8 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/files.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 #include <voxwall/walls/frame_files.hpp>
 
 namespace voxwall::walls {
@@ -40,9 +40,9 @@ std::string frameMarkerPath(const std::string& dir, std::uint64_t frame) {
 }
 
 void writeFrameFiles(const std::string& dir, std::uint64_t frame, const Wall& wall,
-                     const node::Image& screen, bool mosaic) {
+                     const voxwall::Image& screen, bool mosaic) {
   const std::string stem = frameStem(frame);
-  std::vector<std::pair<std::string, node::Image>> pictures;
+  std::vector<std::pair<std::string, voxwall::Image>> pictures;
   for (const auto& d : wall.displays)
     pictures.emplace_back((fs::path(dir) / (stem + "_" + d.name + ".png")).string(),
                           screen.crop(d.rect));
@@ -53,19 +53,19 @@ void writeFrameFiles(const std::string& dir, std::uint64_t frame, const Wall& wa
     for (const auto& [tmp, path] : written) fs::remove(tmp, ignored), fs::remove(path, ignored);
   };
   try {
-    auto add = [&](const std::string& path, const node::Image& image) {
-      const auto bytes = node::encodeImage(image, path);
-      written.emplace_back(codec::writeTemporary(path, bytes), path);
-      const auto digest = codec::digestOf(bytes);
+    auto add = [&](const std::string& path, const voxwall::Image& image) {
+      const auto bytes = voxwall::encodeImage(image, path);
+      written.emplace_back(voxwall::writeTemporary(path, bytes), path);
+      const auto digest = voxwall::digestOf(bytes);
       files[fs::path(path).filename().string()] = {{"bytes", digest.bytes},
-                                                   {"xxh64", codec::hex64(digest.xxh64)}};
+                                                   {"xxh64", voxwall::hex64(digest.xxh64)}};
     };
     for (const auto& [path, image] : pictures) add(path, image);
     if (mosaic) add((fs::path(dir) / (stem + "_mosaic.png")).string(), screen);
-    for (const auto& [tmp, path] : written) codec::commitTemporary(tmp, path);
+    for (const auto& [tmp, path] : written) voxwall::commitTemporary(tmp, path);
     const std::string marker =
         nlohmann::json{{"frame", frame}, {"wall", wall.id}, {"files", files}}.dump(2) + "\n";
-    codec::writeFileAtomically(frameMarkerPath(dir, frame), std::as_bytes(std::span(marker)));
+    voxwall::writeFileAtomically(frameMarkerPath(dir, frame), std::as_bytes(std::span(marker)));
   } catch (...) {
     undo();
     throw;
@@ -79,9 +79,9 @@ bool frameFilesComplete(const std::string& dir, std::uint64_t frame) {
     if (!in) return false;
     marker = nlohmann::json::parse(in);
     for (const auto& [name, want] : marker.at("files").items())
-      if (!codec::fileHasDigest((fs::path(dir) / name).string(),
-                                want.at("bytes").get<std::uint64_t>(),
-                                want.at("xxh64").get<std::string>()))
+      if (!voxwall::fileHasDigest((fs::path(dir) / name).string(),
+                                  want.at("bytes").get<std::uint64_t>(),
+                                  want.at("xxh64").get<std::string>()))
         return false;
   } catch (const nlohmann::json::exception&) {
     return false;

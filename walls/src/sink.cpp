@@ -1,12 +1,8 @@
-// The sink's transport: one Asio thread accepts peers, reads each message (header, then the
-// payload in chunks as it arrives, checked) and hands it to the SinkCore; a presenter thread
-// writes complete frames. Per frame: collecting -> complete (every display pixel covered) ->
-// presented, or dropped (a newer frame completed first, too many frames were open, the memory
-// limit) or refused (outside the frame window); every outcome is logged and told to rank 0.
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <sys/socket.h>
-
+// The sink's transport and presenter: a net::Server on one Asio thread feeds each peer's checked
+// messages to the SinkCore; a presenter thread writes complete frames. Per frame: collecting ->
+// complete (every display pixel covered) -> presented, or dropped (a newer frame completed
+// first, too many frames were open, the memory limit) or refused (outside the frame window);
+// every outcome is logged and told to rank 0.
 #include <asio.hpp>
 #include <cerrno>
 #include <chrono>
@@ -20,15 +16,14 @@
 #include <set>
 #include <sstream>
 #include <thread>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/frame_files.hpp>
 #include <voxwall/walls/sink.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
 namespace voxwall::walls {
-
-using asio::ip::tcp;
 
 namespace {
 
@@ -37,20 +32,14 @@ struct CompleteFrame {
   AssembledFrame data;
 };
 
-constexpr std::size_t kPayloadChunk = 1 << 20;  // a payload's memory grows as its bytes arrive
-
 }  // namespace
 
-struct Sink::Impl {
-  struct Session;
-
+struct Sink::Impl : net::PeerHandler {
   SinkSettings settings;
   SinkLog log;
   asio::io_context io;
-  tcp::acceptor acceptor{io};
-  asio::steady_timer acceptPause{io};
   std::unique_ptr<SinkCore> core;
-  std::set<std::shared_ptr<Session>> sessions;
+  std::unique_ptr<net::Server> server;
 
   // Presenter: the newest complete frame waits here; a newer one replaces it (stale).
   std::mutex presentMutex;
@@ -73,169 +62,26 @@ struct Sink::Impl {
       asio::post(io, [this] { io.stop(); });
   }
 
-  struct Session : SinkPeer, std::enable_shared_from_this<Session> {
-    Impl& sink;
-    tcp::socket socket;
-    asio::steady_timer helloDeadline;
-    std::array<std::byte, net::kHeaderBytes> header{};
-    std::vector<std::byte> payload;
-    std::uint32_t payloadBytes = 0;
-    net::MessageType type{};
-    std::uint64_t frame = 0;
-    bool closing = false, closed = false;
-    std::deque<std::vector<std::byte>> outbox;
-
-    static std::string nameOf(tcp::socket& socket) {
-      asio::error_code ec;
-      const auto ep = socket.remote_endpoint(ec);
-      return ec ? std::string("peer")
-                : "peer " + ep.address().to_string() + ":" + std::to_string(ep.port());
-    }
-
-    Session(Impl& s, tcp::socket sock)
-        : SinkPeer(nameOf(sock)), sink(s), socket(std::move(sock)), helloDeadline(s.io) {}
-
-    void start() {
-      sink.core->attach(*this);
-      auto self = shared_from_this();
-      helloDeadline.expires_after(std::chrono::milliseconds(sink.settings.helloTimeoutMs));
-      helloDeadline.async_wait([self](asio::error_code ec) {
-        if (ec || self->greeted() || self->closed) return;
-        self->drop("sent no Hello within " + std::to_string(self->sink.settings.helloTimeoutMs) +
-                   " ms");
-      });
-      readHeader();
-    }
-
-    void readHeader() {
-      auto self = shared_from_this();
-      asio::async_read(socket, asio::buffer(header), [self](asio::error_code ec, std::size_t) {
-        if (self->closed) return;
-        if (ec) return self->drop(ec == asio::error::eof ? "" : ec.message());
-        try {
-          self->payloadBytes =
-              net::checkHeader(self->header, self->name(), &self->type, &self->frame);
-        } catch (const FormatError& e) {
-          return self->refuse(e.what());
-        }
-        const std::uint32_t limit = self->sink.core->payloadLimit(*self);
-        if (self->payloadBytes > limit)
-          return self->refuse(self->name() + ": payload of " + std::to_string(self->payloadBytes) +
-                              " bytes" + (self->greeted() ? "" : " before its Hello") + " (limit " +
-                              std::to_string(limit) + ")");
-        self->payload.clear();
-        self->readPayload();
-      });
-    }
-
-    // Reads the payload a chunk at a time: memory follows the bytes that really arrived, not
-    // the length a header claims.
-    void readPayload() {
-      if (payload.size() == payloadBytes) return onMessage();
-      const std::size_t have = payload.size();
-      const std::size_t chunk = std::min<std::size_t>(payloadBytes - have, kPayloadChunk);
-      payload.resize(have + chunk);
-      auto self = shared_from_this();
-      asio::async_read(
-          socket, asio::buffer(payload.data() + have, chunk),
-          [self](asio::error_code ec, std::size_t) {
-            if (self->closed) return;
-            if (ec) return self->drop(ec == asio::error::eof ? "closed mid-message" : ec.message());
-            self->readPayload();
-          });
-    }
-
-    void onMessage() {
-      sink.core->updateStats(
-          [&](SinkStats& s) { s.bytesReceived += net::kHeaderBytes + payload.size(); });
-      try {
-        net::checkPayload(header, payload, name());
-        const bool goOn = sink.core->handle(*this, type, frame, payload);
-        sink.stopIfDone();
-        if (!goOn) return;
-      } catch (const FormatError& e) {
-        return drop(e.what());
-      }
-      if (closed) return;  // the core hung up on this peer (another job took the wall)
-      readHeader();
-    }
-
-    void send(std::vector<std::byte> bytes) override {
-      if (closed) return;
-      outbox.push_back(std::move(bytes));
-      if (outbox.size() == 1) writeNext();
-    }
-
-    void hangUp() override {
-      closing = true;
-      if (outbox.empty()) close();
-    }
-
-    void writeNext() {
-      auto self = shared_from_this();
-      asio::async_write(socket, asio::buffer(outbox.front()),
-                        [self](asio::error_code ec, std::size_t) {
-                          if (self->closed) return;
-                          self->outbox.pop_front();
-                          if (ec) return self->drop(ec.message());
-                          if (!self->outbox.empty()) return self->writeNext();
-                          if (self->closing) self->close();
-                        });
-    }
-
-    void refuse(const std::string& reason) { sink.core->refuse(*this, reason); }
-
-    void drop(const std::string& why) {
-      if (closed) return;
-      sink.core->dropped(*this, why);
-      close();
-    }
-
-    void close() {
-      if (closed) return;
-      closed = true;
-      sink.core->detach(*this);
-      asio::error_code ignored;
-      helloDeadline.cancel();
-      socket.shutdown(tcp::socket::shutdown_both, ignored);
-      socket.close(ignored);
-      sink.sessions.erase(shared_from_this());
-    }
-  };
-
-  void accept() {
-    acceptor.async_accept([this](asio::error_code ec, tcp::socket socket) {
-      if (!acceptor.is_open() || ec == asio::error::operation_aborted) return;
-      if (ec) {
-        // Out of file descriptors (EMFILE/ENFILE) or a peer gone before accept: keep serving,
-        // after a pause that lets idle peers time out.
-        say("sink: cannot accept a peer: " + ec.message() + "; retrying in 100 ms");
-        acceptPause.expires_after(std::chrono::milliseconds(100));
-        acceptPause.async_wait([this](asio::error_code e) {
-          if (!e) accept();
-        });
-        return;
-      }
-      asio::error_code ignored;
-      if (int(sessions.size()) >= settings.maxPeers) {
-        core->updateStats([](SinkStats& s) { ++s.peersRefused; });
-        say("sink: refused a peer: " + std::to_string(settings.maxPeers) +
-            " peers connected (--max-peers)");
-        socket.close(ignored);
-        return accept();
-      }
-      socket.set_option(tcp::no_delay(true), ignored);
-      // A render host that vanishes (power, network) leaves a half-open connection that would
-      // hold the wall for its job forever: TCP keep-alive closes it within about a minute.
-      socket.set_option(asio::socket_base::keep_alive(true), ignored);
-      for (const auto& [option, value] :
-           {std::pair{TCP_KEEPIDLE, 30}, std::pair{TCP_KEEPINTVL, 10}, std::pair{TCP_KEEPCNT, 3}})
-        ::setsockopt(socket.native_handle(), IPPROTO_TCP, option, &value, sizeof value);
-      auto session = std::make_shared<Session>(*this, std::move(socket));
-      sessions.insert(session);
-      session->start();
-      accept();
-    });
+  // net::PeerHandler: the server's peers go to the core; every message may settle the last frame.
+  void attach(net::Peer& peer) override { core->attach(peer); }
+  void detach(net::Peer& peer) override { core->detach(peer); }
+  std::uint32_t payloadLimit(const net::Peer& peer) const override {
+    return core->payloadLimit(peer);
+  }
+  bool handle(net::Peer& peer, net::MessageType type, std::uint64_t frame,
+              std::span<const std::byte> payload) override {
+    const bool goOn = core->handle(peer, type, frame, payload);
+    stopIfDone();
+    return goOn;
+  }
+  void refuse(net::Peer& peer, const std::string& reason) override { core->refuse(peer, reason); }
+  void dropped(net::Peer& peer, const std::string& why) override { core->dropped(peer, why); }
+  void received(std::uint64_t bytes) override {
+    core->updateStats([&](SinkStats& s) { s.bytesReceived += bytes; });
+  }
+  void refusedConnection(const std::string& why) override {
+    core->updateStats([](SinkStats& s) { ++s.peersRefused; });
+    say("sink: refused a peer: " + why);
   }
 
   // On the io thread: a complete frame goes to the presenter (replacing one it has not taken).
@@ -318,12 +164,14 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
   s.log = std::move(log);
   validateWall(s.settings.wall, "wall");
   if (s.settings.pendingFrames < 1) s.settings.pendingFrames = 1;
-  if (s.settings.maxPeers < 1) throw std::invalid_argument("--max-peers must be at least 1");
-  if (s.settings.helloTimeoutMs < 1)
-    throw std::invalid_argument("the Hello timeout must be positive");
   s.core = std::make_unique<SinkCore>(
       s.settings, s.log,
       [this](std::uint64_t job, AssembledFrame&& f) { impl_->onComplete(job, std::move(f)); });
+  s.server = std::make_unique<net::Server>(
+      s.io,
+      net::ServerSettings{s.settings.listenHost, s.settings.listenPort, s.settings.maxPeers,
+                          s.settings.helloTimeoutMs},
+      s, s.log);
   if (!s.settings.outDir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(s.settings.outDir, ec);
@@ -332,33 +180,18 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
       s.say("sink: removed " + std::to_string(removed) + " file(s) of incomplete frames from " +
             s.settings.outDir);
   }
-  asio::error_code ec;
-  const auto address = asio::ip::make_address(s.settings.listenHost, ec);
-  if (ec) throw net::NetError("--listen: '" + s.settings.listenHost + "' is not an IP address");
-  const tcp::endpoint endpoint(address, s.settings.listenPort);
-  s.acceptor.open(endpoint.protocol(), ec);
-  if (!ec) s.acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
-  if (!ec) s.acceptor.bind(endpoint, ec);
-  if (!ec) s.acceptor.listen(asio::socket_base::max_listen_connections, ec);
-  if (ec)
-    throw net::NetError("cannot listen on " + s.settings.listenHost + ":" +
-                        std::to_string(s.settings.listenPort) + ": " + ec.message());
   s.presenter = std::thread([this] { impl_->present(); });
 }
 
 Sink::~Sink() { impl_->stopPresenter(); }
 
-std::uint16_t Sink::port() const { return impl_->acceptor.local_endpoint().port(); }
+std::uint16_t Sink::port() const { return impl_->server->port(); }
 
 void Sink::run() {
-  impl_->accept();
+  impl_->server->start();
   impl_->io.run();
   // Stop listening and hang up on every peer, so the port is free for a new sink at once.
-  asio::error_code ignored;
-  impl_->acceptor.close(ignored);
-  impl_->acceptPause.cancel();
-  for (const auto& session : std::set(impl_->sessions)) session->close();
-  impl_->sessions.clear();
+  impl_->server->close();
   // Finish the frame being written before returning.
   impl_->stopPresenter();
   // Handlers the presenter posted last (its frame notes, a write error) still run here.

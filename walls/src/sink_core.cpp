@@ -1,6 +1,6 @@
 #include <cstdio>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/files.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
 namespace voxwall::walls {
@@ -20,7 +20,7 @@ bool sameSecret(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
-std::string jobName(std::uint64_t job) { return codec::hex64(job); }
+std::string jobName(std::uint64_t job) { return voxwall::hex64(job); }
 
 SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
     : settings_(settings),
@@ -31,9 +31,9 @@ SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
           AssemblerLimits{settings.pendingFrames, settings.pendingBytes, settings.frameWindow},
           [this](const FrameEvent& e) { onEvent(e); }) {}
 
-void SinkCore::attach(SinkPeer& peer) { peers_.insert(&peer); }
+void SinkCore::attach(net::Peer& peer) { peers_.insert(&peer); }
 
-void SinkCore::detach(SinkPeer& peer) {
+void SinkCore::detach(net::Peer& peer) {
   peers_.erase(&peer);
   if (controller_ == &peer) {
     controller_ = nullptr;
@@ -41,11 +41,11 @@ void SinkCore::detach(SinkPeer& peer) {
   }
 }
 
-std::uint32_t SinkCore::payloadLimit(const SinkPeer& peer) const {
+std::uint32_t SinkCore::payloadLimit(const net::Peer& peer) const {
   return peer.greeted() ? net::kMaxPayload : net::kMaxHelloPayload;
 }
 
-void SinkCore::refuse(SinkPeer& peer, const std::string& reason) {
+void SinkCore::refuse(net::Peer& peer, const std::string& reason) {
   updateStats([](SinkStats& s) { ++s.peersRefused; });
   say("sink: refused " + reason);
   peer.send(net::encodeMessage(net::Bye{reason.substr(0, net::kMaxString)}));
@@ -53,7 +53,7 @@ void SinkCore::refuse(SinkPeer& peer, const std::string& reason) {
   detach(peer);
 }
 
-void SinkCore::dropped(SinkPeer& peer, const std::string& why) {
+void SinkCore::dropped(net::Peer& peer, const std::string& why) {
   if (!why.empty()) {
     updateStats([](SinkStats& s) { ++s.peersDropped; });
     // Errors about the peer already start with its name.
@@ -88,7 +88,7 @@ SinkStats SinkCore::stats() const {
   return stats_;
 }
 
-bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
+bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   const net::Hello hello = net::decodeHello(payload, peer.name());
   if (!settings_.token.empty() && !sameSecret(hello.token, settings_.token)) {
     refuse(peer, peer.name() + ": wrong token");
@@ -110,7 +110,7 @@ bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
       // One job at a time: a running job keeps the wall; once all its peers are gone, the next
       // job takes it and the old one can never come back (its frame ids would mean nothing).
       int running = 0;
-      for (const SinkPeer* other : peers_)
+      for (const net::Peer* other : peers_)
         running += other != &peer && other->greeted() && other->hello().jobId == *job_;
       if (running > 0) {
         refuse(peer, peer.name() + ": job " + jobName(*job_) + " is showing on this wall (" +
@@ -129,10 +129,9 @@ bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
     }
     job_ = hello.jobId;
   }
-  peer.greeted_ = true;
-  peer.hello_ = hello;
-  peer.name_ += hello.role == net::Role::Controller ? " (controller)"
-                                                    : " (rank " + std::to_string(hello.rank) + ")";
+  peer.markGreeted(hello, peer.name() + (hello.role == net::Role::Controller
+                                             ? " (controller)"
+                                             : " (rank " + std::to_string(hello.rank) + ")"));
   updateStats([](SinkStats& s) { ++s.peersAccepted; });
   if (hello.role == net::Role::Controller) {
     controller_ = &peer;
@@ -142,7 +141,7 @@ bool SinkCore::greet(SinkPeer& peer, std::span<const std::byte> payload) {
   return true;
 }
 
-bool SinkCore::handle(SinkPeer& peer, net::MessageType type, std::uint64_t frame,
+bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t frame,
                       std::span<const std::byte> payload) {
   using net::MessageType;
   if (payload.size() > payloadLimit(peer))

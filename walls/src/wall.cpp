@@ -3,7 +3,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/walls/wall.hpp>
 
 namespace voxwall::walls {

@@ -8,8 +8,9 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 
 #include "../file_util.hpp"
 

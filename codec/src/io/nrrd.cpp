@@ -12,8 +12,9 @@
 #include <sstream>
 #include <string_view>
 #include <vector>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 
 #include "../file_util.hpp"
 

@@ -4,8 +4,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/files.hpp>
 
 #include "../file_util.hpp"
 

@@ -4,8 +4,8 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
 
 #include "../file_util.hpp"
 

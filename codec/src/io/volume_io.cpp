@@ -1,6 +1,6 @@
 #include <filesystem>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
 
 #include "../file_util.hpp"
 

@@ -1,10 +1,10 @@
 // The raw codec; section layout in raw_codec.hpp.
 #include <algorithm>
 #include <cstring>
-#include <voxwall/codec/bytes.hpp>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec::raw {
 namespace {

@@ -6,12 +6,12 @@
 #include <functional>
 #include <glm/common.hpp>
 #include <limits>
-#include <voxwall/codec/bytes.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec::svmm {
 

@@ -3,11 +3,11 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/core/errors.hpp>
 
 namespace voxwall::codec::svmm {
 namespace {

@@ -10,12 +10,12 @@
 #include <limits>
 #include <unordered_map>
 #include <voxwall/codec/brick_volume.hpp>
-#include <voxwall/codec/bytes.hpp>
-#include <voxwall/codec/errors.hpp>
 #include <voxwall/codec/metrics.hpp>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 #include <voxwall/codec/vq_kmeans.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec::vq {
 namespace {

@@ -4,8 +4,8 @@
 #include <limits>
 #include <queue>
 #include <stdexcept>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/vq_kmeans.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec::vq {
 namespace {

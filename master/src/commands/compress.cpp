@@ -52,7 +52,7 @@ void runCompress(const CompressOptions& o) {
   const auto start = std::chrono::steady_clock::now();
   codec::Volume v = loadVolume(o.input, o.raw.layout());
   if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
-  codec::Progress progress = makeProgress(o.quiet);
+  voxwall::Progress progress = makeProgress(o.quiet);
   std::string report;
   const codec::CompressedVolume compressed = chosen.encode(v, values, progress, report);
   const std::uint64_t fileBytes = codec::writeContainer(compressed, o.output);

@@ -30,7 +30,7 @@ void runGenerate(const GenerateOptions& o) {
                                 "' (expected menger, marschner-lobb or shepp-logan)");
   }
   if (codec::isContainerFile(o.output) || o.output.ends_with(".vwz")) {
-    codec::Progress quiet;
+    voxwall::Progress quiet;
     codec::writeContainer(codec::raw::encode(v, {}, quiet), o.output);
   } else {
     codec::writeVolume(v, o.output);

@@ -4,8 +4,8 @@
 #include <memory>
 #include <thread>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
@@ -64,7 +64,7 @@ std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Commu
   int threads = o.threads;
   if (threads == 0) {
     const int share = std::max(1, int(std::thread::hardware_concurrency()) / comm.ranksOnHost());
-    threads = std::min(share, codec::usableCores());
+    threads = std::min(share, voxwall::usableCores());
     if (threads < share && !quiet)
       std::fprintf(stderr,
                    "voxwall: rank %d is bound to %d core(s) by its launcher while %d are its "

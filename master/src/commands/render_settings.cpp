@@ -62,12 +62,12 @@ std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ra
   return bytes;
 }
 
-std::string rectText(const node::Rect& r) {
+std::string rectText(const voxwall::Rect& r) {
   return std::to_string(r.width) + "x" + std::to_string(r.height) + "+" + std::to_string(r.x) +
          "+" + std::to_string(r.y);
 }
 
-std::string rectList(const std::vector<node::Rect>& rects) {
+std::string rectList(const std::vector<voxwall::Rect>& rects) {
   std::string list;
   for (const auto& rect : rects) {
     list += ' ';

@@ -56,8 +56,8 @@ std::uint64_t parseBytes(const std::string& text, const std::string& option);
 std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,
                                 std::uint64_t volumeBytes, std::uint64_t baseBytes);
 // "WxH+X+Y", and a list of them each after a space.
-std::string rectText(const node::Rect& r);
-std::string rectList(const std::vector<node::Rect>& rects);
+std::string rectText(const voxwall::Rect& r);
+std::string rectList(const std::vector<voxwall::Rect>& rects);
 // The job manifest rank 0 stores with the frames (--resume compares it).
 std::string manifest(const RenderOptions& o, const master::JobSettings& job,
                      const node::RenderSettings& render, std::uint64_t fingerprint);

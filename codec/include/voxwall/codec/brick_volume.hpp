@@ -7,9 +7,9 @@
 #include <limits>
 #include <type_traits>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
-#include <voxwall/codec/parallel.hpp>
 #include <voxwall/codec/range_grid.hpp>
 #include <voxwall/codec/volume.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec {
 

@@ -11,8 +11,8 @@
 #include <utility>
 #include <vector>
 #include <voxwall/codec/container.hpp>
-#include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/volume.hpp>
+#include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec {
 

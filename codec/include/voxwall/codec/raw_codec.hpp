@@ -16,8 +16,8 @@
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
-#include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::raw {
 

@@ -56,8 +56,8 @@
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/svmm_view.hpp>
-#include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::svmm {
 

@@ -51,8 +51,8 @@
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/vq_view.hpp>
-#include <voxwall/codec/progress.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::vq {
 

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <span>
 #include <vector>
-#include <voxwall/codec/progress.hpp>
+#include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::vq {
 

@@ -10,18 +10,19 @@ namespace voxwall::master {
 
 // `count` horizontal strips of equal area (heights differ by at most one pixel).
 // Throws std::invalid_argument when count < 1 or count > height.
-std::vector<node::Rect> stripCut(int width, int height, int count);
+std::vector<voxwall::Rect> stripCut(int width, int height, int count);
 
 // Grid of tiles covering a width x height screen exactly (rows and columns differ by at most
 // one pixel), row by row. Throws std::invalid_argument for counts < 1 or larger than the screen.
-std::vector<node::Rect> gridCut(int width, int height, int tilesX, int tilesY);
+std::vector<voxwall::Rect> gridCut(int width, int height, int tilesX, int tilesY);
 
 // Recursive bisection of `screen` into `count` rectangles of equal cost under `costs` (cost
 // spread evenly inside each cell). Splits the longer side first, at pixel precision; every
 // rectangle is at least one pixel. Zero, negative or non-finite cells count as free; a grid with
 // no usable cost cuts by area. The result tiles `screen` exactly. Throws std::invalid_argument
 // when `screen` has fewer pixels than `count`.
-std::vector<node::Rect> bisectCut(const node::CostGrid& costs, const node::Rect& screen, int count);
+std::vector<voxwall::Rect> bisectCut(const node::CostGrid& costs, const voxwall::Rect& screen,
+                                     int count);
 
 // max / mean of `costs` (1 = perfect balance; 1 for an empty or all-zero list).
 double imbalance(const std::vector<double>& costs);
@@ -47,7 +48,7 @@ class LoadBalancer {
   LoadBalancer(int width, int height, int ranks, BalancerSettings settings = {});
 
   // One rectangle per rendering slot for the next frame (equal-area strips before any costs).
-  const std::vector<node::Rect>& cut() const { return cut_; }
+  const std::vector<voxwall::Rect>& cut() const { return cut_; }
 
   // Feeds the frame rendered with cut(): each slot's measured cost grid (only the cells its
   // rectangle covers are read; an empty grid means "not measured") and its wall time. The cells
@@ -64,7 +65,7 @@ class LoadBalancer {
  private:
   int width_, height_, ranks_;
   BalancerSettings settings_;
-  std::vector<node::Rect> cut_;
+  std::vector<voxwall::Rect> cut_;
   node::CostGrid prediction_;
   bool havePrediction_ = false;
   int recuts_ = 0;

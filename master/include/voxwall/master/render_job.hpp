@@ -64,8 +64,8 @@ struct FrameSummary {
   double writeWaitSeconds = 0;  // waiting for the previous frame's write to finish
   std::vector<int> ranks;       // the rendering ranks
   std::vector<double> rankSeconds;
-  std::vector<std::vector<node::Rect>> rects;  // per rendering rank
-  double imbalance = 1;                        // max / mean of rankSeconds
+  std::vector<std::vector<voxwall::Rect>> rects;  // per rendering rank
+  double imbalance = 1;                           // max / mean of rankSeconds
   std::uint64_t samples = 0;
   int recuts = 0;            // cut changes so far (dynamic)
   std::string path;          // file the frame goes to, empty when not writing
@@ -93,7 +93,7 @@ struct JobSummary {
 
 // The rectangles of every rank in the first frame (what --dry-run shows). Throws
 // std::invalid_argument when the screen cannot be cut for this many ranks.
-std::vector<std::vector<node::Rect>> firstFrameRects(const JobSettings& job, int ranks);
+std::vector<std::vector<voxwall::Rect>> firstFrameRects(const JobSettings& job, int ranks);
 
 // Frames already complete in job.outDir (resume): those the job manifest (voxwall-job.json)
 // records with the size and xxHash64 the file still has; any other frame is rendered again

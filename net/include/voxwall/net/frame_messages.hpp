@@ -27,9 +27,9 @@
 #include <cstdint>
 #include <span>
 #include <vector>
+#include <voxwall/core/image.hpp>
 #include <voxwall/node/camera.hpp>
 #include <voxwall/node/cost_grid.hpp>
-#include <voxwall/node/image.hpp>
 
 namespace voxwall::net {
 
@@ -50,13 +50,13 @@ struct FrameTask {
   node::Camera camera;
   std::uint32_t watchdogMs = 0;  // how long any rank waits for any other in this frame
   int screenWidth = 0, screenHeight = 0;
-  int cellPixels = 32;                         // cost grid cell size
-  std::vector<std::vector<node::Rect>> rects;  // per rank (index = rank); may be empty
+  int cellPixels = 32;                            // cost grid cell size
+  std::vector<std::vector<voxwall::Rect>> rects;  // per rank (index = rank); may be empty
 };
 
 struct RenderedTile {
-  node::Rect rect;
-  node::Image image;  // rect.width x rect.height, premultiplied RGBA8; empty without pixels
+  voxwall::Rect rect;
+  voxwall::Image image;  // rect.width x rect.height, premultiplied RGBA8; empty without pixels
 };
 
 struct RankReport {

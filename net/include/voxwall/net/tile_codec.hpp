@@ -7,7 +7,7 @@
 #include <glm/vec3.hpp>
 #include <span>
 #include <vector>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/image.hpp>
 
 namespace voxwall::net {
 
@@ -24,7 +24,7 @@ struct TileCodecSettings {
 };
 
 struct EncodedTile {
-  node::Rect rect;  // in virtual-screen pixels
+  voxwall::Rect rect;  // in virtual-screen pixels
   TileCodec codec = TileCodec::Jpeg;
   std::vector<std::byte> bytes;
 };
@@ -32,14 +32,14 @@ struct EncodedTile {
 // Splits `image` (premultiplied RGBA, placed at `rect` on the virtual screen) into segments,
 // composites them onto `background` and compresses them in parallel. Throws NetError on a
 // libjpeg-turbo failure, std::invalid_argument on bad settings.
-std::vector<EncodedTile> encodeTiles(const node::Image& image, const node::Rect& rect,
+std::vector<EncodedTile> encodeTiles(const voxwall::Image& image, const voxwall::Rect& rect,
                                      const glm::dvec3& background,
                                      const TileCodecSettings& settings);
 
 // Decodes one tile into an opaque image of rect's size. Throws FormatError("<source>: ...")
 // when the bytes are corrupt or do not decode to exactly that size.
-node::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
-                       const std::string& source);
+voxwall::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
+                          const std::string& source);
 
 const char* tileCodecName(TileCodec codec);
 

@@ -37,8 +37,8 @@
 #include <span>
 #include <string>
 #include <vector>
+#include <voxwall/core/rect.hpp>
 #include <voxwall/net/tile_codec.hpp>
-#include <voxwall/node/camera.hpp>
 
 namespace voxwall::net {
 
@@ -75,7 +75,7 @@ struct Welcome {
   int screenWidth = 0, screenHeight = 0;
 };
 struct TileMessage {
-  node::Rect rect;
+  voxwall::Rect rect;
   TileCodec codec = TileCodec::Jpeg;
   std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the frame's camera
   std::vector<std::byte> bytes;

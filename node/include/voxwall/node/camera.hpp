@@ -2,21 +2,9 @@
 #pragma once
 
 #include <glm/vec3.hpp>
+#include <voxwall/core/rect.hpp>
 
 namespace voxwall::node {
-
-// A rectangle of the virtual screen in pixels; row 0 at the top.
-struct Rect {
-  int x = 0, y = 0, width = 0, height = 0;
-  long long area() const { return (long long)width * height; }
-  // Whether the rectangle is non-empty and lies inside a screenWidth x screenHeight screen.
-  // Computed in 64 bits: a rectangle from a file or the wire cannot overflow its way inside.
-  bool fitsIn(int screenWidth, int screenHeight) const {
-    return x >= 0 && y >= 0 && width > 0 && height > 0 && (long long)x + width <= screenWidth &&
-           (long long)y + height <= screenHeight;
-  }
-  bool operator==(const Rect&) const = default;
-};
 
 // A perspective pinhole camera in world space (millimetres for medical data).
 struct Camera {

@@ -6,9 +6,9 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+#include <voxwall/core/image.hpp>
 #include <voxwall/node/camera.hpp>
 #include <voxwall/node/cost_grid.hpp>
-#include <voxwall/node/image.hpp>
 #include <voxwall/node/kernels/raycast.hpp>
 #include <voxwall/node/render_volume.hpp>
 #include <voxwall/node/transfer_function.hpp>

@@ -19,8 +19,8 @@
 #include <set>
 #include <string>
 #include <vector>
+#include <voxwall/core/image.hpp>
 #include <voxwall/net/wire.hpp>
-#include <voxwall/node/image.hpp>
 #include <voxwall/walls/wall.hpp>
 
 namespace voxwall::walls {
@@ -29,7 +29,7 @@ inline constexpr std::uint64_t kDefaultFrameWindow = 1 << 16;
 
 struct AssembledFrame {
   std::uint64_t frame = 0;
-  node::Image image;                    // the whole virtual screen
+  voxwall::Image image;                 // the whole virtual screen
   std::uint64_t decidedUnixMicros = 0;  // earliest camera decision of its tiles (rank 0's clock)
   std::uint64_t bytes = 0;              // encoded tile bytes received
   int tiles = 0;
@@ -73,7 +73,7 @@ class FrameAssembler {
   struct Open {
     std::vector<std::uint64_t> covered;  // bitmap over the virtual screen
     long long coveredDisplayPixels = 0;
-    std::vector<std::pair<node::Rect, node::Image>> tiles;  // in arrival order
+    std::vector<std::pair<voxwall::Rect, voxwall::Image>> tiles;  // in arrival order
     std::uint64_t heldBytes = 0;
     AssembledFrame info;  // everything but the image
   };

@@ -8,7 +8,7 @@
 
 #include <cstdint>
 #include <string>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/image.hpp>
 #include <voxwall/walls/wall.hpp>
 
 namespace voxwall::walls {
@@ -19,7 +19,7 @@ std::string frameMarkerPath(const std::string& dir, std::uint64_t frame);
 // Writes one frame as above. Throws FormatError naming the file and the reason (e.g. "No space
 // left on device"); nothing of the frame stays under a final name then.
 void writeFrameFiles(const std::string& dir, std::uint64_t frame, const Wall& wall,
-                     const node::Image& screen, bool mosaic);
+                     const voxwall::Image& screen, bool mosaic);
 
 // Whether the frame's marker is there and every file it lists has its recorded size and hash.
 bool frameFilesComplete(const std::string& dir, std::uint64_t frame);

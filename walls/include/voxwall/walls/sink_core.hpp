@@ -1,6 +1,7 @@
 // The sink's protocol logic without sockets: the handshake (token, wall, job), what each message
 // from a peer does, the frame assembler, the render job's identity and the statistics. The Sink
-// (sink.hpp) drives it from Asio on one thread; tests and the fuzz target drive it from bytes.
+// (sink.hpp) drives it through net::Server on one thread; tests and the fuzz target drive it from
+// bytes.
 //
 // Jobs: every peer of a render job says the job's id in its Hello. While a job has peers
 // connected, a Hello of another job is refused with the reason (so a second job fails at once
@@ -18,31 +19,12 @@
 #include <span>
 #include <string>
 #include <vector>
+#include <voxwall/net/server.hpp>
 #include <voxwall/net/wire.hpp>
 #include <voxwall/walls/frame_assembler.hpp>
 #include <voxwall/walls/sink.hpp>
 
 namespace voxwall::walls {
-
-// One connection as the protocol sees it. The transport implements send and hangUp.
-class SinkPeer {
- public:
-  explicit SinkPeer(std::string name) : name_(std::move(name)) {}
-  virtual ~SinkPeer() = default;
-  // Queues a whole message to the peer.
-  virtual void send(std::vector<std::byte> bytes) = 0;
-  // Closes the connection once what is queued was sent.
-  virtual void hangUp() = 0;
-  const std::string& name() const { return name_; }
-  bool greeted() const { return greeted_; }
-  const net::Hello& hello() const { return hello_; }
-
- private:
-  friend class SinkCore;
-  std::string name_;
-  bool greeted_ = false;
-  net::Hello hello_;
-};
 
 // Compares secrets in time that depends on their lengths only.
 bool sameSecret(const std::string& a, const std::string& b);
@@ -54,20 +36,20 @@ class SinkCore {
   // Throws std::invalid_argument for settings that cannot work (see FrameAssembler).
   SinkCore(const SinkSettings& settings, SinkLog log, Present present);
 
-  void attach(SinkPeer& peer);
+  void attach(net::Peer& peer);
   // The connection is gone (closed, dropped or refused); forgets the peer.
-  void detach(SinkPeer& peer);
+  void detach(net::Peer& peer);
   // The largest payload `peer` may send now: kMaxHelloPayload before its Hello was accepted.
-  std::uint32_t payloadLimit(const SinkPeer& peer) const;
+  std::uint32_t payloadLimit(const net::Peer& peer) const;
   // One message whose header and payload were checked. Returns false when the session ends (the
   // peer was refused and told why, or it said Bye). Throws FormatError for a peer that broke the
   // protocol (the caller drops it and calls dropped()).
-  bool handle(SinkPeer& peer, net::MessageType type, std::uint64_t frame,
+  bool handle(net::Peer& peer, net::MessageType type, std::uint64_t frame,
               std::span<const std::byte> payload);
   // Sends Bye with the reason, counts and logs the refusal, hangs up.
-  void refuse(SinkPeer& peer, const std::string& reason);
+  void refuse(net::Peer& peer, const std::string& reason);
   // Counts and logs a peer dropped for `why` (empty: it simply closed).
-  void dropped(SinkPeer& peer, const std::string& why);
+  void dropped(net::Peer& peer, const std::string& why);
   // The presenter's word on a complete frame (presented, skipped, not written), told to the
   // job's controller; dropped or refused frames are told by the core itself.
   void frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note);
@@ -85,7 +67,7 @@ class SinkCore {
   const FrameAssembler& assembler() const { return assembler_; }
 
  private:
-  bool greet(SinkPeer& peer, std::span<const std::byte> payload);
+  bool greet(net::Peer& peer, std::span<const std::byte> payload);
   void onEvent(const FrameEvent& event);
   void say(const std::string& line) {
     if (log_) log_(line);
@@ -95,8 +77,8 @@ class SinkCore {
   SinkLog log_;
   Present present_;
   FrameAssembler assembler_;
-  std::set<SinkPeer*> peers_;
-  SinkPeer* controller_ = nullptr;
+  std::set<net::Peer*> peers_;
+  net::Peer* controller_ = nullptr;
   std::optional<std::uint64_t> job_;
   std::set<std::uint64_t> endedJobs_;
   mutable std::mutex statsMutex_;

@@ -19,7 +19,7 @@
 #include <glm/vec3.hpp>
 #include <string>
 #include <vector>
-#include <voxwall/node/camera.hpp>
+#include <voxwall/core/rect.hpp>
 
 namespace voxwall::walls {
 
@@ -31,7 +31,7 @@ inline constexpr long long kMaxScreenPixels = 1ll << 30;
 
 struct Display {
   std::string name;
-  node::Rect rect;  // in virtual-screen pixels
+  voxwall::Rect rect;  // in virtual-screen pixels
 };
 
 struct Wall {

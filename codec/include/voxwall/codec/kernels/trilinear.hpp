@@ -2,7 +2,7 @@
 #pragma once
 
 #include <cmath>
-#include <voxwall/codec/kernels/host_device.hpp>
+#include <voxwall/core/host_device.hpp>
 
 namespace voxwall::codec::kernels {
 

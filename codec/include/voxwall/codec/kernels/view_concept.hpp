@@ -8,7 +8,7 @@
 
 #include <concepts>
 #include <type_traits>
-#include <voxwall/codec/kernels/host_device.hpp>
+#include <voxwall/core/host_device.hpp>
 
 namespace voxwall::codec::kernels {
 

@@ -15,9 +15,9 @@
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 #include <type_traits>
-#include <voxwall/codec/kernels/host_device.hpp>
 #include <voxwall/codec/kernels/trilinear.hpp>
 #include <voxwall/codec/kernels/view_concept.hpp>
+#include <voxwall/core/host_device.hpp>
 #include <voxwall/node/kernels/transfer_lut.hpp>
 
 namespace voxwall::node::kernels {

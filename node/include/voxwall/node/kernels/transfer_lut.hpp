@@ -4,7 +4,7 @@
 #include <glm/vec4.hpp>
 #include <type_traits>
 #include <vector>
-#include <voxwall/codec/kernels/host_device.hpp>
+#include <voxwall/core/host_device.hpp>
 
 namespace voxwall::node {
 

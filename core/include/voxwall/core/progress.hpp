@@ -6,7 +6,7 @@
 #include <mutex>
 #include <string>
 
-namespace voxwall::codec {
+namespace voxwall {
 
 // Receives "done of total" updates for a named stage. Thread-safe: encoders call advance()
 // from worker threads; the callback runs under a lock, at most about 200 times per stage.
@@ -30,4 +30,4 @@ class Progress {
   std::uint64_t lastReported_ = 0;
 };
 
-}  // namespace voxwall::codec
+}  // namespace voxwall

@@ -6,10 +6,10 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
-#include <voxwall/codec/errors.hpp>
-#include <voxwall/node/image.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/image.hpp>
 
-namespace voxwall::node {
+namespace voxwall {
 
 void Image::paste(const Image& tile, const Rect& rect) {
   if (!rect.fitsIn(width, height) || tile.width != rect.width || tile.height != rect.height)
@@ -63,11 +63,11 @@ std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
   return bytes;
 }
 
-codec::FileDigest writeImage(const Image& image, const std::string& path,
-                             const std::optional<glm::dvec3>& background) {
+voxwall::FileDigest writeImage(const Image& image, const std::string& path,
+                               const std::optional<glm::dvec3>& background) {
   const auto bytes = encodeImage(image, path, background);
-  codec::writeFileAtomically(path, bytes);
-  return codec::digestOf(bytes);
+  voxwall::writeFileAtomically(path, bytes);
+  return voxwall::digestOf(bytes);
 }
 
 Image readImage(const std::string& path) {
@@ -110,4 +110,4 @@ ImageDiff compareImages(const Image& a, const Image& b) {
   return d;
 }
 
-}  // namespace voxwall::node
+}  // namespace voxwall

@@ -6,10 +6,10 @@
 #include <optional>
 #include <string>
 #include <vector>
-#include <voxwall/codec/files.hpp>
-#include <voxwall/node/camera.hpp>
+#include <voxwall/core/files.hpp>
+#include <voxwall/core/rect.hpp>
 
-namespace voxwall::node {
+namespace voxwall {
 
 // Premultiplied RGBA8, row 0 at the top, one uint32 per pixel with red in the lowest byte.
 struct Image {
@@ -35,11 +35,11 @@ struct Image {
 // background colour the image is composited onto it and written opaque. Throws FormatError.
 std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
                                    const std::optional<glm::dvec3>& background = std::nullopt);
-// encodeImage, then codec::writeFileAtomically: a full disk or a killed writer never leaves a
+// encodeImage, then writeFileAtomically: a full disk or a killed writer never leaves a
 // partial file under `path`. Returns the size and hash of what was written. Throws
 // FormatError("<path>: ...") naming the reason.
-codec::FileDigest writeImage(const Image& image, const std::string& path,
-                             const std::optional<glm::dvec3>& background = std::nullopt);
+FileDigest writeImage(const Image& image, const std::string& path,
+                      const std::optional<glm::dvec3>& background = std::nullopt);
 // Reads an 8-bit RGBA (or RGB) image written by writeImage back into premultiplied form.
 Image readImage(const std::string& path);
 
@@ -51,4 +51,4 @@ struct ImageDiff {
 };
 ImageDiff compareImages(const Image& a, const Image& b);  // throws on a size mismatch
 
-}  // namespace voxwall::node
+}  // namespace voxwall

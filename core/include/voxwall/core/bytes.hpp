@@ -9,9 +9,9 @@
 #include <string>
 #include <type_traits>
 #include <vector>
-#include <voxwall/codec/errors.hpp>
+#include <voxwall/core/errors.hpp>
 
-namespace voxwall::codec {
+namespace voxwall {
 
 static_assert(std::endian::native == std::endian::little,
               "voxwall stores data little-endian and currently needs a little-endian host");
@@ -81,4 +81,4 @@ class ByteReader {
   std::string file_, what_;
 };
 
-}  // namespace voxwall::codec
+}  // namespace voxwall

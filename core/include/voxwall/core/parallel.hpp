@@ -12,7 +12,7 @@
 #endif
 #include <vector>
 
-namespace voxwall::codec {
+namespace voxwall {
 
 // Number of worker threads to use when the user asked for `requested` (0 = all cores).
 // Cores this process may run on: its CPU affinity mask (set by taskset, cgroups, or an MPI
@@ -66,4 +66,4 @@ void parallelFor(std::size_t count, int threads, Fn&& fn) {
   if (error) std::rethrow_exception(error);
 }
 
-}  // namespace voxwall::codec
+}  // namespace voxwall

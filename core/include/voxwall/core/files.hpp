@@ -8,7 +8,7 @@
 #include <span>
 #include <string>
 
-namespace voxwall::codec {
+namespace voxwall {
 
 // Size and xxHash64 (seed 0) of a file's bytes: what a manifest records to verify it later.
 struct FileDigest {
@@ -34,5 +34,7 @@ void commitTemporary(const std::string& temporary, const std::string& path);
 void writeFileAtomically(const std::string& path, std::span<const std::byte> bytes);
 // "<path>.tmp.<pid>": the temporary's name; the marker ".tmp." is what stale-file cleaners match.
 std::string temporaryNameFor(const std::string& path);
+// fsync()s a finished file; throws FormatError naming `path` (the file it will become).
+void syncFile(const std::string& file, const std::string& path);
 
-}  // namespace voxwall::codec
+}  // namespace voxwall

@@ -1,0 +1,99 @@
+// The server half of the wall protocol (the client half is tcp.hpp): a TCP listener on an Asio
+// io_context that accepts peers, reads each message (header, then the payload in chunks as it
+// arrives, both checked by wire.hpp) and hands it to a PeerHandler, which holds the protocol's
+// meaning (the sink's SinkCore). Hostile peers: connections are capped (maxPeers), a peer without
+// a Hello is dropped after helloTimeoutMs, a payload longer than the handler allows is refused
+// before it is read, and running out of file descriptors pauses accepting instead of ending it.
+// Render hosts that vanish are found by TCP keep-alive within about a minute.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+#include <voxwall/net/wire.hpp>
+
+namespace asio {
+class io_context;
+}
+
+namespace voxwall::net {
+
+// One connection as a protocol handler sees it. The server implements send and hangUp; tests
+// and fuzz targets implement them over memory.
+class Peer {
+ public:
+  explicit Peer(std::string name) : name_(std::move(name)) {}
+  virtual ~Peer() = default;
+  // Queues a whole message to the peer.
+  virtual void send(std::vector<std::byte> bytes) = 0;
+  // Closes the connection once what is queued was sent.
+  virtual void hangUp() = 0;
+  const std::string& name() const { return name_; }
+  // Whether the handler accepted this peer's Hello (the server's Hello deadline ends then).
+  bool greeted() const { return greeted_; }
+  const Hello& hello() const { return hello_; }
+  // The handler accepted `hello`; `name` says who the peer is now (e.g. "... (rank 3)").
+  void markGreeted(const Hello& hello, std::string name) {
+    greeted_ = true;
+    hello_ = hello;
+    name_ = std::move(name);
+  }
+
+ private:
+  std::string name_;
+  bool greeted_ = false;
+  Hello hello_;
+};
+
+// What a server does with its peers. Called on the io_context's thread only.
+class PeerHandler {
+ public:
+  virtual ~PeerHandler() = default;
+  // A connection was accepted / is gone (closed, dropped or refused).
+  virtual void attach(Peer& peer) = 0;
+  virtual void detach(Peer& peer) = 0;
+  // The largest payload `peer` may send now.
+  virtual std::uint32_t payloadLimit(const Peer& peer) const = 0;
+  // One message whose header and payload were checked. False ends the session; throws
+  // FormatError for a peer that broke the protocol (the server drops it).
+  virtual bool handle(Peer& peer, MessageType type, std::uint64_t frame,
+                      std::span<const std::byte> payload) = 0;
+  // The server refuses `peer` (a bad header, a payload over the limit): tell it why, hang up.
+  virtual void refuse(Peer& peer, const std::string& reason) = 0;
+  // The server drops `peer` for `why` (empty: it simply closed).
+  virtual void dropped(Peer& peer, const std::string& why) = 0;
+  // A whole message of `bytes` bytes (header included) arrived.
+  virtual void received(std::uint64_t bytes) = 0;
+  // A connection was refused before it became a peer (maxPeers reached); `why` says so.
+  virtual void refusedConnection(const std::string& why) = 0;
+};
+
+struct ServerSettings {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 0;     // 0: any free port (see Server::port)
+  int maxPeers = 256;         // connections at once; more are refused
+  int helloTimeoutMs = 5000;  // a peer the handler has not greeted by then is dropped
+};
+
+class Server {
+ public:
+  // Binds and listens. Throws NetError when it cannot, std::invalid_argument for settings that
+  // cannot work. `log` gets one line per transport event (accept failures, refusals).
+  Server(asio::io_context& io, const ServerSettings& settings, PeerHandler& handler,
+         std::function<void(const std::string&)> log = {});
+  ~Server();
+  std::uint16_t port() const;
+  // Starts accepting peers on the io_context.
+  void start();
+  // Stops listening and hangs up on every peer at once (frees the port for a new server).
+  void close();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace voxwall::net

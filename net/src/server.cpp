@@ -1,0 +1,237 @@
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+
+#include <array>
+#include <asio.hpp>
+#include <chrono>
+#include <deque>
+#include <set>
+#include <stdexcept>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/net/server.hpp>
+#include <voxwall/net/tcp.hpp>
+
+namespace voxwall::net {
+
+using asio::ip::tcp;
+
+namespace {
+constexpr std::size_t kPayloadChunk = 1 << 20;  // a payload's memory grows as its bytes arrive
+}  // namespace
+
+struct Server::Impl {
+  struct Session;
+
+  asio::io_context& io;
+  ServerSettings settings;
+  PeerHandler& handler;
+  std::function<void(const std::string&)> log;
+  tcp::acceptor acceptor{io};
+  asio::steady_timer acceptPause{io};
+  std::set<std::shared_ptr<Session>> sessions;
+
+  Impl(asio::io_context& i, const ServerSettings& s, PeerHandler& h,
+       std::function<void(const std::string&)> l)
+      : io(i), settings(s), handler(h), log(std::move(l)) {}
+
+  void say(const std::string& line) {
+    if (log) log(line);
+  }
+
+  struct Session : Peer, std::enable_shared_from_this<Session> {
+    Impl& server;
+    tcp::socket socket;
+    asio::steady_timer helloDeadline;
+    std::array<std::byte, kHeaderBytes> header{};
+    std::vector<std::byte> payload;
+    std::uint32_t payloadBytes = 0;
+    MessageType type{};
+    std::uint64_t frame = 0;
+    bool closing = false, closed = false;
+    std::deque<std::vector<std::byte>> outbox;
+
+    static std::string nameOf(tcp::socket& socket) {
+      asio::error_code ec;
+      const auto ep = socket.remote_endpoint(ec);
+      return ec ? std::string("peer")
+                : "peer " + ep.address().to_string() + ":" + std::to_string(ep.port());
+    }
+
+    Session(Impl& s, tcp::socket sock)
+        : Peer(nameOf(sock)), server(s), socket(std::move(sock)), helloDeadline(s.io) {}
+
+    void start() {
+      server.handler.attach(*this);
+      auto self = shared_from_this();
+      const int timeoutMs = server.settings.helloTimeoutMs;
+      helloDeadline.expires_after(std::chrono::milliseconds(timeoutMs));
+      helloDeadline.async_wait([self, timeoutMs](asio::error_code ec) {
+        if (ec || self->greeted() || self->closed) return;
+        self->drop("sent no Hello within " + std::to_string(timeoutMs) + " ms");
+      });
+      readHeader();
+    }
+
+    void readHeader() {
+      auto self = shared_from_this();
+      asio::async_read(socket, asio::buffer(header), [self](asio::error_code ec, std::size_t) {
+        if (self->closed) return;
+        if (ec) return self->drop(ec == asio::error::eof ? "" : ec.message());
+        try {
+          self->payloadBytes = checkHeader(self->header, self->name(), &self->type, &self->frame);
+        } catch (const FormatError& e) {
+          return self->refuse(e.what());
+        }
+        const std::uint32_t limit = self->server.handler.payloadLimit(*self);
+        if (self->payloadBytes > limit)
+          return self->refuse(self->name() + ": payload of " + std::to_string(self->payloadBytes) +
+                              " bytes" + (self->greeted() ? "" : " before its Hello") + " (limit " +
+                              std::to_string(limit) + ")");
+        self->payload.clear();
+        self->readPayload();
+      });
+    }
+
+    // Reads the payload a chunk at a time: memory follows the bytes that really arrived, not
+    // the length a header claims.
+    void readPayload() {
+      if (payload.size() == payloadBytes) return onMessage();
+      const std::size_t have = payload.size();
+      const std::size_t chunk = std::min<std::size_t>(payloadBytes - have, kPayloadChunk);
+      payload.resize(have + chunk);
+      auto self = shared_from_this();
+      asio::async_read(
+          socket, asio::buffer(payload.data() + have, chunk),
+          [self](asio::error_code ec, std::size_t) {
+            if (self->closed) return;
+            if (ec) return self->drop(ec == asio::error::eof ? "closed mid-message" : ec.message());
+            self->readPayload();
+          });
+    }
+
+    void onMessage() {
+      server.handler.received(kHeaderBytes + payload.size());
+      try {
+        checkPayload(header, payload, name());
+        if (!server.handler.handle(*this, type, frame, payload)) return;
+      } catch (const FormatError& e) {
+        return drop(e.what());
+      }
+      if (closed) return;  // the handler hung up on this peer
+      readHeader();
+    }
+
+    void send(std::vector<std::byte> bytes) override {
+      if (closed) return;
+      outbox.push_back(std::move(bytes));
+      if (outbox.size() == 1) writeNext();
+    }
+
+    void hangUp() override {
+      closing = true;
+      if (outbox.empty()) close();
+    }
+
+    void writeNext() {
+      auto self = shared_from_this();
+      asio::async_write(socket, asio::buffer(outbox.front()),
+                        [self](asio::error_code ec, std::size_t) {
+                          if (self->closed) return;
+                          self->outbox.pop_front();
+                          if (ec) return self->drop(ec.message());
+                          if (!self->outbox.empty()) return self->writeNext();
+                          if (self->closing) self->close();
+                        });
+    }
+
+    void refuse(const std::string& reason) { server.handler.refuse(*this, reason); }
+
+    void drop(const std::string& why) {
+      if (closed) return;
+      server.handler.dropped(*this, why);
+      close();
+    }
+
+    void close() {
+      if (closed) return;
+      closed = true;
+      server.handler.detach(*this);
+      asio::error_code ignored;
+      helloDeadline.cancel();
+      socket.shutdown(tcp::socket::shutdown_both, ignored);
+      socket.close(ignored);
+      server.sessions.erase(shared_from_this());
+    }
+  };
+
+  void accept() {
+    acceptor.async_accept([this](asio::error_code ec, tcp::socket socket) {
+      if (!acceptor.is_open() || ec == asio::error::operation_aborted) return;
+      if (ec) {
+        // Out of file descriptors (EMFILE/ENFILE) or a peer gone before accept: keep serving,
+        // after a pause that lets idle peers time out.
+        say("sink: cannot accept a peer: " + ec.message() + "; retrying in 100 ms");
+        acceptPause.expires_after(std::chrono::milliseconds(100));
+        acceptPause.async_wait([this](asio::error_code e) {
+          if (!e) accept();
+        });
+        return;
+      }
+      asio::error_code ignored;
+      if (int(sessions.size()) >= settings.maxPeers) {
+        handler.refusedConnection(std::to_string(settings.maxPeers) +
+                                  " peers connected (--max-peers)");
+        socket.close(ignored);
+        return accept();
+      }
+      socket.set_option(tcp::no_delay(true), ignored);
+      // A render host that vanishes (power, network) leaves a half-open connection that would
+      // hold the wall for its job forever: TCP keep-alive closes it within about a minute.
+      socket.set_option(asio::socket_base::keep_alive(true), ignored);
+      for (const auto& [option, value] :
+           {std::pair{TCP_KEEPIDLE, 30}, std::pair{TCP_KEEPINTVL, 10}, std::pair{TCP_KEEPCNT, 3}})
+        ::setsockopt(socket.native_handle(), IPPROTO_TCP, option, &value, sizeof value);
+      auto session = std::make_shared<Session>(*this, std::move(socket));
+      sessions.insert(session);
+      session->start();
+      accept();
+    });
+  }
+};
+
+Server::Server(asio::io_context& io, const ServerSettings& settings, PeerHandler& handler,
+               std::function<void(const std::string&)> log)
+    : impl_(std::make_unique<Impl>(io, settings, handler, std::move(log))) {
+  if (settings.maxPeers < 1) throw std::invalid_argument("--max-peers must be at least 1");
+  if (settings.helloTimeoutMs < 1)
+    throw std::invalid_argument("the Hello timeout must be positive");
+  auto& acceptor = impl_->acceptor;
+  asio::error_code ec;
+  const auto address = asio::ip::make_address(settings.host, ec);
+  if (ec) throw NetError("--listen: '" + settings.host + "' is not an IP address");
+  const tcp::endpoint endpoint(address, settings.port);
+  acceptor.open(endpoint.protocol(), ec);
+  if (!ec) acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
+  if (!ec) acceptor.bind(endpoint, ec);
+  if (!ec) acceptor.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec)
+    throw NetError("cannot listen on " + settings.host + ":" + std::to_string(settings.port) +
+                   ": " + ec.message());
+}
+
+Server::~Server() = default;
+
+std::uint16_t Server::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+void Server::start() { impl_->accept(); }
+
+void Server::close() {
+  asio::error_code ignored;
+  impl_->acceptor.close(ignored);
+  impl_->acceptPause.cancel();
+  for (const auto& session : std::set(impl_->sessions)) session->close();
+  impl_->sessions.clear();
+}
+
+}  // namespace voxwall::net

@@ -1,0 +1,187 @@
+// The server half of the wall protocol against its own client half (tcp.hpp), with a handler
+// that knows nothing of walls: the sessions' limits hold without the sink behind them.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <asio.hpp>
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <thread>
+#include <voxwall/net/server.hpp>
+#include <voxwall/net/tcp.hpp>
+
+using namespace voxwall;
+using namespace std::chrono_literals;
+
+namespace {
+
+// Greets every Hello with a Welcome and sends every Control back; counts what happens.
+class EchoHandler : public net::PeerHandler {
+ public:
+  std::uint32_t limit = net::kMaxHelloPayload;
+
+  void attach(net::Peer&) override { ++attached; }
+  void detach(net::Peer&) override { ++detached; }
+  std::uint32_t payloadLimit(const net::Peer&) const override { return limit; }
+  bool handle(net::Peer& peer, net::MessageType type, std::uint64_t,
+              std::span<const std::byte> payload) override {
+    if (type == net::MessageType::Hello) {
+      const auto hello = net::decodeHello(payload, peer.name());
+      peer.markGreeted(hello, peer.name() + " (echo)");
+      peer.send(net::encodeMessage(net::Welcome{hello.wallId, 64, 32}));
+      return true;
+    }
+    if (type == net::MessageType::Control) {
+      peer.send(net::encodeMessage(net::decodeControl(payload, peer.name())));
+      return true;
+    }
+    return false;
+  }
+  void refuse(net::Peer& peer, const std::string& reason) override {
+    remember(reason);
+    peer.send(net::encodeMessage(net::Bye{reason}));
+    peer.hangUp();
+  }
+  void dropped(net::Peer&, const std::string& why) override {
+    ++drops;
+    remember(why);
+  }
+  void received(std::uint64_t bytes) override { bytesReceived += bytes; }
+  void refusedConnection(const std::string& why) override {
+    ++connectionsRefused;
+    remember(why);
+  }
+
+  std::string lastReason() {
+    std::lock_guard lock(mutex_);
+    return last_;
+  }
+
+  std::atomic<int> attached{0}, detached{0}, drops{0}, connectionsRefused{0};
+  std::atomic<std::uint64_t> bytesReceived{0};
+
+ private:
+  void remember(const std::string& text) {
+    std::lock_guard lock(mutex_);
+    last_ = text;
+  }
+  std::mutex mutex_;
+  std::string last_;
+};
+
+// A server on its own io thread, closed and joined on destruction.
+class RunningServer {
+ public:
+  RunningServer(EchoHandler& handler, net::ServerSettings settings)
+      : server_(io_, settings, handler), guard_(asio::make_work_guard(io_)) {
+    server_.start();
+    thread_ = std::thread([this] { io_.run(); });
+  }
+  ~RunningServer() {
+    asio::post(io_, [this] {
+      server_.close();
+      guard_.reset();
+    });
+    thread_.join();
+  }
+  std::uint16_t port() const { return server_.port(); }
+
+ private:
+  asio::io_context io_;
+  net::Server server_;
+  asio::executor_work_guard<asio::io_context::executor_type> guard_;
+  std::thread thread_;
+};
+
+bool eventually(const std::function<bool()>& done) {
+  for (int i = 0; i < 500; ++i) {
+    if (done()) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return done();
+}
+
+net::Hello helloFor(const std::string& wall) {
+  net::Hello hello;
+  hello.wallId = wall;
+  return hello;
+}
+
+}  // namespace
+
+TEST(Server, TalksToTheClientHalf) {
+  EchoHandler handler;
+  {
+    RunningServer server(handler, {});
+    auto connection = net::Connection::open("127.0.0.1", server.port(), helloFor("echo"), 5000);
+    EXPECT_EQ(connection->welcome().wallId, "echo");
+    EXPECT_EQ(connection->welcome().screenWidth, 64);
+    connection->send(net::encodeMessage(net::Control{net::ControlCommand::Zoom, 1.5, 0}));
+    const auto reply = connection->receive(5000);
+    ASSERT_TRUE(reply.has_value());
+    ASSERT_EQ(reply->type, net::MessageType::Control);
+    EXPECT_EQ(net::decodeControl(reply->payload, "reply").a, 1.5);
+    connection->close();
+    EXPECT_TRUE(eventually([&] { return handler.detached.load() == 1; }));
+  }
+  EXPECT_EQ(handler.attached.load(), 1);
+  EXPECT_GT(handler.bytesReceived.load(), 2 * net::kHeaderBytes);
+}
+
+TEST(Server, APayloadOverTheHandlersLimitIsRefusedBeforeItIsRead) {
+  EchoHandler handler;
+  handler.limit = 8;
+  RunningServer server(handler, {});
+  EXPECT_THROW(net::Connection::open("127.0.0.1", server.port(), helloFor("echo"), 5000),
+               net::SinkRefused);
+  EXPECT_NE(handler.lastReason().find("before its Hello (limit 8)"), std::string::npos)
+      << handler.lastReason();
+  EXPECT_EQ(handler.bytesReceived.load(), 0u);
+}
+
+TEST(Server, PeersOverTheCapAreRefusedAndTheFirstKeepsWorking) {
+  EchoHandler handler;
+  net::ServerSettings settings;
+  settings.maxPeers = 1;
+  RunningServer server(handler, settings);
+  auto first = net::Connection::open("127.0.0.1", server.port(), helloFor("echo"), 5000);
+  EXPECT_THROW(net::Connection::open("127.0.0.1", server.port(), helloFor("echo"), 2000),
+               net::NetError);
+  EXPECT_EQ(handler.connectionsRefused.load(), 1);
+  EXPECT_NE(handler.lastReason().find("1 peers connected"), std::string::npos);
+  first->send(net::encodeMessage(net::Control{net::ControlCommand::Reset, 0, 0}));
+  EXPECT_TRUE(first->receive(5000).has_value());
+}
+
+TEST(Server, ASilentPeerIsDroppedAfterTheHelloTimeout) {
+  EchoHandler handler;
+  net::ServerSettings settings;
+  settings.helloTimeoutMs = 100;
+  RunningServer server(handler, settings);
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  addr.sin_port = htons(server.port());
+  ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  EXPECT_TRUE(eventually([&] { return handler.drops.load() == 1; }));
+  EXPECT_EQ(handler.lastReason(), "sent no Hello within 100 ms");
+  char byte;
+  EXPECT_EQ(::recv(fd, &byte, 1, 0), 0);  // the server closed the connection
+  ::close(fd);
+}
+
+TEST(Server, SettingsThatCannotWorkAreRefused) {
+  EchoHandler handler;
+  asio::io_context io;
+  net::ServerSettings noPeers;
+  noPeers.maxPeers = 0;
+  EXPECT_THROW((net::Server{io, noPeers, handler}), std::invalid_argument);
+  net::ServerSettings badHost;
+  badHost.host = "not-an-address";
+  EXPECT_THROW((net::Server{io, badHost, handler}), net::NetError);
+}
