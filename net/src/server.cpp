@@ -3,7 +3,7 @@
 #include <sys/socket.h>
 
 #include <array>
-#include <asio.hpp>
+#include <voxwall/net/asio.hpp>
 #include <chrono>
 #include <deque>
 #include <set>

@@ -1,4 +1,4 @@
-#include <asio.hpp>
+#include <voxwall/net/asio.hpp>
 #include <utility>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/net/tcp.hpp>

@@ -6,7 +6,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <asio.hpp>
+#include <voxwall/net/asio.hpp>
 #include <atomic>
 #include <chrono>
 #include <mutex>

@@ -3,7 +3,7 @@
 // complete (every display pixel covered) -> presented, or dropped (a newer frame completed
 // first, too many frames were open, the memory limit) or refused (outside the frame window);
 // every outcome is logged and told to rank 0.
-#include <asio.hpp>
+#include <voxwall/net/asio.hpp>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
