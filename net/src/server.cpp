@@ -3,12 +3,12 @@
 #include <sys/socket.h>
 
 #include <array>
-#include <voxwall/net/asio.hpp>
 #include <chrono>
 #include <deque>
 #include <set>
 #include <stdexcept>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/net/asio.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 
