@@ -1,6 +1,6 @@
-#include <voxwall/net/asio.hpp>
 #include <utility>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/net/asio.hpp>
 #include <voxwall/net/tcp.hpp>
 
 namespace voxwall::net {

@@ -6,11 +6,11 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <voxwall/net/asio.hpp>
 #include <atomic>
 #include <chrono>
 #include <mutex>
 #include <thread>
+#include <voxwall/net/asio.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 

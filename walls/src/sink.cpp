@@ -3,7 +3,6 @@
 // complete (every display pixel covered) -> presented, or dropped (a newer frame completed
 // first, too many frames were open, the memory limit) or refused (outside the frame window);
 // every outcome is logged and told to rank 0.
-#include <voxwall/net/asio.hpp>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -17,6 +16,7 @@
 #include <sstream>
 #include <thread>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/net/asio.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/frame_files.hpp>
