@@ -13,7 +13,7 @@ main=(
   libglm-dev
   libturbojpeg0-dev
   libopenimageio-dev
-  libcli11-dev nlohmann-json3-dev libxxhash-dev
+  libcli11-dev nlohmann-json3-dev libxxhash-dev libpugixml-dev
   libnifti2-dev libteem-dev zlib1g-dev libbz2-dev
   libasio-dev
   # real data: the MRI template used as the default volume

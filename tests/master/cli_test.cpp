@@ -346,3 +346,38 @@ TEST(Cli, WallAndSinkOptionsAreCheckedWithOneLine) {
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(voxwall::readImage(dir.path("f/frame_00000.png")).width, 196);
 }
+
+TEST(Cli, EitherSurfaceOfATwoSurfaceTideConfigurationRenders) {
+  test::TempDir dir;
+  const auto two = dir.path("two.json");
+  test::writeFile(two, R"({"surfaces": [
+      {"displayWidth": 32, "displayHeight": 24, "screenCountX": 2, "bezelWidth": 4},
+      {"displayWidth": 20, "displayHeight": 16, "displaysPerScreenY": 2, "bezelHeight": -2}]})");
+  const std::string render = "render generated:shepp-logan:16 -q --wall " + two;
+  const CliRun first = runVoxwall(render + " --out " + dir.path("s0"));
+  ASSERT_EQ(first.status, 0) << first.out;
+  const auto image0 = voxwall::readImage(dir.path("s0/frame_00000.png"));
+  EXPECT_EQ(image0.width, 68);
+  EXPECT_EQ(image0.height, 24);
+  const CliRun second = runVoxwall(render + " --surface 1 --out " + dir.path("s1"));
+  ASSERT_EQ(second.status, 0) << second.out;
+  const auto image1 = voxwall::readImage(dir.path("s1/frame_00000.png"));
+  EXPECT_EQ(image1.width, 20);
+  EXPECT_EQ(image1.height, 30);
+
+  const CliRun dry =
+      runVoxwall("render generated:shepp-logan:16 --wall " + two + " --surface 1 --dry-run");
+  ASSERT_EQ(dry.status, 0) << dry.out;
+  EXPECT_NE(dry.out.find("surface 0: 2 display(s), virtual screen 68x24"), std::string::npos)
+      << dry.out;
+  EXPECT_NE(dry.out.find("surface 1: 2 display(s), virtual screen 20x30"), std::string::npos)
+      << dry.out;
+  EXPECT_NE(dry.out.find("(overlapping displays) (rendered)"), std::string::npos) << dry.out;
+
+  expectOneLineError(runVoxwall(render + " --surface 2 --no-write"),
+                     "voxwall: " + two + ": --surface 2: the file has 2 surface(s), 0 to 1");
+  expectOneLineError(runVoxwall("sink --wall " + two + " --surface 2"),
+                     "voxwall: " + two + ": --surface 2: the file has 2 surface(s), 0 to 1");
+  expectOneLineError(runVoxwall("render generated:shepp-logan:16 --no-write --surface 1"),
+                     "voxwall: --surface needs --wall");
+}

@@ -12,6 +12,8 @@
 #include <mutex>
 #include <thread>
 #include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/frame_assembler.hpp>
+#include <voxwall/walls/frame_files.hpp>
 #include <voxwall/walls/sink.hpp>
 
 #include "support/sink_runner.hpp"
@@ -253,4 +255,44 @@ TEST(Sink, ForwardsCameraCommandsToTheController) {
   EXPECT_EQ(got[1].command, net::ControlCommand::Zoom);
   EXPECT_THROW(walls::parseControlLine("spin 3"), std::invalid_argument);
   EXPECT_THROW(walls::parseControlLine("zoom -1"), std::invalid_argument);
+}
+
+// Edge-blended projectors (a Tide surface with a negative bezel): both displays show the shared
+// columns, the frame completes once every display's pixels are there, and each display's file
+// holds the shared pixels.
+TEST(FrameAssembler, OverlappingDisplaysCompleteAndShareTheirPixels) {
+  const auto wall = walls::parseWall(R"({"surfaces": [{"displayWidth": 40, "displayHeight": 20,
+      "screenCountX": 2, "bezelWidth": -8}]})",
+                                     "blend.json");
+  ASSERT_TRUE(wall.overlapping);
+  ASSERT_EQ(wall.width, 72);
+  std::vector<walls::FrameEvent> events;
+  walls::FrameAssembler assembler(wall, {},
+                                  [&](const walls::FrameEvent& e) { events.push_back(e); });
+  // A different colour in every column, so shared pixels can be told apart from neighbours.
+  auto columnTile = [](const voxwall::Rect& rect) {
+    voxwall::Image image(rect.width, rect.height);
+    for (int y = 0; y < rect.height; ++y)
+      for (int x = 0; x < rect.width; ++x) image.at(x, y) = 0xff000000u | std::uint32_t(rect.x + x);
+    net::TileCodecSettings s;
+    s.codec = net::TileCodec::Raw;
+    const auto tile = net::encodeTiles(image, rect, {0, 0, 0}, s)[0];
+    return net::TileMessage{tile.rect, tile.codec, 0, tile.bytes};
+  };
+  // The left display and the shared columns: the right display still misses 32 columns.
+  EXPECT_FALSE(assembler.addTile(0, columnTile({0, 0, 40, 20}), 0, "rank 0").has_value());
+  const auto frame = assembler.addTile(0, columnTile({40, 0, 32, 20}), 1, "rank 1");
+  ASSERT_TRUE(frame.has_value());
+  EXPECT_TRUE(events.empty());
+
+  test::TempDir dir;
+  walls::writeFrameFiles(dir.root().string(), 0, wall, frame->image, false);
+  const auto left = voxwall::readImage(dir.path("frame_00000_s0-0.png"));
+  const auto right = voxwall::readImage(dir.path("frame_00000_s1-0.png"));
+  ASSERT_EQ(left.width, 40);
+  ASSERT_EQ(right.width, 40);
+  for (int x = 0; x < 8; ++x) {  // screen columns 32..39 are in both
+    EXPECT_EQ(left.at(32 + x, 5), right.at(x, 5)) << "shared column " << 32 + x;
+    EXPECT_EQ(right.at(x, 5) & 0xffu, std::uint32_t(32 + x));
+  }
 }

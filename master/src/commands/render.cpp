@@ -9,6 +9,7 @@
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
+#include <voxwall/walls/wall.hpp>
 
 #include "commands.hpp"
 #include "render_settings.hpp"
@@ -158,7 +159,15 @@ RankHosts checkSameVolume(master::Communicator& comm, const Setup& s, std::uint6
   throw std::runtime_error(verdict);
 }
 
-void printDryRun(master::Communicator& comm, const Setup& s, const RankHosts& ranks) {
+void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup& s,
+                 const RankHosts& ranks) {
+  if (!o.wall.empty()) {
+    const auto surfaces = walls::loadWalls(o.wall);
+    std::printf("wall %s: %zu surface(s)\n", o.wall.c_str(), surfaces.size());
+    for (std::size_t n = 0; n < surfaces.size(); ++n)
+      std::printf("  %s%s\n", walls::describeSurface(surfaces[n], int(n)).c_str(),
+                  int(n) == o.surface ? " (rendered)" : "");
+  }
   const auto rects = master::firstFrameRects(s.job, comm.size());
   const bool dynamic = s.job.balance == master::Balance::Dynamic;
   std::printf("dry run: %d rank(s), %s cut%s\n", comm.size(), dynamic ? "dynamic" : "static",
@@ -278,7 +287,7 @@ void runRender(const RenderOptions& o) {
                  std::string(codec::codecName(info.codec)).c_str(), s.job.width, s.job.height,
                  s.job.frames, comm->size(), o.dryRun ? "dry run" : s.backend->name().c_str());
   if (o.dryRun) {
-    if (comm->rank() == 0) printDryRun(*comm, s, ranks);
+    if (comm->rank() == 0) printDryRun(o, *comm, s, ranks);
     return;
   }
   Report report(o, s, quiet);

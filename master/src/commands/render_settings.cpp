@@ -84,9 +84,10 @@ std::optional<walls::Wall> screen(const RenderOptions& o, master::JobSettings& j
   if (!o.wall.empty()) {
     if (o.sizeGiven)
       throw std::invalid_argument("--size and --wall both set the screen: give one of them");
-    wall = walls::loadWall(o.wall);
+    wall = walls::loadWall(o.wall, o.surface);
     job.width = wall->width, job.height = wall->height;
   } else {
+    if (o.surface != 0) throw std::invalid_argument("--surface needs --wall");
     std::tie(job.width, job.height) = parseSize(o.size, "--size");
   }
   if (job.width > 65536 || job.height > 65536)
@@ -222,6 +223,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["volume_fingerprint"] = hex;
   m["size"] = {job.width, job.height};
   m["wall"] = o.wall;
+  m["surface"] = o.surface;
   m["frames"] = job.frames;
   m["path"] = o.path;
   m["camera"] = o.camera;
@@ -260,6 +262,10 @@ void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
   cmd.add_option("--wall", o.wall,
                  "Render the virtual screen of this wall (walls/*.json or a Tide configuration; "
                  "bezel gaps included) instead of --size");
+  cmd.add_option("--surface", o.surface,
+                 "Which surface of a Tide configuration with several to render (0: the first; "
+                 "--dry-run lists them)")
+      ->capture_default_str();
   cmd.add_option("--sink", o.sink,
                  "Stream every rank's tiles to the wall sink at HOST:PORT (voxwall sink); needs "
                  "--wall. Frames are then written by rank 0 only if --out is given too");

@@ -14,14 +14,15 @@ namespace {
 
 struct SinkOptions {
   std::string wall, listen = "127.0.0.1:7400", out, token;
-  int frames = 0, pending = 4, maxPeers = 256, helloTimeoutMs = 5000;
+  int surface = 0, frames = 0, pending = 4, maxPeers = 256, helloTimeoutMs = 5000;
   std::uint64_t pendingMiB = 0;
   bool mosaic = false, quiet = false, noStdin = false;
 };
 
 void runSink(const SinkOptions& o) {
   walls::SinkSettings settings;
-  settings.wall = walls::loadWall(o.wall);
+  const auto surfaces = walls::loadWalls(o.wall);
+  settings.wall = walls::selectSurface(surfaces, o.surface, o.wall);
   std::tie(settings.listenHost, settings.listenPort) = net::parseEndpoint(o.listen, "--listen");
   settings.outDir = o.out;
   settings.mosaic = o.mosaic;
@@ -55,6 +56,10 @@ void runSink(const SinkOptions& o) {
   });
   walls::Sink& sink = *sinkPtr;
   const auto& wall = settings.wall;
+  if (!quiet)
+    for (std::size_t n = 0; n < surfaces.size(); ++n)
+      std::printf("sink: %s%s\n", walls::describeSurface(surfaces[n], int(n)).c_str(),
+                  int(n) == o.surface ? " (shown)" : "");
   if (!quiet)
     std::printf("sink: wall '%s', %zu display(s), virtual screen %dx%d; listening on %s:%u%s\n",
                 wall.id.c_str(), wall.displays.size(), wall.width, wall.height,
@@ -106,6 +111,10 @@ void addSinkCommand(CLI::App& app) {
       "job");
   cmd->add_option("--wall", o->wall, "Wall file (walls/*.json, or a Tide configuration)")
       ->required();
+  cmd->add_option("--surface", o->surface,
+                  "Which surface of a Tide configuration with several to show (0: the first; "
+                  "the sink lists them when it starts)")
+      ->capture_default_str();
   cmd->add_option("--listen", o->listen,
                   "Address and port to listen on (loopback by default; 0.0.0.0:PORT for all)")
       ->capture_default_str();

@@ -12,8 +12,12 @@
 // of "bezel_mm" a file may give "bezel_px": {"x": 6, "y": 6} (the gaps themselves). Or explicit
 // displays: {"wall": "lab", "size": [4000, 1200],
 //            "displays": [{"name": "left", "x": 0, "y": 0, "width": 1920, "height": 1200}, ...]}
-// Tide's configuration (BlueBrain/Tide) is read too: the first of its "surfaces", with
-// displayWidth/displayHeight, screenCountX/screenCountY and bezelWidth/bezelHeight (pixels).
+// Displays that overlap are refused unless the file says "overlap": true (a typo is likelier than
+// an edge-blended projector setup).
+// Tide's configurations (BlueBrain/Tide) are read with Tide's geometry: every one of the JSON
+// form's "surfaces" (displayWidth/Height, displaysPerScreenX/Y, screenCountX/Y, bezelWidth/Height
+// in pixels, negative for overlapping displays, background.color), and the XML form's
+// <dimensions> (one surface). docs/wall.md has the mapping.
 #pragma once
 
 #include <glm/vec3.hpp>
@@ -39,15 +43,26 @@ struct Wall {
   int width = 0, height = 0;  // the virtual screen, bezel gaps included
   std::vector<Display> displays;
   glm::dvec3 background{0.0};  // what JPEG tiles are composited onto, [0, 1]
+  bool overlapping = false;    // displays may share pixels (negative bezels, "overlap": true)
+  std::string description;     // how the file described it, for listings (may be empty)
+  // Pixels of the virtual screen that some display shows (shared pixels counted once).
   long long displayPixels() const;
 };
 
-// Reads a voxwall or Tide wall file. Throws FormatError("<path>: ...") naming what is wrong.
-Wall loadWall(const std::string& path);
+// Reads a voxwall or Tide wall file: every surface it describes (a voxwall file has one), each
+// checked. Throws FormatError("<path>: ...") naming the field that is wrong.
+std::vector<Wall> loadWalls(const std::string& path);
 // The same from text (`source` names it in errors).
-Wall parseWall(const std::string& json, const std::string& source);
-// Checks sizes, limits, that displays lie on the screen and do not overlap, unique names.
-// Throws FormatError(source, ...).
+std::vector<Wall> parseWalls(const std::string& text, const std::string& source);
+// One surface of the file (--surface, default 0); a missing one is a FormatError that says how
+// many there are.
+Wall loadWall(const std::string& path, int surface = 0);
+Wall selectSurface(std::vector<Wall> walls, int surface, const std::string& source);
+Wall parseWall(const std::string& text, const std::string& source, int surface = 0);
+// "surface N: D display(s), virtual screen WxH - <description>": one line of a listing.
+std::string describeSurface(const Wall& wall, int index);
+// Checks sizes, limits, that displays lie on the screen and do not overlap (unless the wall says
+// they may), unique names. Throws FormatError(source, ...).
 void validateWall(const Wall& wall, const std::string& source);
 // One display covering a width x height screen (no wall file).
 Wall singleDisplayWall(int width, int height);
