@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   voxwall::cli::addCodecsCommand(app);
   voxwall::cli::addRenderCommand(app);
   voxwall::cli::addSinkCommand(app);
+  voxwall::cli::addTfCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

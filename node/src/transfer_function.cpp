@@ -1,5 +1,7 @@
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -14,6 +16,7 @@ struct Preset {
   const char* name;
   std::vector<ColorPoint> colors;
   std::vector<OpacityPoint> opacities;
+  ColorSpace space = ColorSpace::Rgb;
 };
 
 const std::vector<Preset>& presets() {
@@ -29,10 +32,11 @@ const std::vector<Preset>& presets() {
        {{0, 0, 0, 0}, {0.35, 0.73, 0.25, 0.30}, {0.55, 0.9, 0.82, 0.56}, {1, 1, 1, 1}},
        {{0, 0}, {0.3, 0}, {0.4, 0.15}, {0.6, 0.3}, {1, 0.8}}},
       {"hot", {{0, 0, 0, 0}, {0.4, 0.9, 0, 0}, {0.8, 1, 0.9, 0}, {1, 1, 1, 1}}, {{0, 0}, {1, 1}}},
-      // Moreland's cool-warm end points, interpolated in RGB.
+      // Moreland's cool-warm end points (ParaView's "Cool to Warm"), diverging through Msh.
       {"cool-warm",
-       {{0, 0.23, 0.299, 0.754}, {0.5, 0.865, 0.865, 0.865}, {1, 0.706, 0.016, 0.150}},
-       {{0, 0}, {1, 0.5}}},
+       {{0, 0.231373, 0.298039, 0.752941}, {1, 0.705882, 0.0156863, 0.14902}},
+       {{0, 0}, {1, 0.5}},
+       ColorSpace::Diverging},
   };
   return kPresets;
 }
@@ -95,6 +99,8 @@ TransferFunction TransferFunction::preset(const std::string& name) {
       tf.name = p.name;
       tf.colors = p.colors;
       tf.opacities = p.opacities;
+      tf.colorSpace = p.space;
+      tf.normalized = true;
       return tf;
     }
   std::string list;
@@ -103,57 +109,155 @@ TransferFunction TransferFunction::preset(const std::string& name) {
                               "; or a ParaView .json file)");
 }
 
-TransferFunction TransferFunction::fromParaViewJson(const std::string& path) {
+namespace {
+
+std::string readText(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw FormatError(path, "cannot open transfer-function file");
   std::stringstream text;
   text << in.rdbuf();
-  return fromParaViewJsonText(text.str(), path);
+  return text.str();
 }
 
-TransferFunction TransferFunction::fromParaViewJsonText(const std::string& text,
-                                                        const std::string& source) {
-  nlohmann::json doc;
+nlohmann::json parseJson(const std::string& text, const std::string& source) {
   try {
-    doc = nlohmann::json::parse(text);
+    return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     bad(source, std::string("not valid JSON: ") + e.what());
   }
-  const nlohmann::json* preset = nullptr;
+}
+
+// The colour maps of a preset file: objects with "RGBPoints" (a list may hold opacity-only or
+// other entries, which are not colour maps).
+std::vector<const nlohmann::json*> colorMaps(const nlohmann::json& doc) {
+  std::vector<const nlohmann::json*> maps;
   if (doc.is_array()) {
     for (auto& p : doc)
-      if (p.is_object() && p.contains("RGBPoints")) {
-        preset = &p;
-        break;
-      }
+      if (p.is_object() && p.contains("RGBPoints")) maps.push_back(&p);
   } else if (doc.is_object() && doc.contains("RGBPoints")) {
-    preset = &doc;
+    maps.push_back(&doc);
   }
-  if (!preset) bad(source, "no ParaView preset with 'RGBPoints' found");
+  return maps;
+}
+
+std::string nameOf(const nlohmann::json& preset, std::size_t index) {
+  if (preset.contains("Name") && preset["Name"].is_string())
+    return preset["Name"].get<std::string>();
+  return "#" + std::to_string(index);
+}
+
+std::string joinNames(const std::vector<std::string>& names) {
+  std::string list;
+  for (auto& n : names) list += (list.empty() ? "'" : ", '") + n + "'";
+  return list;
+}
+
+// Exactly [0, 1] or [-1, 1]: how ParaView's bundled presets are written.
+bool spansUnitRange(double lo, double hi) {
+  return (lo == 0.0 && hi == 1.0) || (lo == -1.0 && hi == 1.0);
+}
+
+TransferFunction fromPreset(const nlohmann::json& preset, const std::string& source,
+                            std::string name) {
   TransferFunction tf;
-  tf.name = preset->value("Name", "custom");
-  if (preset->contains("Name") && !(*preset)["Name"].is_string()) tf.name = "custom";
-  const auto rgb = numbers(*preset, "RGBPoints", 4, source);
+  tf.name = std::move(name);
+  const auto rgb = numbers(preset, "RGBPoints", 4, source);
   for (std::size_t i = 0; i < rgb.size(); i += 4) {
     for (int c = 1; c <= 3; ++c)
       if (rgb[i + c] < 0 || rgb[i + c] > 1) bad(source, "'RGBPoints' colours must be in [0, 1]");
     tf.colors.push_back({rgb[i], rgb[i + 1], rgb[i + 2], rgb[i + 3]});
   }
-  if (preset->contains("Points")) {
-    const auto pts = numbers(*preset, "Points", 4, source);
+  if (preset.contains("Points")) {
+    const auto pts = numbers(preset, "Points", 4, source);
     for (std::size_t i = 0; i < pts.size(); i += 4) {
       if (pts[i + 1] < 0 || pts[i + 1] > 1) bad(source, "'Points' opacities must be in [0, 1]");
       tf.opacities.push_back({pts[i], pts[i + 1], pts[i + 2], pts[i + 3]});
     }
-  } else {
-    tf.opacities = {{tf.colors.front().x, 0.0}, {tf.colors.back().x, 1.0}};
-    tf.warnings.push_back("preset has no opacity 'Points': using a linear ramp from 0 to 1");
   }
-  const std::string space = preset->contains("ColorSpace") && (*preset)["ColorSpace"].is_string()
-                                ? (*preset)["ColorSpace"].get<std::string>()
-                                : "RGB";
-  if (space != "RGB") tf.warnings.push_back("colour space '" + space + "' is interpolated in RGB");
+  tf.normalized = spansUnitRange(tf.domainMin(), tf.domainMax());
+  if (tf.opacities.empty()) {
+    const double lo = tf.colors.front().x, hi = tf.colors.back().x;
+    tf.ownOpacity = false;
+    tf.opacities = {{lo, 0.0}, {lo + 0.3 * (hi - lo), 0.0}, {hi, 0.8}};
+    tf.warnings.push_back(
+        "'" + tf.name +
+        "' has no opacity 'Points': transparent below 30% of its range, rising to 0.8 at the top "
+        "(--opacity FILE|PRESET picks another curve)");
+  }
+  if (preset.contains("ColorSpace")) {
+    const std::string space =
+        preset["ColorSpace"].is_string() ? preset["ColorSpace"].get<std::string>() : "";
+    if (space == "Lab/CIEDE2000") {
+      tf.colorSpace = ColorSpace::Lab;
+      tf.warnings.push_back("colour space 'Lab/CIEDE2000' is interpolated in Lab");
+    } else if (!colorSpaceFromName(space, &tf.colorSpace)) {
+      tf.warnings.push_back("unknown colour space '" + space + "': interpolated in RGB");
+    }
+  }
   return tf;
+}
+
+}  // namespace
+
+TransferFunction TransferFunction::fromParaViewJson(const std::string& path,
+                                                    const std::string& name) {
+  return fromParaViewJsonText(readText(path), path, name);
+}
+
+std::vector<std::string> TransferFunction::namesInParaViewJson(const std::string& path) {
+  const auto doc = parseJson(readText(path), path);
+  std::vector<std::string> names;
+  const auto maps = colorMaps(doc);
+  for (std::size_t i = 0; i < maps.size(); ++i) names.push_back(nameOf(*maps[i], i));
+  return names;
+}
+
+TransferFunction TransferFunction::fromParaViewJsonText(const std::string& text,
+                                                        const std::string& source,
+                                                        const std::string& name) {
+  const auto doc = parseJson(text, source);
+  const auto maps = colorMaps(doc);
+  if (maps.empty()) bad(source, "no ParaView preset with 'RGBPoints' found");
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < maps.size(); ++i) names.push_back(nameOf(*maps[i], i));
+  if (name.empty()) {
+    if (maps.size() > 1)
+      bad(source, "holds " + std::to_string(maps.size()) + " colour maps (" + joinNames(names) +
+                      "): pick one with --tf FILE:NAME");
+    return fromPreset(*maps[0], source, names[0]);
+  }
+  for (std::size_t i = 0; i < maps.size(); ++i)
+    if (names[i] == name) return fromPreset(*maps[i], source, names[i]);
+  bad(source, "no colour map named '" + name + "' (it has " + joinNames(names) + ")");
+}
+
+TransferFunction TransferFunction::load(const std::string& spec) {
+  namespace fs = std::filesystem;
+  if (fs::exists(spec) || spec.ends_with(".json")) return fromParaViewJson(spec);
+  // FILE:NAME, split at the first ':' after which the file exists (names may hold ':').
+  for (auto colon = spec.find(':'); colon != std::string::npos; colon = spec.find(':', colon + 1))
+    if (fs::is_regular_file(spec.substr(0, colon)))
+      return fromParaViewJson(spec.substr(0, colon), spec.substr(colon + 1));
+  return preset(spec);
+}
+
+std::string TransferFunction::placeOnData(double dataLo, double dataHi,
+                                          const std::optional<std::pair<double, double>>& range) {
+  char line[512];
+  if (range) {
+    *this = rescaled(range->first, range->second);
+    std::snprintf(line, sizeof line, "'%s' stretched over --tf-range %g..%g", name.c_str(),
+                  range->first, range->second);
+  } else if (normalized) {
+    if (!(dataHi > dataLo)) dataHi = dataLo + 1.0;
+    *this = rescaled(dataLo, dataHi);
+    std::snprintf(line, sizeof line, "'%s' is normalized: stretched over the data range %g..%g",
+                  name.c_str(), dataLo, dataHi);
+  } else {
+    std::snprintf(line, sizeof line, "'%s' is in data values (%g..%g): applied as it is",
+                  name.c_str(), domainMin(), domainMax());
+  }
+  return line;
 }
 
 double TransferFunction::domainMin() const {
@@ -192,9 +296,8 @@ void TransferFunction::evaluate(double x, double rgba[4]) const {
     const ColorPoint& b = *it;
     const ColorPoint& a = *(it - 1);
     const double t = b.x > a.x ? (x - a.x) / (b.x - a.x) : 1.0;
-    rgba[0] = a.r + t * (b.r - a.r);
-    rgba[1] = a.g + t * (b.g - a.g);
-    rgba[2] = a.b + t * (b.b - a.b);
+    const Rgb c = interpolateColor(colorSpace, {a.r, a.g, a.b}, {b.r, b.g, b.b}, t);
+    rgba[0] = c[0], rgba[1] = c[1], rgba[2] = c[2];
   }
   if (opacities.empty()) {
     rgba[3] = 1.0;

@@ -381,3 +381,74 @@ TEST(Cli, EitherSurfaceOfATwoSurfaceTideConfigurationRenders) {
   expectOneLineError(runVoxwall("render generated:shepp-logan:16 --no-write --surface 1"),
                      "voxwall: --surface needs --wall");
 }
+
+// ParaView's presets as ParaView applies them, on the MRI (Debian's mricron-data, which the
+// README's commands install).
+TEST(Cli, ParaViewPresetsAreAppliedAsParaViewDoes) {
+  const std::string mri = "/usr/share/mricron/templates/ch2better.nii.gz";
+  if (!std::filesystem::exists(mri)) GTEST_SKIP() << mri << " not installed (mricron-data)";
+  test::TempDir dir;
+  const auto presets = dir.path("presets.json");
+  // ParaView's own "Cool to Warm" (normalized, Diverging, no opacity) and a map with opacity.
+  test::writeFile(presets, R"([
+    {"Name": "Cool to Warm", "ColorSpace": "Diverging", "NanColor": [1, 1, 0],
+     "RGBPoints": [0, 0.231373, 0.298039, 0.752941, 1, 0.705882, 0.0156863, 0.14902]},
+    {"Name": "Ramp", "ColorSpace": "RGB", "RGBPoints": [0, 0, 0, 0, 1, 1, 1, 1],
+     "Points": [0, 0, 0.5, 0, 0.6, 0, 0.5, 0, 1, 1, 0.5, 0]}])");
+  const std::string render = "render " + mri + " --size 160x120 ";
+
+  // Several maps and no name: refused, with the names.
+  expectOneLineError(runVoxwall(render + "--no-write --tf " + presets),
+                     "voxwall: " + presets + ": holds 2 colour maps ('Cool to Warm', 'Ramp')");
+  const CliRun list = runVoxwall("tf list " + presets);
+  ASSERT_EQ(list.status, 0) << list.out;
+  EXPECT_NE(list.out.find("Cool to Warm\tDiverging\t2 points\t0..1 normalized\tno opacity"),
+            std::string::npos)
+      << list.out;
+  EXPECT_NE(list.out.find("Ramp\tRGB"), std::string::npos) << list.out;
+
+  // The normalized map is stretched over the data: blue, light and red, not one colour.
+  const CliRun coolWarm =
+      runVoxwall(render + "--tf '" + presets + ":Cool to Warm' --out " + dir.path("cw"));
+  ASSERT_EQ(coolWarm.status, 0) << coolWarm.out;
+  EXPECT_NE(coolWarm.out.find("'Cool to Warm' is normalized: stretched over the data range"),
+            std::string::npos)
+      << coolWarm.out;
+  const auto image = voxwall::readImage(dir.path("cw/frame_00000.png"));
+  int covered = 0, cool = 0, warm = 0, light = 0;
+  for (const std::uint32_t p : image.pixels) {
+    const int r = int(p & 255), g = int((p >> 8) & 255), b = int((p >> 16) & 255);
+    if (r + g + b < 12) continue;
+    ++covered;
+    cool += b > r + 5;
+    warm += r > b + 5;
+    light += g > 128;  // the diverging map's light middle (its red end has green 4)
+  }
+  ASSERT_GT(covered, 2000);
+  EXPECT_GT(cool, covered / 200) << "cool " << cool << " of " << covered;
+  EXPECT_GT(warm, covered / 2) << "warm " << warm << " of " << covered;
+  EXPECT_GT(light, covered / 2) << "light " << light << " of " << covered;
+
+  // --opacity: colours from one map, the opacity curve of another. Opacity alone decides alpha,
+  // so the result's alpha is that of the other map's own render, and not the default curve's.
+  auto alphaOf = [](const voxwall::Image& im) {
+    std::vector<int> a;
+    for (const std::uint32_t p : im.pixels) a.push_back(int(p >> 24));
+    return a;
+  };
+  const std::string straight = render + "-q --background none ";
+  ASSERT_EQ(runVoxwall(straight + "--tf '" + presets + ":Cool to Warm' --opacity " + presets +
+                       ":Ramp --out " + dir.path("mixed"))
+                .status,
+            0);
+  ASSERT_EQ(runVoxwall(straight + "--tf " + presets + ":Ramp --out " + dir.path("ramp")).status, 0);
+  ASSERT_EQ(
+      runVoxwall(straight + "--tf '" + presets + ":Cool to Warm' --out " + dir.path("own")).status,
+      0);
+  const auto mixed = alphaOf(voxwall::readImage(dir.path("mixed/frame_00000.png")));
+  EXPECT_EQ(mixed, alphaOf(voxwall::readImage(dir.path("ramp/frame_00000.png"))));
+  EXPECT_NE(mixed, alphaOf(voxwall::readImage(dir.path("own/frame_00000.png"))));
+  expectOneLineError(
+      runVoxwall(render + "--no-write --tf mri --opacity '" + presets + ":Cool to Warm'"),
+      "voxwall: --opacity " + presets + ":Cool to Warm: it has no opacity");
+}

@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/node/transfer_function.hpp>
 
@@ -27,13 +30,19 @@ TEST(TransferFunction, ReadsAParaViewPresetArray) {
   EXPECT_DOUBLE_EQ(tf.domainMax(), 200.0);
 }
 
-TEST(TransferFunction, WarnsAboutWhatItApproximates) {
+TEST(TransferFunction, APresetWithoutOpacityGetsTheDocumentedCurve) {
   const auto tf = TransferFunction::fromParaViewJsonText(
       R"({"ColorSpace": "Diverging", "RGBPoints": [-1, 0, 0, 1, 1, 1, 0, 0]})", "x.json");
-  ASSERT_EQ(tf.warnings.size(), 2u);  // no Points, Diverging interpolated in RGB
+  ASSERT_EQ(tf.warnings.size(), 1u);  // no Points (Diverging is interpolated as ParaView does)
+  EXPECT_NE(tf.warnings[0].find("transparent below 30%"), std::string::npos) << tf.warnings[0];
+  EXPECT_FALSE(tf.ownOpacity);
+  EXPECT_EQ(tf.colorSpace, ColorSpace::Diverging);
+  EXPECT_TRUE(tf.normalized);  // [-1, 1], as ParaView's bundled presets are written
   double rgba[4];
+  tf.evaluate(-0.5, rgba);  // 25% of the range: still transparent
+  EXPECT_DOUBLE_EQ(rgba[3], 0.0);
   tf.evaluate(1, rgba);
-  EXPECT_DOUBLE_EQ(rgba[3], 1.0);
+  EXPECT_DOUBLE_EQ(rgba[3], 0.8);
 }
 
 TEST(TransferFunction, RefusesMalformedPresets) {
@@ -88,4 +97,86 @@ TEST(TransferFunction, PresetsRescaleOntoTheData) {
     EXPECT_EQ(tf.bake(-1000, 3000, 0.25).view().size, 4096);
   }
   EXPECT_THROW(TransferFunction::preset("nope"), std::invalid_argument);
+}
+
+// VTK's vtkColorTransferFunction (what ParaView applies) at 20 points of maps in every colour
+// space, computed by tests/tools/vtk_colormap_oracle.py with Debian's python3-vtk9.
+TEST(TransferFunction, ColourSpacesMatchVtk) {
+  std::ifstream in(VOXWALL_TEST_DATA_DIR "/vtk_colormaps.json");
+  ASSERT_TRUE(in) << "tests/data/vtk_colormaps.json";
+  const auto oracle = nlohmann::json::parse(in);
+  std::set<std::string> spaces;
+  for (const auto& map : oracle["maps"]) {
+    const auto tf = TransferFunction::fromParaViewJsonText(map.dump(), "oracle");
+    spaces.insert(map["ColorSpace"].get<std::string>());
+    ASSERT_EQ(map["samples"].size(), 20u);
+    for (const auto& sample : map["samples"]) {
+      double rgba[4];
+      tf.evaluate(sample[0].get<double>(), rgba);
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(rgba[c], sample[c + 1].get<double>(), 1.0 / 255)
+            << map["Name"].get<std::string>() << " at " << sample[0].get<double>() << " channel "
+            << c;
+    }
+  }
+  for (const char* space : {"Diverging", "Lab", "CIELAB", "HSV", "Wrapped HSV", "RGB", "Step"})
+    EXPECT_EQ(spaces.count(space), 1u) << space;
+}
+
+TEST(TransferFunction, LabRoundTripsAndDivergingPassesThroughWhite) {
+  for (const Rgb c : {Rgb{0, 0, 0}, Rgb{1, 1, 1}, Rgb{0.2, 0.5, 0.9}, Rgb{1, 0, 0}}) {
+    const Rgb back = labToRgb(rgbToLab(c));
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(back[i], c[i], 1e-3);
+  }
+  // Moreland's cool-warm: the middle is a light grey, not the dull grey of RGB interpolation.
+  const Rgb blue{0.231373, 0.298039, 0.752941}, red{0.705882, 0.0156863, 0.14902};
+  const Rgb mid = interpolateColor(ColorSpace::Diverging, blue, red, 0.5);
+  const Rgb rgbMid = interpolateColor(ColorSpace::Rgb, blue, red, 0.5);
+  EXPECT_GT(mid[1], 0.8);
+  EXPECT_LT(rgbMid[1], 0.2);
+}
+
+namespace {
+const char* kTwoMaps = R"([
+  {"Name": "Warm", "ColorSpace": "Lab", "RGBPoints": [0, 1, 0.9, 0.5, 1, 0.6, 0, 0]},
+  {"Name": "Cold", "RGBPoints": [0, 0.8, 0.9, 1, 1, 0, 0, 0.5],
+   "Points": [0, 0, 0.5, 0, 0.5, 0.1, 0.5, 0, 1, 0.9, 0.5, 0]}])";
+}
+
+TEST(TransferFunction, FilesWithSeveralMapsArePickedByName) {
+  const auto cold = TransferFunction::fromParaViewJsonText(kTwoMaps, "two.json", "Cold");
+  EXPECT_EQ(cold.name, "Cold");
+  EXPECT_TRUE(cold.ownOpacity);
+  EXPECT_EQ(TransferFunction::fromParaViewJsonText(kTwoMaps, "two.json", "Warm").colorSpace,
+            ColorSpace::Lab);
+  try {
+    TransferFunction::fromParaViewJsonText(kTwoMaps, "two.json");
+    ADD_FAILURE() << "a two-map file without a name was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("2 colour maps ('Warm', 'Cold')"), std::string::npos)
+        << e.what();
+  }
+  try {
+    TransferFunction::fromParaViewJsonText(kTwoMaps, "two.json", "Hot");
+    ADD_FAILURE() << "an unknown name was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("no colour map named 'Hot'"), std::string::npos);
+  }
+}
+
+TEST(TransferFunction, NormalizedMapsAreStretchedOverTheDataAndDataMapsStay) {
+  auto normalized = TransferFunction::fromParaViewJsonText(kTwoMaps, "two.json", "Cold");
+  ASSERT_TRUE(normalized.normalized);
+  const auto said = normalized.placeOnData(10, 250, std::nullopt);
+  EXPECT_NE(said.find("stretched over the data range 10..250"), std::string::npos) << said;
+  EXPECT_DOUBLE_EQ(normalized.domainMin(), 10);
+  EXPECT_DOUBLE_EQ(normalized.domainMax(), 250);
+  auto state = TransferFunction::fromParaViewJsonText(
+      R"({"RGBPoints": [37.5, 0, 0, 1, 276.8, 1, 0, 0], "Points": [37.5, 0, 0.5, 0, 276.8, 1, 0.5, 0]})",
+      "state.json");
+  EXPECT_FALSE(state.normalized);
+  EXPECT_NE(state.placeOnData(0, 1000, std::nullopt).find("in data values"), std::string::npos);
+  EXPECT_DOUBLE_EQ(state.domainMin(), 37.5);
+  state.placeOnData(0, 1000, std::pair{0.0, 100.0});
+  EXPECT_DOUBLE_EQ(state.domainMax(), 100.0);
 }

@@ -12,5 +12,6 @@ void addInfoCommand(CLI::App& app);
 void addCodecsCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
 void addSinkCommand(CLI::App& app);
+void addTfCommand(CLI::App& app);
 
 }  // namespace voxwall::cli

@@ -21,23 +21,38 @@
 namespace voxwall::cli {
 namespace {
 
+// --tf (and --opacity) put on the data as ParaView applies a preset. `notes` gets what was
+// approximated and, for files, how the map met the data: said once, after setup succeeded.
 node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec::VolumeInfo& info,
-                                            bool quiet) {
-  const bool file = o.tf.ends_with(".json") || std::filesystem::exists(o.tf);
-  node::TransferFunction tf =
-      file ? node::TransferFunction::fromParaViewJson(o.tf) : node::TransferFunction::preset(o.tf);
-  if (!quiet)
-    for (auto& w : tf.warnings) std::fprintf(stderr, "voxwall: %s: %s\n", o.tf.c_str(), w.c_str());
+                                            std::vector<std::string>& notes) {
+  std::optional<std::pair<double, double>> range;
   if (!o.tfRange.empty()) {
     const auto r = parseNumbers(o.tfRange, "--tf-range");
     if (r.size() != 2 || !(r[1] > r[0]))
       throw std::invalid_argument("--tf-range: expected LO,HI with LO < HI");
-    return tf.rescaled(r[0], r[1]);
+    range = std::pair{r[0], r[1]};
   }
-  // Built-in presets are defined on [0, 1]: stretch them over the data. Files are in data values.
-  return file ? tf
-              : tf.rescaled(info.valueMin,
-                            info.valueMax > info.valueMin ? info.valueMax : info.valueMin + 1);
+  node::TransferFunction tf = node::TransferFunction::load(o.tf);
+  const std::string placed = tf.placeOnData(info.valueMin, info.valueMax, range);
+  const auto builtIn = node::TransferFunction::presetNames();
+  const bool file = std::find(builtIn.begin(), builtIn.end(), o.tf) == builtIn.end();
+  notes = tf.warnings;
+  if (!o.opacity.empty()) {
+    // The opacity curve of another map, put on the data by the same rule.
+    node::TransferFunction other = node::TransferFunction::load(o.opacity);
+    if (!other.ownOpacity)
+      throw std::invalid_argument("--opacity " + o.opacity + ": it has no opacity 'Points'");
+    const std::string otherPlaced = other.placeOnData(info.valueMin, info.valueMax, range);
+    tf.opacities = other.opacities;
+    notes.erase(std::remove_if(notes.begin(), notes.end(),
+                               [](const std::string& n) {
+                                 return n.find("no opacity 'Points'") != std::string::npos;
+                               }),
+                notes.end());
+    notes.push_back("opacity from " + otherPlaced);
+  }
+  if (file) notes.push_back(placed);
+  return tf;
 }
 
 struct Setup {
@@ -48,6 +63,7 @@ struct Setup {
   std::unique_ptr<node::Backend> backend;
   std::string input;
   std::uint64_t needBytes = 0;
+  std::vector<std::string> tfNotes;  // said by rank 0 once setup succeeded
 };
 
 node::RenderVolume loadRenderVolume(const RenderOptions& o, const std::string& input) {
@@ -101,7 +117,7 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
                                " plus frame buffers), over the --memory-budget of " +
                                humanBytes(double(budget)));
   }
-  s.tf = loadTransferFunction(o, s.volume->info(), quiet);
+  s.tf = loadTransferFunction(o, s.volume->info(), s.tfNotes);
   if (!o.dryRun) s.backend = rankBackend(o, comm, quiet);
 }
 
@@ -286,6 +302,9 @@ void runRender(const RenderOptions& o) {
                  std::string(codec::scalarName(info.type)).c_str(),
                  std::string(codec::codecName(info.codec)).c_str(), s.job.width, s.job.height,
                  s.job.frames, comm->size(), o.dryRun ? "dry run" : s.backend->name().c_str());
+  if (!quiet)
+    for (const auto& note : s.tfNotes)
+      std::fprintf(stderr, "voxwall: %s: %s\n", o.tf.c_str(), note.c_str());
   if (o.dryRun) {
     if (comm->rank() == 0) printDryRun(o, *comm, s, ranks);
     return;

@@ -233,6 +233,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["zoom_to"] = o.zoomTo;
   m["tf"] = o.tf;
   m["tf_range"] = o.tfRange;
+  m["opacity"] = o.opacity;
   m["step"] = render.stepVoxels;
   m["shading"] = render.shading;
   if (render.nearest) m["sampling"] = "nearest";
@@ -241,7 +242,13 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["background"] = o.background;
   m["backend"] = o.backend;  // CUDA and CPU may differ in the last bit of a channel
   // Files named by the settings count by their contents: an edited file is another render.
-  for (const auto& [key, file] : {std::pair{"path_file", o.path}, std::pair{"tf_file", o.tf}}) {
+  for (auto [key, file] : {std::pair{"path_file", o.path}, std::pair{"tf_file", o.tf},
+                           std::pair{"opacity_file", o.opacity}}) {
+    // FILE:NAME names a map in FILE.
+    for (auto colon = file.rfind(':');
+         !std::filesystem::is_regular_file(file) && colon != std::string::npos && colon > 0;
+         colon = file.rfind(':', colon - 1))
+      if (std::filesystem::is_regular_file(file.substr(0, colon))) file = file.substr(0, colon);
     if (!std::filesystem::is_regular_file(file)) continue;
     std::ifstream in(file, std::ios::binary);
     m[key] = std::string(std::istreambuf_iterator<char>(in), {});
@@ -333,9 +340,14 @@ void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
 void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--tf", o.tf,
                  "Transfer function: a built-in preset (mri, grey, ct-bone, ct-soft, hot, "
-                 "cool-warm; stretched over the data range) or a ParaView preset .json (RGBPoints "
-                 "and Points in data values)")
+                 "cool-warm), a ParaView preset or transfer-function .json, or FILE:NAME for one "
+                 "map of a file with several (`voxwall tf list FILE` names them). Presets on "
+                 "[0,1] or [-1,1] are stretched over the data range as ParaView does; other "
+                 "files are in data values")
       ->capture_default_str();
+  cmd.add_option("--opacity", o.opacity,
+                 "Take the opacity curve from this preset or file (FILE, FILE:NAME) and the "
+                 "colours from --tf");
   cmd.add_option("--tf-range", o.tfRange, "Stretch the transfer function over data values LO,HI");
   cmd.add_option("--step", o.step, "Ray step in voxels (of the smallest spacing)")
       ->capture_default_str();

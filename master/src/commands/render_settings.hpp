@@ -20,7 +20,8 @@ struct RenderOptions {
   std::string backend = "cpu", background = "black", format = "png", tiles = "1x1";
   std::string path = "orbit", balance = "dynamic", memoryBudget, pan;
   std::string sink, token, wall, subsampling = "420", tileCodec = "jpeg";
-  int surface = 0;  // of a multi-surface Tide configuration
+  int surface = 0;      // of a multi-surface Tide configuration
+  std::string opacity;  // --opacity: the opacity curve of another map
   int jpegQuality = 90;
   bool sizeGiven = false, outGiven = false;
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;

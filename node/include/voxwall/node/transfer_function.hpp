@@ -2,8 +2,11 @@
 // baked into a lookup table the per-ray code reads.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
+#include <voxwall/node/color_space.hpp>
 #include <voxwall/node/kernels/transfer_lut.hpp>
 
 namespace voxwall::node {
@@ -22,10 +25,15 @@ struct OpacityPoint {
 class TransferFunction {
  public:
   std::string name;
-  std::vector<ColorPoint> colors;       // sorted by x
-  std::vector<OpacityPoint> opacities;  // sorted by x
-  // ParaView presets with "ColorSpace" other than RGB are interpolated in RGB; the reader notes
-  // that here so the program can warn once.
+  std::vector<ColorPoint> colors;           // sorted by x
+  std::vector<OpacityPoint> opacities;      // sorted by x
+  ColorSpace colorSpace = ColorSpace::Rgb;  // how colours between points are interpolated
+  // Points on [0, 1] (or [-1, 1]) that ParaView stretches over the data when it applies the map:
+  // the built-in presets and ParaView's bundled presets. False: points are data values.
+  bool normalized = false;
+  // False when the file had no opacity "Points" and the default below was put in.
+  bool ownOpacity = true;
+  // What the reader approximated or filled in, for the program to say once.
   std::vector<std::string> warnings;
 
   // Names of the built-in presets: "mri", "ct-bone", "ct-soft", "grey", "hot", "cool-warm".
@@ -33,12 +41,28 @@ class TransferFunction {
   // A built-in preset over the domain [0, 1] (rescale() it to the data). Throws
   // std::invalid_argument listing the names for an unknown one.
   static TransferFunction preset(const std::string& name);
-  // Reads a ParaView preset file (an array of presets or one object; the first preset with
-  // RGBPoints is used) or a saved transfer function with "RGBPoints" and "Points". Points are in
-  // data values. Throws FormatError("<path>: ...").
-  static TransferFunction fromParaViewJson(const std::string& path);
+  // Reads a ParaView preset file: one preset object, or a list of them (ParaView's preset list and
+  // "Export" form), each with "RGBPoints" and optionally "Points", "ColorSpace", "Name"; or a
+  // transfer-function state saved by the Color Map Editor (the same keys, in data values).
+  // `name` picks a preset by its "Name"; empty takes the only one, and a file with several is
+  // refused with their names. Points spanning exactly [0, 1] or [-1, 1] are normalized (see
+  // placeOnData); others are data values. Without opacity "Points", opacity is 0 below 30% of
+  // the map's range and rises to 0.8 at its top (as the built-in "mri" preset), and a warning
+  // says so. Throws FormatError("<path>: ...").
+  static TransferFunction fromParaViewJson(const std::string& path, const std::string& name = "");
   // Parses JSON text (as fromParaViewJson); `source` names it in errors.
-  static TransferFunction fromParaViewJsonText(const std::string& text, const std::string& source);
+  static TransferFunction fromParaViewJsonText(const std::string& text, const std::string& source,
+                                               const std::string& name = "");
+  // The names of the colour maps in a preset file, in file order. Throws FormatError.
+  static std::vector<std::string> namesInParaViewJson(const std::string& path);
+  // `--tf SPEC`: a built-in preset name, FILE, or FILE:NAME (a preset of a multi-preset file).
+  static TransferFunction load(const std::string& spec);
+
+  // Puts the map on the data as ParaView applies a preset, and says in one line what was done:
+  // with `range` (--tf-range LO,HI) the points are stretched over it; otherwise normalized maps
+  // are stretched over the data range [dataLo, dataHi] and maps in data values stay.
+  std::string placeOnData(double dataLo, double dataHi,
+                          const std::optional<std::pair<double, double>>& range);
 
   // Domain covered by the points: [min x, max x] over both lists.
   double domainMin() const;
