@@ -122,7 +122,7 @@ std::string readText(const std::string& path) {
 nlohmann::json parseJson(const std::string& text, const std::string& source) {
   try {
     return nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // also out_of_range: a number too large
     bad(source, std::string("not valid JSON: ") + e.what());
   }
 }

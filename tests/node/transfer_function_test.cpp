@@ -49,7 +49,9 @@ TEST(TransferFunction, RefusesMalformedPresets) {
   for (const char* text : {"not json", "[]", R"({"RGBPoints": [0, 0, 0]})",
                            R"({"RGBPoints": [1, 0, 0, 0, 0, 1, 1, 1]})",
                            R"({"RGBPoints": [0, 0, 0, 2]})", R"({"RGBPoints": [0, 0, 0, "a"]})",
-                           R"({"RGBPoints": [0, 0, 0, 0], "Points": [0, 1.5, 0.5, 0]})"}) {
+                           R"({"RGBPoints": [0, 0, 0, 0], "Points": [0, 1.5, 0.5, 0]})",
+                           // A number too large for a double (found by config_files_fuzz).
+                           R"({"RGBPoints": [1.5E22222222, 0, 0, 0]})"}) {
     try {
       TransferFunction::fromParaViewJsonText(text, "t.json");
       ADD_FAILURE() << "accepted " << text;
