@@ -46,9 +46,17 @@ def run_voxwall(args, threads, out_dir):
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         sys.exit("voxwall failed: " + res.stdout + res.stderr)
-    ms = [float(m) for m in re.findall(r"render ([0-9.]+) ms", res.stdout)]
-    rate = [float(m) for m in re.findall(r"([0-9.]+) Msamples/s", res.stdout)]
-    return ms, rate[-1] if rate else float("nan")
+    # Per frame: "frame 1/5: 812.3 ms, imbalance 1.00, render ms [0:810], 21.0 Msamples/s ...":
+    # the render time is the slowest rank's (one rank here).
+    ms, rate = [], []
+    for ranks, msamples in re.findall(r"^frame \d+/\d+: .*?render ms \[([0-9: .]+)\], ([0-9.]+) Msamples/s",
+                                      res.stdout + res.stderr, re.M):
+        ms.append(max(float(r.split(":")[1]) for r in ranks.split()))
+        rate.append(float(msamples))
+    if len(ms) != args.frames:
+        sys.exit(f"compare_vtk: parsed {len(ms)} of {args.frames} voxwall frame lines; the output was:\n"
+                 + res.stdout + res.stderr)
+    return ms, rate[-1]
 
 
 def vtk_scene(args):
