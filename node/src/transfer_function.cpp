@@ -179,10 +179,7 @@ TransferFunction fromPreset(const nlohmann::json& preset, const std::string& sou
     const double lo = tf.colors.front().x, hi = tf.colors.back().x;
     tf.ownOpacity = false;
     tf.opacities = {{lo, 0.0}, {lo + 0.3 * (hi - lo), 0.0}, {hi, 0.8}};
-    tf.warnings.push_back(
-        "'" + tf.name +
-        "' has no opacity 'Points': transparent below 30% of its range, rising to 0.8 at the top "
-        "(--opacity FILE|PRESET picks another curve)");
+    tf.warnings.push_back(tf.noOpacityWarning());
   }
   if (preset.contains("ColorSpace")) {
     const std::string space =
@@ -231,14 +228,33 @@ TransferFunction TransferFunction::fromParaViewJsonText(const std::string& text,
   bad(source, "no colour map named '" + name + "' (it has " + joinNames(names) + ")");
 }
 
-TransferFunction TransferFunction::load(const std::string& spec) {
+TransferFunction::SpecParts TransferFunction::splitSpec(const std::string& spec) {
   namespace fs = std::filesystem;
-  if (fs::exists(spec) || spec.ends_with(".json")) return fromParaViewJson(spec);
+  if (fs::exists(spec) || spec.ends_with(".json")) return {spec, ""};
   // FILE:NAME, split at the first ':' after which the file exists (names may hold ':').
   for (auto colon = spec.find(':'); colon != std::string::npos; colon = spec.find(':', colon + 1))
     if (fs::is_regular_file(spec.substr(0, colon)))
-      return fromParaViewJson(spec.substr(0, colon), spec.substr(colon + 1));
-  return preset(spec);
+      return {spec.substr(0, colon), spec.substr(colon + 1)};
+  return {"", spec};
+}
+
+TransferFunction TransferFunction::load(const std::string& spec) {
+  const auto [file, name] = splitSpec(spec);
+  return file.empty() ? preset(name) : fromParaViewJson(file, name);
+}
+
+void TransferFunction::takeOpacityFrom(const TransferFunction& other) {
+  opacities = other.opacities;
+  if (!ownOpacity)
+    warnings.erase(std::remove(warnings.begin(), warnings.end(), noOpacityWarning()),
+                   warnings.end());
+  ownOpacity = other.ownOpacity;
+}
+
+std::string TransferFunction::noOpacityWarning() const {
+  return "'" + name +
+         "' has no opacity 'Points': transparent below 30% of its range, rising to 0.8 at the top "
+         "(--opacity FILE|PRESET picks another curve)";
 }
 
 std::string TransferFunction::placeOnData(double dataLo, double dataHi,

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -181,4 +182,32 @@ TEST(TransferFunction, NormalizedMapsAreStretchedOverTheDataAndDataMapsStay) {
   EXPECT_DOUBLE_EQ(state.domainMin(), 37.5);
   state.placeOnData(0, 1000, std::pair{0.0, 100.0});
   EXPECT_DOUBLE_EQ(state.domainMax(), 100.0);
+}
+
+TEST(TransferFunction, OpacityFromAnotherMapReplacesTheDefaultCurveAndItsWarning) {
+  auto colours = TransferFunction::fromParaViewJsonText(
+      R"({"Name": "C", "RGBPoints": [0, 0, 0, 1, 1, 1, 0, 0]})", "c.json");
+  ASSERT_FALSE(colours.ownOpacity);
+  ASSERT_EQ(colours.warnings, std::vector<std::string>{colours.noOpacityWarning()});
+  const auto curve = TransferFunction::fromParaViewJsonText(kTwoMaps, "two.json", "Cold");
+  colours.takeOpacityFrom(curve);
+  EXPECT_TRUE(colours.ownOpacity);
+  EXPECT_TRUE(colours.warnings.empty());
+  ASSERT_EQ(colours.opacities.size(), curve.opacities.size());
+  EXPECT_DOUBLE_EQ(colours.opacities[1].opacity, 0.1);
+}
+
+TEST(TransferFunction, SpecsNameABuiltInAFileOrAMapInAFile) {
+  const auto dir = std::filesystem::temp_directory_path() / "voxwall-tf-spec-test";
+  std::filesystem::create_directories(dir);
+  const auto file = (dir / "maps.json").string();
+  std::ofstream(file) << kTwoMaps;
+  EXPECT_EQ(TransferFunction::splitSpec("mri").file, "");
+  EXPECT_EQ(TransferFunction::splitSpec("mri").name, "mri");
+  EXPECT_EQ(TransferFunction::splitSpec(file).file, file);
+  const auto parts = TransferFunction::splitSpec(file + ":Cold");
+  EXPECT_EQ(parts.file, file);
+  EXPECT_EQ(parts.name, "Cold");
+  EXPECT_EQ(TransferFunction::load(file + ":Cold").name, "Cold");
+  std::filesystem::remove_all(dir);
 }

@@ -34,24 +34,20 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
   }
   node::TransferFunction tf = node::TransferFunction::load(o.tf);
   const std::string placed = tf.placeOnData(info.valueMin, info.valueMax, range);
-  const auto builtIn = node::TransferFunction::presetNames();
-  const bool file = std::find(builtIn.begin(), builtIn.end(), o.tf) == builtIn.end();
-  notes = tf.warnings;
   if (!o.opacity.empty()) {
     // The opacity curve of another map, put on the data by the same rule.
     node::TransferFunction other = node::TransferFunction::load(o.opacity);
     if (!other.ownOpacity)
       throw std::invalid_argument("--opacity " + o.opacity + ": it has no opacity 'Points'");
     const std::string otherPlaced = other.placeOnData(info.valueMin, info.valueMax, range);
-    tf.opacities = other.opacities;
-    notes.erase(std::remove_if(notes.begin(), notes.end(),
-                               [](const std::string& n) {
-                                 return n.find("no opacity 'Points'") != std::string::npos;
-                               }),
-                notes.end());
+    tf.takeOpacityFrom(other);
+    notes = tf.warnings;
     notes.push_back("opacity from " + otherPlaced);
+  } else {
+    notes = tf.warnings;
   }
-  if (file) notes.push_back(placed);
+  // Built-in presets need no note on their range; files get one.
+  if (!node::TransferFunction::splitSpec(o.tf).file.empty()) notes.push_back(placed);
   return tf;
 }
 

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <voxwall/net/tcp.hpp>
+#include <voxwall/node/transfer_function.hpp>
 #include <voxwall/walls/wall.hpp>
 
 namespace voxwall::cli {
@@ -78,6 +79,21 @@ std::string rectList(const std::vector<voxwall::Rect>& rects) {
 
 namespace {
 
+// The value `word` names among `choices`; otherwise "OPTION: expected a, b or c".
+template <class T>
+T choose(const std::string& word, const char* option,
+         std::initializer_list<std::pair<const char*, T>> choices) {
+  std::string expected;
+  std::size_t i = 0;
+  for (const auto& [name, value] : choices) {
+    if (word == name) return value;
+    if (i > 0) expected += i + 1 == choices.size() ? " or " : ", ";
+    expected += name;
+    ++i;
+  }
+  throw std::invalid_argument(std::string(option) + ": expected " + expected);
+}
+
 // --wall or --size: the virtual screen.
 std::optional<walls::Wall> screen(const RenderOptions& o, master::JobSettings& job) {
   std::optional<walls::Wall> wall;
@@ -108,25 +124,17 @@ std::optional<master::StreamSettings> streamSettings(const RenderOptions& o,
   st.token = o.token;
   st.wallId = wall->id;
   st.background = wall->background;
-  if (o.tileCodec == "jpeg")
-    st.codec.codec = net::TileCodec::Jpeg;
-  else if (o.tileCodec == "raw")
-    st.codec.codec = net::TileCodec::Raw;
-  else if (o.tileCodec == "deflate")
-    st.codec.codec = net::TileCodec::Deflate;
-  else
-    throw std::invalid_argument("--tile-codec: expected jpeg, raw or deflate");
+  st.codec.codec = choose<net::TileCodec>(o.tileCodec, "--tile-codec",
+                                          {{"jpeg", net::TileCodec::Jpeg},
+                                           {"raw", net::TileCodec::Raw},
+                                           {"deflate", net::TileCodec::Deflate}});
   if (o.jpegQuality < 1 || o.jpegQuality > 100)
     throw std::invalid_argument("--jpeg-quality must be in [1, 100]");
   st.codec.jpegQuality = o.jpegQuality;
-  if (o.subsampling == "444")
-    st.codec.subsampling = net::Subsampling::S444;
-  else if (o.subsampling == "422")
-    st.codec.subsampling = net::Subsampling::S422;
-  else if (o.subsampling == "420")
-    st.codec.subsampling = net::Subsampling::S420;
-  else
-    throw std::invalid_argument("--subsampling: expected 444, 422 or 420");
+  st.codec.subsampling = choose<net::Subsampling>(o.subsampling, "--subsampling",
+                                                  {{"444", net::Subsampling::S444},
+                                                   {"422", net::Subsampling::S422},
+                                                   {"420", net::Subsampling::S420}});
   return st;
 }
 
@@ -245,10 +253,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   for (auto [key, file] : {std::pair{"path_file", o.path}, std::pair{"tf_file", o.tf},
                            std::pair{"opacity_file", o.opacity}}) {
     // FILE:NAME names a map in FILE.
-    for (auto colon = file.rfind(':');
-         !std::filesystem::is_regular_file(file) && colon != std::string::npos && colon > 0;
-         colon = file.rfind(':', colon - 1))
-      if (std::filesystem::is_regular_file(file.substr(0, colon))) file = file.substr(0, colon);
+    if (key != std::string("path_file")) file = node::TransferFunction::splitSpec(file).file;
     if (!std::filesystem::is_regular_file(file)) continue;
     std::ifstream in(file, std::ios::binary);
     m[key] = std::string(std::istreambuf_iterator<char>(in), {});

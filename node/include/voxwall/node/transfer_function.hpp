@@ -57,6 +57,17 @@ class TransferFunction {
   static std::vector<std::string> namesInParaViewJson(const std::string& path);
   // `--tf SPEC`: a built-in preset name, FILE, or FILE:NAME (a preset of a multi-preset file).
   static TransferFunction load(const std::string& spec);
+  // How load() reads SPEC: the file and the map's name in it (file empty: a built-in preset).
+  struct SpecParts {
+    std::string file, name;
+  };
+  static SpecParts splitSpec(const std::string& spec);
+
+  // Replaces the opacity curve with `other`'s (--opacity); the warning about a missing curve
+  // goes with the old one.
+  void takeOpacityFrom(const TransferFunction& other);
+  // The warning a map read without opacity "Points" carries (it names the default curve).
+  std::string noOpacityWarning() const;
 
   // Puts the map on the data as ParaView applies a preset, and says in one line what was done:
   // with `range` (--tf-range LO,HI) the points are stretched over it; otherwise normalized maps
