@@ -1,5 +1,6 @@
-// Decode throughput and raycast time of the vq codec's view against the raw codec, on .vwz files:
-//   voxwall_bench_vq [--size WxH] [--frames N] [--threads T] RAW.vwz VQ.vwz...
+// Decode throughput and raycast time of the brick codecs' views (vq, ksvd) against the raw codec,
+// on .vwz files:
+//   voxwall_bench_vq [--size WxH] [--frames N] [--threads T] RAW.vwz VQ-OR-KSVD.vwz...
 // For each file: full decode of every brick on one thread (Mvoxels/s per core), random voxel
 // access through the view on one thread (Mvoxels/s), and the mean CPU raycast time of a frame
 // (unshaded and shaded, the `mri` preset stretched over the data, a 3/4 orbit view) on T threads.
@@ -34,13 +35,14 @@ double decodeRate(const node::RenderVolume& v) {
     std::visit(
         [&](const auto& view) {
           using View = std::decay_t<decltype(view)>;
-          if constexpr (std::is_same_v<View, codec::kernels::VqView>) {
-            std::uint16_t vox[64];
-            for (int bz = 0; bz < (dims.z + 3) / 4; ++bz)
-              for (int by = 0; by < (dims.y + 3) / 4; ++by)
-                for (int bx = 0; bx < (dims.x + 3) / 4; ++bx) {
+          if constexpr (codec::kernels::BrickView<View>) {
+            constexpr int n = View::kSide;
+            typename View::Value vox[View::kVoxels];
+            for (int bz = 0; bz < (dims.z + n - 1) / n; ++bz)
+              for (int by = 0; by < (dims.y + n - 1) / n; ++by)
+                for (int bx = 0; bx < (dims.x + n - 1) / n; ++bx) {
                   view.decoder.decode(view.decoder.key(bx, by, bz), vox);
-                  acc += vox[21];
+                  acc += float(vox[21]);
                 }
           } else {  // raw: read every voxel through the view
             for (int z = 0; z < dims.z; ++z)
@@ -68,7 +70,7 @@ double randomRate(const node::RenderVolume& v) {
   std::visit(
       [&](const auto& view) {
         using View = std::decay_t<decltype(view)>;
-        if constexpr (std::is_same_v<View, codec::kernels::VqView>) {
+        if constexpr (codec::kernels::BrickView<View>) {
           typename View::RayCache cache;
           for (const auto& p : at) acc += view.voxel(p.x, p.y, p.z, cache);
         } else {
@@ -98,7 +100,10 @@ double frameMs(const node::RenderVolume& v, int w, int h, int frames, int thread
 
 std::string describe(const node::RenderVolume& v, const std::string& path) {
   const auto file = codec::ContainerFile::open(path);
-  if (v.info().codec != codec::CodecId::Vq) return "raw";
+  if (v.info().codec != codec::CodecId::Vq) {
+    const std::string name = path.substr(path.find_last_of('/') + 1);
+    return std::string(codec::codecName(v.info().codec)) + " " + name;
+  }
   const codec::vq::Layout layout(file.info(), file.sections());
   std::string s = (layout.flags() & codec::vq::kCompressed) ? "vq rbuc" : "vq plain";
   s += layout.reduction() > 1 ? " 1/" + std::to_string(layout.reduction()) : " lossless";

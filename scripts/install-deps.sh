@@ -10,7 +10,7 @@ purpose=${1:-test}
 main=(
   build-essential cmake ninja-build pkg-config git procps
   libopenmpi-dev openmpi-bin
-  libglm-dev
+  libglm-dev libeigen3-dev
   libturbojpeg0-dev
   libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libxxhash-dev libpugixml-dev

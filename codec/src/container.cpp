@@ -78,7 +78,7 @@ std::string_view codecName(CodecId id) {
     case CodecId::Vq:
       return "vq";
     case CodecId::SparseCoding:
-      return "sparse";
+      return "ksvd";
     case CodecId::Tvq:
       return "tvq";
   }

@@ -15,11 +15,11 @@ using namespace voxwall::codec::kernels;
 
 namespace {
 
-// A volume given by a formula, "stored" as bricks of 2^Log2 voxels: the key is the brick's index
+// A volume given by a formula, "stored" as bricks of Side^3 voxels: the key is the brick's index
 // and decoding evaluates the formula. Counts decodes so the cache can be observed.
-template <int Log2, class V>
+template <int Side, class V>
 struct FormulaDecoder {
-  static constexpr int kBrickLog2 = Log2;
+  static constexpr int kBrickSide = Side;
   using Value = V;
   int bricksX = 0, bricksY = 0;
   float offset = 0;
@@ -34,7 +34,7 @@ struct FormulaDecoder {
   }
   void decode(std::uint64_t key, Value* out) const {
     if (decodes) ++*decodes;
-    const int n = 1 << Log2;
+    const int n = Side;
     const int bx = int(key % std::uint64_t(bricksX)),
               by = int(key / std::uint64_t(bricksX)) % bricksY,
               bz = int(key / (std::uint64_t(bricksX) * std::uint64_t(bricksY)));
@@ -46,9 +46,9 @@ struct FormulaDecoder {
   float scalar(Value v) const { return float(v) + offset; }
 };
 
-template <int Log2, class V>
-CachedBrickView<FormulaDecoder<Log2, V>> makeView(glm::ivec3 dims, std::uint64_t id, int* decodes) {
-  CachedBrickView<FormulaDecoder<Log2, V>> v;
+template <int Side, class V>
+CachedBrickView<FormulaDecoder<Side, V>> makeView(glm::ivec3 dims, std::uint64_t id, int* decodes) {
+  CachedBrickView<FormulaDecoder<Side, V>> v;
   v.setDims(dims.x, dims.y, dims.z);
   v.decoder.bricksX = v.bricksX, v.decoder.bricksY = v.bricksY;
   v.decoder.offset = -3.0f;
@@ -57,14 +57,14 @@ CachedBrickView<FormulaDecoder<Log2, V>> makeView(glm::ivec3 dims, std::uint64_t
   return v;
 }
 
-template <int Log2, class V>
+template <int Side, class V>
 void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
-  const auto view = makeView<Log2, V>(dims, id, nullptr);
+  const auto view = makeView<Side, V>(dims, id, nullptr);
   struct Reference {
     glm::ivec3 n;
     float voxel(int x, int y, int z) const {
       x = clampIndex(x, n.x), y = clampIndex(y, n.y), z = clampIndex(z, n.z);
-      return float(V(FormulaDecoder<Log2, V>::value(x, y, z))) - 3.0f;
+      return float(V(FormulaDecoder<Side, V>::value(x, y, z))) - 3.0f;
     }
   } ref{dims};
   std::mt19937 rng{unsigned(id)};
@@ -84,14 +84,16 @@ void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
   }
   // The value ranges cover every voxel of their cell (and its neighbours').
   const RangeGrid g = brickRangeGrid(view);
-  EXPECT_EQ(g.cellVoxels, 1 << Log2);
+  // One cell per brick, or cells of 8 voxels when the side is not a power of two.
+  EXPECT_EQ(g.cellVoxels, (Side & (Side - 1)) == 0 ? Side : 8);
+  const int n = g.cellVoxels;
   for (int z = 0; z < dims.z; ++z)
     for (int y = 0; y < dims.y; ++y)
       for (int x = 0; x < dims.x; ++x) {
         const std::size_t c =
-            (std::size_t(z >> Log2) * std::size_t(g.cells.y) + std::size_t(y >> Log2)) *
+            (std::size_t(z / n) * std::size_t(g.cells.y) + std::size_t(y / n)) *
                 std::size_t(g.cells.x) +
-            std::size_t(x >> Log2);
+            std::size_t(x / n);
         ASSERT_LE(g.lo[c], ref.voxel(x, y, z));
         ASSERT_GE(g.hi[c], ref.voxel(x, y, z));
       }
@@ -105,15 +107,18 @@ void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
 }  // namespace
 
 TEST(CachedBrickView, SamplesEqualTrilinearForEveryBrickSizeAndValueType) {
-  expectTrilinearEverywhere<1, std::uint8_t>({9, 6, 5}, 101);
-  expectTrilinearEverywhere<2, std::uint16_t>({13, 9, 17}, 102);
-  expectTrilinearEverywhere<3, float>({21, 16, 11}, 103);
-  expectTrilinearEverywhere<4, float>({33, 18, 20}, 104);
+  expectTrilinearEverywhere<2, std::uint8_t>({9, 6, 5}, 101);
+  expectTrilinearEverywhere<4, std::uint16_t>({13, 9, 17}, 102);
+  expectTrilinearEverywhere<8, float>({21, 16, 11}, 103);
+  expectTrilinearEverywhere<16, float>({33, 18, 20}, 104);
+  // Sides that are not powers of two (ksvd's 6^3 blocks).
+  expectTrilinearEverywhere<6, float>({25, 13, 19}, 105);
+  expectTrilinearEverywhere<3, std::uint16_t>({10, 7, 8}, 106);
 }
 
 TEST(CachedBrickView, ABrickIsDecodedOnceWhileItStaysCached) {
   int decodes = 0;
-  const auto view = makeView<3, float>({16, 16, 16}, 201, &decodes);
+  const auto view = makeView<8, float>({16, 16, 16}, 201, &decodes);
   decltype(view)::RayCache cache;
   for (int i = 0; i < 100; ++i) (void)view.sample(2.5f + 0.01f * float(i), 3.5f, 4.5f, cache);
   EXPECT_EQ(decodes, 1);
@@ -125,7 +130,7 @@ TEST(CachedBrickView, ABrickIsDecodedOnceWhileItStaysCached) {
   (void)view.sample(7.5f, 7.5f, 7.5f, other);
   EXPECT_EQ(decodes, 8);
   // A different volume (cacheId) never reads this one's bricks.
-  const auto second = makeView<3, float>({16, 16, 16}, 202, &decodes);
+  const auto second = makeView<8, float>({16, 16, 16}, 202, &decodes);
   decltype(second)::RayCache c2;
   (void)second.sample(2.5f, 3.5f, 4.5f, c2);
   EXPECT_EQ(decodes, 9);
@@ -154,7 +159,7 @@ struct TraversalWithoutRegion {  // declares kTraversal but its cache lacks the 
 static_assert(VolumeView<RawView<std::uint8_t>> && VolumeView<RawView<float>>);
 static_assert(VolumeView<VqView> && !TraversalView<VqView>);
 static_assert(VolumeView<SvmmView> && TraversalView<SvmmView>);
-static_assert(VolumeView<CachedBrickView<FormulaDecoder<3, float>>>);
+static_assert(VolumeView<CachedBrickView<FormulaDecoder<8, float>>>);
 static_assert(!VolumeView<NoNeighbour>);
 static_assert(VolumeView<TraversalWithoutRegion> && !TraversalView<TraversalWithoutRegion>);
 static_assert(!BrickDecoder<int>);

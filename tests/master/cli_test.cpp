@@ -118,24 +118,24 @@ TEST(Cli, CorruptVwzFailsWithOneLine) {
   EXPECT_FALSE(std::filesystem::exists(dir.path("f/frame_00000.png")));
 }
 
-// A valid container whose codec id this build does not carry (sparse, id 4, is reserved): `info`
+// A valid container whose codec id this build does not carry (tvq, id 5, is reserved): `info`
 // describes the container and says so, `decompress` and `render` refuse it with one line.
 TEST(Cli, ACodecThisBuildDoesNotCarryIsNamedNotCrashedOn) {
   test::TempDir dir;
   codec::CompressedVolume c;
-  c.info.codec = codec::CodecId::SparseCoding;
+  c.info.codec = codec::CodecId::Tvq;
   c.info.dims = {4, 4, 4};
   c.sections.push_back({1, std::vector<std::byte>(64)});
-  const std::string path = dir.path("sparse.vwz");
+  const std::string path = dir.path("tvq.vwz");
   codec::writeContainer(c, path);
   const auto info = runVoxwall("info " + path);
   EXPECT_EQ(info.status, 0) << info.out;
-  EXPECT_NE(info.out.find("codec       sparse"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("codec       tvq"), std::string::npos) << info.out;
   EXPECT_NE(info.out.find("not readable by this build"), std::string::npos) << info.out;
   expectOneLineError(runVoxwall("decompress " + path + " -o " + dir.path("x.nrrd")),
-                     "voxwall: " + path + ": codec 'sparse' is not in this build");
+                     "voxwall: " + path + ": codec 'tvq' is not in this build");
   expectOneLineError(runVoxwall("render " + path + " --size 8x8 --no-write"),
-                     "voxwall: " + path + ": codec 'sparse' is not in this build");
+                     "voxwall: " + path + ": codec 'tvq' is not in this build");
 }
 
 TEST(Cli, BadArgumentsGiveOneLine) {

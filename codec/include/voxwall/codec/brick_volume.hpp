@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <glm/vec2.hpp>
 #include <limits>
 #include <type_traits>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
@@ -14,13 +15,15 @@
 namespace voxwall::codec {
 
 // Value ranges per brick (one cell per brick), dilated by one brick: a superset of the
-// one-voxel dilation the raycaster relies on. Decodes every brick once, on every core.
+// one-voxel dilation the raycaster relies on. Bricks whose side is not a power of two (the
+// raycaster's skipping grid needs one) are gathered into cells of 8 voxels. Decodes every brick
+// once, on every core.
 template <kernels::BrickView View>
 RangeGrid brickRangeGrid(const View& v) {
   constexpr int kVoxels = View::kVoxels;
   RangeGrid g;
   g.cellVoxels = View::kSide;
-  g.cells = {v.bricksX, v.bricksY, (v.dimZ + View::kMask) >> View::kLog2};
+  g.cells = {v.bricksX, v.bricksY, (v.dimZ + View::kSide - 1) / View::kSide};
   const std::size_t n = g.cellCount();
   std::vector<float> lo(n), hi(n);
   auto cell = [&](int x, int y, int z) {
@@ -57,7 +60,42 @@ RangeGrid brickRangeGrid(const View& v) {
         g.lo[i] = l, g.hi[i] = h;
       }
   });
-  return g;
+  if constexpr ((View::kSide & (View::kSide - 1)) == 0) {
+    return g;
+  } else {
+    // The raycaster's skipping grid needs power-of-two cells: cells of 8 voxels, each the union
+    // of the (dilated) ranges of the bricks its voxels lie in.
+    constexpr int kCell = 8;
+    RangeGrid p;
+    p.cellVoxels = kCell;
+    p.cells = (glm::ivec3{v.dimX, v.dimY, v.dimZ} + kCell - 1) / kCell;
+    p.lo.resize(p.cellCount()), p.hi.resize(p.cellCount());
+    const glm::ivec3 dims{v.dimX, v.dimY, v.dimZ};
+    parallelFor(std::size_t(p.cells.z), 0, [&](std::size_t zs) {
+      const int z = int(zs);
+      auto span = [&](int c, int axis) {
+        return glm::ivec2{c * kCell / View::kSide,
+                          std::min(c * kCell + kCell - 1, dims[axis] - 1) / View::kSide};
+      };
+      const glm::ivec2 bz = span(z, 2);
+      for (int y = 0; y < p.cells.y; ++y)
+        for (int x = 0; x < p.cells.x; ++x) {
+          const glm::ivec2 by = span(y, 1), bx = span(x, 0);
+          float l = std::numeric_limits<float>::infinity(), h = -l;
+          for (int k = bz.x; k <= bz.y; ++k)
+            for (int j = by.x; j <= by.y; ++j)
+              for (int i = bx.x; i <= bx.y; ++i) {
+                const std::size_t c = cell(i, j, k);
+                l = std::min(l, g.lo[c]), h = std::max(h, g.hi[c]);
+              }
+          const std::size_t out =
+              (std::size_t(z) * std::size_t(p.cells.y) + std::size_t(y)) * std::size_t(p.cells.x) +
+              std::size_t(x);
+          p.lo[out] = l, p.hi[out] = h;
+        }
+    });
+    return p;
+  }
 }
 
 // The whole volume from its bricks, in `info`'s scalar type (integer types clamp and round the
@@ -66,7 +104,7 @@ template <kernels::BrickView View>
 Volume decodeBricks(const View& v, ScalarType type, glm::dvec3 spacing) {
   constexpr int kSide = View::kSide;
   Volume out = Volume::allocate({v.dimX, v.dimY, v.dimZ}, type, spacing);
-  const int bricksZ = (v.dimZ + View::kMask) >> View::kLog2;
+  const int bricksZ = (v.dimZ + View::kSide - 1) / View::kSide;
   dispatchScalar(type, [&](auto t) {
     using T = decltype(t);
     auto dst = out.as<T>();

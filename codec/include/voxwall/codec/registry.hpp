@@ -6,6 +6,7 @@
 #include <string>
 #include <variant>
 #include <voxwall/codec/codec.hpp>
+#include <voxwall/codec/ksvd_codec.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/vq_codec.hpp>
@@ -58,7 +59,8 @@ struct CodecList {
 };
 
 // ---- The registration line: add a codec's class here (and include its header above). ----
-using RegisteredCodecs = CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry>;
+using RegisteredCodecs = CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry,
+                                   ksvd::KsvdCodecEntry>;
 
 using AnyView = RegisteredCodecs::AnyView;
 

@@ -1,5 +1,5 @@
 // A view for any codec that stores the volume as bricks of M^3 voxels and decodes a whole brick
-// at a time (vq; sparse coding and transform VQ next). The codec supplies a Decoder ("which
+// at a time (vq, ksvd; transform VQ next). The codec supplies a Decoder ("which
 // stored brick is at (bx, by, bz)" and "decode it into M^3 values"); this view supplies the rest:
 // the decoded-brick caches, the per-parity memo, the cell corners across brick borders, the
 // position clamp and the trilinear blend. Host-side helpers over the same decoder (value ranges,
@@ -18,7 +18,7 @@
 namespace voxwall::codec::kernels {
 
 // What a codec gives CachedBrickView:
-//   kBrickLog2        log2 of M, the brick side in voxels (1..4)
+//   kBrickSide        M, the brick side in voxels (2..16; a power of two divides by shifts)
 //   Value             the type of a decoded voxel (kept in the caches; uint16_t, float, ...)
 //   key(bx, by, bz)   a key of brick (bx, by, bz)'s stored form: equal keys decode to equal
 //                     voxels (a codeword address, a block index); never ~0
@@ -27,7 +27,7 @@ namespace voxwall::codec::kernels {
 // A decoder is a small trivially copyable value, like the view that holds it.
 template <class D>
 concept BrickDecoder = std::is_trivially_copyable_v<D> &&
-                       (D::kBrickLog2 >= 1 && D::kBrickLog2 <= 4) &&
+                       (D::kBrickSide >= 2 && D::kBrickSide <= 16) &&
                        requires(const D& d, int b, std::uint64_t key, typename D::Value* out,
                                 typename D::Value v) {
   { d.key(b, b, b) } -> std::same_as<std::uint64_t>;
@@ -47,10 +47,12 @@ template <BrickDecoder Decoder>
 struct CachedBrickView {
   using DecoderType = Decoder;
   using Value = typename Decoder::Value;
-  static constexpr int kLog2 = Decoder::kBrickLog2;
-  static constexpr int kSide = 1 << kLog2;
-  static constexpr int kMask = kSide - 1;
+  static constexpr int kSide = Decoder::kBrickSide;
   static constexpr int kVoxels = kSide * kSide * kSide;
+  // Brick of a non-negative voxel index, and the index within it (shifts when kSide is a power
+  // of two: the division is by a constant).
+  static VOXWALL_HD_INLINE int brickOf(int i) { return int(unsigned(i) / unsigned(kSide)); }
+  static VOXWALL_HD_INLINE int within(int i) { return int(unsigned(i) % unsigned(kSide)); }
 
   Decoder decoder;
   int dimX = 0, dimY = 0, dimZ = 0;
@@ -62,7 +64,7 @@ struct CachedBrickView {
   // Sets the geometry from the volume's size (the decoder is set by the caller).
   VOXWALL_HD_INLINE void setDims(int x, int y, int z) {
     dimX = x, dimY = y, dimZ = z;
-    bricksX = (x + kMask) >> kLog2, bricksY = (y + kMask) >> kLog2;
+    bricksX = (x + kSide - 1) / kSide, bricksY = (y + kSide - 1) / kSide;
     maxX = float(x - 1), maxY = float(y - 1), maxZ = float(z - 1);
   }
 
@@ -144,8 +146,8 @@ struct CachedBrickView {
   // Voxel (x, y, z), clamped to the volume.
   VOXWALL_HD_INLINE float voxel(int x, int y, int z, RayCache& cache) const {
     x = clampIndex(x, dimX), y = clampIndex(y, dimY), z = clampIndex(z, dimZ);
-    const Value* b = brick(x >> kLog2, y >> kLog2, z >> kLog2, cache);
-    return decoder.scalar(b[(x & kMask) + ((y & kMask) << kLog2) + ((z & kMask) << (2 * kLog2))]);
+    const Value* b = brick(brickOf(x), brickOf(y), brickOf(z), cache);
+    return decoder.scalar(b[within(x) + kSide * (within(y) + kSide * within(z))]);
   }
   VOXWALL_HD_INLINE float voxel(int x, int y, int z) const {
     RayCache cache;
@@ -158,24 +160,24 @@ struct CachedBrickView {
   VOXWALL_HD_INLINE void corners(int ix, int iy, int iz, RayCache& cache, float* c) const {
     const int x1 = ix + 1 < dimX ? ix + 1 : ix, y1 = iy + 1 < dimY ? iy + 1 : iy;
     const int z1 = iz + 1 < dimZ ? iz + 1 : iz;
-    const int bx[2] = {ix >> kLog2, x1 >> kLog2}, by[2] = {iy >> kLog2, y1 >> kLog2};
-    const int bz[2] = {iz >> kLog2, z1 >> kLog2};
+    const int bx[2] = {brickOf(ix), brickOf(x1)}, by[2] = {brickOf(iy), brickOf(y1)};
+    const int bz[2] = {brickOf(iz), brickOf(z1)};
     // Bit a of `split` is set when the cell crosses a brick border along axis a; corner i
     // (bit 0: x + 1, bit 1: y + 1, bit 2: z + 1) lies in the brick of corner (i & split).
     const int split = int(bx[1] != bx[0]) | (int(by[1] != by[0]) << 1) | (int(bz[1] != bz[0]) << 2);
     if (split == 0) {  // the common case: the whole cell in one brick
       const Value* b = brick(bx[0], by[0], bz[0], cache);
-      const int i0 = (ix & kMask) + ((iy & kMask) << kLog2) + ((iz & kMask) << (2 * kLog2));
-      const int dx = x1 - ix, dy = (y1 - iy) << kLog2, dz = (z1 - iz) << (2 * kLog2);
+      const int i0 = within(ix) + kSide * (within(iy) + kSide * within(iz));
+      const int dx = x1 - ix, dy = (y1 - iy) * kSide, dz = (z1 - iz) * kSide * kSide;
       c[0] = decoder.scalar(b[i0]), c[1] = decoder.scalar(b[i0 + dx]);
       c[2] = decoder.scalar(b[i0 + dy]), c[3] = decoder.scalar(b[i0 + dy + dx]);
       c[4] = decoder.scalar(b[i0 + dz]), c[5] = decoder.scalar(b[i0 + dz + dx]);
       c[6] = decoder.scalar(b[i0 + dz + dy]), c[7] = decoder.scalar(b[i0 + dz + dy + dx]);
       return;
     }
-    const int lx[2] = {ix & kMask, x1 & kMask};
-    const int ly[2] = {(iy & kMask) << kLog2, (y1 & kMask) << kLog2};
-    const int lz[2] = {(iz & kMask) << (2 * kLog2), (z1 & kMask) << (2 * kLog2)};
+    const int lx[2] = {within(ix), within(x1)};
+    const int ly[2] = {within(iy) * kSide, within(y1) * kSide};
+    const int lz[2] = {within(iz) * kSide * kSide, within(z1) * kSide * kSide};
     for (int j = 0; j < 8; ++j) {
       if ((j & split) != j) continue;
       const Value* b = brick(bx[j & 1], by[(j >> 1) & 1], bz[j >> 2], cache);

@@ -109,7 +109,7 @@ VOXWALL_HD_INLINE void vqDecodePlain(const std::uint8_t* p, int bits, std::uint1
 // index table (indirect mapping only) and the codebook at the byte offsets below; it points into
 // host or device memory and is not owned.
 struct VqDecoder {
-  static constexpr int kBrickLog2 = 2;  // 4^3 bricks
+  static constexpr int kBrickSide = 4;  // 4^3 bricks
   using Value = std::uint16_t;          // the data's unsigned values
 
   const std::uint8_t* data = nullptr;

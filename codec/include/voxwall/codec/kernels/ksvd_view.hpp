@@ -1,0 +1,105 @@
+// Random access into the ksvd codec's blocks (Gobbetti, Iglesias Guitian and Marton, COVRA,
+// 2012), on the host or on a device: a block is the sum over its (atom, coefficient) pairs of
+// coefficient x atom, plus its brick's minimum, clamped to the brick's range. The caches, corners
+// and sampling are CachedBrickView's. The file layout is documented in ksvd_codec.hpp; this is
+// the layout of the render buffer the codec's Layout builds from it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#include <voxwall/codec/kernels/cached_brick_view.hpp>
+
+namespace voxwall::codec::kernels {
+
+// One brick of the render buffer: its value range, the coefficient step (0: a constant brick,
+// every voxel `lo`), and the index of its first pair.
+struct KsvdBrick {
+  float lo = 0, hi = 0, step = 0;
+  std::uint32_t reserved = 0;
+  std::uint64_t firstPair = 0;
+};
+static_assert(sizeof(KsvdBrick) == 24);
+
+// Unpacks a 24-bit pair: the atom index in the low `indexBits` bits, the quantized coefficient
+// (two's complement) in the high 24 - indexBits bits.
+VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* p, int indexBits, int& atom, int& q) {
+  const std::uint32_t word =
+      std::uint32_t(p[0]) | (std::uint32_t(p[1]) << 8) | (std::uint32_t(p[2]) << 16);
+  atom = int(word & ((1u << indexBits) - 1u));
+  const int coefBits = 24 - indexBits;
+  const std::uint32_t raw = word >> indexBits;
+  const std::uint32_t sign = 1u << (coefBits - 1);
+  q = int(raw ^ sign) - int(sign);  // sign-extends coefBits bits
+}
+
+// The codec's half of the view, for blocks of Side^3 voxels. `data` is the render buffer:
+//   atoms (K x Side^3 float, atom-major) at atomsAt,
+//   bricks (KsvdBrick per brick, x fastest) at bricksAt,
+//   blocks (u32 per block, x fastest over the whole volume: the first pair relative to the
+//     brick's firstPair in bits 0..23, the pair count in bits 24..31) at blocksAt,
+//   pairs (3 bytes each) at pairsAt.
+// Offsets are multiples of 8 bytes; the buffer points into host or device memory, not owned.
+template <int Side>
+struct KsvdDecoder {
+  static constexpr int kBrickSide = Side;
+  static constexpr int kVoxels = Side * Side * Side;
+  using Value = float;
+
+  const std::uint8_t* data = nullptr;
+  std::uint64_t atomsAt = 0, bricksAt = 0, blocksAt = 0, pairsAt = 0;
+  int blocksX = 0, blocksY = 0;
+  int bricksX = 0, bricksY = 0;
+  int blocksPerBrick = 1;  // N: bricks are N^3 blocks
+  int indexBits = 10;
+
+  VOXWALL_HD_INLINE std::uint64_t key(int bx, int by, int bz) const {
+    return (std::uint64_t(bz) * std::uint64_t(blocksY) + std::uint64_t(by)) *
+               std::uint64_t(blocksX) +
+           std::uint64_t(bx);
+  }
+
+  VOXWALL_HD_INLINE void decode(std::uint64_t block, float* out) const {
+    const int bx = int(block % std::uint64_t(blocksX));
+    const std::uint64_t rest = block / std::uint64_t(blocksX);
+    const int by = int(rest % std::uint64_t(blocksY)), bz = int(rest / std::uint64_t(blocksY));
+    const int n = blocksPerBrick;
+    const std::uint64_t brickIndex =
+        (std::uint64_t(bz / n) * std::uint64_t(bricksY) + std::uint64_t(by / n)) *
+            std::uint64_t(bricksX) +
+        std::uint64_t(bx / n);
+    const KsvdBrick brick = reinterpret_cast<const KsvdBrick*>(data + bricksAt)[brickIndex];
+    if (brick.step == 0.0f) {
+      for (int i = 0; i < kVoxels; ++i) out[i] = brick.lo;
+      return;
+    }
+    const std::uint32_t entry = reinterpret_cast<const std::uint32_t*>(data + blocksAt)[block];
+    const std::uint8_t* pair = data + pairsAt + 3 * (brick.firstPair + (entry & 0xFFFFFFu));
+    const int count = int(entry >> 24);
+    const float* atoms = reinterpret_cast<const float*>(data + atomsAt);
+    for (int i = 0; i < kVoxels; ++i) out[i] = 0.0f;
+    for (int k = 0; k < count; ++k, pair += 3) {
+      int atom = 0, q = 0;
+      ksvdUnpack(pair, indexBits, atom, q);
+      const float c = float(q) * brick.step;
+      const float* a = atoms + std::size_t(atom) * kVoxels;
+      for (int i = 0; i < kVoxels; ++i) out[i] += c * a[i];
+    }
+    for (int i = 0; i < kVoxels; ++i) {
+      const float v = brick.lo + out[i];
+      out[i] = v < brick.lo ? brick.lo : (v > brick.hi ? brick.hi : v);
+    }
+  }
+
+  VOXWALL_HD_INLINE float scalar(float v) const { return v; }
+};
+
+template <int Side>
+using KsvdView = CachedBrickView<KsvdDecoder<Side>>;
+using KsvdView4 = KsvdView<4>;
+using KsvdView6 = KsvdView<6>;
+using KsvdView8 = KsvdView<8>;
+
+static_assert(std::is_trivially_copyable_v<KsvdView6>);
+
+}  // namespace voxwall::codec::kernels

@@ -1,0 +1,189 @@
+// The `ksvd` codec: sparse coding of voxel blocks over a learned dictionary (Gobbetti, Iglesias
+// Guitian and Marton, "COVRA: A compression-domain output-sensitive volume rendering
+// architecture based on a sparse representation of voxel blocks", 2012, sections 3-5).
+//
+// The volume is cut into bricks of N^3 blocks of M^3 voxels (M = 4, 6 or 8; N = 8, 5 or 4, so a
+// brick is about 32 voxels wide; the border is padded by repeating the edge voxel). A brick
+// whose values span at most the tolerance (x the volume's range) is constant and stores its
+// mean; every other brick codes each block y, taken relative to the brick's minimum, as a sparse
+// combination of dictionary atoms: y ~ sum of c_i d[a_i] with at most S pairs (a_i, c_i). The
+// first atom is the constant (DC) atom 1/sqrt(M^3) and takes part in every block's code; the
+// others are learned by K-SVD on a coreset of the volume's blocks (docs/ksvd.md).
+//
+// Values are decoded as floats: brickMin + sum(q_i * step * d[a_i]), clamped to the brick's
+// [min, max]; integer types round to the nearest integer of the type. Any scalar type is
+// accepted (uint8, uint16, int16, float32).
+//
+// Sections (ids within CodecId::SparseCoding), little-endian:
+//   1 params:
+//       u32 M (4, 6, 8)        u32 N (blocks per brick side, 1..8)
+//       u32 K (atoms, 2..2^16) u32 S (pairs per block at most, 1..min(M^3, 255))
+//       u32 indexBits (bits of the atom index in a pair: ceil(log2 K), 1..16)
+//       u32 iterations (K-SVD iterations run)
+//       u64 codedBricks        u64 pairs          u64 coreset (training blocks)
+//       f64 tolerance (per-block RMS error target, relative to the value range; 0: none;
+//           with a size target, the tolerance that met it)
+//       f64 psnr of the decoded volume against the input in dB (+inf when exact)
+//   2 dictionary: K atoms of M^3 i16 (x fastest), each entry atom value x 32767, rounded
+//   3 bricks: per brick (x fastest), 16 bytes: f32 min, f32 max, f32 step (the coefficient
+//       quantum; 0 for a constant brick, whose every voxel is min == max), u32 coded index (the
+//       number of coded bricks before it; 0xFFFFFFFF for a constant brick)
+//   4 counts: per coded brick, its N^3 blocks' pair counts (u8, 0..S; 0 past the volume's edge
+//       and for a block equal to its brick's minimum), blocks x fastest
+//   5 pairs: per coded brick, block and pair, 3 bytes: the atom index in the low indexBits
+//       bits, the quantized coefficient (two's complement) in the other 24 - indexBits bits
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+#include <voxwall/codec/codec.hpp>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/kernels/ksvd_view.hpp>
+#include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/progress.hpp>
+
+namespace voxwall::codec::ksvd {
+
+enum SectionId : std::uint32_t {
+  kParams = 1,
+  kDictionary = 2,
+  kBricks = 3,
+  kCounts = 4,
+  kPairs = 5
+};
+
+struct Params {
+  int blockSide = 6;              // M
+  int atoms = 1024;               // K (fewer when the volume has few blocks: see encode)
+  int sparsity = 8;               // S
+  double tolerance = 0;           // > 0: stop a block's code at this RMS error (x the value range)
+  double coreset = 0;             // training blocks: > 1 a count, (0, 1] a fraction, 0 the default
+  double targetBitsPerVoxel = 0;  // > 0: the smallest tolerance whose file fits this size
+  int iterations = 25;            // K-SVD iterations
+  int threads = 0;                // 0: every usable core
+  std::uint64_t seed = 1;         // coreset and dictionary initialisation
+};
+
+// What the encoder did, for the CLI and benchmarks.
+struct EncodeStats {
+  std::uint64_t bricks = 0, constantBricks = 0, codedBlocks = 0, pairs = 0, coreset = 0;
+  std::uint64_t candidateBlocks = 0;  // blocks of coded bricks (what the coreset samples)
+  int atoms = 0, sparsity = 0, iterations = 0;
+  int trainSparsity = 0;  // the sparsity K-SVD trained with
+  double psnr = 0;
+  double trainSeconds = 0, codeSeconds = 0;
+  double trainingRmse = 0;  // weighted RMS error on the coreset after training (x value range)
+  std::uint64_t dictionaryBytes = 0, brickBytes = 0, countBytes = 0, pairBytes = 0;
+};
+
+// Throws std::invalid_argument for bad parameters.
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats = nullptr);
+
+// Full reconstruction, in the volume's scalar type.
+Volume decode(const VolumeInfo& info, const SectionSet& sections);
+
+// ---- building blocks, exposed for tests -------------------------------------------------
+
+// Blocks per brick side for block side M.
+int blocksPerBrick(int blockSide);
+
+// A dictionary: K atoms of m values, atom-major. Atom 0 is the DC atom.
+struct Dictionary {
+  int m = 0, atoms = 0;
+  std::vector<float> values;  // atoms x m
+  const float* atom(int k) const { return values.data() + std::size_t(k) * std::size_t(m); }
+  float* atom(int k) { return values.data() + std::size_t(k) * std::size_t(m); }
+};
+
+// A sparse code: atom indices and coefficients (the DC atom first) and the squared residual.
+struct SparseCode {
+  std::vector<int> atoms;
+  std::vector<float> coefficients;
+  double residual2 = 0;
+};
+
+// Orthogonal matching pursuit with the DC atom forced first and an incremental Cholesky
+// factorisation of the chosen atoms' Gram matrix: at most `sparsity` atoms; stops early when
+// the squared residual is at most `maxResidual2`. `dictionary`'s atoms must be unit-norm.
+SparseCode ompCode(const Dictionary& dictionary, std::span<const float> y, int sparsity,
+                   double maxResidual2 = 0);
+
+// Training blocks, already weighted (each block times its weight).
+struct TrainingSet {
+  int m = 0;
+  std::vector<float> blocks;          // count x m
+  std::vector<float> weights;         // per block
+  std::vector<std::uint64_t> source;  // the block's index in the candidate order
+  std::size_t count() const { return weights.size(); }
+  const float* block(std::size_t i) const { return blocks.data() + i * std::size_t(m); }
+};
+
+// The coreset of section 4.3: importance = a block's standard deviation; a 512-bin importance
+// histogram from two streaming passes; per-bin budgets proportional to importance, fitted to
+// `size` (saturated bins take every block); reservoir sampling per bin; each block weighted by
+// sqrt(Q_q / B_q). `block(i, out)` writes candidate block i (m values).
+TrainingSet buildCoreset(std::uint64_t candidates, int m,
+                         const std::function<void(std::uint64_t, float*)>& block,
+                         std::uint64_t size, std::uint64_t seed, Progress& progress);
+
+struct TrainParams {
+  int atoms = 1024, sparsity = 8, iterations = 25, threads = 0;
+  double maxResidual2 = 0;  // per block, as ompCode
+  std::uint64_t seed = 1;
+};
+// Approximate K-SVD (Rubinstein et al.): sparse coding by ompCode, then each atom but the DC
+// updated by one power iteration on its residual, kept zero-mean and unit-norm; unused atoms are
+// replaced by the worst-represented block. `afterIteration` (if set) sees the dictionary after
+// every iteration. Returns the dictionary; `rmse` receives the final weighted RMS error.
+Dictionary trainDictionary(const TrainingSet& set, const TrainParams& params, Progress& progress,
+                           double* rmse = nullptr,
+                           const std::function<void(int, const Dictionary&)>& afterIteration = {});
+
+// A 24-bit pair: index in the low indexBits bits, q in the rest (|q| < 2^(23 - indexBits)).
+std::uint32_t packPair(int atom, int q, int indexBits);
+// The largest |q| a pair holds.
+inline int maxQuantized(int indexBits) { return (1 << (23 - indexBits)) - 1; }
+
+// The sections of a ksvd-coded volume, validated, and the render buffer built from them.
+class Layout {
+ public:
+  Layout(const VolumeInfo& info, const SectionSet& sections);
+  int blockSide() const { return m_; }
+  int atoms() const { return k_; }
+  int sparsity() const { return s_; }
+  int iterations() const { return iterations_; }
+  std::uint64_t codedBricks() const { return codedBricks_; }
+  std::uint64_t pairs() const { return pairs_; }
+  std::uint64_t coreset() const { return coreset_; }
+  double tolerance() const { return tolerance_; }
+  double psnr() const { return psnr_; }
+  std::uint64_t bricks() const;
+  std::span<const std::byte> renderBytes() const { return render_; }
+  // The view for this block side, with the render buffer at `base` (host when null).
+  template <int Side>
+  kernels::KsvdView<Side> view(const std::byte* base = nullptr) const;
+  RangeGrid rangeGrid() const;
+  Volume decode() const;
+
+ private:
+  VolumeInfo info_;
+  int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, iterations_ = 0;
+  std::uint64_t codedBricks_ = 0, pairs_ = 0, coreset_ = 0;
+  double tolerance_ = 0, psnr_ = 0;
+  glm::ivec3 blocks_{}, bricks_{};
+  std::vector<std::byte> render_;
+  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, blocksAt_ = 0, pairsAt_ = 0;
+  std::uint64_t cacheId_ = 0;
+};
+
+// The codec's registry entry (registry.hpp).
+struct KsvdCodecEntry {
+  using Views = ViewList<kernels::KsvdView4, kernels::KsvdView6, kernels::KsvdView8>;
+  static const Codec& instance();
+};
+
+}  // namespace voxwall::codec::ksvd

@@ -1,0 +1,171 @@
+// The ksvd codec's registry entry: its compress options and report, info lines, render payload
+// and samples.
+#include <cmath>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/ksvd_codec.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/render_payload.hpp>
+
+namespace voxwall::codec::ksvd {
+namespace {
+
+class Payload final : public RenderPayload {
+ public:
+  Payload(const VolumeInfo& info, const SectionSet& sections) : layout_(info, sections) {}
+  RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
+  std::span<const std::byte> bytes() const override { return layout_.renderBytes(); }
+  AnyView view(const std::byte* base) const override {
+    switch (layout_.blockSide()) {
+      case 4:
+        return layout_.view<4>(base);
+      case 6:
+        return layout_.view<6>(base);
+      default:
+        return layout_.view<8>(base);
+    }
+  }
+
+ private:
+  Layout layout_;
+};
+
+std::string encodeReport(const EncodeStats& s, const Volume& v) {
+  std::string report = formatLine(
+      "\n  %llu bricks (%llu constant), %llu blocks coded with %llu pairs (%.2f per block, at "
+      "most %d)",
+      (unsigned long long)s.bricks, (unsigned long long)s.constantBricks,
+      (unsigned long long)s.codedBlocks, (unsigned long long)s.pairs,
+      s.codedBlocks ? double(s.pairs) / double(s.codedBlocks) : 0.0, s.sparsity);
+  report += formatLine(
+      "\n  dictionary %d atoms (%s), pairs %s, brick table and counts %s: %.3f bits per voxel",
+      s.atoms, humanBytes(double(s.dictionaryBytes)).c_str(),
+      humanBytes(double(s.pairBytes)).c_str(),
+      humanBytes(double(s.brickBytes + s.countBytes)).c_str(),
+      bitsPerVoxel(s.dictionaryBytes + s.pairBytes + s.brickBytes + s.countBytes, v));
+  report += formatLine(
+      "\n  K-SVD: %d iterations at sparsity %d on a coreset of %llu of %llu blocks in %.2fs "
+      "(training RMSE %.4g of the range); coding %.2fs",
+      s.iterations, s.trainSparsity, (unsigned long long)s.coreset,
+      (unsigned long long)s.candidateBlocks, s.trainSeconds, s.trainingRmse, s.codeSeconds);
+  report += std::isinf(s.psnr) ? std::string("\n  exact (every brick constant)")
+                               : formatLine("\n  PSNR %.2f dB", s.psnr);
+  return report;
+}
+
+class KsvdCodec final : public Codec {
+ public:
+  CodecId id() const override { return CodecId::SparseCoding; }
+
+  std::string_view summary() const override {
+    return "blocks as sparse combinations of a K-SVD dictionary learned on a coreset (Gobbetti "
+           "et al., COVRA), lossy; any scalar type, the only compressed codec for float32";
+  }
+
+  std::vector<CodecOption> options() const override {
+    return {
+        {"--block", "ksvd codec: block side M in voxels (4, 6 or 8)", "6"},
+        {"--atoms",
+         "ksvd codec: dictionary atoms K (2..65536; default 1024, at most one per 16 coded blocks "
+         "and, with --bits-per-voxel, a quarter of the file)",
+         ""},
+        {"--sparsity", "ksvd codec: pairs (atom, coefficient) per block at most, S", "8"},
+        {"--tolerance",
+         "ksvd codec: stop a block's code at this RMS error, as a fraction of the value range "
+         "(the paper uses 0.015); also the spread below which a brick is stored as constant",
+         "0"},
+        {"--coreset",
+         "ksvd codec: training blocks, a count (> 1) or a fraction of the coded blocks (<= 1)",
+         "32768"},
+        {"--iterations", "ksvd codec: K-SVD iterations", "25"},
+        {"--bits-per-voxel",
+         "ksvd codec: the smallest per-block tolerance whose file fits this size (and the "
+         "default dictionary at most a quarter of it); --sparsity caps the pairs per block, 16 "
+         "by default",
+         ""}};
+  }
+
+  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
+                          Progress& progress, std::string& report) const override {
+    Params p;
+    p.blockSide = options.integer("--block", 6, 4, 8);
+    p.atoms = options.integer("--atoms", 0, 2, 1 << 16);
+    p.sparsity = options.integer("--sparsity", 8, 1, 255);
+    p.tolerance = options.number("--tolerance", 0, 0, 0.999);
+    p.coreset = options.number("--coreset", 0, 1e-9, 1e15);
+    p.iterations = options.integer("--iterations", 25, 0, 10000);
+    p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
+    // With a size target, --sparsity caps the pairs per block (16 unless given).
+    if (p.targetBitsPerVoxel > 0 && !options.given("--sparsity")) p.sparsity = 16;
+    if (p.blockSide != 4 && p.blockSide != 6 && p.blockSide != 8)
+      throw std::invalid_argument("--block must be 4, 6 or 8, not " + std::to_string(p.blockSide));
+    if (p.coreset > 1 && p.coreset != std::floor(p.coreset))
+      throw std::invalid_argument("--coreset must be a whole count (> 1) or a fraction (<= 1)");
+    p.threads = options.threads;
+    EncodeStats s;
+    CompressedVolume out = ksvd::encode(volume, p, progress, &s);
+    report = encodeReport(s, volume);
+    return out;
+  }
+
+  Volume decode(const VolumeInfo& info, const SectionSet& sections) const override {
+    return ksvd::decode(info, sections);
+  }
+
+  InfoLines describe(const VolumeInfo& info, const SectionSet& sections) const override {
+    const Layout layout(info, sections);
+    const int m = layout.blockSide();
+    InfoLines lines;
+    lines.push_back({"blocks", formatLine("%d^3 voxels, %d^3 per brick; %llu bricks, %llu coded", m,
+                                          blocksPerBrick(m), (unsigned long long)layout.bricks(),
+                                          (unsigned long long)layout.codedBricks())});
+    lines.push_back({"dictionary", formatLine("%d atoms of %d values (K-SVD, %d iterations on %llu "
+                                              "training blocks)",
+                                              layout.atoms(), m * m * m, layout.iterations(),
+                                              (unsigned long long)layout.coreset())});
+    lines.push_back(
+        {"pairs", formatLine("%llu, at most %d per block%s", (unsigned long long)layout.pairs(),
+                             layout.sparsity(),
+                             layout.tolerance() > 0
+                                 ? formatLine(", tolerance %g", layout.tolerance()).c_str()
+                                 : "")});
+    lines.push_back({"quality", std::isinf(layout.psnr())
+                                    ? std::string("exact")
+                                    : formatLine("lossy, PSNR %.2f dB", layout.psnr())});
+    return lines;
+  }
+
+  std::unique_ptr<RenderPayload> open(const VolumeInfo& info,
+                                      const SectionSet& sections) const override {
+    return std::make_unique<Payload>(info, sections);
+  }
+
+  std::vector<CodecSample> samples() const override {
+    Progress quiet;
+    Params small;  // quick to train: tiny dictionaries and few iterations
+    small.atoms = 16, small.sparsity = 4, small.iterations = 3, small.blockSide = 4;
+    Params six = small;
+    six.blockSide = 6, six.tolerance = 0.02;
+    Params eight = small;
+    eight.blockSide = 8, eight.atoms = 8, eight.sparsity = 3;
+    std::vector<CodecSample> out;
+    out.push_back({"ksvd-ml12-float-m4",
+                   ksvd::encode(generateMarschnerLobb(12, ScalarType::Float32), small, quiet)});
+    out.push_back({"ksvd-sl13-int16-m6",
+                   ksvd::encode(generateSheppLogan(13, ScalarType::Int16), six, quiet)});
+    out.push_back({"ksvd-menger2-m8", ksvd::encode(generateMenger(2), eight, quiet)});
+    return out;
+  }
+
+  std::vector<std::string> exampleOptions() const override {
+    return {"--atoms", "32", "--sparsity", "4", "--iterations", "4"};
+  }
+};
+
+}  // namespace
+
+const Codec& KsvdCodecEntry::instance() {
+  static const KsvdCodec codec;
+  return codec;
+}
+
+}  // namespace voxwall::codec::ksvd

@@ -1,0 +1,437 @@
+// The ksvd codec: its learning parts (OMP, K-SVD, the coreset, pair packing) and its files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <random>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/ksvd_codec.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/core/errors.hpp>
+
+using namespace voxwall;
+using namespace voxwall::codec;
+
+namespace {
+
+// K unit-norm atoms of m values: the DC atom, then random zero-mean directions.
+ksvd::Dictionary randomDictionary(int m, int k, unsigned seed) {
+  ksvd::Dictionary d;
+  d.m = m, d.atoms = k;
+  d.values.resize(std::size_t(m) * std::size_t(k));
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> n;
+  for (int i = 0; i < m; ++i) d.atom(0)[i] = float(1 / std::sqrt(double(m)));
+  for (int a = 1; a < k; ++a) {
+    float* v = d.atom(a);
+    double mean = 0, norm = 0;
+    for (int i = 0; i < m; ++i) v[i] = n(rng), mean += v[i];
+    for (int i = 0; i < m; ++i) v[i] = float(v[i] - mean / m), norm += double(v[i]) * v[i];
+    for (int i = 0; i < m; ++i) v[i] = float(v[i] / std::sqrt(norm));
+  }
+  return d;
+}
+
+// Smooth blocks of m = side^3 values: a random offset, gradient and bump, each with its own
+// spread, so importances differ.
+std::vector<float> smoothBlocks(int side, std::size_t count, unsigned seed) {
+  const int m = side * side * side;
+  std::vector<float> out(count * std::size_t(m));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1), amp(0.1f, 1.0f);
+  for (std::size_t b = 0; b < count; ++b) {
+    const float a = amp(rng), gx = u(rng), gy = u(rng), gz = u(rng), c = u(rng) + 2, w = u(rng);
+    for (int z = 0, i = 0; z < side; ++z)
+      for (int y = 0; y < side; ++y)
+        for (int x = 0; x < side; ++x, ++i)
+          out[b * std::size_t(m) + std::size_t(i)] = c +
+                                                     a * (gx * x + gy * y + gz * z) / float(side) +
+                                                     a * w * std::sin(float(x * y + z) * 0.7f);
+  }
+  return out;
+}
+
+std::vector<std::byte>& section(CompressedVolume& c, std::uint32_t id) {
+  for (auto& [sid, bytes] : c.sections)
+    if (sid == id) return bytes;
+  throw std::logic_error("no section");
+}
+
+template <class T>
+void poke(std::vector<std::byte>& bytes, std::size_t at, T value) {
+  std::memcpy(bytes.data() + at, &value, sizeof value);
+}
+
+ksvd::Params quick(int side = 6) {
+  ksvd::Params p;
+  p.blockSide = side, p.atoms = 32, p.sparsity = 6, p.iterations = 5, p.threads = 2;
+  return p;
+}
+
+}  // namespace
+
+TEST(KsvdLearning, DcAtomStaysFixedAndAtomsStayUnitNormAfterEveryIteration) {
+  const int m = 64;
+  ksvd::TrainingSet set;
+  set.m = m;
+  set.blocks = smoothBlocks(4, 600, 1);
+  set.weights.assign(600, 1.0f);
+  set.source.resize(600);
+  ksvd::TrainParams tp;
+  tp.atoms = 40, tp.sparsity = 5, tp.iterations = 6, tp.threads = 2;
+  Progress quiet;
+  int iterations = 0;
+  double rmse = -1;
+  (void)ksvd::trainDictionary(set, tp, quiet, &rmse, [&](int, const ksvd::Dictionary& d) {
+    ++iterations;
+    for (int i = 0; i < m; ++i) ASSERT_EQ(d.atom(0)[i], float(1 / std::sqrt(double(m))));
+    for (int a = 1; a < d.atoms; ++a) {
+      double norm = 0, mean = 0;
+      for (int i = 0; i < m; ++i) norm += double(d.atom(a)[i]) * d.atom(a)[i], mean += d.atom(a)[i];
+      ASSERT_NEAR(norm, 1.0, 1e-4) << "atom " << a;
+      ASSERT_NEAR(mean / m, 0.0, 1e-5) << "atom " << a;
+    }
+  });
+  EXPECT_EQ(iterations, 6);
+  EXPECT_GT(rmse, 0);
+}
+
+TEST(KsvdLearning, TrainingLowersTheErrorOfTheTrainingSet) {
+  ksvd::TrainingSet set;
+  set.m = 64;
+  set.blocks = smoothBlocks(4, 800, 2);
+  set.weights.assign(800, 1.0f);
+  set.source.resize(800);
+  ksvd::TrainParams tp;
+  tp.atoms = 32, tp.sparsity = 3, tp.threads = 2;
+  Progress quiet;
+  double before = 0, after = 0;
+  tp.iterations = 1;
+  (void)ksvd::trainDictionary(set, tp, quiet, &before);
+  tp.iterations = 10;
+  (void)ksvd::trainDictionary(set, tp, quiet, &after);
+  EXPECT_LT(after, before * 0.95) << before << " -> " << after;
+}
+
+TEST(KsvdOmp, RecoversAnExactlySparseSignalFromKnownAtoms) {
+  const ksvd::Dictionary d = randomDictionary(64, 96, 3);
+  const int atoms[] = {0, 17, 42, 80};
+  const float coefs[] = {5.0f, 3.0f, -2.0f, 1.25f};
+  std::vector<float> y(64, 0.0f);
+  for (int s = 0; s < 4; ++s)
+    for (int i = 0; i < 64; ++i) y[std::size_t(i)] += coefs[s] * d.atom(atoms[s])[i];
+  const ksvd::SparseCode code = ksvd::ompCode(d, y, 4);
+  ASSERT_EQ(code.atoms.size(), 4u);
+  for (int s = 0; s < 4; ++s) {
+    const auto at = std::find(code.atoms.begin(), code.atoms.end(), atoms[s]);
+    ASSERT_NE(at, code.atoms.end()) << "atom " << atoms[s] << " not chosen";
+    EXPECT_NEAR(code.coefficients[std::size_t(at - code.atoms.begin())], coefs[s], 1e-3);
+  }
+  EXPECT_EQ(code.atoms[0], 0);  // the DC atom first
+  const double energy = std::inner_product(y.begin(), y.end(), y.begin(), 0.0);
+  EXPECT_LT(code.residual2, 1e-6 * energy);
+  // With a tolerance it stops as soon as the residual is small enough: here, after all four.
+  EXPECT_EQ(ksvd::ompCode(d, y, 10, 1e-4 * energy).atoms.size(), 4u);
+}
+
+TEST(KsvdOmp, CodingErrorDoesNotGrowWithSparsity) {
+  const ksvd::Dictionary d = randomDictionary(64, 128, 4);
+  const std::vector<float> blocks = smoothBlocks(4, 20, 5);
+  for (int b = 0; b < 20; ++b) {
+    const std::span<const float> y(blocks.data() + b * 64, 64);
+    double previous = std::numeric_limits<double>::infinity();
+    for (int s = 1; s <= 12; ++s) {
+      const ksvd::SparseCode code = ksvd::ompCode(d, y, s);
+      EXPECT_LE(code.atoms.size(), std::size_t(s));
+      // The residual it reports is the real one.
+      std::vector<double> r(y.begin(), y.end());
+      for (std::size_t k = 0; k < code.atoms.size(); ++k)
+        for (int i = 0; i < 64; ++i)
+          r[std::size_t(i)] -= code.coefficients[k] * d.atom(code.atoms[k])[i];
+      const double real = std::inner_product(r.begin(), r.end(), r.begin(), 0.0);
+      EXPECT_NEAR(code.residual2, real, 1e-3 * (1 + real));
+      EXPECT_LE(code.residual2, previous * (1 + 1e-5) + 1e-9) << "block " << b << " S " << s;
+      previous = code.residual2;
+    }
+  }
+}
+
+TEST(KsvdCoreset, WeightedStatisticsMatchTheFullSet) {
+  const std::size_t n = 40000;
+  const std::vector<float> blocks = smoothBlocks(4, n, 6);
+  auto block = [&](std::uint64_t i, float* out) { std::copy_n(blocks.data() + i * 64, 64, out); };
+  double fullEnergy = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    for (int v = 0; v < 64; ++v) fullEnergy += double(blocks[i * 64 + v]) * blocks[i * 64 + v];
+  Progress quiet;
+  const ksvd::TrainingSet set = ksvd::buildCoreset(n, 64, block, 2000, 7, quiet);
+  EXPECT_NEAR(double(set.count()), 2000.0, 40.0);
+  double weighted = 0, weights2 = 0;
+  for (std::size_t j = 0; j < set.count(); ++j) {
+    for (int v = 0; v < 64; ++v) weighted += double(set.block(j)[v]) * set.block(j)[v];
+    weights2 += double(set.weights[j]) * set.weights[j];
+    // Blocks are stored weighted.
+    float raw[64];
+    block(set.source[j], raw);
+    ASSERT_NEAR(set.block(j)[5], raw[5] * set.weights[j],
+                1e-4f * std::abs(raw[5] * set.weights[j]) + 1e-6f);
+  }
+  // Sum of w^2 over the coreset estimates the number of blocks, and the weighted energy the
+  // full set's energy.
+  EXPECT_NEAR(weights2 / double(n), 1.0, 0.01);
+  EXPECT_NEAR(weighted / fullEnergy, 1.0, 0.03);
+  // Importance sampling: the coreset's blocks vary more than the full set's on average.
+  auto spread = [](const float* y) {
+    double s = 0, s2 = 0;
+    for (int i = 0; i < 64; ++i) s += y[i], s2 += double(y[i]) * y[i];
+    return std::sqrt(std::max(0.0, s2 / 64 - (s / 64) * (s / 64)));
+  };
+  double fullSpread = 0, pickedSpread = 0;
+  for (std::size_t i = 0; i < n; ++i) fullSpread += spread(blocks.data() + i * 64);
+  for (std::size_t j = 0; j < set.count(); ++j) {
+    float raw[64];
+    block(set.source[j], raw);
+    pickedSpread += spread(raw);
+  }
+  EXPECT_GT(pickedSpread / double(set.count()), 1.1 * fullSpread / double(n));
+}
+
+TEST(KsvdPacking, PairsRoundTripAtTheirLimits) {
+  for (int bits : {1, 8, 10, 16}) {
+    const int qmax = ksvd::maxQuantized(bits);
+    EXPECT_EQ(qmax, (1 << (23 - bits)) - 1);
+    for (int atom : {0, 1, (1 << bits) - 1})
+      for (int q : {-qmax, -1, 0, 1, qmax}) {
+        const std::uint32_t word = ksvd::packPair(atom, q, bits);
+        ASSERT_LT(word, 1u << 24);
+        const std::uint8_t bytes[3] = {std::uint8_t(word), std::uint8_t(word >> 8),
+                                       std::uint8_t(word >> 16)};
+        int a = -1, b = 0;
+        kernels::ksvdUnpack(bytes, bits, a, b);
+        EXPECT_EQ(a, atom) << bits;
+        EXPECT_EQ(b, q) << bits;
+      }
+    EXPECT_THROW(ksvd::packPair(1 << bits, 0, bits), std::invalid_argument);
+    EXPECT_THROW(ksvd::packPair(0, qmax + 1, bits), std::invalid_argument);
+  }
+}
+
+TEST(KsvdCodec, EmptyAndConstantBricksAreDetectedAndCostNothing) {
+  // 60 x 30 x 30 at M = 6: bricks of 30^3. Brick 0 is zero, brick 1 constant 77: nothing but
+  // their records; a third all-zero volume codes no block at all.
+  Volume v = Volume::allocate({60, 30, 30}, ScalarType::UInt8);
+  for (int z = 0; z < 30; ++z)
+    for (int y = 0; y < 30; ++y)
+      for (int x = 30; x < 60; ++x) v.as<std::uint8_t>()[v.index(x, y, z)] = 77;
+  v.computeRange();
+  Progress quiet;
+  ksvd::EncodeStats s;
+  auto c = ksvd::encode(v, quick(), quiet, &s);
+  EXPECT_EQ(s.bricks, 2u);
+  EXPECT_EQ(s.constantBricks, 2u);
+  EXPECT_EQ(s.pairs, 0u);
+  EXPECT_TRUE(section(c, ksvd::kPairs).empty());
+  EXPECT_TRUE(std::isinf(s.psnr));
+  const Volume d = ksvd::decode(c.info, c.view());
+  EXPECT_EQ(d.data, v.data);
+  // One voxel more in brick 1: it is coded, brick 0 stays free.
+  v.as<std::uint8_t>()[v.index(40, 10, 10)] = 200;
+  v.computeRange();
+  c = ksvd::encode(v, quick(), quiet, &s);
+  EXPECT_EQ(s.constantBricks, 1u);
+  EXPECT_EQ(s.codedBlocks, 125u);
+  EXPECT_GT(s.pairs, 0u);
+  EXPECT_LT(s.pairs, 125u);  // blocks equal to the brick's minimum have no pairs
+  const Volume d2 = ksvd::decode(c.info, c.view());
+  for (int z = 0; z < 30; ++z)
+    for (int y = 0; y < 30; ++y)
+      for (int x = 0; x < 30; ++x) ASSERT_EQ(d2.as<std::uint8_t>()[d2.index(x, y, z)], 0);
+  EXPECT_GT(s.psnr, 30);
+}
+
+TEST(KsvdCodec, Float32AndInt16RoundTripWithinTheStoredPsnr) {
+  Volume f = generateMarschnerLobb(30, ScalarType::Float32);
+  Volume i16 = generateSheppLogan(30, ScalarType::Int16);
+  for (auto& value : i16.as<std::int16_t>()) value = std::int16_t(value - 1000);  // CT-like
+  i16.computeRange();
+  for (const Volume* v : {&f, &i16}) {
+    for (int side : {4, 6, 8}) {
+      Progress quiet;
+      ksvd::EncodeStats s;
+      const auto c = ksvd::encode(*v, quick(side), quiet, &s);
+      const ksvd::Layout layout(c.info, c.view());
+      const Volume d = ksvd::decode(c.info, c.view());
+      EXPECT_EQ(d.type, v->type);
+      EXPECT_EQ(d.dims, v->dims);
+      EXPECT_NEAR(psnr(*v, d), layout.psnr(), 1e-6) << scalarName(v->type) << " M" << side;
+      EXPECT_GT(layout.psnr(), 20) << scalarName(v->type) << " M" << side;
+      // Decoded values stay inside the input's range (bricks clamp to their own).
+      EXPECT_GE(d.valueMin, v->valueMin);
+      EXPECT_LE(d.valueMax, v->valueMax);
+    }
+  }
+}
+
+TEST(KsvdCodec, MoreSparsityGivesMoreQualityAndToleranceStopsEarly) {
+  const Volume v = generateSheppLogan(36);
+  Progress quiet;
+  double previous = 0;
+  for (int s : {1, 3, 8}) {
+    ksvd::Params p = quick();
+    p.sparsity = s;
+    ksvd::EncodeStats stats;
+    (void)ksvd::encode(v, p, quiet, &stats);
+    EXPECT_GT(stats.psnr, previous) << "S " << s;
+    EXPECT_LE(stats.pairs, stats.codedBlocks * std::uint64_t(s));
+    previous = stats.psnr;
+  }
+  ksvd::Params loose = quick();
+  loose.sparsity = 8, loose.tolerance = 0.05;
+  ksvd::EncodeStats stats;
+  (void)ksvd::encode(v, loose, quiet, &stats);
+  EXPECT_LT(stats.pairs, stats.codedBlocks * 8);
+}
+
+TEST(KsvdCodec, BitsPerVoxelTargetIsMet) {
+  const Volume v = generateMarschnerLobb(48);
+  Progress quiet;
+  for (double target : {1.0, 2.5}) {
+    ksvd::Params p = quick();
+    p.atoms = 0, p.targetBitsPerVoxel = target;
+    ksvd::EncodeStats s;
+    const auto c = ksvd::encode(v, p, quiet, &s);
+    const double bpv = bitsPerVoxel(c.payloadBytes(), v);
+    EXPECT_LE(bpv, target) << target;
+    EXPECT_GT(bpv, 0.5 * target) << target;
+  }
+  ksvd::Params tiny = quick();
+  tiny.targetBitsPerVoxel = 0.01;
+  EXPECT_THROW(ksvd::encode(v, tiny, quiet), std::invalid_argument);
+}
+
+TEST(KsvdCodec, RefusesBadParameters) {
+  const Volume v = generateMenger(2);
+  Progress quiet;
+  auto refused = [&](auto change) {
+    ksvd::Params p = quick();
+    change(p);
+    EXPECT_THROW(ksvd::encode(v, p, quiet), std::invalid_argument);
+  };
+  refused([](ksvd::Params& p) { p.blockSide = 5; });
+  refused([](ksvd::Params& p) { p.atoms = 1; });
+  refused([](ksvd::Params& p) { p.sparsity = 0; });
+  refused([](ksvd::Params& p) { p.tolerance = -0.1; });
+  Volume nan = Volume::allocate({8, 8, 8}, ScalarType::Float32);
+  nan.as<float>()[3] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(ksvd::encode(nan, quick(), quiet), std::invalid_argument);
+}
+
+// ---- corrupt sections -------------------------------------------------------------------
+
+namespace {
+CompressedVolume small() {
+  Progress quiet;
+  ksvd::Params p = quick();
+  p.atoms = 12, p.sparsity = 4, p.iterations = 2;  // 4 index bits, atoms 12..15 unused
+  return ksvd::encode(generateSheppLogan(20), p, quiet);
+}
+void expectRefused(const CompressedVolume& c, const std::string& fragment) {
+  try {
+    ksvd::Layout(c.info, c.view("bad.vwz"));
+    FAIL() << "accepted; expected: " << fragment;
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.vwz"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+// The offset of the first coded brick's record in the bricks section.
+std::size_t firstCodedBrick(CompressedVolume& c) {
+  const auto& b = section(c, ksvd::kBricks);
+  for (std::size_t at = 0; at < b.size(); at += 16) {
+    std::uint32_t index;
+    std::memcpy(&index, b.data() + at + 12, 4);
+    if (index != 0xFFFFFFFFu) return at;
+  }
+  throw std::logic_error("no coded brick");
+}
+}  // namespace
+
+TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
+  {
+    auto c = small();
+    section(c, ksvd::kParams).resize(20);
+    expectRefused(c, "section 'params': truncated");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 0, 5);
+    expectRefused(c, "block side 5");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 8, 1);
+    expectRefused(c, "atoms 1");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 12, 0);
+    expectRefused(c, "sparsity 0");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 16, 9);
+    expectRefused(c, "index bits 9 for 12 atoms");
+  }
+  {
+    auto c = small();
+    section(c, ksvd::kDictionary).pop_back();
+    expectRefused(c, "section 'dictionary'");
+  }
+  {
+    auto c = small();
+    section(c, ksvd::kBricks).resize(8);
+    expectRefused(c, "section 'bricks'");
+  }
+  {
+    auto c = small();
+    const std::size_t at = firstCodedBrick(c);
+    poke<float>(section(c, ksvd::kBricks), at, 1e30f);  // min above max
+    expectRefused(c, "bad value range");
+  }
+  {
+    auto c = small();
+    const std::size_t at = firstCodedBrick(c);
+    poke<float>(section(c, ksvd::kBricks), at + 8, std::numeric_limits<float>::quiet_NaN());
+    expectRefused(c, "bad coefficient step");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kBricks), firstCodedBrick(c) + 12, 7);
+    expectRefused(c, "coded index 7");
+  }
+  {
+    auto c = small();
+    section(c, ksvd::kCounts)[0] = std::byte{200};
+    expectRefused(c, "has 200 pairs");
+  }
+  {
+    auto c = small();
+    auto& p = section(c, ksvd::kPairs);
+    p[0] |= std::byte{0x0F};  // atom 15 of 12
+    expectRefused(c, "names atom 15 of 12");
+  }
+  {
+    auto c = small();
+    section(c, ksvd::kPairs).resize(section(c, ksvd::kPairs).size() - 3);
+    expectRefused(c, "section 'pairs'");
+  }
+  {
+    auto c = small();
+    poke<std::uint64_t>(section(c, ksvd::kParams), 24, std::uint64_t(1) << 60);
+    expectRefused(c, "coded bricks of");
+  }
+  auto c = small();
+  c.sections.pop_back();
+  expectRefused(c, "missing section");
+}
