@@ -6,7 +6,8 @@ ksvd at the (M, S) settings of the COVRA paper's Table 2 (M4 S16, M6 S8, M6 S4, 
 and at size targets, a coreset sweep (Table 1), our vq and svmm at matching rates (integer data
 only: they refuse float32), and ZFP fixed-rate and fixed-precision. Every method's output is
 decoded and compared with the input by the same PSNR (peak = the input's value range, as
-voxwall::codec::psnr). Peak memory is the child process's maximum resident set. Then the decode
+voxwall::codec::psnr). Peak memory is what `voxwall compress` reports (its maximum resident set:
+input, encoder and output together), and /usr/bin/time's for zfp. Then the decode
 rate (Mvoxels/s on one core) and the 1920x1080 frame time of the ksvd files against the raw codec
 (voxwall_bench_vq). Prints tables, writes results.json and rd-<volume>.png.
 
@@ -26,17 +27,22 @@ import numpy as np
 MRI = "/usr/share/mricron/templates/ch2better.nii.gz"
 
 
+MIB = {"B": 1 / 1048576.0, "KiB": 1 / 1024.0, "MiB": 1.0, "GiB": 1024.0}
+
+
 def run(cmd):
-    """Runs cmd; returns (output, seconds, peak resident MiB). Stops the bench when it fails."""
+    """Runs cmd; returns (output, seconds). Stops the bench when it fails."""
     start = time.perf_counter()
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    out = p.stdout.read()
-    _, status, usage = os.wait4(p.pid, 0)
-    p.returncode = os.waitstatus_to_exitcode(status)
-    seconds = time.perf_counter() - start
-    if p.returncode != 0:
-        sys.exit("failed: %s\n%s" % (" ".join(cmd), out))
-    return out, seconds, usage.ru_maxrss / 1024.0
+    r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if r.returncode != 0:
+        sys.exit("failed: %s\n%s" % (" ".join(cmd), r.stdout))
+    return r.stdout, time.perf_counter() - start
+
+
+def peak_mib(log):
+    """The peak memory `voxwall compress` reports ("peak memory 412.3 MiB")."""
+    m = need(r"peak memory ([\d.]+) (B|KiB|MiB|GiB)", log, "the peak memory")
+    return float(m.group(1)) * MIB[m.group(2)]
 
 
 def psnr(ref, test):
@@ -100,8 +106,9 @@ def voxwall_run(voxwall, work, name, a, codec, setting, options, method=None):
     tag = re.sub(r"[^a-z0-9.]+", "-", (codec + " " + setting).lower())
     vwz = os.path.join(work, "%s-%s.vwz" % (name, tag))
     dec = vwz + ".raw"
-    log, seconds, peak = run([voxwall, "compress", src] + fmt + ["--codec", codec] + options +
-                             ["-o", vwz])
+    log, seconds = run([voxwall, "compress", src] + fmt + ["--codec", codec] + options +
+                       ["-o", vwz])
+    peak = peak_mib(log)
     run([voxwall, "decompress", vwz, "-o", dec])
     b = np.fromfile(dec, a.dtype).reshape(a.shape)
     os.remove(dec)
@@ -121,15 +128,17 @@ def voxwall_run(voxwall, work, name, a, codec, setting, options, method=None):
     return row
 
 
-def ksvd_runs(voxwall, work, name, a, table2, targets, coresets):
+def ksvd_runs(voxwall, work, name, a, table2, targets, m4_targets, coresets):
     rows = []
     for setting in table2:  # "M6 S8"
         m, s = re.match(r"M(\d+) S(\d+)", setting).groups()
         rows.append(voxwall_run(voxwall, work, name, a, "ksvd", setting,
                                 ["--block", m, "--sparsity", s, "--atoms", "1024"]))
-    for bpv in targets:
-        rows.append(voxwall_run(voxwall, work, name, a, "ksvd", "M6 target %g" % bpv,
-                                ["--bits-per-voxel", str(bpv)]))
+    for block, values in ((6, targets), (4, m4_targets)):
+        for bpv in values:
+            rows.append(voxwall_run(voxwall, work, name, a, "ksvd", "M%d target %g" % (block, bpv),
+                                    ["--block", str(block), "--bits-per-voxel", str(bpv)],
+                                    method="ksvd M%d" % block))
     for fraction in coresets:
         rows.append(voxwall_run(voxwall, work, name, a, "ksvd", "M6 S8 coreset %g" % fraction,
                                 ["--sparsity", "8", "--atoms", "1024", "--coreset",
@@ -137,13 +146,14 @@ def ksvd_runs(voxwall, work, name, a, table2, targets, coresets):
     return rows
 
 
-def peer_runs(voxwall, work, name, a, targets):
+def peer_runs(voxwall, work, name, a, reductions):
     rows = []
     if a.dtype == np.float32:
         return rows  # vq and svmm refuse float32
-    for bpv in targets:
-        rows.append(voxwall_run(voxwall, work, name, a, "vq", "target %g" % bpv,
-                                ["--bits-per-voxel", str(bpv)]))
+    # vq at fixed reductions (its --bits-per-voxel search runs k-means many times: minutes each)
+    for k in reductions:
+        rows.append(voxwall_run(voxwall, work, name, a, "vq", "1/%d" % k,
+                                ["--reduction", str(k)]))
     for quality in (60, 80, 90):
         rows.append(voxwall_run(voxwall, work, name, a, "svmm", "quality %d" % quality,
                                 ["--quality", str(quality)]))
@@ -162,8 +172,11 @@ def zfp_runs(work, name, a, rates, precisions):
             comp = os.path.join(work, "%s-zfp-%s-%g.zfp" % (name, mode, v))
             dec = comp + ".raw"
             flag = ["-r", str(v)] if mode == "fixed-rate" else ["-p", str(int(v))]
-            _, seconds, peak = run(["zfp", "-q", "-f", "-3", str(x), str(y), str(z)] + flag +
-                                   ["-i", src, "-z", comp, "-o", dec])
+            _, seconds = run(["/usr/bin/time", "-f", "peak %M KiB", "-o", comp + ".mem", "zfp",
+                              "-q", "-f", "-3", str(x), str(y), str(z)] + flag +
+                             ["-i", src, "-z", comp, "-o", dec])
+            with open(comp + ".mem") as f:
+                peak = float(need(r"peak (\d+) KiB", f.read(), "zfp's peak memory").group(1)) / 1024
             b = np.fromfile(dec, np.float32).reshape(a.shape)
             if a.dtype != np.float32:
                 b = np.clip(np.rint(b), 0, np.iinfo(a.dtype).max)
@@ -182,7 +195,7 @@ def zfp_runs(work, name, a, rates, precisions):
 
 def speed(bench, raw_vwz, rows, threads):
     files = [raw_vwz] + [r["file"] for r in rows]
-    out, _, _ = run([bench, "--threads", str(threads), "--frames", "2"] + files)
+    out, _ = run([bench, "--threads", str(threads), "--frames", "2"] + files)
     lines = [l for l in out.splitlines() if l.startswith("| ") and not l.startswith("| volume")]
     if len(lines) != len(files):
         sys.exit("cannot parse voxwall_bench_vq's table:\n" + out)
@@ -250,8 +263,10 @@ def main():
     p.add_argument("--out", default="bench-out/ksvd")
     p.add_argument("--volumes", default="mri,float")
     p.add_argument("--table2", default="M4 S16,M6 S8,M6 S4,M8 S4")
-    p.add_argument("--targets", default="0.15,0.25,0.5,1,2")
-    p.add_argument("--coresets", default="0.01,0.05,0.25,1")
+    p.add_argument("--targets", default="0.15,0.25,0.5,1")
+    p.add_argument("--m4-targets", default="0.25,0.5,1")
+    p.add_argument("--coresets", default="0.01,0.05,0.25,1", help="on the first volume only")
+    p.add_argument("--vq-reductions", default="16,64,512")
     p.add_argument("--zfp-rates", default="0.5,1,2")
     p.add_argument("--zfp-precisions", default="6,8,10")
     p.add_argument("--threads", type=int, default=0)
@@ -260,18 +275,22 @@ def main():
     split = lambda s: [v for v in s.split(",") if v]
     targets = [float(v) for v in split(args.targets)]
     results = {}
+    coresets = [float(v) for v in split(args.coresets)]
     for name, a in make_inputs(args.voxwall, args.out, split(args.volumes)):
         print("== %s: %dx%dx%d %s" % (name, a.shape[2], a.shape[1], a.shape[0], a.dtype),
               flush=True)
         ksvd = ksvd_runs(args.voxwall, args.out, name, a, split(args.table2), targets,
-                         [float(v) for v in split(args.coresets)])
-        rows = ksvd + peer_runs(args.voxwall, args.out, name, a, [t for t in targets if t <= 1])
+                         [float(v) for v in split(args.m4_targets)], coresets)
+        coresets = []
+        rows = ksvd + peer_runs(args.voxwall, args.out, name, a,
+                                [int(v) for v in split(args.vq_reductions)])
         rows += zfp_runs(args.out, name, a, [float(v) for v in split(args.zfp_rates)],
                          [float(v) for v in split(args.zfp_precisions)])
         raw_vwz = voxwall_run(args.voxwall, args.out, name, a, "raw", "lossless", [])["file"]
         results[name] = {"rows": rows,
                          "speed": speed(args.bench, raw_vwz,
-                                        [r for r in ksvd if r["method"] == "ksvd"], args.threads)}
+                                        [r for r in ksvd if r["method"] != "ksvd coreset"],
+                                        args.threads)}
         table(name, rows)
         speed_table(name, results[name]["speed"])
         plot(os.path.join(args.out, "rd-%s.png" % name), name, rows)

@@ -26,7 +26,7 @@ test=(
   clang libclang-rt-14-dev
 )
 bench=(
-  libjpeg-turbo-progs
+  libjpeg-turbo-progs time
   python3-numpy python3-matplotlib python3-vtk9 xvfb xauth zfp libzfp-dev astcenc
 )
 case $purpose in

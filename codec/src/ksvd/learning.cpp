@@ -32,7 +32,8 @@ void Coder::code(const float* alpha0, double energy, int sparsity, double maxRes
   w.alpha.resize(std::size_t(k_));
   w.chosen.assign(std::size_t(k_), 0);
   std::vector<int>& idx = out.atoms;
-  std::vector<double> gamma, rhs;
+  std::vector<double>& gamma = w.gamma;
+  std::vector<double>& rhs = w.rhs;
   auto L = [&](int r, int c) -> double& { return w.lower[std::size_t(r) * std::size_t(s) + c]; };
   // The DC atom first.
   idx.push_back(0);

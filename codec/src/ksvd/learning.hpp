@@ -17,8 +17,8 @@ class Coder {
   int atoms() const { return k_; }
   // alpha = D^T Y for `count` blocks of m values (one column per block).
   void correlate(const float* blocks, std::size_t count, Eigen::MatrixXf& alpha) const;
-  struct Work {
-    std::vector<double> lower;
+  struct Work {  // scratch space, reused across blocks
+    std::vector<double> lower, gamma, rhs;
     std::vector<float> alpha;
     std::vector<unsigned char> chosen;
   };

@@ -1,3 +1,5 @@
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -58,10 +60,14 @@ void runCompress(const CompressOptions& o) {
   const std::uint64_t fileBytes = codec::writeContainer(compressed, o.output);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs%s\n", o.output.c_str(),
-              v.dims.x, v.dims.y, v.dims.z, std::string(codec::scalarName(v.type)).c_str(),
-              o.codec.c_str(), humanBytes(double(fileBytes)).c_str(),
-              codec::bitsPerVoxel(fileBytes, v), seconds, report.c_str());
+  // The process's peak resident memory (the input, the encoder's work and the output together).
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs, peak memory %s%s\n",
+              o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
+              std::string(codec::scalarName(v.type)).c_str(), o.codec.c_str(),
+              humanBytes(double(fileBytes)).c_str(), codec::bitsPerVoxel(fileBytes, v), seconds,
+              humanBytes(double(usage.ru_maxrss) * 1024.0).c_str(), report.c_str());
 }
 
 // Every registered codec's options, each flag once (help texts joined when codecs share one).
