@@ -30,11 +30,16 @@ MRI = "/usr/share/mricron/templates/ch2better.nii.gz"
 MIB = {"B": 1 / 1048576.0, "KiB": 1 / 1024.0, "MiB": 1.0, "GiB": 1024.0}
 
 
-def run(cmd):
-    """Runs cmd; returns (output, seconds). Stops the bench when it fails."""
+def run(cmd, refusal=None):
+    """Runs cmd; returns (output, seconds). Stops the bench when it fails, except with an error
+    line containing `refusal`: then returns (None, that line)."""
     start = time.perf_counter()
     r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if r.returncode != 0:
+        if refusal:
+            line = [l for l in r.stdout.splitlines() if refusal in l]
+            if line:
+                return None, line[0]
         sys.exit("failed: %s\n%s" % (" ".join(cmd), r.stdout))
     return r.stdout, time.perf_counter() - start
 
@@ -101,13 +106,19 @@ def show(row):
 
 # ---- voxwall codecs -----------------------------------------------------------------------
 
+REFUSED = "is below the smallest ksvd file"
+
+
 def voxwall_run(voxwall, work, name, a, codec, setting, options, method=None):
     src, fmt = save_raw(work, name, a)
     tag = re.sub(r"[^a-z0-9.]+", "-", (codec + " " + setting).lower())
     vwz = os.path.join(work, "%s-%s.vwz" % (name, tag))
     dec = vwz + ".raw"
     log, seconds = run([voxwall, "compress", src] + fmt + ["--codec", codec] + options +
-                       ["-o", vwz])
+                       ["-o", vwz], refusal=REFUSED if "--bits-per-voxel" in options else None)
+    if log is None:  # a size target below what the codec can reach on this volume: say so
+        print("  %-16s %-22s refused: %s" % (method or codec, setting, seconds), flush=True)
+        return None
     peak = peak_mib(log)
     run([voxwall, "decompress", vwz, "-o", dec])
     b = np.fromfile(dec, a.dtype).reshape(a.shape)
@@ -143,7 +154,7 @@ def ksvd_runs(voxwall, work, name, a, table2, targets, m4_targets, coresets):
         rows.append(voxwall_run(voxwall, work, name, a, "ksvd", "M6 S8 coreset %g" % fraction,
                                 ["--sparsity", "8", "--atoms", "1024", "--coreset",
                                  str(fraction)], method="ksvd coreset"))
-    return rows
+    return [r for r in rows if r]
 
 
 def peer_runs(voxwall, work, name, a, reductions):

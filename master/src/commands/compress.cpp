@@ -1,5 +1,3 @@
-#include <sys/resource.h>
-
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -7,6 +5,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/master/render_job.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"
@@ -60,14 +59,14 @@ void runCompress(const CompressOptions& o) {
   const std::uint64_t fileBytes = codec::writeContainer(compressed, o.output);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  // The process's peak resident memory (the input, the encoder's work and the output together).
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
+  // The process's peak resident memory (the input, the encoder's work and the output together):
+  // VmHWM, which starts over at exec (getrusage's maximum keeps a large parent's pages).
+  const std::uint64_t peak = master::processMemory().second;
   std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs, peak memory %s%s\n",
               o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
               std::string(codec::scalarName(v.type)).c_str(), o.codec.c_str(),
               humanBytes(double(fileBytes)).c_str(), codec::bitsPerVoxel(fileBytes, v), seconds,
-              humanBytes(double(usage.ru_maxrss) * 1024.0).c_str(), report.c_str());
+              humanBytes(double(peak)).c_str(), report.c_str());
 }
 
 // Every registered codec's options, each flag once (help texts joined when codecs share one).
