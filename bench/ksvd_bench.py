@@ -255,12 +255,13 @@ def plot(path, name, rows):
     for method in dict.fromkeys(r["method"] for r in rows):
         pts = sorted((r["bpv"], r["psnr"]) for r in rows
                      if r["method"] == method and r["psnr"] != float("inf"))
-        if pts:
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=method)
+        if pts:  # the (M, S) settings and coreset sizes are separate points, not a curve
+            style = "o-" if method not in ("ksvd", "ksvd coreset") else "o"
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], style, label=method)
     ax.set_xscale("log", base=2)
     ax.set_xlabel("bits per voxel")
     ax.set_ylabel("PSNR (dB)")
-    ax.set_title("rate-distortion: " + name)
+    ax.set_title("rate-distortion: " + name + " (ksvd: M S settings as points)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()

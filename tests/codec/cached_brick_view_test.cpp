@@ -90,10 +90,9 @@ void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
   for (int z = 0; z < dims.z; ++z)
     for (int y = 0; y < dims.y; ++y)
       for (int x = 0; x < dims.x; ++x) {
-        const std::size_t c =
-            (std::size_t(z / n) * std::size_t(g.cells.y) + std::size_t(y / n)) *
-                std::size_t(g.cells.x) +
-            std::size_t(x / n);
+        const std::size_t c = (std::size_t(z / n) * std::size_t(g.cells.y) + std::size_t(y / n)) *
+                                  std::size_t(g.cells.x) +
+                              std::size_t(x / n);
         ASSERT_LE(g.lo[c], ref.voxel(x, y, z));
         ASSERT_GE(g.hi[c], ref.voxel(x, y, z));
       }

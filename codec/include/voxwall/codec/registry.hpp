@@ -59,8 +59,8 @@ struct CodecList {
 };
 
 // ---- The registration line: add a codec's class here (and include its header above). ----
-using RegisteredCodecs = CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry,
-                                   ksvd::KsvdCodecEntry>;
+using RegisteredCodecs =
+    CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry, ksvd::KsvdCodecEntry>;
 
 using AnyView = RegisteredCodecs::AnyView;
 
