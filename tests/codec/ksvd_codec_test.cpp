@@ -435,3 +435,30 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
   c.sections.pop_back();
   expectRefused(c, "missing section");
 }
+
+// A hostile file whose coefficients overflow a float: every decoded voxel stays inside its
+// brick's range (never NaN or infinite), so nothing downstream converts a NaN to an integer.
+TEST(KsvdCorrupt, OverflowingCoefficientsDecodeInsideTheBricksRange) {
+  auto c = small();
+  const std::size_t at = firstCodedBrick(c);
+  float lo, hi;
+  std::memcpy(&lo, section(c, ksvd::kBricks).data() + at, 4);
+  std::memcpy(&hi, section(c, ksvd::kBricks).data() + at + 4, 4);
+  poke<float>(section(c, ksvd::kBricks), at + 8, 3e38f);  // a finite but enormous step
+  c.info.type = ScalarType::Float32;
+  const ksvd::Layout layout(c.info, c.view());
+  const auto view = layout.view<6>();
+  // Every block of the (single) brick, some of them with pairs.
+  int withPairs = 0;
+  for (std::byte count : section(c, ksvd::kCounts)) withPairs += count != std::byte{0};
+  ASSERT_GT(withPairs, 0);
+  for (std::uint64_t b = 0; b < 4 * 4 * 4; ++b) {
+    float block[216];
+    view.decoder.decode(b, block);
+    for (float v : block) {
+      ASSERT_TRUE(std::isfinite(v)) << "block " << b;
+      ASSERT_GE(v, lo);
+      ASSERT_LE(v, hi);
+    }
+  }
+}

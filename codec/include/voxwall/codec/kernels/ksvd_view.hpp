@@ -85,9 +85,11 @@ struct KsvdDecoder {
       const float* a = atoms + std::size_t(atom) * kVoxels;
       for (int i = 0; i < kVoxels; ++i) out[i] += c * a[i];
     }
+    // Clamped to the brick's range; written so that a NaN (a hostile file's overflowing sum)
+    // becomes the brick's minimum too.
     for (int i = 0; i < kVoxels; ++i) {
       const float v = brick.lo + out[i];
-      out[i] = v < brick.lo ? brick.lo : (v > brick.hi ? brick.hi : v);
+      out[i] = v >= brick.lo ? (v <= brick.hi ? v : brick.hi) : brick.lo;
     }
   }
 
