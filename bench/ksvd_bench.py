@@ -24,6 +24,8 @@ import time
 
 import numpy as np
 
+from rd_common import plot, psnr
+
 MRI = "/usr/share/mricron/templates/ch2better.nii.gz"
 
 
@@ -48,13 +50,6 @@ def peak_mib(log):
     """The peak memory `voxwall compress` reports ("peak memory 412.3 MiB")."""
     m = need(r"peak memory ([\d.]+) (B|KiB|MiB|GiB)", log, "the peak memory")
     return float(m.group(1)) * MIB[m.group(2)]
-
-
-def psnr(ref, test):
-    ref = ref.astype(np.float64)
-    mse = np.mean((ref - test.astype(np.float64)) ** 2)
-    peak = float(ref.max() - ref.min()) or 255.0
-    return float("inf") if mse == 0 else 10 * np.log10(peak * peak / mse)
 
 
 def need(pattern, text, what):
@@ -247,26 +242,6 @@ def speed_table(name, result):
             r["frame_ms"] / raw["frame_ms"], r["shaded_ms"] / raw["shaded_ms"]))
 
 
-def plot(path, name, rows):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for method in dict.fromkeys(r["method"] for r in rows):
-        pts = sorted((r["bpv"], r["psnr"]) for r in rows
-                     if r["method"] == method and r["psnr"] != float("inf"))
-        if pts:  # the (M, S) settings and coreset sizes are separate points, not a curve
-            style = "o-" if method not in ("ksvd", "ksvd coreset") else "o"
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], style, label=method)
-    ax.set_xscale("log", base=2)
-    ax.set_xlabel("bits per voxel")
-    ax.set_ylabel("PSNR (dB)")
-    ax.set_title("rate-distortion: " + name + " (ksvd: M S settings as points)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -305,7 +280,9 @@ def main():
                                         args.threads)}
         table(name, rows)
         speed_table(name, results[name]["speed"])
-        plot(os.path.join(args.out, "rd-%s.png" % name), name, rows)
+        plot(os.path.join(args.out, "rd-%s.png" % name),
+             "rate-distortion: %s (ksvd: M S settings as points)" % name, rows,
+             points=("ksvd", "ksvd coreset"))
     with open(os.path.join(args.out, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     print("\nwrote %s/results.json and rd-*.png" % args.out)

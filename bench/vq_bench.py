@@ -21,6 +21,8 @@ import time
 
 import numpy as np
 
+from rd_common import plot, psnr
+
 MRI = "/usr/share/mricron/templates/ch2better.nii.gz"
 
 
@@ -30,13 +32,6 @@ def run(cmd, **kw):
     if r.returncode != 0:
         sys.exit("failed: %s\n%s" % (" ".join(cmd), r.stdout))
     return r.stdout, time.perf_counter() - start
-
-
-def psnr(ref, test):
-    ref = ref.astype(np.float64)
-    mse = np.mean((ref - test.astype(np.float64)) ** 2)
-    peak = float(ref.max() - ref.min()) or 255.0
-    return float("inf") if mse == 0 else 10 * np.log10(peak * peak / mse)
 
 
 # ---- inputs -------------------------------------------------------------------------------
@@ -192,25 +187,6 @@ def table(name, rows):
               "lossless" if r["psnr"] == float("inf") else "%.2f" % r["psnr"], r["seconds"]))
 
 
-def plot(path, name, rows):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for method in dict.fromkeys(r["method"] for r in rows):
-        pts = sorted((r["bpv"], r["psnr"]) for r in rows
-                     if r["method"] == method and r["psnr"] != float("inf"))
-        if pts:
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=method)
-    ax.set_xscale("log", base=2)
-    ax.set_xlabel("bits per voxel")
-    ax.set_ylabel("PSNR (dB)")
-    ax.set_title("rate-distortion: " + name)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -235,7 +211,7 @@ def main():
         rows += astc_runs(args.out, name, a, bits, args.astc_blocks.split(","), args.astc_preset)
         results[name] = rows
         table(name, rows)
-        plot(os.path.join(args.out, "rd-%s.png" % name), name, rows)
+        plot(os.path.join(args.out, "rd-%s.png" % name), "rate-distortion: " + name, rows)
     with open(os.path.join(args.out, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     print("\nwrote %s/results.json and rd-*.png" % args.out)

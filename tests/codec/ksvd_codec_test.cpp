@@ -10,8 +10,12 @@
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/core/errors.hpp>
 
+#include "support/sections.hpp"
+
 using namespace voxwall;
 using namespace voxwall::codec;
+using voxwall::test::poke;
+using voxwall::test::section;
 
 namespace {
 
@@ -50,17 +54,6 @@ std::vector<float> smoothBlocks(int side, std::size_t count, unsigned seed) {
                                                      a * w * std::sin(float(x * y + z) * 0.7f);
   }
   return out;
-}
-
-std::vector<std::byte>& section(CompressedVolume& c, std::uint32_t id) {
-  for (auto& [sid, bytes] : c.sections)
-    if (sid == id) return bytes;
-  throw std::logic_error("no section");
-}
-
-template <class T>
-void poke(std::vector<std::byte>& bytes, std::size_t at, T value) {
-  std::memcpy(bytes.data() + at, &value, sizeof value);
 }
 
 ksvd::Params quick(int side = 6) {

@@ -7,8 +7,12 @@
 #include <voxwall/codec/vq_codec.hpp>
 #include <voxwall/core/errors.hpp>
 
+#include "support/sections.hpp"
+
 using namespace voxwall;
 using namespace voxwall::codec;
+using voxwall::test::poke;
+using voxwall::test::section;
 
 namespace {
 
@@ -306,11 +310,6 @@ CompressedVolume small(bool compressed) {
   Progress quiet;
   return vq::encode(v, p, quiet);
 }
-std::vector<std::byte>& section(CompressedVolume& c, std::uint32_t id) {
-  for (auto& [sid, bytes] : c.sections)
-    if (sid == id) return bytes;
-  throw std::logic_error("no section");
-}
 void expectRefused(const CompressedVolume& c, const std::string& fragment) {
   try {
     vq::Layout(c.info, c.view("bad.vwz"));
@@ -319,10 +318,6 @@ void expectRefused(const CompressedVolume& c, const std::string& fragment) {
     EXPECT_NE(std::string(e.what()).find("bad.vwz"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
   }
-}
-template <class T>
-void poke(std::vector<std::byte>& bytes, std::size_t at, T value) {
-  std::memcpy(bytes.data() + at, &value, sizeof value);
 }
 }  // namespace
 

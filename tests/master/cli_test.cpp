@@ -61,6 +61,7 @@ TEST(Cli, GenerateCompressInfoDecompressRoundTrip) {
   const CliRun c = runVoxwall("compress " + nrrd + " -o " + vwz + " --brick 4 -q");
   ASSERT_EQ(c.status, 0) << c.out;
   EXPECT_NE(c.out.find("bits/voxel"), std::string::npos);
+  EXPECT_NE(c.out.find("peak memory"), std::string::npos) << c.out;
   const CliRun info = runVoxwall("info " + vwz);
   ASSERT_EQ(info.status, 0) << info.out;
   for (const char* field :
@@ -148,6 +149,15 @@ TEST(Cli, BadArgumentsGiveOneLine) {
                      "voxwall: codec 'tvq' is not implemented");
   expectOneLineError(runVoxwall("compress generated:menger:2 --quality 90 -o /tmp/x.vwz"),
                      "voxwall: --quality needs --codec svmm");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --codec ksvd --block 5 -o /tmp/x.vwz"),
+                     "voxwall: --block must be 4, 6 or 8, not 5");
+  expectOneLineError(
+      runVoxwall("compress generated:menger:2 --codec ksvd --coreset 2.5 -o /tmp/x.vwz"),
+      "voxwall: --coreset must be a whole count");
+  expectOneLineError(
+      runVoxwall(
+          "compress generated:menger:3 --codec ksvd --bits-per-voxel 0.001 -q -o /tmp/x.vwz"),
+      "voxwall: --bits-per-voxel 0.001 is below the smallest ksvd file");
   expectOneLineError(
       runVoxwall("compress generated:menger:2 --codec svmm --block-width 3 -o /tmp/x.vwz"),
       "voxwall: --block-width must be a power of two in 2..64 or 'stepped'");

@@ -9,31 +9,11 @@
 #include <voxwall/node/renderer.hpp>
 
 #include "support/image_expect.hpp"
+#include "support/orbit_render.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
 using namespace voxwall::node;
-
-namespace {
-
-Image render(const RenderVolume& volume, int w, int h, const TransferFunction& tf, bool shading,
-             const std::vector<Rect>& tiles = {}) {
-  Orbit o;
-  o.azimuthDeg = 35, o.elevationDeg = 25;
-  const Camera camera = orbitCamera(o, boundingRadius(volume.info()));
-  RenderSettings s;
-  s.shading = shading;
-  auto backend = makeCpuBackend(2);
-  const auto plan = planFrame(volume, camera, w, h, tf, s);
-  Image full(w, h), tile;
-  for (const auto& r : tiles.empty() ? std::vector<Rect>{{0, 0, w, h}} : tiles) {
-    backend->render(volume, plan, r, tile);
-    full.paste(tile, r);
-  }
-  return full;
-}
-
-}  // namespace
 
 // float32 data: the decoded volume holds exactly the values the view samples, so the images
 // agree to a rounding step (see VqRender.LosslessRendersLikeRaw on fused multiply-adds).
@@ -59,13 +39,13 @@ TEST(KsvdRender, Float32RendersLikeItsDecodedVolumeForEveryBlockSide) {
       std::string label = "M";
       label += std::to_string(side);
       label += shading ? " shaded" : "";
-      const Image expected = render(reference, 64, 56, tf, shading);
-      test::expectImagesNear(expected, render(file, 64, 56, tf, shading), 1, 70, label);
+      const Image expected = test::renderOrbit(reference, 64, 56, tf, shading);
+      test::expectImagesNear(expected, test::renderOrbit(file, 64, 56, tf, shading), 1, 70, label);
       // Tiles on two threads share the per-thread block cache: the same pixels.
-      test::expectImagesNear(
-          expected,
-          render(file, 64, 56, tf, shading, {{0, 0, 40, 30}, {40, 0, 24, 30}, {0, 30, 64, 26}}), 1,
-          70, label + " tiles");
+      test::expectImagesNear(expected,
+                             test::renderOrbit(file, 64, 56, tf, shading, 2,
+                                               {{0, 0, 40, 30}, {40, 0, 24, 30}, {0, 30, 64, 26}}),
+                             1, 70, label + " tiles");
     }
   }
 }
@@ -86,11 +66,13 @@ TEST(KsvdRender, Uint8RendersCloseToItsDecodedVolumeAndToRaw) {
   const codec::Volume decoded = codec::ksvd::decode(container.info(), container.sections());
   EXPECT_DOUBLE_EQ(codec::psnr(v, decoded), stats.psnr);
   for (bool shading : {false, true}) {
-    const Image image = render(file, 64, 64, tf, shading);
-    test::expectImagesNear(render(RenderVolume::fromVolume(decoded), 64, 64, tf, shading), image,
-                           12, 40, shading ? "shaded" : "unshaded");
+    const Image image = test::renderOrbit(file, 64, 64, tf, shading);
+    test::expectImagesNear(
+        test::renderOrbit(RenderVolume::fromVolume(decoded), 64, 64, tf, shading), image, 12, 40,
+        shading ? "shaded" : "unshaded");
     const double imagePsnr =
-        voxwall::compareImages(render(RenderVolume::fromVolume(v), 64, 64, tf, shading), image)
+        voxwall::compareImages(test::renderOrbit(RenderVolume::fromVolume(v), 64, 64, tf, shading),
+                               image)
             .psnrDb;
     std::printf("volume PSNR %.2f dB, image PSNR %.2f dB (%s)\n", stats.psnr, imagePsnr,
                 shading ? "shaded" : "unshaded");

@@ -11,29 +11,13 @@
 #include <voxwall/node/renderer.hpp>
 
 #include "support/image_expect.hpp"
+#include "support/orbit_render.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
 using namespace voxwall::node;
 
 namespace {
-
-Image render(const RenderVolume& volume, int w, int h, const TransferFunction& tf, bool shading,
-             int threads = 2, const std::vector<Rect>& tiles = {}) {
-  Orbit o;
-  o.azimuthDeg = 35, o.elevationDeg = 25;
-  const Camera camera = orbitCamera(o, boundingRadius(volume.info()));
-  RenderSettings s;
-  s.shading = shading;
-  auto backend = makeCpuBackend(threads);
-  const auto plan = planFrame(volume, camera, w, h, tf, s);
-  Image full(w, h), tile;
-  for (const auto& r : tiles.empty() ? std::vector<Rect>{{0, 0, w, h}} : tiles) {
-    backend->render(volume, plan, r, tile);
-    full.paste(tile, r);
-  }
-  return full;
-}
 
 RenderVolume vqFile(const test::TempDir& dir, const codec::Volume& v, const codec::vq::Params& p,
                     const std::string& name, codec::vq::EncodeStats* stats = nullptr) {
@@ -59,14 +43,15 @@ TEST(VqRender, LosslessRendersLikeRaw) {
       const auto vq = vqFile(dir, v, p, "v.vwz");
       EXPECT_EQ(vq.info().codec, codec::CodecId::Vq);
       for (bool shading : {false, true}) {
-        const Image reference = render(raw, 72, 56, tf, shading);
+        const Image reference = test::renderOrbit(raw, 72, 56, tf, shading);
         test::expectImagesNear(
-            reference, render(vq, 72, 56, tf, shading), 1, 70,
+            reference, test::renderOrbit(vq, 72, 56, tf, shading), 1, 70,
             std::string(compressed ? "rbuc" : "plain") + (shading ? " shaded" : ""));
         // Threads and tiles share the per-thread brick cache: still the same pixels.
         test::expectImagesNear(
             reference,
-            render(vq, 72, 56, tf, shading, 3, {{0, 0, 40, 30}, {40, 0, 32, 30}, {0, 30, 72, 26}}),
+            test::renderOrbit(vq, 72, 56, tf, shading, 3,
+                              {{0, 0, 40, 30}, {40, 0, 32, 30}, {0, 30, 72, 26}}),
             1, 70, "tiles");
       }
     }
@@ -80,17 +65,17 @@ TEST(VqRender, TwoVolumesInOneThreadDoNotShareCachedBricks) {
   const auto a = vqFile(dir, codec::generateSheppLogan(40), {}, "a.vwz");
   const auto b = vqFile(dir, codec::generateMarschnerLobb(40), {}, "b.vwz");
   const auto tf = TransferFunction::preset("hot").rescaled(0, 255);
-  const Image first = render(a, 48, 48, tf, false, 1);
-  const Image other = render(b, 48, 48, tf, false, 1);
+  const Image first = test::renderOrbit(a, 48, 48, tf, false, 1);
+  const Image other = test::renderOrbit(b, 48, 48, tf, false, 1);
   EXPECT_GT(voxwall::compareImages(first, other).maxAbs, 10);
-  test::expectImagesNear(first, render(a, 48, 48, tf, false, 1), 0);
+  test::expectImagesNear(first, test::renderOrbit(a, 48, 48, tf, false, 1), 0);
 }
 
 TEST(VqRender, LossyRendersLikeItsDecodedVolumeAndCloseToRaw) {
   test::TempDir dir;
   const codec::Volume v = codec::generateMarschnerLobb(48);
   const auto tf = TransferFunction::preset("cool-warm").rescaled(0, 255);
-  const Image reference = render(RenderVolume::fromVolume(v), 64, 64, tf, true);
+  const Image reference = test::renderOrbit(RenderVolume::fromVolume(v), 64, 64, tf, true);
   double lastImagePsnr = std::numeric_limits<double>::infinity();
   for (int k : {4, 32, 256}) {
     codec::vq::Params p;
@@ -101,9 +86,9 @@ TEST(VqRender, LossyRendersLikeItsDecodedVolumeAndCloseToRaw) {
     const auto file = codec::ContainerFile::open(dir.path("lossy.vwz"));
     const codec::Volume decoded = codec::vq::decode(file.info(), file.sections());
     EXPECT_DOUBLE_EQ(codec::psnr(v, decoded), stats.psnr);
-    const Image image = render(vq, 64, 64, tf, true);
-    test::expectImagesNear(render(RenderVolume::fromVolume(decoded), 64, 64, tf, true), image, 1,
-                           70, "reduction " + std::to_string(k));
+    const Image image = test::renderOrbit(vq, 64, 64, tf, true);
+    test::expectImagesNear(test::renderOrbit(RenderVolume::fromVolume(decoded), 64, 64, tf, true),
+                           image, 1, 70, "reduction " + std::to_string(k));
     // Against the raw render: within 4 dB of the volume PSNR the codec reports, and a loss that
     // grows with the reduction.
     const double imagePsnr = voxwall::compareImages(reference, image).psnrDb;

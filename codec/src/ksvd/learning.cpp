@@ -217,10 +217,9 @@ TrainingSet buildCoreset(std::uint64_t candidates, int m,
     block(i, y.data());
     const std::size_t b = std::size_t(binOf(importance(y.data(), m)));
     const std::uint64_t n = seen[b]++;
-    if (budget[b] == 0) {
-    } else if (reservoir[b].size() < budget[b]) {
+    if (reservoir[b].size() < budget[b]) {
       reservoir[b].push_back(i);
-    } else {
+    } else if (budget[b] > 0) {
       const std::uint64_t j = std::uniform_int_distribution<std::uint64_t>(0, n)(rng);
       if (j < budget[b]) reservoir[b][std::size_t(j)] = i;
     }

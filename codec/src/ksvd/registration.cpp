@@ -96,8 +96,6 @@ class KsvdCodec final : public Codec {
     p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
     // With a size target, --sparsity caps the pairs per block (16 unless given).
     if (p.targetBitsPerVoxel > 0 && !options.given("--sparsity")) p.sparsity = 16;
-    if (p.blockSide != 4 && p.blockSide != 6 && p.blockSide != 8)
-      throw std::invalid_argument("--block must be 4, 6 or 8, not " + std::to_string(p.blockSide));
     if (p.coreset > 1 && p.coreset != std::floor(p.coreset))
       throw std::invalid_argument("--coreset must be a whole count (> 1) or a fraction (<= 1)");
     p.threads = options.threads;
