@@ -25,6 +25,17 @@ double seconds(std::chrono::steady_clock::time_point since) {
 
 volatile float sink;
 
+// The full-resolution brick view of a view with brick levels (ksvd), or the view itself.
+template <class View>
+const auto& brickLevel(const View& view) {
+  if constexpr (requires {
+                  requires codec::kernels::BrickView<std::decay_t<decltype(view.level[0])>>;
+                })
+    return view.level[0];
+  else
+    return view;
+}
+
 // Full decode: every brick of the volume, one thread; best of 3.
 double decodeRate(const node::RenderVolume& v) {
   double best = 0;
@@ -33,7 +44,8 @@ double decodeRate(const node::RenderVolume& v) {
     const auto start = std::chrono::steady_clock::now();
     float acc = 0;
     std::visit(
-        [&](const auto& view) {
+        [&](const auto& anyView) {
+          const auto& view = brickLevel(anyView);
           using View = std::decay_t<decltype(view)>;
           if constexpr (codec::kernels::BrickView<View>) {
             constexpr int n = View::kSide;
@@ -68,7 +80,8 @@ double randomRate(const node::RenderVolume& v) {
   const auto start = std::chrono::steady_clock::now();
   float acc = 0;
   std::visit(
-      [&](const auto& view) {
+      [&](const auto& anyView) {
+        const auto& view = brickLevel(anyView);
         using View = std::decay_t<decltype(view)>;
         if constexpr (codec::kernels::BrickView<View>) {
           typename View::RayCache cache;

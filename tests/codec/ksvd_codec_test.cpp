@@ -59,6 +59,7 @@ std::vector<float> smoothBlocks(int side, std::size_t count, unsigned seed) {
 ksvd::Params quick(int side = 6) {
   ksvd::Params p;
   p.blockSide = side, p.atoms = 32, p.sparsity = 6, p.iterations = 5, p.threads = 2;
+  p.levels = 1;  // level 0 only: the pyramid has its own tests
   return p;
 }
 
@@ -291,7 +292,7 @@ TEST(KsvdCodec, BitsPerVoxelTargetIsMet) {
   Progress quiet;
   for (double target : {1.0, 2.5}) {
     ksvd::Params p = quick();
-    p.atoms = 0, p.targetBitsPerVoxel = target;
+    p.atoms = 0, p.targetBitsPerVoxel = target, p.levels = 0;  // the pyramid counts too
     ksvd::EncodeStats s;
     const auto c = ksvd::encode(v, p, quiet, &s);
     const double bpv = bitsPerVoxel(c.payloadBytes(), v);
@@ -301,6 +302,93 @@ TEST(KsvdCodec, BitsPerVoxelTargetIsMet) {
   ksvd::Params tiny = quick();
   tiny.targetBitsPerVoxel = 0.01;
   EXPECT_THROW(ksvd::encode(v, tiny, quiet), std::invalid_argument);
+}
+
+namespace {
+// Level `level` of `v`'s pyramid as the codec documents it, computed here independently: each
+// voxel the mean of the 2^level-wide cube of full-resolution voxels below it, edge-clamped per
+// halving (so, per axis, halving rounds up and repeats the last voxel).
+Volume boxLevel(const Volume& v, int level) {
+  Volume out = Volume::allocate(v.dims, ScalarType::Float32, v.spacing);
+  for (std::size_t i = 0; i < v.voxelCount(); ++i)
+    out.as<float>()[i] = float(v.as<std::uint8_t>()[i]);
+  for (int l = 0; l < level; ++l) {
+    const glm::ivec3 d = (out.dims - 1) / 2 + 1;
+    Volume next = Volume::allocate(d, ScalarType::Float32, out.spacing * 2.0);
+    for (int z = 0; z < d.z; ++z)
+      for (int y = 0; y < d.y; ++y)
+        for (int x = 0; x < d.x; ++x) {
+          double sum = 0;
+          for (int k = 0; k < 2; ++k)
+            for (int j = 0; j < 2; ++j)
+              for (int i = 0; i < 2; ++i)
+                sum += out.as<float>()[out.index(std::min(2 * x + i, out.dims.x - 1),
+                                                 std::min(2 * y + j, out.dims.y - 1),
+                                                 std::min(2 * z + k, out.dims.z - 1))];
+          next.as<float>()[next.index(x, y, z)] = float(sum / 8);
+        }
+    out = std::move(next);
+  }
+  out.computeRange();
+  return out;
+}
+}  // namespace
+
+TEST(KsvdPyramid, LevelsHalveTheResolutionAndDecodeCloseToTheBoxFilteredVolume) {
+  // 70^3 at M = 4 (bricks of 32 voxels): 70, 35, 18 -- the third fits in one brick.
+  const Volume v = generateMarschnerLobb(70);
+  Progress quiet;
+  ksvd::Params p = quick(4);
+  p.levels = 0;
+  ksvd::EncodeStats s;
+  const auto c = ksvd::encode(v, p, quiet, &s);
+  EXPECT_EQ(s.levels, 3);
+  EXPECT_GT(s.levelPairs, 0u);
+  EXPECT_LT(s.levelPairs, s.pairs / 4);  // coarse levels are about 1/7 of the voxels
+  const ksvd::Layout layout(c.info, c.view());
+  ASSERT_EQ(layout.levels(), 3);
+  EXPECT_EQ(layout.levelDims(1), glm::ivec3(35));
+  EXPECT_EQ(layout.levelDims(2), glm::ivec3(18));
+  EXPECT_DOUBLE_EQ(layout.levelPsnr(0), layout.psnr());
+  for (int l = 1; l < 3; ++l) {
+    const Volume reference = boxLevel(v, l);
+    const Volume decoded = layout.decodeLevel(l);
+    ASSERT_EQ(decoded.dims, reference.dims) << "level " << l;
+    const double measured = psnr(reference, decoded);
+    EXPECT_NEAR(measured, layout.levelPsnr(l), 1e-3) << "level " << l;
+    EXPECT_GT(measured, 25) << "level " << l;
+    // And the view samples level l at its voxel centres: (i + 1/2) 2^l - 1/2.
+    const auto view = layout.view<4>();
+    kernels::KsvdView<4>::RayCache rc;
+    rc.footprint = float(1 << l) + 0.5f;
+    const float scale = float(1 << l);
+    for (glm::ivec3 q : {glm::ivec3(3, 5, 7), glm::ivec3(10, 2, 9)}) {
+      const float got =
+          view.sample((float(q.x) + 0.5f) * scale - 0.5f, (float(q.y) + 0.5f) * scale - 0.5f,
+                      (float(q.z) + 0.5f) * scale - 0.5f, rc);
+      EXPECT_NEAR(got, decoded.as<float>()[decoded.index(q.x, q.y, q.z)], 1e-3) << "level " << l;
+    }
+  }
+  // Level 0 alone: no coarse pairs, a smaller file, the same level 0.
+  p.levels = 1;
+  ksvd::EncodeStats flat;
+  const auto one = ksvd::encode(v, p, quiet, &flat);
+  EXPECT_EQ(flat.levels, 1);
+  EXPECT_EQ(flat.levelPairs, 0u);
+  EXPECT_LT(one.payloadBytes(), c.payloadBytes());
+  EXPECT_EQ(ksvd::Layout(one.info, one.view()).levels(), 1);
+}
+
+TEST(KsvdPyramid, FilesWithoutTheLevelsSectionReadAsOneLevel) {
+  // Files written before the pyramid have no section 6: level 0 alone.
+  const Volume v = generateSheppLogan(40);
+  Progress quiet;
+  auto c = ksvd::encode(v, quick(4), quiet);
+  const Volume before = ksvd::decode(c.info, c.view());
+  std::erase_if(c.sections, [](const auto& s) { return s.first == ksvd::kLevels; });
+  const ksvd::Layout layout(c.info, c.view());
+  EXPECT_EQ(layout.levels(), 1);
+  EXPECT_EQ(layout.decode().data, before.data);
 }
 
 TEST(KsvdCodec, RefusesBadParameters) {
@@ -315,6 +403,7 @@ TEST(KsvdCodec, RefusesBadParameters) {
   refused([](ksvd::Params& p) { p.atoms = 1; });
   refused([](ksvd::Params& p) { p.sparsity = 0; });
   refused([](ksvd::Params& p) { p.tolerance = -0.1; });
+  refused([](ksvd::Params& p) { p.levels = 9; });
   Volume nan = Volume::allocate({8, 8, 8}, ScalarType::Float32);
   nan.as<float>()[3] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(ksvd::encode(nan, quick(), quiet), std::invalid_argument);
@@ -424,8 +513,32 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
     poke<std::uint64_t>(section(c, ksvd::kParams), 24, std::uint64_t(1) << 60);
     expectRefused(c, "coded bricks of");
   }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kLevels), 0, 9);
+    expectRefused(c, "levels 9 (1..8)");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kLevels), 0, 0);
+    expectRefused(c, "levels 0 (1..8)");
+  }
+  {
+    // Two levels announced, one level's PSNR and bricks present.
+    auto c = small();
+    section(c, ksvd::kLevels).resize(20);
+    poke<std::uint32_t>(section(c, ksvd::kLevels), 0, 2);
+    expectRefused(c, "section 'bricks'");
+    section(c, ksvd::kLevels).resize(12);
+    expectRefused(c, "section 'levels'");
+  }
+  {
+    auto c = small();
+    poke<double>(section(c, ksvd::kLevels), 4, std::numeric_limits<double>::quiet_NaN());
+    expectRefused(c, "PSNR is not a number");
+  }
   auto c = small();
-  c.sections.pop_back();
+  std::erase_if(c.sections, [](const auto& s) { return s.first == ksvd::kPairs; });
   expectRefused(c, "missing section");
 }
 
@@ -447,7 +560,7 @@ TEST(KsvdCorrupt, OverflowingCoefficientsDecodeInsideTheBricksRange) {
   ASSERT_GT(withPairs, 0);
   for (std::uint64_t b = 0; b < 4 * 4 * 4; ++b) {
     float block[216];
-    view.decoder.decode(b, block);
+    view.level[0].decoder.decode(b, block);
     for (float v : block) {
       ASSERT_TRUE(std::isfinite(v)) << "block " << b;
       ASSERT_GE(v, lo);

@@ -164,7 +164,7 @@ TEST(Cli, BadArgumentsGiveOneLine) {
   expectOneLineError(
       runVoxwall("render generated:menger:2 --lod --size 8x8 --no-write"),
       "voxwall: --sampling nearest and --lod need a volume with mip levels (compress it "
-      "with --codec svmm)");
+      "with --codec svmm, ksvd)");
   expectOneLineError(
       runVoxwall("compress generated:menger:2 --codec vq --codebook bogus -o /tmp/x.vwz"),
       "voxwall: --codebook must be");
@@ -234,6 +234,36 @@ TEST(Cli, SvmmCompressInfoDecompressRender) {
   EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
   expectOneLineError(runVoxwall("render " + vwz + " --sampling cubic --size 8x8 --no-write"),
                      "voxwall: --sampling: expected trilinear or nearest");
+}
+
+TEST(Cli, KsvdPyramidInfoAndLevelOfDetailRender) {
+  test::TempDir dir;
+  const std::string vwz = dir.path("ml.vwz");
+  const CliRun c = runVoxwall(
+      "compress generated:marschner-lobb:40 --codec ksvd --block 4 --atoms 16 --iterations 2 -q "
+      "-o " +
+      vwz);
+  ASSERT_EQ(c.status, 0) << c.out;
+  EXPECT_NE(c.out.find("2 levels (--lod)"), std::string::npos) << c.out;
+  const CliRun info = runVoxwall("info " + vwz);
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("2 (render --lod), PSNR 40x40x40: "), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find(", 20x20x20: "), std::string::npos) << info.out;
+  for (const char* extra : {" --sampling nearest", " --lod --shading"}) {
+    const CliRun r =
+        runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames") + extra);
+    EXPECT_EQ(r.status, 0) << r.out;
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
+  const CliRun flat = runVoxwall(
+      "compress generated:marschner-lobb:40 --codec ksvd --levels 1 --atoms 16 --iterations 2 -q "
+      "-o " +
+      dir.path("flat.vwz"));
+  ASSERT_EQ(flat.status, 0) << flat.out;
+  EXPECT_EQ(flat.out.find("levels (--lod)"), std::string::npos) << flat.out;
+  expectOneLineError(
+      runVoxwall("compress generated:menger:2 --codec ksvd --levels 9 -o /tmp/x.vwz"),
+      "voxwall: --levels");
 }
 
 TEST(Cli, CudaBackendWithoutADeviceFailsCleanly) {

@@ -5,11 +5,17 @@ namespace voxwall::test {
 voxwall::Image renderOrbit(const node::RenderVolume& volume, int w, int h,
                            const node::TransferFunction& tf, bool shading, int threads,
                            const std::vector<voxwall::Rect>& tiles) {
+  node::RenderSettings s;
+  s.shading = shading;
+  return renderOrbit(volume, w, h, tf, s, threads, tiles);
+}
+
+voxwall::Image renderOrbit(const node::RenderVolume& volume, int w, int h,
+                           const node::TransferFunction& tf, const node::RenderSettings& s,
+                           int threads, const std::vector<voxwall::Rect>& tiles) {
   node::Orbit o;
   o.azimuthDeg = 35, o.elevationDeg = 25;
   const node::Camera camera = node::orbitCamera(o, node::boundingRadius(volume.info()));
-  node::RenderSettings s;
-  s.shading = shading;
   auto backend = node::makeCpuBackend(threads);
   const auto plan = node::planFrame(volume, camera, w, h, tf, s);
   voxwall::Image full(w, h), tile;

@@ -12,5 +12,9 @@ namespace voxwall::test {
 voxwall::Image renderOrbit(const node::RenderVolume& volume, int w, int h,
                            const node::TransferFunction& tf, bool shading, int threads = 2,
                            const std::vector<voxwall::Rect>& tiles = {});
+// The same with any render settings (level of detail, nearest sampling, ...).
+voxwall::Image renderOrbit(const node::RenderVolume& volume, int w, int h,
+                           const node::TransferFunction& tf, const node::RenderSettings& s,
+                           int threads = 2, const std::vector<voxwall::Rect>& tiles = {});
 
 }  // namespace voxwall::test

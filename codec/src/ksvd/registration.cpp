@@ -15,14 +15,7 @@ class Payload final : public RenderPayload {
   RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
   std::span<const std::byte> bytes() const override { return layout_.renderBytes(); }
   AnyView view(const std::byte* base) const override {
-    switch (layout_.blockSide()) {
-      case 4:
-        return layout_.view<4>(base);
-      case 6:
-        return layout_.view<6>(base);
-      default:
-        return layout_.view<8>(base);
-    }
+    return layout_.withView([](const auto& v) { return AnyView(v); }, base);
   }
 
  private:
@@ -46,7 +39,15 @@ std::string encodeReport(const EncodeStats& s, const Volume& v) {
       "\n  K-SVD: %d iterations at sparsity %d on a coreset of %llu of %llu blocks in %.2fs "
       "(training RMSE %.4g of the range); coding %.2fs",
       s.iterations, s.trainSparsity, (unsigned long long)s.coreset,
-      (unsigned long long)s.candidateBlocks, s.trainSeconds, s.trainingRmse, s.codeSeconds);
+      (unsigned long long)s.codedBlocks, s.trainSeconds, s.trainingRmse, s.codeSeconds);
+  if (s.levels > 1) {
+    report +=
+        formatLine("\n  %d levels (--lod), the coarser ones %.1f%% of the pairs; PSNR per level",
+                   s.levels, s.pairs ? 100.0 * double(s.levelPairs) / double(s.pairs) : 0.0);
+    for (double p : s.levelPsnr)
+      report += std::isinf(p) ? std::string(" exact") : formatLine(" %.2f", p);
+    report += " dB";
+  }
   report += std::isinf(s.psnr) ? std::string("\n  exact (every brick constant)")
                                : formatLine("\n  PSNR %.2f dB", s.psnr);
   return report;
@@ -77,6 +78,10 @@ class KsvdCodec final : public Codec {
          "ksvd codec: training blocks, a count (> 1) or a fraction of the coded blocks (<= 1)",
          "32768"},
         {"--iterations", "ksvd codec: K-SVD iterations", "25"},
+        {"--levels",
+         "ksvd codec: pyramid levels for render --lod, each half the resolution of the one "
+         "before (1: none; default: until a level fits in one brick, at most 8)",
+         ""},
         {"--bits-per-voxel",
          "ksvd codec: the smallest per-block tolerance whose file fits this size (and the "
          "default dictionary at most a quarter of it); --sparsity caps the pairs per block, 16 "
@@ -93,6 +98,7 @@ class KsvdCodec final : public Codec {
     p.tolerance = options.number("--tolerance", 0, 0, 0.999);
     p.coreset = options.number("--coreset", 0, 1e-9, 1e15);
     p.iterations = options.integer("--iterations", 25, 0, 10000);
+    p.levels = options.integer("--levels", 0, 1, kernels::kKsvdMaxLevels);
     p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
     // With a size target, --sparsity caps the pairs per block (16 unless given).
     if (p.targetBitsPerVoxel > 0 && !options.given("--sparsity")) p.sparsity = 16;
@@ -126,6 +132,17 @@ class KsvdCodec final : public Codec {
                              layout.tolerance() > 0
                                  ? formatLine(", tolerance %g", layout.tolerance()).c_str()
                                  : "")});
+    std::string levels = formatLine("%d", layout.levels());
+    if (layout.levels() > 1) {
+      levels += " (render --lod), PSNR";
+      for (int l = 0; l < layout.levels(); ++l) {
+        const glm::ivec3 d = layout.levelDims(l);
+        levels += formatLine("%s %dx%dx%d: ", l ? "," : "", d.x, d.y, d.z);
+        levels += std::isinf(layout.levelPsnr(l)) ? std::string("exact")
+                                                  : formatLine("%.2f dB", layout.levelPsnr(l));
+      }
+    }
+    lines.push_back({"levels", levels});
     lines.push_back({"quality", std::isinf(layout.psnr())
                                     ? std::string("exact")
                                     : formatLine("lossy, PSNR %.2f dB", layout.psnr())});
@@ -146,8 +163,9 @@ class KsvdCodec final : public Codec {
     Params eight = small;
     eight.blockSide = 8, eight.atoms = 8, eight.sparsity = 3;
     std::vector<CodecSample> out;
-    out.push_back({"ksvd-ml12-float-m4",
-                   ksvd::encode(generateMarschnerLobb(12, ScalarType::Float32), small, quiet)});
+    // 36^3 in 32-voxel bricks: two levels.
+    out.push_back({"ksvd-ml36-float-m4",
+                   ksvd::encode(generateMarschnerLobb(36, ScalarType::Float32), small, quiet)});
     out.push_back({"ksvd-sl13-int16-m6",
                    ksvd::encode(generateSheppLogan(13, ScalarType::Int16), six, quiet)});
     out.push_back({"ksvd-menger2-m8", ksvd::encode(generateMenger(2), eight, quiet)});

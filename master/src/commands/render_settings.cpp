@@ -359,11 +359,12 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
   cmd.add_flag("--no-skip", o.noSkip, "Disable empty-space skipping (for measurements)");
   cmd.add_option("--sampling", o.sampling,
-                 "svmm volumes: trilinear, or nearest (the discrete voxels of the SVMM thesis)")
+                 "Volumes with mip levels (svmm, ksvd): trilinear, or nearest (the discrete voxels "
+                 "of the SVMM thesis)")
       ->capture_default_str();
   cmd.add_flag("--lod", o.lod,
-               "svmm volumes: sample coarser mip levels where a voxel is smaller than the "
-               "pixel's footprint");
+               "Volumes with mip levels (svmm, ksvd): sample coarser levels where a voxel is "
+               "smaller than the pixel's footprint");
   cmd.add_option("--backend", o.backend, "cpu or cuda")->capture_default_str();
   cmd.add_option("--threads", o.threads,
                  "CPU backend threads per rank (0 = the host's cores shared by its ranks)")

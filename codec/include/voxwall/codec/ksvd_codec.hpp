@@ -10,6 +10,12 @@
 // first atom is the constant (DC) atom 1/sqrt(M^3) and takes part in every block's code; the
 // others are learned by K-SVD on a coreset of the volume's blocks (docs/ksvd.md).
 //
+// Multiresolution: the file holds a pyramid of levels coded with the same dictionary. Level 0 is
+// the volume; level l (((dim - 1) >> l) + 1 voxels per axis) is the mean of the 2x2x2 voxels of
+// level l - 1 below each of its voxels (clamped at the far faces). Each level is bricked as
+// above; sections 3-5 hold level 0's bricks, blocks and pairs, then level 1's, and so on.
+// `render --lod` samples the coarsest level whose voxels are no wider than a pixel's footprint.
+//
 // Values are decoded as floats: brickMin + sum(q_i * step * d[a_i]), clamped to the brick's
 // [min, max]; integer types round to the nearest integer of the type. Any scalar type is
 // accepted (uint8, uint16, int16, float32).
@@ -32,6 +38,11 @@
 //       and for a block equal to its brick's minimum), blocks x fastest
 //   5 pairs: per coded brick, block and pair, 3 bytes: the atom index in the low indexBits
 //       bits, the quantized coefficient (two's complement) in the other 24 - indexBits bits
+//   6 levels (absent in files from before the pyramid, which hold level 0 only):
+//       u32 levels (1..8), then per level f64 PSNR of the decoded level against that level of
+//       the input's pyramid, in dB (peak = the level's value range; +inf when exact)
+// Coded indices, counts and pairs run on across levels: the coded bricks of all levels, in level
+// order, then brick order.
 #pragma once
 
 #include <cstdint>
@@ -52,7 +63,8 @@ enum SectionId : std::uint32_t {
   kDictionary = 2,
   kBricks = 3,
   kCounts = 4,
-  kPairs = 5
+  kPairs = 5,
+  kLevels = 6
 };
 
 struct Params {
@@ -63,14 +75,18 @@ struct Params {
   double coreset = 0;             // training blocks: > 1 a count, (0, 1] a fraction, 0 the default
   double targetBitsPerVoxel = 0;  // > 0: the smallest tolerance whose file fits this size
   int iterations = 25;            // K-SVD iterations
-  int threads = 0;                // 0: every usable core
-  std::uint64_t seed = 1;         // coreset and dictionary initialisation
+  int levels = 0;   // pyramid levels (1: level 0 only); 0: until a level fits in one brick, <= 8
+  int threads = 0;  // 0: every usable core
+  std::uint64_t seed = 1;  // coreset and dictionary initialisation
 };
 
 // What the encoder did, for the CLI and benchmarks.
 struct EncodeStats {
+  // Over every level. Coded blocks: the blocks of coded bricks (what the coreset samples).
   std::uint64_t bricks = 0, constantBricks = 0, codedBlocks = 0, pairs = 0, coreset = 0;
-  std::uint64_t candidateBlocks = 0;  // blocks of coded bricks (what the coreset samples)
+  int levels = 1;
+  std::uint64_t levelPairs = 0;   // pairs of the levels above 0
+  std::vector<double> levelPsnr;  // per level, as section 6
   int atoms = 0, sparsity = 0, iterations = 0;
   int trainSparsity = 0;  // the sparsity K-SVD trained with
   double psnr = 0;
@@ -161,20 +177,41 @@ class Layout {
   std::uint64_t coreset() const { return coreset_; }
   double tolerance() const { return tolerance_; }
   double psnr() const { return psnr_; }
-  std::uint64_t bricks() const;
+  std::uint64_t bricks() const;  // of every level
+  int levels() const { return int(levels_.size()); }
+  glm::ivec3 levelDims(int level) const { return levels_.at(std::size_t(level)).dims; }
+  double levelPsnr(int level) const { return levels_.at(std::size_t(level)).psnr; }
   std::span<const std::byte> renderBytes() const { return render_; }
   // The view for this block side, with the render buffer at `base` (host when null).
   template <int Side>
   kernels::KsvdView<Side> view(const std::byte* base = nullptr) const;
+  // Calls f(view<M>(base)) for the file's block side M.
+  template <class F>
+  decltype(auto) withView(F&& f, const std::byte* base = nullptr) const {
+    switch (m_) {
+      case 4:
+        return f(view<4>(base));
+      case 6:
+        return f(view<6>(base));
+      default:
+        return f(view<8>(base));
+    }
+  }
   RangeGrid rangeGrid() const;
-  Volume decode() const;
+  Volume decode() const;                // level 0, in the volume's type
+  Volume decodeLevel(int level) const;  // float32
 
  private:
+  struct LevelInfo {
+    glm::ivec3 dims{}, blocks{}, bricks{};
+    std::uint64_t firstBrick = 0, firstBlock = 0;  // bricks and blocks of the levels before
+    double psnr = 0;
+  };
   VolumeInfo info_;
   int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, iterations_ = 0;
   std::uint64_t codedBricks_ = 0, pairs_ = 0, coreset_ = 0;
   double tolerance_ = 0, psnr_ = 0;
-  glm::ivec3 blocks_{}, bricks_{};
+  std::vector<LevelInfo> levels_;
   std::vector<std::byte> render_;
   std::uint64_t atomsAt_ = 0, bricksAt_ = 0, blocksAt_ = 0, pairsAt_ = 0;
   std::uint64_t cacheId_ = 0;

@@ -1,14 +1,17 @@
 // Random access into the ksvd codec's blocks (Gobbetti, Iglesias Guitian and Marton, COVRA,
 // 2012), on the host or on a device: a block is the sum over its (atom, coefficient) pairs of
 // coefficient x atom, plus its brick's minimum, clamped to the brick's range. The caches, corners
-// and sampling are CachedBrickView's. The file layout is documented in ksvd_codec.hpp; this is
-// the layout of the render buffer the codec's Layout builds from it.
+// and sampling of one level are CachedBrickView's; KsvdView adds the pyramid of levels (each
+// half the resolution of the one before) that `render --lod` reads. The file layout is
+// documented in ksvd_codec.hpp; this is the layout of the render buffer the codec's Layout
+// builds from it.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
+#include <voxwall/codec/kernels/view_concept.hpp>
 
 namespace voxwall::codec::kernels {
 
@@ -33,13 +36,16 @@ VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* p, int indexBits, int& ato
   q = int(raw ^ sign) - int(sign);  // sign-extends coefBits bits
 }
 
-// The codec's half of the view, for blocks of Side^3 voxels. `data` is the render buffer:
+// The codec's half of the view of one level, for blocks of Side^3 voxels. `data` is the render
+// buffer:
 //   atoms (K x Side^3 float, atom-major) at atomsAt,
-//   bricks (KsvdBrick per brick, x fastest) at bricksAt,
-//   blocks (u32 per block, x fastest over the whole volume: the first pair relative to the
+//   the level's bricks (KsvdBrick per brick, x fastest) at bricksAt,
+//   the level's blocks (u32 per block, x fastest over the level: the first pair relative to the
 //     brick's firstPair in bits 0..23, the pair count in bits 24..31) at blocksAt,
-//   pairs (3 bytes each) at pairsAt.
+//   pairs (3 bytes each, every level's) at pairsAt.
 // Offsets are multiples of 8 bytes; the buffer points into host or device memory, not owned.
+// Keys are block indices plus keyBase (the blocks of the levels before), so the blocks of
+// different levels never share a key in the block cache.
 template <int Side>
 struct KsvdDecoder {
   static constexpr int kBrickSide = Side;
@@ -52,14 +58,17 @@ struct KsvdDecoder {
   int bricksX = 0, bricksY = 0;
   int blocksPerBrick = 1;  // N: bricks are N^3 blocks
   int indexBits = 10;
+  std::uint64_t keyBase = 0;
 
   VOXWALL_HD_INLINE std::uint64_t key(int bx, int by, int bz) const {
-    return (std::uint64_t(bz) * std::uint64_t(blocksY) + std::uint64_t(by)) *
+    return keyBase +
+           (std::uint64_t(bz) * std::uint64_t(blocksY) + std::uint64_t(by)) *
                std::uint64_t(blocksX) +
            std::uint64_t(bx);
   }
 
-  VOXWALL_HD_INLINE void decode(std::uint64_t block, float* out) const {
+  VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
+    const std::uint64_t block = key - keyBase;
     const int bx = int(block % std::uint64_t(blocksX));
     const std::uint64_t rest = block / std::uint64_t(blocksX);
     const int by = int(rest % std::uint64_t(blocksY)), bz = int(rest / std::uint64_t(blocksY));
@@ -96,12 +105,91 @@ struct KsvdDecoder {
   VOXWALL_HD_INLINE float scalar(float v) const { return v; }
 };
 
+// The most levels a ksvd file holds (the view carries one level view each).
+constexpr int kKsvdMaxLevels = 8;
+
+// The view of a ksvd volume: a pyramid of levels, level l of ((dim - 1) >> l) + 1 voxels per
+// axis, voxel centres at (index + 1/2) 2^l - 1/2 in the full-resolution index space. With
+// kTraversal the raycaster sets the ray's footprint (voxels per pixel) and the sampling mode:
+// a sample reads the coarsest level whose voxels are at most the footprint wide, trilinear or
+// nearest. No region is reported (regionValid stays false): the range grid's empty-space
+// skipping is all the skipping a ksvd volume gets.
 template <int Side>
-using KsvdView = CachedBrickView<KsvdDecoder<Side>>;
+struct KsvdView {
+  static constexpr bool kTraversal = true;
+  using Level = CachedBrickView<KsvdDecoder<Side>>;
+  Level level[kKsvdMaxLevels];
+  int levels = 1;
+  int dimX = 0, dimY = 0, dimZ = 0;  // level 0's
+
+  struct RayCache {
+    typename Level::RayCache inner;
+    int il = -1;  // the level `inner` holds the bricks and cell of
+    float footprint = 0.0f;
+    bool nearest = false;
+    bool regionValid = false;
+    float regionLo[3] = {0.0f, 0.0f, 0.0f}, regionHi[3] = {0.0f, 0.0f, 0.0f};
+    float regionFootprintMax = 3.0e38f;
+  };
+
+  // The level whose voxels are at most `footprint` voxels wide (0 below 2).
+  VOXWALL_HD_INLINE int lodLevel(float footprint) const {
+    int L = 0;
+    while (L + 1 < levels && float(2 << L) <= footprint) ++L;
+    return L;
+  }
+
+  // Switches the ray's cache to level L: the cell and the memo of the level before name
+  // other bricks (the cached blocks themselves are keyed per level and stay).
+  VOXWALL_HD_INLINE void enter(int L, RayCache& rc) const {
+    if (L == rc.il) return;
+    rc.il = L;
+    rc.inner.ix = -1;
+#if !defined(__CUDA_ARCH__)
+    rc.inner.memoWrites = ~0ull;
+#endif
+  }
+
+  // A full-resolution index-space position as a position on level L's grid.
+  static VOXWALL_HD_INLINE void toLevel(int L, float& x, float& y, float& z) {
+    if (L == 0) return;
+    const float s = 1.0f / float(1 << L);
+    x = (x + 0.5f) * s - 0.5f, y = (y + 0.5f) * s - 0.5f, z = (z + 0.5f) * s - 0.5f;
+  }
+
+  VOXWALL_HD_INLINE float sample(float x, float y, float z, RayCache& rc) const {
+    const int L = rc.footprint >= 2.0f ? lodLevel(rc.footprint) : 0;
+    enter(L, rc);
+    rc.regionFootprintMax = L + 1 < levels ? float(2 << L) : 3.0e38f;
+    toLevel(L, x, y, z);
+    const Level& v = level[L];
+    if (rc.nearest) {
+      x = clampPosition(x, v.maxX), y = clampPosition(y, v.maxY), z = clampPosition(z, v.maxZ);
+      return v.voxel(int(x + 0.5f), int(y + 0.5f), int(z + 0.5f), rc.inner);
+    }
+    return v.sample(x, y, z, rc.inner);
+  }
+  VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
+    RayCache rc;
+    return sample(x, y, z, rc);
+  }
+
+  // A gradient neighbour, on the level of the ray's last sample.
+  VOXWALL_HD_INLINE float sampleNear(float x, float y, float z, RayCache& rc) const {
+    const int L = rc.il < 0 ? 0 : rc.il;
+    enter(L, rc);
+    toLevel(L, x, y, z);
+    return level[L].sampleNear(x, y, z, rc.inner);
+  }
+
+  VOXWALL_HD_INLINE float voxel(int x, int y, int z) const { return level[0].voxel(x, y, z); }
+};
+
 using KsvdView4 = KsvdView<4>;
 using KsvdView6 = KsvdView<6>;
 using KsvdView8 = KsvdView<8>;
 
 static_assert(std::is_trivially_copyable_v<KsvdView6>);
+static_assert(TraversalView<KsvdView6>);
 
 }  // namespace voxwall::codec::kernels
