@@ -7,6 +7,7 @@
 #include <random>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/ksvd_codec.hpp>
+#include <voxwall/codec/ksvd_device.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/core/errors.hpp>
 
@@ -566,5 +567,81 @@ TEST(KsvdCorrupt, OverflowingCoefficientsDecodeInsideTheBricksRange) {
       ASSERT_GE(v, lo);
       ASSERT_LE(v, hi);
     }
+  }
+}
+
+// Whole bricks on the host (the reference of the device decompressor, ksvd_device_test.cpp):
+// level 0's bricks hold the decoded volume's voxels, coarser levels' the decoded level's, and
+// positions past a level's edge are 0.
+TEST(KsvdBricks, DecompressedBricksHoldTheDecodedLevels) {
+  const Volume v = generateMarschnerLobb(45, ScalarType::Float32);
+  for (int side : {4, 6}) {
+    ksvd::Params p = quick(side);
+    p.levels = 2;
+    Progress quiet;
+    const auto c = ksvd::encode(v, p, quiet);
+    const ksvd::Layout layout(c.info, c.view());
+    const int w = side * ksvd::blocksPerBrick(side);  // 32 or 30 voxels: 2 bricks a side
+    for (int level : {0, 1}) {
+      const Volume decoded = level ? layout.decodeLevel(1) : layout.decode();
+      const glm::ivec3 grid = (decoded.dims + w - 1) / w;
+      std::vector<ksvd::BrickRef> bricks;
+      for (int z = 0; z < grid.z; ++z)
+        for (int y = 0; y < grid.y; ++y)
+          for (int x = 0; x < grid.x; ++x) bricks.push_back({level, {x, y, z}});
+      const std::vector<float> out = ksvd::decompressBricks(layout, bricks);
+      ASSERT_EQ(out.size(), bricks.size() * std::size_t(w * w * w));
+      for (std::size_t i = 0; i < bricks.size(); ++i)
+        for (int z = 0; z < w; ++z)
+          for (int y = 0; y < w; ++y)
+            for (int x = 0; x < w; ++x) {
+              const glm::ivec3 at = bricks[i].brick * w + glm::ivec3(x, y, z);
+              const float got = out[i * std::size_t(w * w * w) + std::size_t((z * w + y) * w + x)];
+              const bool inside =
+                  at.x < decoded.dims.x && at.y < decoded.dims.y && at.z < decoded.dims.z;
+              ASSERT_EQ(got, inside ? decoded.as<float>()[decoded.index(at.x, at.y, at.z)] : 0.0f)
+                  << "M" << side << " level " << level << " voxel " << at.x << "," << at.y << ","
+                  << at.z;
+            }
+    }
+    const ksvd::BrickRef outside{0, {5, 0, 0}}, noLevel{2, {0, 0, 0}};
+    EXPECT_THROW(ksvd::decompressBricks(layout, std::span(&outside, 1)), std::invalid_argument);
+    EXPECT_THROW(ksvd::decompressBricks(layout, std::span(&noLevel, 1)), std::invalid_argument);
+  }
+}
+
+// The two phases of the device decompressor (pairs, then voxels), run here one thread after the
+// other, give the block decoder's values for every block of every level and block side.
+TEST(KsvdBricks, TwoPhaseDecodeEqualsTheBlockDecoder) {
+  const Volume v = generateMarschnerLobb(40, ScalarType::Float32);
+  for (int side : {4, 6, 8}) {
+    ksvd::Params p = quick(side);
+    p.levels = 2;
+    Progress quiet;
+    const auto c = ksvd::encode(v, p, quiet);
+    const ksvd::Layout layout(c.info, c.view());
+    std::size_t blocks = 0;
+    layout.withView([&](const auto& view) {
+      for (int l = 0; l < view.levels; ++l) {
+        const auto& d = view.level[l].decoder;
+        constexpr int kVoxels = std::decay_t<decltype(d)>::kVoxels;
+        const int blocksZ = (view.level[l].dimZ + side - 1) / side;
+        for (int bz = 0; bz < blocksZ; ++bz)
+          for (int by = 0; by < d.blocksY; ++by)
+            for (int bx = 0; bx < d.blocksX; ++bx, ++blocks) {
+              const std::uint64_t key = d.key(bx, by, bz);
+              float expected[kVoxels];
+              d.decode(key, expected);
+              const auto code = d.locate(key);
+              int atom[255];
+              float coefficient[255];
+              for (int t = 0; t < code.count; ++t) d.pairOf(code, t, atom[t], coefficient[t]);
+              for (int i = 0; i < kVoxels; ++i)
+                ASSERT_NEAR(d.voxelOf(code, atom, coefficient, i), expected[i], 1e-5)
+                    << "M" << side << " level " << l << " block " << bx << "," << by << "," << bz;
+            }
+      }
+    });
+    EXPECT_GT(blocks, 0u);
   }
 }

@@ -67,7 +67,14 @@ struct KsvdDecoder {
            std::uint64_t(bx);
   }
 
-  VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
+  // Where block `key`'s code is: its brick's record, its first pair and its pair count (0 for
+  // a constant brick, every voxel `brick.lo`).
+  struct BlockCode {
+    KsvdBrick brick;
+    const std::uint8_t* pairs;
+    int count;
+  };
+  VOXWALL_HD_INLINE BlockCode locate(std::uint64_t key) const {
     const std::uint64_t block = key - keyBase;
     const int bx = int(block % std::uint64_t(blocksX));
     const std::uint64_t rest = block / std::uint64_t(blocksX);
@@ -77,29 +84,57 @@ struct KsvdDecoder {
         (std::uint64_t(bz / n) * std::uint64_t(bricksY) + std::uint64_t(by / n)) *
             std::uint64_t(bricksX) +
         std::uint64_t(bx / n);
-    const KsvdBrick brick = reinterpret_cast<const KsvdBrick*>(data + bricksAt)[brickIndex];
-    if (brick.step == 0.0f) {
-      for (int i = 0; i < kVoxels; ++i) out[i] = brick.lo;
-      return;
+    BlockCode code;
+    code.brick = reinterpret_cast<const KsvdBrick*>(data + bricksAt)[brickIndex];
+    if (code.brick.step == 0.0f) {
+      code.pairs = nullptr, code.count = 0;
+      return code;
     }
     const std::uint32_t entry = reinterpret_cast<const std::uint32_t*>(data + blocksAt)[block];
-    const std::uint8_t* pair = data + pairsAt + 3 * (brick.firstPair + (entry & 0xFFFFFFu));
-    const int count = int(entry >> 24);
-    const float* atoms = reinterpret_cast<const float*>(data + atomsAt);
+    code.pairs = data + pairsAt + 3 * (code.brick.firstPair + (entry & 0xFFFFFFu));
+    code.count = int(entry >> 24);
+    return code;
+  }
+  // A decoded voxel: the brick's minimum plus the sum of the pairs' contributions, clamped to
+  // the brick's range; written so that a NaN (a hostile file's overflowing sum) becomes the
+  // brick's minimum too.
+  static VOXWALL_HD_INLINE float finish(const KsvdBrick& brick, float sum) {
+    const float v = brick.lo + sum;
+    return v >= brick.lo ? (v <= brick.hi ? v : brick.hi) : brick.lo;
+  }
+
+  // COVRA's two-phase decode of one block (section 5.2), as the device decompressor runs it
+  // with a thread per pair and then a thread per voxel, a barrier between the phases:
+  // phase 1, pair t (< code.count) of the block, unpacked and dequantized;
+  VOXWALL_HD_INLINE void pairOf(const BlockCode& code, int t, int& atom, float& coefficient) const {
+    int q = 0;
+    ksvdUnpack(code.pairs + 3 * t, indexBits, atom, q);
+    coefficient = float(q) * code.brick.step;
+  }
+  // phase 2, voxel v (< Side^3) from the block's pairs (as pairOf gave them), summed in pair
+  // order like decode().
+  VOXWALL_HD_INLINE float voxelOf(const BlockCode& code, const int* atom, const float* coefficient,
+                                  int v) const {
+    const float* atomValues = reinterpret_cast<const float*>(data + atomsAt);
+    float sum = 0.0f;
+    for (int k = 0; k < code.count; ++k)
+      sum += coefficient[k] * atomValues[std::size_t(atom[k]) * kVoxels + std::size_t(v)];
+    return finish(code.brick, sum);
+  }
+
+  VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
+    const BlockCode code = locate(key);
+    const float* atomValues = reinterpret_cast<const float*>(data + atomsAt);
     for (int i = 0; i < kVoxels; ++i) out[i] = 0.0f;
-    for (int k = 0; k < count; ++k, pair += 3) {
+    const std::uint8_t* pair = code.pairs;
+    for (int k = 0; k < code.count; ++k, pair += 3) {
       int atom = 0, q = 0;
       ksvdUnpack(pair, indexBits, atom, q);
-      const float c = float(q) * brick.step;
-      const float* a = atoms + std::size_t(atom) * kVoxels;
+      const float c = float(q) * code.brick.step;
+      const float* a = atomValues + std::size_t(atom) * kVoxels;
       for (int i = 0; i < kVoxels; ++i) out[i] += c * a[i];
     }
-    // Clamped to the brick's range; written so that a NaN (a hostile file's overflowing sum)
-    // becomes the brick's minimum too.
-    for (int i = 0; i < kVoxels; ++i) {
-      const float v = brick.lo + out[i];
-      out[i] = v >= brick.lo ? (v <= brick.hi ? v : brick.hi) : brick.lo;
-    }
+    for (int i = 0; i < kVoxels; ++i) out[i] = finish(code.brick, out[i]);
   }
 
   VOXWALL_HD_INLINE float scalar(float v) const { return v; }
