@@ -3,9 +3,10 @@
 
 Same volume, image size, step (1/4 voxel), transfer function (bench/data/vtk-comparison-tf.json:
 grey, opacity 0 at value 40 -> 0.8 at 255, opacity per voxel), camera (3/4 view: azimuth 30,
-elevation 20, 2.6 bounding radii, 30 degree vertical field of view) and orbit (5 degrees per frame).
-Prints a markdown table of ms/frame and ms x cores per frame, and writes both first frames and a
-side-by-side picture to --out.
+elevation 20, 2.6 bounding radii, 30 degree vertical field of view) and orbit (5 degrees per frame),
+unshaded and shaded (Blinn-Phong with a headlight: ambient 0.1, diffuse 0.7, specular 0.2, power
+10 in both; VTK's ShadeOn()). Prints a markdown table of ms/frame and ms x cores per frame, and
+writes both first frames and a side-by-side picture to --out.
 
 Needs Debian's python3-vtk9 and an X server for VTK's window: run it under `xvfb-run -a` with a
 screen larger than the image (`-s "-screen 0 3000x2000x24"`): pixels of a window that does not fit
@@ -35,14 +36,17 @@ def parse_args():
     p.add_argument("--size", default="1920x1080")
     p.add_argument("--frames", type=int, default=5)
     p.add_argument("--threads", default="1,2", help="comma-separated thread counts to measure")
+    p.add_argument("--shading", default="off,on", help="comma-separated: off, on or both")
     p.add_argument("--out", default="bench-out/vtk")
     return p.parse_args()
 
 
-def run_voxwall(args, threads, out_dir):
+def run_voxwall(args, threads, shading, out_dir):
     cmd = [args.voxwall, "render", args.volume, "--size", args.size, "--tf", TF_FILE,
            "--camera", "30,20,2.6", "--fov", "30", "--orbit-deg", "5", "--frames", str(args.frames),
            "--threads", str(threads), "--step", "0.25", "--background", "black", "--out", out_dir]
+    if shading:
+        cmd.append("--shading")
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         sys.exit("voxwall failed: " + res.stdout + res.stderr)
@@ -59,7 +63,7 @@ def run_voxwall(args, threads, out_dir):
     return ms, rate[-1]
 
 
-def vtk_scene(args):
+def vtk_scene(args, shading):
     reader = vtk.vtkNIFTIImageReader()
     reader.SetFileName(args.volume)
     reader.Update()
@@ -82,7 +86,14 @@ def vtk_scene(args):
     prop.SetColor(color)
     prop.SetScalarOpacity(opacity)
     prop.SetInterpolationTypeToLinear()
-    prop.ShadeOff()
+    if shading:  # voxwall's Blinn-Phong terms; the renderer's default light is a headlight
+        prop.ShadeOn()
+        prop.SetAmbient(0.1)
+        prop.SetDiffuse(0.7)
+        prop.SetSpecular(0.2)
+        prop.SetSpecularPower(10.0)
+    else:
+        prop.ShadeOff()
     prop.SetScalarOpacityUnitDistance(min(spacing))  # opacity per voxel, as voxwall's
 
     mapper = vtk.vtkFixedPointVolumeRayCastMapper()
@@ -131,9 +142,9 @@ def grab(window):
     return arr[::-1].copy()  # VTK's rows start at the bottom
 
 
-def run_vtk(args, threads, out_dir):
+def run_vtk(args, threads, shading, out_dir):
     vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(threads)
-    window, renderer, center, radius = vtk_scene(args)
+    window, renderer, center, radius = vtk_scene(args, shading)
     times, first = [], None
     for f in range(args.frames + 1):  # frame 0 twice: the first render also uploads and sets up
         place_camera(renderer, center, radius, 30.0 + 5.0 * max(f - 1, 0))
@@ -185,25 +196,36 @@ def main():
     if not os.path.exists(args.volume):
         sys.exit(f"{args.volume} not found (install Debian's mricron-data)")
     rows = []
-    for threads in [int(t) for t in args.threads.split(",")]:
-        vdir = os.path.join(args.out, f"voxwall-t{threads}")
-        tdir = os.path.join(args.out, f"vtk-t{threads}")
-        vox_ms, vox_rate = run_voxwall(args, threads, vdir)
-        vtk_ms, _ = run_vtk(args, threads, tdir)
-        vox_img = read_png(os.path.join(vdir, "frame_00000.png"))
-        vtk_img = read_png(os.path.join(tdir, "frame_00000.png"))
-        rows.append((threads, np.mean(vox_ms), np.mean(vtk_ms), vox_rate, psnr(vox_img, vtk_img)))
-        both = np.concatenate([vox_img, vtk_img], axis=1)
-        write_png(os.path.join(args.out, f"side-by-side-t{threads}.png"), both)
+    modes = [m.strip() for m in args.shading.split(",")]
+    if not modes or any(m not in ("off", "on") for m in modes):
+        sys.exit("compare_vtk: --shading takes off, on or off,on")
+    for shading in [m == "on" for m in modes]:
+        for threads in [int(t) for t in args.threads.split(",")]:
+            tag = f"{'shaded' if shading else 'unshaded'}-t{threads}"
+            vdir = os.path.join(args.out, f"voxwall-{tag}")
+            tdir = os.path.join(args.out, f"vtk-{tag}")
+            vox_ms, vox_rate = run_voxwall(args, threads, shading, vdir)
+            vtk_ms, _ = run_vtk(args, threads, shading, tdir)
+            vox_img = read_png(os.path.join(vdir, "frame_00000.png"))
+            vtk_img = read_png(os.path.join(tdir, "frame_00000.png"))
+            rows.append((shading, threads, np.mean(vox_ms), np.mean(vtk_ms), vox_rate,
+                         psnr(vox_img, vtk_img)))
+            both = np.concatenate([vox_img, vtk_img], axis=1)
+            write_png(os.path.join(args.out, f"side-by-side-{tag}.png"), both)
 
     print(f"\nvolume {args.volume}, {args.size}, step 1/4 voxel, {args.frames} frames orbiting 5 deg/frame, "
           f"{os.cpu_count()} cores\n")
-    print("| threads | voxwall ms/frame | VTK ms/frame | voxwall Msamples/s | speed-up | "
+    print("| shading | threads | voxwall ms/frame | VTK ms/frame | voxwall Msamples/s | speed-up | "
           "voxwall ms x threads | VTK ms x threads | PSNR voxwall vs VTK (dB) |")
-    print("|---|---|---|---|---|---|---|---|")
-    for t, vox, vt, rate, p in rows:
-        print(f"| {t} | {vox:.0f} | {vt:.0f} | {rate:.1f} | {vt / vox:.2f}x | {vox * t:.0f} | {vt * t:.0f} | {p:.1f} |")
-    print(f"\nimages: {os.path.abspath(args.out)}/side-by-side-t*.png (left voxwall, right VTK)")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for shading, t, vox, vt, rate, p in rows:
+        print(f"| {'on' if shading else 'off'} | {t} | {vox:.0f} | {vt:.0f} | {rate:.1f} | {vt / vox:.2f}x | "
+              f"{vox * t:.0f} | {vt * t:.0f} | {p:.1f} |")
+    by = {(sh, t): vox for sh, t, vox, _, _, _ in rows}
+    for t in sorted({t for _, t, _, _, _, _ in rows}):
+        if (False, t) in by and (True, t) in by:
+            print(f"\nvoxwall shaded / unshaded frame, {t} thread(s): {by[(True, t)] / by[(False, t)]:.2f}")
+    print(f"\nimages: {os.path.abspath(args.out)}/side-by-side-*.png (left voxwall, right VTK)")
 
 
 if __name__ == "__main__":
