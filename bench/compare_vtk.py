@@ -166,7 +166,7 @@ def run_vtk(args, threads, shading, out_dir):
     window.Finalize()
     os.makedirs(out_dir, exist_ok=True)
     write_png(os.path.join(out_dir, "frame_00000.png"), first)
-    return times, first
+    return times
 
 
 def run_vtk_fresh(args, threads, shading, out_dir):
@@ -222,7 +222,7 @@ def main():
     args = parse_args()
     if args.vtk_worker:
         threads, shading, out_dir = args.vtk_worker
-        times, _ = run_vtk(args, int(threads), shading == "on", out_dir)
+        times = run_vtk(args, int(threads), shading == "on", out_dir)
         print("vtk ms: " + ", ".join(f"{t:.3f}" for t in times))
         return
     if not os.path.exists(args.volume):

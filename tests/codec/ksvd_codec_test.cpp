@@ -584,7 +584,8 @@ TEST(KsvdBricks, DecompressedBricksHoldTheDecodedLevels) {
     const int w = side * ksvd::blocksPerBrick(side);  // 32 or 30 voxels: 2 bricks a side
     for (int level : {0, 1}) {
       const Volume decoded = level ? layout.decodeLevel(1) : layout.decode();
-      const glm::ivec3 grid = (decoded.dims + w - 1) / w;
+      const glm::ivec3 grid = layout.levelBricks(level);
+      ASSERT_EQ(grid, (decoded.dims + w - 1) / w);
       std::vector<ksvd::BrickRef> bricks;
       for (int z = 0; z < grid.z; ++z)
         for (int y = 0; y < grid.y; ++y)

@@ -12,10 +12,9 @@ using namespace voxwall::codec;
 namespace {
 // Every brick of every level of `layout`.
 std::vector<ksvd::BrickRef> allBricks(const ksvd::Layout& layout) {
-  const int side = layout.blockSide() * ksvd::blocksPerBrick(layout.blockSide());
   std::vector<ksvd::BrickRef> out;
   for (int l = 0; l < layout.levels(); ++l) {
-    const glm::ivec3 grid = (layout.levelDims(l) + side - 1) / side;
+    const glm::ivec3 grid = layout.levelBricks(l);
     for (int z = 0; z < grid.z; ++z)
       for (int y = 0; y < grid.y; ++y)
         for (int x = 0; x < grid.x; ++x) out.push_back({l, {x, y, z}});

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <initializer_list>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/image.hpp>
@@ -196,6 +197,20 @@ TEST(Cli, VqCompressInfoDecompressRender) {
   EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
 }
 
+namespace {
+// Renders `vwz` once with each of `extras` appended to a small render command: each succeeds and
+// writes a frame.
+void expectRendersWith(const std::string& vwz, const test::TempDir& dir,
+                       std::initializer_list<const char*> extras) {
+  for (const char* extra : extras) {
+    const CliRun r =
+        runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames") + extra);
+    EXPECT_EQ(r.status, 0) << extra << ": " << r.out;
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
+}
+}  // namespace
+
 TEST(Cli, SvmmCompressInfoDecompressRender) {
   test::TempDir dir;
   const std::string vwz = dir.path("sl.vwz");
@@ -226,12 +241,7 @@ TEST(Cli, SvmmCompressInfoDecompressRender) {
   ASSERT_EQ(lossy.status, 0) << lossy.out;
   EXPECT_NE(lossy.out.find("base blocks compressed"), std::string::npos) << lossy.out;
   EXPECT_NE(lossy.out.find("PSNR"), std::string::npos) << lossy.out;
-  for (const char* extra : {"", " --sampling nearest", " --lod --shading"}) {
-    const CliRun r =
-        runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames") + extra);
-    EXPECT_EQ(r.status, 0) << r.out;
-  }
-  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
+  expectRendersWith(vwz, dir, {"", " --sampling nearest", " --lod --shading"});
   expectOneLineError(runVoxwall("render " + vwz + " --sampling cubic --size 8x8 --no-write"),
                      "voxwall: --sampling: expected trilinear or nearest");
 }
@@ -249,12 +259,7 @@ TEST(Cli, KsvdPyramidInfoAndLevelOfDetailRender) {
   ASSERT_EQ(info.status, 0) << info.out;
   EXPECT_NE(info.out.find("2 (render --lod), PSNR 40x40x40: "), std::string::npos) << info.out;
   EXPECT_NE(info.out.find(", 20x20x20: "), std::string::npos) << info.out;
-  for (const char* extra : {" --sampling nearest", " --lod --shading"}) {
-    const CliRun r =
-        runVoxwall("render " + vwz + " --size 32x24 --out " + dir.path("frames") + extra);
-    EXPECT_EQ(r.status, 0) << r.out;
-  }
-  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png")));
+  expectRendersWith(vwz, dir, {" --sampling nearest", " --lod --shading"});
   const CliRun flat = runVoxwall(
       "compress generated:marschner-lobb:40 --codec ksvd --levels 1 --atoms 16 --iterations 2 -q "
       "-o " +

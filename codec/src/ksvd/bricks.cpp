@@ -7,17 +7,15 @@
 
 namespace voxwall::codec::ksvd {
 
-glm::ivec3 checkBrick(const Layout& layout, const BrickRef& b) {
+void checkBrick(const Layout& layout, const BrickRef& b) {
   if (b.level < 0 || b.level >= layout.levels())
     throw std::invalid_argument("ksvd brick: level " + std::to_string(b.level) + " of " +
                                 std::to_string(layout.levels()));
-  const int side = layout.blockSide() * blocksPerBrick(layout.blockSide());
-  const glm::ivec3 grid = (layout.levelDims(b.level) + side - 1) / side;
+  const glm::ivec3 grid = layout.levelBricks(b.level);
   if (b.brick.x < 0 || b.brick.y < 0 || b.brick.z < 0 || b.brick.x >= grid.x ||
       b.brick.y >= grid.y || b.brick.z >= grid.z)
     throw std::invalid_argument("ksvd brick: outside level " + std::to_string(b.level) +
                                 "'s grid of bricks");
-  return grid;
 }
 
 std::vector<float> decompressBricks(const Layout& layout, std::span<const BrickRef> bricks) {

@@ -5,8 +5,7 @@
 
 namespace voxwall::codec::ksvd {
 
-// Checks that `b` names a brick of the file; returns its level's grid of bricks. Throws
-// std::invalid_argument.
-glm::ivec3 checkBrick(const Layout& layout, const BrickRef& b);
+// Checks that `b` names a brick of the file. Throws std::invalid_argument.
+void checkBrick(const Layout& layout, const BrickRef& b);
 
 }  // namespace voxwall::codec::ksvd

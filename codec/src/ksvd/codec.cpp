@@ -59,15 +59,15 @@ struct Grid {
 // One level of the pyramid: level 0 reads the input, coarser levels their own floats.
 template <class T>
 struct Source {
-  std::span<const T> data;    // level 0
-  std::vector<float> coarse;  // levels above 0
+  std::span<const T> data;  // level 0
+  Volume coarse;            // levels above 0: float32, value range computed
   glm::ivec3 dims;
   float at(int x, int y, int z) const {
     x = std::min(x, dims.x - 1), y = std::min(y, dims.y - 1), z = std::min(z, dims.z - 1);
     const std::size_t i =
         (std::size_t(z) * std::size_t(dims.y) + std::size_t(y)) * std::size_t(dims.x) +
         std::size_t(x);
-    return coarse.empty() ? float(data[i]) : coarse[i];
+    return coarse.data.empty() ? float(data[i]) : coarse.as<float>()[i];
   }
   // Block b's voxels (edge-padded), minus `lo`, divided by `scale`.
   void block(glm::ivec3 b, int m, float lo, float scale, float* out) const {
@@ -78,10 +78,11 @@ struct Source {
           out[i] = (at(b.x * m + x, b.y * m + y, b.z * m + z) - lo) * inv;
   }
   // The next level: each voxel the mean of the 2x2x2 voxels below it (clamped at the far faces).
-  Source halved(int threads) const {
+  Source halved(glm::dvec3 spacing, int threads) const {
     Source out;
     out.dims = (dims - 1) / 2 + 1;
-    out.coarse.resize(std::size_t(out.dims.x) * std::size_t(out.dims.y) * std::size_t(out.dims.z));
+    out.coarse = Volume::allocate(out.dims, ScalarType::Float32, spacing);
+    const std::span<float> values = out.coarse.as<float>();
     parallelFor(std::size_t(out.dims.z), threads, [&](std::size_t zs) {
       const int z = int(zs);
       for (int y = 0; y < out.dims.y; ++y)
@@ -89,11 +90,12 @@ struct Source {
           double sum = 0;
           for (int j = 0; j < 8; ++j)
             sum += at(2 * x + (j & 1), 2 * y + ((j >> 1) & 1), 2 * z + (j >> 2));
-          out.coarse[(std::size_t(z) * std::size_t(out.dims.y) + std::size_t(y)) *
-                         std::size_t(out.dims.x) +
-                     std::size_t(x)] = float(sum / 8.0);
+          values[(std::size_t(z) * std::size_t(out.dims.y) + std::size_t(y)) *
+                     std::size_t(out.dims.x) +
+                 std::size_t(x)] = float(sum / 8.0);
         }
     });
+    out.coarse.computeRange();
     return out;
   }
 };
@@ -141,7 +143,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
       src.push_back(std::move(base));
     } else {
       progress.begin("pyramid level " + std::to_string(l), 1);
-      src.push_back(src.back().halved(params.threads));
+      src.push_back(src.back().halved(volume.spacing * double(1 << l), params.threads));
       progress.advance();
       progress.end();
     }
@@ -447,12 +449,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
     stats.psnr = levelPsnr[0] = psnr(volume, layout.decode());
     progress.advance();
     for (int l = 1; l < levels; ++l) {
-      const Source<T>& s = src[std::size_t(l)];
-      Volume reference =
-          Volume::allocate(s.dims, ScalarType::Float32, volume.spacing * double(1 << l));
-      std::copy(s.coarse.begin(), s.coarse.end(), reference.as<float>().begin());
-      reference.computeRange();
-      levelPsnr[std::size_t(l)] = psnr(reference, layout.decodeLevel(l));
+      levelPsnr[std::size_t(l)] = psnr(src[std::size_t(l)].coarse, layout.decodeLevel(l));
       progress.advance();
     }
   }

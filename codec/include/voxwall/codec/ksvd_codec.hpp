@@ -180,6 +180,7 @@ class Layout {
   std::uint64_t bricks() const;  // of every level
   int levels() const { return int(levels_.size()); }
   glm::ivec3 levelDims(int level) const { return levels_.at(std::size_t(level)).dims; }
+  glm::ivec3 levelBricks(int level) const { return levels_.at(std::size_t(level)).bricks; }
   double levelPsnr(int level) const { return levels_.at(std::size_t(level)).psnr; }
   std::span<const std::byte> renderBytes() const { return render_; }
   // The view for this block side, with the render buffer at `base` (host when null).

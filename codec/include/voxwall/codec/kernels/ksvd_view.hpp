@@ -126,11 +126,10 @@ struct KsvdDecoder {
     const BlockCode code = locate(key);
     const float* atomValues = reinterpret_cast<const float*>(data + atomsAt);
     for (int i = 0; i < kVoxels; ++i) out[i] = 0.0f;
-    const std::uint8_t* pair = code.pairs;
-    for (int k = 0; k < code.count; ++k, pair += 3) {
-      int atom = 0, q = 0;
-      ksvdUnpack(pair, indexBits, atom, q);
-      const float c = float(q) * code.brick.step;
+    for (int k = 0; k < code.count; ++k) {
+      int atom = 0;
+      float c = 0.0f;
+      pairOf(code, k, atom, c);
       const float* a = atomValues + std::size_t(atom) * kVoxels;
       for (int i = 0; i < kVoxels; ++i) out[i] += c * a[i];
     }
