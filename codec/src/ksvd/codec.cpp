@@ -82,7 +82,7 @@ struct Source {
     Source out;
     out.dims = (dims - 1) / 2 + 1;
     out.coarse = Volume::allocate(out.dims, ScalarType::Float32, spacing);
-    const std::span<float> values = out.coarse.as<float>();
+    const std::span<float> values = out.coarse.template as<float>();
     parallelFor(std::size_t(out.dims.z), threads, [&](std::size_t zs) {
       const int z = int(zs);
       for (int y = 0; y < out.dims.y; ++y)
