@@ -29,12 +29,14 @@ node::TransferFunction comparisonTf() {
   return tf;
 }
 
-// Args: threads, shading (0/1), empty-space skipping (0/1).
+// Args: threads, shading (0/1), empty-space skipping (0/1), gradients (0: six samples per
+// shaded sample, 1: cell gradients).
 void BM_RaycastFrame(benchmark::State& state) {
   const int threads = int(state.range(0));
   node::RenderSettings settings;
   settings.shading = state.range(1) != 0;
   settings.emptySpaceSkipping = state.range(2) != 0;
+  settings.cellGradients = state.range(3) != 0;
   node::Orbit orbit;  // 3/4 view: azimuth 30, elevation 20
   const auto camera = node::orbitCamera(orbit, node::boundingRadius(volume().info()));
   const auto plan = node::planFrame(volume(), camera, 1920, 1080, comparisonTf(), settings);
@@ -53,11 +55,14 @@ void BM_RaycastFrame(benchmark::State& state) {
 }
 
 BENCHMARK(BM_RaycastFrame)
-    ->ArgNames({"threads", "shading", "skip"})
-    ->Args({1, 0, 1})
-    ->Args({2, 0, 1})
-    ->Args({2, 0, 0})
-    ->Args({2, 1, 1})
+    ->ArgNames({"threads", "shading", "skip", "cell_gradients"})
+    ->Args({1, 0, 1, 1})
+    ->Args({1, 1, 1, 0})
+    ->Args({1, 1, 1, 1})
+    ->Args({2, 0, 1, 1})
+    ->Args({2, 0, 0, 1})
+    ->Args({2, 1, 1, 0})
+    ->Args({2, 1, 1, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(2.0);

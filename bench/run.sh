@@ -10,3 +10,5 @@ echo "== Google Benchmark: CPU raycaster, 1920x1080, 1/4-voxel step"
 "$build/bench/voxwall_bench_raycast" --benchmark_counters_tabular=true
 echo "== voxwall vs VTK vtkFixedPointVolumeRayCastMapper"
 xvfb-run -a -s "-screen 0 3000x2000x24" /usr/bin/python3 bench/compare_vtk.py --voxwall "$build/master/voxwall" "$@"
+echo "== What shading costs per codec: unshaded, six-sample gradients, cell gradients"
+/usr/bin/python3 bench/shading_bench.py --voxwall "$build/master/voxwall"

@@ -36,6 +36,7 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
   r.stepWorld = float(settings.stepVoxels * minSpacing);
   r.earlyTermination = float(settings.earlyTerminationOpacity);
   r.shading = settings.shading;
+  r.cellGradients = settings.cellGradients;
   r.nearest = settings.nearest;
   // A pixel spans 2 tan(fovY / 2) / height radians; in voxels of the largest spacing (the
   // fewest voxels, so a level is never coarser than the footprint on any axis).

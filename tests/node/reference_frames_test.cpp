@@ -6,6 +6,7 @@
 // VOXWALL_WRITE_REFERENCE=DIR writes the frames into DIR instead of comparing.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <voxwall/codec/generators.hpp>
@@ -40,7 +41,10 @@ void checkAgainstReference(const std::string& codec) {
       continue;
     }
     // The bar for "the same picture" is 45 dB; most pixels are identical.
-    test::expectImagesNear(readImage(kDir + name), frame, 255, 45.0, name);
+    const Image reference = readImage(kDir + name);
+    const ImageDiff d = compareImages(reference, frame);
+    std::printf("%s: PSNR %.1f dB, max difference %d\n", name.c_str(), d.psnrDb, d.maxAbs);
+    test::expectImagesNear(reference, frame, 255, 45.0, name);
   }
 }
 

@@ -212,6 +212,9 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   if (!(o.step > 0 && o.step <= 8)) throw std::invalid_argument("--step must be in (0, 8] voxels");
   render.stepVoxels = o.step;
   render.shading = o.shading;
+  if (o.gradients != "cell" && o.gradients != "samples")
+    throw std::invalid_argument("--gradients: expected cell or samples");
+  render.cellGradients = o.gradients == "cell";
   render.emptySpaceSkipping = !o.noSkip;
   if (o.sampling != "trilinear" && o.sampling != "nearest")
     throw std::invalid_argument("--sampling: expected trilinear or nearest");
@@ -244,6 +247,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["opacity"] = o.opacity;
   m["step"] = render.stepVoxels;
   m["shading"] = render.shading;
+  if (!render.cellGradients) m["gradients"] = "samples";
   if (render.nearest) m["sampling"] = "nearest";
   if (render.levelOfDetail) m["lod"] = true;
   m["format"] = job.format;
@@ -357,6 +361,13 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--step", o.step, "Ray step in voxels (of the smallest spacing)")
       ->capture_default_str();
   cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
+  cmd.add_option("--gradients", o.gradients,
+                 "How --shading takes its gradients: cell (central differences at the corners of "
+                 "each voxel cell, read once per cell and blended per sample) or samples (six "
+                 "extra trilinear samples per sample, the slower original; for comparison). Both "
+                 "give the same gradient to rounding; coarser --lod levels and --sampling nearest "
+                 "always use samples")
+      ->capture_default_str();
   cmd.add_flag("--no-skip", o.noSkip, "Disable empty-space skipping (for measurements)");
   cmd.add_option("--sampling", o.sampling,
                  "Volumes with mip levels (svmm, ksvd): trilinear, or nearest (the discrete voxels "

@@ -26,7 +26,7 @@ struct RenderOptions {
   bool sizeGiven = false, outGiven = false;
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
-  std::string sampling = "trilinear";
+  std::string sampling = "trilinear", gradients = "cell";
   bool lod = false;
   bool shading = false, noSkip = false, noWrite = false, quiet = false, verbose = false;
   bool balanceGiven = false, masterOnly = false, dryRun = false, resume = false;

@@ -18,6 +18,9 @@ namespace voxwall::node {
 struct RenderSettings {
   double stepVoxels = 0.25;  // ray step in voxels (of the smallest spacing); Guthe & Goesele: 1/4
   bool shading = false;      // Blinn-Phong from central-difference gradients
+  // Gradients from the 24 voxels around each cell, blended per sample (the same gradient to
+  // rounding), instead of six trilinear samples per shaded sample (the original, for comparison).
+  bool cellGradients = true;
   bool emptySpaceSkipping = true;
   // Views with mip levels (svmm): nearest-voxel samples instead of trilinear, and coarser levels
   // where a voxel is smaller than the pixel's footprint (level of detail).

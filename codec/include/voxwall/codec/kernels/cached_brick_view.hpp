@@ -95,6 +95,7 @@ struct CachedBrickView {
 #endif
     int ix = -1, iy = -1, iz = -1;  // the last voxel cell and its eight corners
     float c[8] = {};
+    CellGradient grad;  // the corner differences of the last shaded cell
   };
 
 #if !defined(__CUDA_ARCH__)
@@ -209,6 +210,40 @@ struct CachedBrickView {
   VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
     RayCache cache;
     return sample(x, y, z, cache);
+  }
+
+  // The 24 voxels around a cell that cornerDifferences reads, through the ray's brick memo: the
+  // brick and the index within it of offsets -1 .. 2 along each axis (clamped) are worked out
+  // once, so a read is a memo lookup and a load.
+  struct Around {
+    const CachedBrickView* view;
+    RayCache* cache;
+    int b[3][4], w[3][4];
+    VOXWALL_HD_INLINE Around(const CachedBrickView* v, RayCache* c, int ix, int iy, int iz)
+        : view(v), cache(c) {
+      const int i[3] = {ix, iy, iz}, n[3] = {v->dimX, v->dimY, v->dimZ};
+      for (int a = 0; a < 3; ++a)
+        for (int o = 0; o < 4; ++o) {
+          const int q = clampIndex(i[a] + o - 1, n[a]);
+          b[a][o] = brickOf(q), w[a][o] = within(q);
+        }
+    }
+    VOXWALL_HD_INLINE float operator()(int ox, int oy, int oz) const {
+      const Value* p = view->brick(b[0][ox + 1], b[1][oy + 1], b[2][oz + 1], *cache);
+      return view->decoder.scalar(p[w[0][ox + 1] + kSide * (w[1][oy + 1] + kSide * w[2][oz + 1])]);
+    }
+  };
+
+  // The gradient hook (GradientView): after sample(x, y, z, cache) at the same position.
+  VOXWALL_HD_INLINE bool gradient(float x, float y, float z, RayCache& cache, float* g) const {
+    if (outsideGrid(x, y, z, maxX, maxY, maxZ)) return false;
+    const int ix = int(x), iy = int(y), iz = int(z);
+    if (!cache.grad.holds(ix, iy, iz)) {
+      cornerDifferences(cache.c, Around(this, &cache, ix, iy, iz), cache.grad.d);
+      cache.grad.ix = ix, cache.grad.iy = iy, cache.grad.iz = iz;
+    }
+    cache.grad.blend(x - float(ix), y - float(iy), z - float(iz), g);
+    return true;
   }
 };
 

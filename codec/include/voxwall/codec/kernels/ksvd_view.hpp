@@ -179,6 +179,7 @@ struct KsvdView {
     if (L == rc.il) return;
     rc.il = L;
     rc.inner.ix = -1;
+    rc.inner.grad.ix = -1;
 #if !defined(__CUDA_ARCH__)
     rc.inner.memoWrites = ~0ull;
 #endif
@@ -214,6 +215,13 @@ struct KsvdView {
     enter(L, rc);
     toLevel(L, x, y, z);
     return level[L].sampleNear(x, y, z, rc.inner);
+  }
+
+  // The gradient hook, on full-resolution trilinear samples only: a coarser level's or a nearest
+  // sample's gradient stays the six samples it always was.
+  VOXWALL_HD_INLINE bool gradient(float x, float y, float z, RayCache& rc, float* g) const {
+    if (rc.il != 0 || rc.nearest) return false;
+    return level[0].gradient(x, y, z, rc.inner, g);
   }
 
   VOXWALL_HD_INLINE float voxel(int x, int y, int z) const { return level[0].voxel(x, y, z); }

@@ -58,6 +58,7 @@ struct RawView {
   struct RayCache {
     int ix = -1, iy = -1, iz = -1;
     float c[8] = {};
+    CellGradient grad;  // the corner differences of the last shaded cell
   };
 
   // Trilinear sample with clamp-to-edge. Clamping the position to [0, dim - 1] gives the same
@@ -86,6 +87,44 @@ struct RawView {
       cache.ix = ix, cache.iy = iy, cache.iz = iz;
     }
     return blendCorners(c, tx, ty, tz);
+  }
+
+  // The 24 voxels around cell (ix, iy, iz) that cornerDifferences reads: straight from the brick
+  // when they all lie in it (its core and apron: seven cells in eight for 16^3 bricks), else
+  // clamped one by one.
+  struct InBrick {
+    const T* p;  // the cell's lower corner in its brick
+    int sy, sz;
+    VOXWALL_HD_INLINE float operator()(int ox, int oy, int oz) const {
+      return float(p[ox + oy * sy + oz * sz]);
+    }
+  };
+  struct Clamped {
+    const RawView* view;
+    int ix, iy, iz;
+    VOXWALL_HD_INLINE float operator()(int ox, int oy, int oz) const {
+      return view->voxel(ix + ox, iy + oy, iz + oz);
+    }
+  };
+  VOXWALL_HD_INLINE bool inBrickAround(int i, int dim) const {
+    const int w = i & mask;
+    return w >= 1 && w + 2 <= mask + 1 && i + 2 < dim;
+  }
+
+  // The gradient hook (GradientView): after sample(x, y, z, cache) at the same position.
+  VOXWALL_HD_INLINE bool gradient(float x, float y, float z, RayCache& cache, float* g) const {
+    if (outsideGrid(x, y, z, maxX, maxY, maxZ)) return false;
+    const int ix = int(x), iy = int(y), iz = int(z);
+    if (!cache.grad.holds(ix, iy, iz)) {
+      if (inBrickAround(ix, dimX) && inBrickAround(iy, dimY) && inBrickAround(iz, dimZ))
+        cornerDifferences(cache.c, InBrick{bricks + offset(ix, iy, iz), rowStride, sliceStride},
+                          cache.grad.d);
+      else
+        cornerDifferences(cache.c, Clamped{this, ix, iy, iz}, cache.grad.d);
+      cache.grad.ix = ix, cache.grad.iy = iy, cache.grad.iz = iz;
+    }
+    cache.grad.blend(x - float(ix), y - float(iy), z - float(iz), g);
+    return true;
   }
 };
 

@@ -208,6 +208,7 @@ struct SvmmView {
     float c[8] = {};
     int cellStop = 0, cellVx = 0, cellVy = 0, cellVz = 0;  // see sample()
     bool cellConstant = false;
+    CellGradient grad;  // the corner differences of the last shaded full-resolution cell
     // Index-space box [regionLo, regionHi) around the last sample in which every sample has the
     // same value, valid while the footprint stays below regionFootprintMax.
     bool regionValid = false;
@@ -463,6 +464,34 @@ struct SvmmView {
   VOXWALL_HD_INLINE float sample(float x, float y, float z) const {
     RayCache rc;
     return sample(x, y, z, rc);
+  }
+
+  // The 24 full-resolution voxels around a cell that cornerDifferences reads.
+  struct Around {
+    const SvmmView* view;
+    RayCache* rc;
+    int ix, iy, iz;
+    VOXWALL_HD_INLINE float operator()(int ox, int oy, int oz) const {
+      int stop;
+      return view->scalar(view->lookup(clampIndex(ix + ox, view->dimX),
+                                       clampIndex(iy + oy, view->dimY),
+                                       clampIndex(iz + oz, view->dimZ), 0, *rc, stop));
+    }
+  };
+
+  // The gradient hook (GradientView), on full-resolution trilinear samples only: a coarser
+  // level's or a nearest sample's gradient stays the six samples it always was.
+  VOXWALL_HD_INLINE bool gradient(float x, float y, float z, RayCache& rc, float* g) const {
+    if (rc.il != 0 || rc.nearest ||
+        outsideGrid(x, y, z, float(dimX - 1), float(dimY - 1), float(dimZ - 1)))
+      return false;
+    const int ix = int(x), iy = int(y), iz = int(z);
+    if (!rc.grad.holds(ix, iy, iz)) {
+      cornerDifferences(rc.c, Around{this, &rc, ix, iy, iz}, rc.grad.d);
+      rc.grad.ix = ix, rc.grad.iy = iy, rc.grad.iz = iz;
+    }
+    rc.grad.blend(x - float(ix), y - float(iy), z - float(iz), g);
+    return true;
   }
 
   // A gradient neighbour on the current sample's level; leaves the cell and region alone.

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <utility>
 #include <voxwall/core/host_device.hpp>
 
 namespace voxwall::codec::kernels {
@@ -29,6 +30,57 @@ VOXWALL_HD_INLINE float blendCorners(const float* c, float tx, float ty, float t
   const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
   return c0 + tz * (c1 - c0);
 }
+
+// The central differences v(i + 1) - v(i - 1) along x, y and z at the eight corners of a voxel
+// cell: d[8 a + i] for axis a and corner i (numbered as in blendCorners). They come from the
+// corners' own values c[8] and 24 more voxels read through at(ox, oy, oz): the voxel at offset
+// (ox, oy, oz) from the cell's lower corner, each offset in {-1, 0, 1, 2}, clamped to the volume
+// the way the view clamps its corners.
+//
+// Blending d[8 a ..] with a sample's fractions gives exactly (up to rounding) the difference of
+// the trilinear samples one voxel before and after it along axis a, wherever the sample lies in
+// [0, dim - 1] (see outsideGrid): each shifted sample blends the corners' neighbours with the
+// same weights. So a
+// view gets the gradient the raycaster used to take six samples (48 voxel reads) for from 24
+// reads per cell, reused by every sample in the cell.
+// One of them: axis A, corner I, with constant offsets so every read is a fixed address.
+template <int A, int I, class At>
+VOXWALL_HD_INLINE float cornerDifference(const float* c, const At& at) {
+  constexpr int bit = 1 << A, x = I & 1, y = (I >> 1) & 1, z = I >> 2;
+  if constexpr ((I & bit) != 0)  // the upper corner: two voxels past the lower one, minus it
+    return at(A == 0 ? 2 : x, A == 1 ? 2 : y, A == 2 ? 2 : z) - c[I ^ bit];
+  else  // the lower corner: the upper one minus the voxel before
+    return c[I | bit] - at(A == 0 ? -1 : x, A == 1 ? -1 : y, A == 2 ? -1 : z);
+}
+template <class At, int... K>
+VOXWALL_HD_INLINE void cornerDifferences(const float* c, const At& at, float* d,
+                                         std::integer_sequence<int, K...>) {
+  ((d[K] = cornerDifference<K / 8, K % 8>(c, at)), ...);
+}
+template <class At>
+VOXWALL_HD_INLINE void cornerDifferences(const float* c, const At& at, float* d) {
+  cornerDifferences(c, at, d, std::make_integer_sequence<int, 24>());
+}
+
+// Is the position outside [0, hi] on some axis (the volume's outer half voxel, where a view
+// clamps it)? There the six shifted samples clamp positions and the corner differences would
+// clamp indices, which differ, so the cell-gradient hooks leave those samples to the six samples.
+VOXWALL_HD_INLINE bool outsideGrid(float x, float y, float z, float hx, float hy, float hz) {
+  return !(x >= 0.0f && y >= 0.0f && z >= 0.0f && x <= hx && y <= hy && z <= hz);
+}
+
+// A cell gradient's cache: the cell whose corner differences d holds (ix = -1: none).
+struct CellGradient {
+  int ix = -1, iy = -1, iz = -1;
+  float d[24] = {};
+  // Blends the differences at fractions (tx, ty, tz) into g[3].
+  VOXWALL_HD_INLINE void blend(float tx, float ty, float tz, float* g) const {
+    g[0] = blendCorners(d, tx, ty, tz);
+    g[1] = blendCorners(d + 8, tx, ty, tz);
+    g[2] = blendCorners(d + 16, tx, ty, tz);
+  }
+  VOXWALL_HD_INLINE bool holds(int x, int y, int z) const { return x == ix && y == iy && z == iz; }
+};
 
 // Clamps a position to [0, hi] per axis (a view's clamp-to-edge: clamping the position gives the
 // same sample as clamping the corner indices, and makes the floor a plain truncation).

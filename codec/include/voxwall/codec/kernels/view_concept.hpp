@@ -46,4 +46,16 @@ concept TraversalView = VolumeView<V> && V::kTraversal && requires(typename V::R
   { c.regionFootprintMax } -> std::convertible_to<float>;
 };
 
+// A view with the cell-gradient hook: gradient(x, y, z, cache, g), called right after
+// sample(x, y, z, cache) at the same position, writes the central-difference gradient there into
+// g[3] (index units, v(i + 1) - v(i - 1) not halved) and returns true, or returns false when it
+// has none for this sample (a coarser level, nearest sampling), and the raycaster takes six
+// sampleNear() samples instead. Views build it with cornerDifferences (trilinear.hpp) from 24
+// voxel reads per cell, kept in the RayCache while the ray stays in the cell.
+template <class V>
+concept GradientView = VolumeView<V> &&
+    requires(const V& v, typename V::RayCache& cache, float p, float* g) {
+  { v.gradient(p, p, p, cache, g) } -> std::same_as<bool>;
+};
+
 }  // namespace voxwall::codec::kernels

@@ -49,11 +49,15 @@ struct RayFrame {
   float stepWorld = 0.25f;      // step length in world units
   float earlyTermination = 0.995f;
   bool shading = false;
+  // Shading gradients from the view's cell hook (GradientView) where it has one, else (and
+  // when false) from six trilinear samples one voxel either side of the sample.
+  bool cellGradients = true;
   // For views with mip levels (View::kTraversal): nearest-voxel sampling, and the ray's
   // footprint in voxels per world unit of t (0: always the finest level).
   bool nearest = false;
   float lodAngle = 0.0f;
   float ambient = 0.1f, diffuse = 0.7f, specular = 0.2f, shininess = 10.0f;
+  int shininessInt = 10;  // shininess when it is a whole number in [0, 1024], else -1
 };
 static_assert(std::is_trivially_copyable_v<RayFrame>);
 static_assert(std::is_trivially_copyable_v<SkipGrid>);
@@ -94,14 +98,28 @@ VOXWALL_HD_INLINE void compositeOver(glm::vec4& acc, const glm::vec3& color, flo
   acc.a += w;
 }
 
+// nl^shininess. An integer exponent (the default 10) is taken by repeated squaring, a few
+// multiplies where powf is a library call of about a hundred instructions; the result is
+// powf's to a few units in the last place.
+VOXWALL_HD_INLINE float specularPower(float nl, const RayFrame& f) {
+  if (f.shininessInt < 0) return powf(nl, f.shininess);
+  float result = 1.0f, base = nl;
+  for (int e = f.shininessInt; e; e >>= 1) {
+    if (e & 1) result *= base;
+    base *= base;
+  }
+  return result;
+}
+
 // Blinn-Phong with a headlight (light and viewer along -dir), two-sided, white specular.
 VOXWALL_HD_INLINE glm::vec3 shade(const glm::vec3& color, const glm::vec3& gradientWorld,
                                   const glm::vec3& dir, const RayFrame& f) {
-  const float len = glm::length(gradientWorld);
+  const float len = sqrtf(glm::dot(gradientWorld, gradientWorld));
   if (!(len > 1e-12f)) return color * (f.ambient + f.diffuse);  // homogeneous: unshaded
-  const glm::vec3 n = gradientWorld / len;
-  const float nl = fabsf(glm::dot(n, dir));  // light = viewer, so halfway vector = light
-  const float spec = f.specular * powf(nl, f.shininess);
+  // |n . dir| with n = gradient / len, one division instead of normalizing (three); light =
+  // viewer, so the halfway vector is the light.
+  const float nl = fabsf(glm::dot(gradientWorld, dir)) / len;
+  const float spec = f.specular * specularPower(nl, f);
   const glm::vec3 c = color * (f.ambient + f.diffuse * nl) + glm::vec3(spec);
   return glm::min(c, glm::vec3(1.0f));
 }
@@ -139,15 +157,25 @@ VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCac
   // A transparent sample composites nothing; only the (costly) shading branches on it.
   if (f.shading && c.a > 0.0f) {
     const glm::vec3 g = 0.5f * f.invSpacing;  // central differences over two voxels, world units
-    const glm::vec3 grad((view.sampleNear(p.x + 1.0f, p.y, p.z, cache) -
-                          view.sampleNear(p.x - 1.0f, p.y, p.z, cache)) *
-                             g.x,
-                         (view.sampleNear(p.x, p.y + 1.0f, p.z, cache) -
-                          view.sampleNear(p.x, p.y - 1.0f, p.z, cache)) *
-                             g.y,
-                         (view.sampleNear(p.x, p.y, p.z + 1.0f, cache) -
-                          view.sampleNear(p.x, p.y, p.z - 1.0f, cache)) *
-                             g.z);
+    glm::vec3 grad;
+    bool fromCell = false;
+    if constexpr (codec::kernels::GradientView<View>) {
+      float d[3];
+      if (f.cellGradients && view.gradient(p.x, p.y, p.z, cache, d)) {
+        grad = glm::vec3(d[0], d[1], d[2]) * g;
+        fromCell = true;
+      }
+    }
+    if (!fromCell)
+      grad = glm::vec3((view.sampleNear(p.x + 1.0f, p.y, p.z, cache) -
+                        view.sampleNear(p.x - 1.0f, p.y, p.z, cache)) *
+                           g.x,
+                       (view.sampleNear(p.x, p.y + 1.0f, p.z, cache) -
+                        view.sampleNear(p.x, p.y - 1.0f, p.z, cache)) *
+                           g.y,
+                       (view.sampleNear(p.x, p.y, p.z + 1.0f, cache) -
+                        view.sampleNear(p.x, p.y, p.z - 1.0f, cache)) *
+                           g.z);
     color = shade(color, grad, dir, f);
   }
   compositeOver(acc, color, c.a);
