@@ -241,9 +241,14 @@ TEST(Cli, SvmmCompressInfoDecompressRender) {
   ASSERT_EQ(lossy.status, 0) << lossy.out;
   EXPECT_NE(lossy.out.find("base blocks compressed"), std::string::npos) << lossy.out;
   EXPECT_NE(lossy.out.find("PSNR"), std::string::npos) << lossy.out;
-  expectRendersWith(vwz, dir, {"", " --sampling nearest", " --lod --shading"});
+  expectRendersWith(
+      vwz, dir, {"", " --sampling nearest", " --lod --shading", " --shading --gradients samples"});
   expectOneLineError(runVoxwall("render " + vwz + " --sampling cubic --size 8x8 --no-write"),
                      "voxwall: --sampling: expected trilinear or nearest");
+  expectOneLineError(runVoxwall("render " + vwz +
+                                " --shading --gradients sobel --size 8x8 "
+                                "--no-write"),
+                     "voxwall: --gradients: expected cell or samples");
 }
 
 TEST(Cli, KsvdPyramidInfoAndLevelOfDetailRender) {
