@@ -160,4 +160,16 @@ TEST(RenderSettings, RankZeroNeedsMoreMemoryForTheFrame) {
   const auto one = estimateRankBytes(job, 1, 2, 1 << 20, 0);
   EXPECT_GT(zero, one);
   EXPECT_GT(one, std::uint64_t(1) << 20);
+  // Streaming to a sink without --out: rank 0 gathers no pixels, so it needs no screen-sized
+  // buffers beyond its own part (the cost grids are all it receives).
+  o.sink = "127.0.0.1:9";
+  o.wall = std::string(VOXWALL_WALLS_DIR) + "/ci-2x2.json";
+  const auto streaming = jobSettings(o);
+  ASSERT_EQ(streaming.outDir, "");
+  const auto screen = std::uint64_t(streaming.width) * std::uint64_t(streaming.height);
+  const auto zeroStreaming = estimateRankBytes(streaming, 0, 2, 1 << 20, 0);
+  const auto oneStreaming = estimateRankBytes(streaming, 1, 2, 1 << 20, 0);
+  EXPECT_LT(zeroStreaming - oneStreaming, screen);
+  o.outGiven = true;  // frames written too: rank 0 assembles them
+  EXPECT_GT(estimateRankBytes(jobSettings(o), 0, 2, 1 << 20, 0) - oneStreaming, 8 * screen);
 }

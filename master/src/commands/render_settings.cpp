@@ -44,8 +44,9 @@ std::uint64_t parseBytes(const std::string& text, const std::string& option) {
 }
 
 // Memory a rank needs: the mapped volume, its frame buffers (the whole screen for a dynamic cut,
-// which may give one rank nearly everything), and on rank 0 the assembled frame, the reports it
-// receives and the writer's float copy.
+// which may give one rank nearly everything), and on rank 0 the cost grids of every rank's report
+// and, when frames are written (--out), the assembled frame, the pixels of the reports and the
+// writer's float copy. A job that only streams to a sink gathers no pixels on rank 0.
 std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,
                                 std::uint64_t volumeBytes, std::uint64_t baseBytes) {
   const auto rects = master::firstFrameRects(job, ranks);
@@ -59,7 +60,10 @@ std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ra
       std::uint64_t((job.width + job.balancer.cellPixels - 1) / job.balancer.cellPixels) *
       std::uint64_t((job.height + job.balancer.cellPixels - 1) / job.balancer.cellPixels);
   std::uint64_t bytes = baseBytes + volumeBytes + pixels * 8 + cells * 16 + (1u << 20);
-  if (rank == 0) bytes += screen * (4 + 4 + 16 + 8) + std::uint64_t(ranks) * cells * 16;
+  if (rank == 0) {
+    bytes += std::uint64_t(ranks) * cells * 16;
+    if (!job.outDir.empty()) bytes += screen * (4 + 4 + 16 + 8);
+  }
   return bytes;
 }
 
