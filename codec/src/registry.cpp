@@ -3,9 +3,16 @@
 #include <cstdio>
 #include <stdexcept>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/codec/render_payload.hpp>
 #include <voxwall/core/errors.hpp>
 
 namespace voxwall::codec {
+
+std::unique_ptr<RenderPayload> Codec::openWith(const VolumeInfo& info, const SectionSet& sections,
+                                               const CodecOptionValues& renderOptions) const {
+  (void)renderOptions;  // a codec without render options ignores them
+  return open(info, sections);
+}
 
 std::string CodecOptionValues::text(const std::string& flag, const std::string& fallback) const {
   const auto it = values_.find(flag);

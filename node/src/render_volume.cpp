@@ -7,23 +7,27 @@
 
 namespace voxwall::node {
 
-RenderVolume RenderVolume::open(const std::string& path,
-                                const std::optional<codec::RawLayout>& raw) {
+RenderVolume RenderVolume::open(const std::string& path, const std::optional<codec::RawLayout>& raw,
+                                const codec::CodecOptionValues& renderOptions) {
   if ((!raw || raw->dims.x <= 0) && codec::isContainerFile(path))
-    return fromContainer(codec::ContainerFile::open(path));
+    return fromContainer(codec::ContainerFile::open(path), renderOptions);
+  if (!renderOptions.flags().empty())
+    throw std::invalid_argument(renderOptions.flags().front() + " needs a .vwz file; " + path +
+                                " is rendered with the raw codec");
   RenderVolume v = fromVolume(codec::readVolume(path, raw));
   v.source_ = path;
   return v;
 }
 
-RenderVolume RenderVolume::fromContainer(codec::ContainerFile file) {
+RenderVolume RenderVolume::fromContainer(codec::ContainerFile file,
+                                         const codec::CodecOptionValues& renderOptions) {
   RenderVolume v;
   v.file_ = std::make_shared<codec::ContainerFile>(std::move(file));
   v.sections_ = v.file_->sections();
   v.info_ = v.file_->info();
   v.storedBytes_ = v.file_->fileBytes();
   v.source_ = v.file_->path();
-  v.init();
+  v.init(renderOptions);
   return v;
 }
 
@@ -43,8 +47,20 @@ RenderVolume RenderVolume::fromCompressed(codec::CompressedVolume volume) {
   return v;
 }
 
-void RenderVolume::init() {
-  payload_ = codec::codecOf(info_, sections_.source).open(info_, sections_);
+void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
+  const codec::Codec& c = codec::codecOf(info_, sections_.source);
+  for (const std::string& flag : renderOptions.flags()) {
+    bool owned = false;
+    for (const codec::CodecOption& o : c.renderOptions()) owned = owned || o.flag == flag;
+    if (owned) continue;
+    std::string owners;
+    for (const codec::Codec* other : codec::codecs())
+      for (const codec::CodecOption& o : other->renderOptions())
+        if (o.flag == flag) owners += (owners.empty() ? "" : ", ") + std::string(other->name());
+    throw std::invalid_argument(flag + " needs a file of codec " + owners + "; " + source_ +
+                                " is " + std::string(c.name()));
+  }
+  payload_ = c.openWith(info_, sections_, renderOptions);
   ranges_ = payload_->rangeGrid();
 }
 

@@ -211,6 +211,12 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   return job;
 }
 
+codec::CodecOptionValues codecRenderOptions(const RenderOptions& o) {
+  codec::CodecOptionValues values;
+  for (const auto& [flag, value] : o.codecFlags) values.set(flag, value);
+  return values;
+}
+
 node::RenderSettings renderSettings(const RenderOptions& o) {
   node::RenderSettings render;
   if (!(o.step > 0 && o.step <= 8)) throw std::invalid_argument("--step must be in (0, 8] voxels");
@@ -254,6 +260,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   if (!render.cellGradients) m["gradients"] = "samples";
   if (render.nearest) m["sampling"] = "nearest";
   if (render.levelOfDetail) m["lod"] = true;
+  for (const auto& [flag, value] : o.codecFlags) m["codec_options"][flag] = value;
   m["format"] = job.format;
   m["background"] = o.background;
   m["backend"] = o.backend;  // CUDA and CPU may differ in the last bit of a channel
@@ -380,6 +387,21 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_flag("--lod", o.lod,
                "Volumes with mip levels (svmm, ksvd): sample coarser levels where a voxel is "
                "smaller than the pixel's footprint");
+  // Each codec's render flags, each flag once (help texts joined when codecs share one).
+  std::map<std::string, CLI::Option*> codecFlags;
+  for (const codec::Codec* c : codec::codecs())
+    for (const codec::CodecOption& spec : c->renderOptions()) {
+      if (CLI::Option* known = codecFlags[spec.flag]) {
+        known->description(known->get_description() + "; " + spec.help);
+        continue;
+      }
+      const std::string flag = spec.flag;
+      CLI::Option* opt =
+          spec.isFlag ? cmd.add_flag(flag, spec.help) : cmd.add_option(flag, spec.help);
+      if (!spec.defaultValue.empty()) opt->default_str(spec.defaultValue);
+      opt->each([&o, flag](const std::string& value) { o.codecFlags[flag] = value; });
+      codecFlags[flag] = opt;
+    }
   cmd.add_option("--backend", o.backend, "cpu or cuda")->capture_default_str();
   cmd.add_option("--threads", o.threads,
                  "CPU backend threads per rank (0 = the host's cores shared by its ranks)")

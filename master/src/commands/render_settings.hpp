@@ -5,9 +5,11 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -28,6 +30,8 @@ struct RenderOptions {
   int frames = 1, threads = 0, costCell = 32;
   std::string sampling = "trilinear", gradients = "cell";
   bool lod = false;
+  // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
+  std::map<std::string, std::string> codecFlags;
   bool shading = false, noSkip = false, noWrite = false, quiet = false, verbose = false;
   bool balanceGiven = false, masterOnly = false, dryRun = false, resume = false;
   RawInputOptions raw;
@@ -49,6 +53,8 @@ RenderOptionHandles addRenderOptions(CLI::App& cmd, RenderOptions& o);
 master::JobSettings jobSettings(const RenderOptions& o);
 // The renderer: step, shading, skipping, sampling, level of detail (and checks --backend).
 node::RenderSettings renderSettings(const RenderOptions& o);
+// The codec render flags given (--progressive ...), for RenderVolume::open.
+codec::CodecOptionValues codecRenderOptions(const RenderOptions& o);
 
 // --background: none/transparent, black, white or R,G,B in [0, 1].
 std::optional<glm::dvec3> parseBackground(const std::string& text);

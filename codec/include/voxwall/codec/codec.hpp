@@ -40,6 +40,12 @@ class CodecOptionValues {
   int integer(const std::string& flag, int fallback, int lo, int hi) const;
   double number(const std::string& flag, double fallback, double lo, double hi) const;
   bool flag(const std::string& flag) const { return given(flag); }
+  // The flags given, in order.
+  std::vector<std::string> flags() const {
+    std::vector<std::string> out;
+    for (const auto& [flag, value] : values_) out.push_back(flag);
+    return out;
+  }
 
  private:
   std::map<std::string, std::string> values_;
@@ -79,6 +85,14 @@ class Codec {
   // the payload.
   virtual std::unique_ptr<RenderPayload> open(const VolumeInfo& info,
                                               const SectionSet& sections) const = 0;
+  // The `render` flags this codec owns (e.g. tvq's "--progressive"): `render` registers them,
+  // refuses them for another codec's file and hands the given ones to open() below.
+  virtual std::vector<CodecOption> renderOptions() const { return {}; }
+  // open() with the render flags given (only this codec's renderOptions()); by default the
+  // codec has none and ignores them. Throws std::invalid_argument for a bad value.
+  virtual std::unique_ptr<RenderPayload> openWith(const VolumeInfo& info,
+                                                  const SectionSet& sections,
+                                                  const CodecOptionValues& renderOptions) const;
   // Reads and checks everything a reader can be handed (the fuzz target calls it on untrusted
   // bytes): by default decode(). Throws FormatError.
   virtual void verify(const VolumeInfo& info, const SectionSet& sections) const {

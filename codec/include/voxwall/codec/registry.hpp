@@ -9,6 +9,7 @@
 #include <voxwall/codec/ksvd_codec.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/codec/tvq_codec.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 
 namespace voxwall::codec {
@@ -59,8 +60,8 @@ struct CodecList {
 };
 
 // ---- The registration line: add a codec's class here (and include its header above). ----
-using RegisteredCodecs =
-    CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry, ksvd::KsvdCodecEntry>;
+using RegisteredCodecs = CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry,
+                                   ksvd::KsvdCodecEntry, tvq::TvqCodecEntry>;
 
 using AnyView = RegisteredCodecs::AnyView;
 

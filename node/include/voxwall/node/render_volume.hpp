@@ -20,10 +20,14 @@ using ViewVariant = codec::AnyView;
 class RenderVolume {
  public:
   // Opens a .vwz file (memory-mapped) or reads any volume file and bricks it in memory with
-  // the raw codec. Throws FormatError("<path>: ...").
+  // the raw codec. `renderOptions` are the codec's render flags (Codec::renderOptions; a flag
+  // the volume's codec does not own is refused with std::invalid_argument). Throws
+  // FormatError("<path>: ...").
   static RenderVolume open(const std::string& path,
-                           const std::optional<codec::RawLayout>& raw = std::nullopt);
-  static RenderVolume fromContainer(codec::ContainerFile file);
+                           const std::optional<codec::RawLayout>& raw = std::nullopt,
+                           const codec::CodecOptionValues& renderOptions = {});
+  static RenderVolume fromContainer(codec::ContainerFile file,
+                                    const codec::CodecOptionValues& renderOptions = {});
   // A compressed volume held in memory (any registered codec).
   static RenderVolume fromCompressed(codec::CompressedVolume volume);
   static RenderVolume fromVolume(const codec::Volume& volume,
@@ -46,7 +50,7 @@ class RenderVolume {
 
  private:
   RenderVolume() = default;
-  void init();
+  void init(const codec::CodecOptionValues& renderOptions = {});
   std::shared_ptr<codec::ContainerFile> file_;
   std::shared_ptr<codec::CompressedVolume> memory_;
   codec::SectionSet sections_;

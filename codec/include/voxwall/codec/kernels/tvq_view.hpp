@@ -1,0 +1,138 @@
+// Random access into the tvq codec's blocks (Fout and Ma, "Transform Coding for
+// Hardware-Accelerated Volume Rendering", 2007), on the host or on a device. A coded 4^3 block is
+// its mean plus, per partition (lowpass, bandpass, highpass), one codevector of that partition's
+// *associated* codebook: a codevector already taken back through the inverse transform (the
+// paper's vector reprojection, section 4.3), so a voxel is P look-ups and P - 1 additions plus
+// the mean, and no block ever needs an inverse transform or a class test. The caches, corners and
+// sampling are CachedBrickView's. The file layout is in tvq_codec.hpp; this is the layout of the
+// render buffer the codec's Layout builds from it.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#include <voxwall/codec/kernels/cached_brick_view.hpp>
+#include <voxwall/codec/kernels/vq_view.hpp>
+
+namespace voxwall::codec::kernels {
+
+inline constexpr int kTvqPartitions = 3;  // lowpass, bandpass, highpass
+
+// One sub-volume of the render buffer: where its codebooks, occupancy and records are, and how
+// its records are packed. Offsets are in bytes from the buffer's start.
+struct TvqSubvolume {
+  std::uint64_t codebookAt[kTvqPartitions];  // associated codebooks: (1 + codevectors) x 64 float
+  std::uint64_t occupancyAt;                 // u64 words, bit i: local block i is coded
+  std::uint64_t rankAt;                      // u32 per word: coded blocks before the word
+  std::uint64_t recordsAt;                   // coded blocks' records, `recordBits` each
+  std::int32_t firstBlock[3];                // the sub-volume's first block per axis
+  std::int32_t blocks[3];                    // its blocks per axis
+  std::int32_t codeBits[kTvqPartitions];     // bits of each partition's code in a record
+  std::int32_t recordBits;                   // dcBits + the three code bits
+  float background;                          // the value of every voxel of an uncoded block
+  std::uint32_t reserved;
+};
+static_assert(sizeof(TvqSubvolume) == 96);
+static_assert(std::is_trivially_copyable_v<TvqSubvolume>);
+
+// The codec's half of the view. `data` is the render buffer (host or device memory, not owned):
+// the sub-volume table at subvolumesAt, then the arrays the table points at.
+struct TvqDecoder {
+  static constexpr int kBrickSide = 4;
+  static constexpr int kVoxels = 64;
+  using Value = float;
+  static constexpr std::uint64_t kUncoded = 0xFFFFFFFFull;  // the local part of an uncoded key
+
+  const std::uint8_t* data = nullptr;
+  std::uint64_t subvolumesAt = 0;
+  int subvolumeBlocks = 64;  // a sub-volume's side in blocks
+  int subvolumesX = 1, subvolumesY = 1;
+  int dcBits = 8;
+  float dcLo = 0, dcStep = 1;       // a block's mean is dcLo + q x dcStep
+  float lo = 0, hi = 0;             // the volume's value range: decoded voxels are clamped to it
+  int partitions = kTvqPartitions;  // progressive level: partitions added to the mean (0..3)
+  bool integral = false;            // integer data: decoded voxels round to integers
+
+  VOXWALL_HD_INLINE const TvqSubvolume& subvolume(std::uint64_t s) const {
+    return reinterpret_cast<const TvqSubvolume*>(data + subvolumesAt)[s];
+  }
+
+  // The sub-volume in the high 32 bits; in the low 32 the block's record among the sub-volume's
+  // coded blocks, or kUncoded for a block that is the sub-volume's background.
+  VOXWALL_HD_INLINE std::uint64_t key(int bx, int by, int bz) const {
+    const int n = subvolumeBlocks;
+    const int sx = bx / n, sy = by / n, sz = bz / n;
+    const std::uint64_t s = (std::uint64_t(sz) * std::uint64_t(subvolumesY) + std::uint64_t(sy)) *
+                                std::uint64_t(subvolumesX) +
+                            std::uint64_t(sx);
+    const TvqSubvolume& sv = subvolume(s);
+    const std::uint64_t local =
+        (std::uint64_t(bz - sv.firstBlock[2]) * std::uint64_t(sv.blocks[1]) +
+         std::uint64_t(by - sv.firstBlock[1])) *
+            std::uint64_t(sv.blocks[0]) +
+        std::uint64_t(bx - sv.firstBlock[0]);
+    const std::uint64_t word =
+        reinterpret_cast<const std::uint64_t*>(data + sv.occupancyAt)[local >> 6];
+    const std::uint64_t bit = std::uint64_t(1) << (local & 63);
+    if (!(word & bit)) return (s << 32) | kUncoded;
+    const std::uint32_t before =
+        reinterpret_cast<const std::uint32_t*>(data + sv.rankAt)[local >> 6];
+    return (s << 32) | std::uint64_t(before + popcount64(word & (bit - 1)));
+  }
+
+  // The codes of record `r` of sub-volume `sv`: the quantized mean and one code per partition.
+  VOXWALL_HD_INLINE void codes(const TvqSubvolume& sv, std::uint64_t r, std::uint32_t& dc,
+                               std::uint32_t* k) const {
+    const std::uint8_t* records = data + sv.recordsAt;
+    std::uint64_t bit = r * std::uint64_t(sv.recordBits);
+    dc = std::uint32_t(readBits(records, bit, dcBits));
+    bit += std::uint64_t(dcBits);
+    for (int p = 0; p < kTvqPartitions; ++p) {
+      k[p] = std::uint32_t(readBits(records, bit, sv.codeBits[p]));
+      bit += std::uint64_t(sv.codeBits[p]);
+    }
+  }
+
+  // Equation 6 of the paper: the mean plus the associated codevector of each partition the
+  // progressive level keeps, clamped to the volume's range.
+  VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
+    const TvqSubvolume& sv = subvolume(key >> 32);
+    const std::uint64_t r = key & 0xFFFFFFFFull;
+    if (r == kUncoded) {
+      for (int i = 0; i < kVoxels; ++i) out[i] = sv.background;
+      return;
+    }
+    std::uint32_t dc = 0, k[kTvqPartitions];
+    codes(sv, r, dc, k);
+    const float mean = dcLo + float(dc) * dcStep;
+    for (int i = 0; i < kVoxels; ++i) out[i] = mean;
+    for (int p = 0; p < partitions; ++p) {
+      const float* v = reinterpret_cast<const float*>(data + sv.codebookAt[p]) +
+                       std::size_t(k[p]) * std::size_t(kVoxels);
+      for (int i = 0; i < kVoxels; ++i) out[i] += v[i];
+    }
+    // Written so that a NaN (which a validated file cannot make) would become `lo` too. Integer
+    // data is rounded here, so the view samples exactly the decoded volume's values.
+    for (int i = 0; i < kVoxels; ++i) {
+      const float v = integral ? floorf(out[i] + 0.5f) : out[i];
+      out[i] = v >= lo ? (v <= hi ? v : hi) : lo;
+    }
+  }
+
+  VOXWALL_HD_INLINE float scalar(float v) const { return v; }
+
+  static VOXWALL_HD_INLINE int popcount64(std::uint64_t v) {
+#if defined(__CUDA_ARCH__)
+    return __popcll(v);
+#else
+    return __builtin_popcountll(v);
+#endif
+  }
+};
+
+using TvqView = CachedBrickView<TvqDecoder>;
+
+static_assert(std::is_trivially_copyable_v<TvqView>);
+
+}  // namespace voxwall::codec::kernels

@@ -1,0 +1,863 @@
+// The tvq codec: encoder, layout and decoder; the byte layout is documented in tvq_codec.hpp and
+// our reading of the paper in docs/tvq.md.
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <glm/common.hpp>
+#include <limits>
+#include <queue>
+#include <random>
+#include <voxwall/codec/brick_volume.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/tvq_codec.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/core/parallel.hpp>
+
+#include "lbg.hpp"
+
+namespace voxwall::codec::tvq {
+namespace {
+
+constexpr std::size_t kParamsBytes = 88;
+constexpr std::size_t kSubvolumeBytes = 112;
+constexpr int kMaxCodeBitsTotal = 3 * kMaxCodeBits;
+// A codevector is worth its storage (its coefficients at 16 bits) only if it serves several
+// blocks: a chapter gets at most one codevector per kMembersPerCodevector of its blocks.
+constexpr std::uint64_t kMembersPerCodevector = 8;
+constexpr double kMaxScale = 1e30;
+constexpr std::uint64_t kTrainingPerCodevector = 16;
+
+double seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// The coefficients (k >= 1) of partition p that a class's chapter holds, in coefficient order.
+std::vector<int> chapterCoefficients(const Basis& basis, int p, int cls) {
+  std::vector<int> out;
+  const std::uint8_t keep = classZones(cls);
+  for (int k = 1; k < kBlockVoxels; ++k) {
+    const int z = basis.zone[std::size_t(k)];
+    if (zonePartition(z) == p && (keep & (1u << z))) out.push_back(k);
+  }
+  return out;
+}
+
+// The block grid and its sub-volumes.
+struct Grid {
+  glm::ivec3 dims{}, blocks{}, subs{};
+  int s = 64;
+  Grid(glm::ivec3 d, int subBlocks) : dims(d), s(subBlocks) {
+    blocks = (dims + 3) / 4;
+    subs = (blocks + s - 1) / s;
+  }
+  std::uint64_t subCount() const {
+    return std::uint64_t(subs.x) * std::uint64_t(subs.y) * std::uint64_t(subs.z);
+  }
+  glm::ivec3 subCoords(std::uint64_t i) const {
+    return {int(i % std::uint64_t(subs.x)), int(i / std::uint64_t(subs.x) % std::uint64_t(subs.y)),
+            int(i / (std::uint64_t(subs.x) * std::uint64_t(subs.y)))};
+  }
+  glm::ivec3 first(std::uint64_t i) const { return subCoords(i) * s; }
+  glm::ivec3 extent(std::uint64_t i) const { return glm::min(glm::ivec3(s), blocks - first(i)); }
+  static std::uint64_t volume(glm::ivec3 e) {
+    return std::uint64_t(e.x) * std::uint64_t(e.y) * std::uint64_t(e.z);
+  }
+};
+
+// A chapter's training material and statistics in one sub-volume.
+struct Chapter {
+  int cls = 0, dims = 0;
+  std::vector<int> coefs;
+  std::vector<float> vectors;  // members x dims
+  std::uint64_t members = 0;
+  double zeroError = 0, meanError = 0;  // squared error against the zero vector, the centroid
+  // Modelled distortion with n codevectors (high-rate: meanError x n^(-2/dims)); 0 once every
+  // member can have its own.
+  double distortion(std::uint64_t n) const {
+    if (members == 0) return 0;
+    if (n == 0) return zeroError;
+    if (n >= members) return 0;
+    return meanError * std::pow(double(n), -2.0 / double(dims));
+  }
+  std::uint64_t cap() const {
+    return std::max<std::uint64_t>(members ? 1 : 0, members / kMembersPerCodevector);
+  }
+};
+
+// Per partition, the order in which codevectors are handed out: always to the chapter whose
+// modelled distortion drops most per bit of codebook storage (at the end the slopes are equal:
+// Ramamurthi and Gersho's equal mean distortion per codevector, weighted by storage). Step i
+// records the chapter, the drop per bit (made non-increasing) and the totals after it.
+struct PartitionCurve {
+  std::vector<std::uint8_t> chapter;  // per step
+  std::vector<double> slope;          // distortion drop per storage bit, non-increasing
+  std::vector<double> distortion;     // after step i; [0] before any
+  std::vector<double> bookBits;       // codebook storage after step i; [0] = 0
+  std::size_t maxSteps() const { return chapter.size(); }
+};
+
+PartitionCurve partitionCurve(const std::vector<Chapter>& chapters) {
+  PartitionCurve curve;
+  std::vector<std::uint64_t> n(chapters.size(), 0);
+  using Step = std::pair<double, std::size_t>;
+  std::priority_queue<Step> gains;
+  auto push = [&](std::size_t c) {
+    if (n[c] < chapters[c].cap())
+      gains.push({(chapters[c].distortion(n[c]) - chapters[c].distortion(n[c] + 1)) /
+                      (16.0 * double(chapters[c].dims)),
+                  c});
+  };
+  double total = 0, bits = 0;
+  for (std::size_t c = 0; c < chapters.size(); ++c) total += chapters[c].distortion(0), push(c);
+  curve.distortion.push_back(total), curve.bookBits.push_back(0);
+  const std::uint64_t most = (std::uint64_t(1) << kMaxCodeBits) - 1;
+  while (curve.chapter.size() < most && !gains.empty()) {
+    const auto [slope, c] = gains.top();
+    gains.pop();
+    total -= slope * 16.0 * double(chapters[c].dims), bits += 16.0 * double(chapters[c].dims);
+    ++n[c];
+    curve.chapter.push_back(std::uint8_t(c));
+    curve.slope.push_back(curve.slope.empty() ? slope : std::min(slope, curve.slope.back()));
+    curve.distortion.push_back(std::max(0.0, total)), curve.bookBits.push_back(bits);
+    push(c);
+  }
+  return curve;
+}
+
+// What the encoder knows of a sub-volume before training.
+struct SubPlan {
+  glm::ivec3 first{}, extent{};
+  std::uint32_t background = 0;
+  std::uint64_t coded = 0;
+  std::vector<std::uint8_t> cls;  // per local block; kZero blocks that are uncoded: 255
+  std::vector<std::uint16_t> dc;  // per local block
+  std::array<std::vector<Chapter>, 3> chapters;
+  std::array<PartitionCurve, 3> curves;
+  // Chosen by allocate():
+  std::array<int, 3> bits{};                        // as stored
+  std::array<std::vector<std::uint64_t>, 3> sizes;  // chapter sizes
+};
+
+// The Lagrangian allocation (Shoham and Gersho): each partition takes the codebook size that
+// minimizes distortion + lambda x (its codebook storage + its code bits in every coded block),
+// among the sizes 2^b - 1 (b <= maxBits[p]) and the point where a codevector no longer pays
+// for its storage (slope < lambda). lambda = 0: the largest codebooks the bits address.
+void allocate(SubPlan& plan, double lambda, const std::array<int, 3>& maxBits) {
+  for (int p = 0; p < 3; ++p) {
+    const PartitionCurve& c = plan.curves[std::size_t(p)];
+    std::size_t worth = 0;  // steps whose slope is at least lambda
+    while (worth < c.maxSteps() && c.slope[worth] >= lambda) ++worth;
+    double best = std::numeric_limits<double>::infinity();
+    std::size_t steps = 0;
+    for (int b = 0; b <= maxBits[std::size_t(p)]; ++b) {
+      const std::size_t s = std::min<std::size_t>(worth, (std::size_t(1) << b) - 1);
+      const double cost = c.distortion[s] +
+                          lambda * (c.bookBits[s] + double(plan.coded) * double(std::bit_width(s)));
+      if (cost < best) best = cost, steps = s;
+    }
+    plan.sizes[std::size_t(p)].assign(plan.chapters[std::size_t(p)].size(), 0);
+    for (std::size_t i = 0; i < steps; ++i) ++plan.sizes[std::size_t(p)][c.chapter[i]];
+    plan.bits[std::size_t(p)] = int(std::bit_width(steps));
+  }
+}
+
+// The bits per partition within a budget of `codeBits` for the three codes: the split of least
+// modelled distortion, each partition's codebook as large as its bits address (lambda = 0).
+void allocateBits(SubPlan& plan, int codeBits) {
+  double best = std::numeric_limits<double>::infinity();
+  std::array<int, 3> pick{};
+  auto distortion = [&](int p, int b) {
+    const PartitionCurve& c = plan.curves[std::size_t(p)];
+    return c.distortion[std::min<std::size_t>(c.maxSteps(), (std::size_t(1) << b) - 1)];
+  };
+  for (int a = 0; a <= std::min(kMaxCodeBits, codeBits); ++a)
+    for (int b = 0; b <= std::min(kMaxCodeBits, codeBits - a); ++b) {
+      const int c = std::min(kMaxCodeBits, codeBits - a - b);
+      const double d = distortion(0, a) + distortion(1, b) + distortion(2, c);
+      // Ties (saturated chapters) keep the fewer bits found first.
+      if (d < best * (1 - 1e-12)) best = d, pick = {a, b, c};
+    }
+  allocate(plan, 0.0, pick);
+}
+
+// Bytes of the file's sections for the plans as allocated (what --bits-per-voxel searches).
+std::uint64_t plannedBytes(const std::vector<SubPlan>& plans, int dcBits) {
+  std::uint64_t bytes = kParamsBytes + 64 * 64 * 4 + 64 + plans.size() * kSubvolumeBytes;
+  for (const SubPlan& s : plans) {
+    for (int p = 0; p < 3; ++p)
+      for (std::size_t c = 0; c < s.sizes[std::size_t(p)].size(); ++c)
+        bytes += s.sizes[std::size_t(p)][c] * std::uint64_t(s.chapters[std::size_t(p)][c].dims) * 2;
+    bytes += (Grid::volume(s.extent) + 63) / 64 * 8;
+    const std::uint64_t record = std::uint64_t(dcBits + s.bits[0] + s.bits[1] + s.bits[2]);
+    bytes += (s.coded * record + 7) / 8;
+  }
+  return bytes;
+}
+
+template <class T>
+CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progress& progress,
+                             EncodeStats& stats) {
+  const int workers = resolveThreads(params.threads);
+  const auto data = volume.as<T>();
+  float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
+  for (T v : data) {
+    if (!std::isfinite(float(v)))
+      throw std::invalid_argument(
+          "the volume holds NaN or infinite values: the tvq codec codes finite numbers only");
+    vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
+  }
+  const double range = vmax > vmin ? double(vmax) - double(vmin) : 1.0;
+  const Grid grid(volume.dims, params.subvolumeVoxels / 4);
+  auto blockAt = [&](glm::ivec3 b, float* out) {
+    for (int z = 0, i = 0; z < 4; ++z)
+      for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 4; ++x, ++i) {
+          const int vx = std::min(b.x * 4 + x, volume.dims.x - 1);
+          const int vy = std::min(b.y * 4 + y, volume.dims.y - 1);
+          const int vz = std::min(b.z * 4 + z, volume.dims.z - 1);
+          out[i] = float(data[volume.index(vx, vy, vz)]);
+        }
+  };
+  const std::uint64_t blockCount = Grid::volume(grid.blocks);
+  auto blockOfIndex = [&](std::uint64_t i) {
+    return glm::ivec3{int(i % std::uint64_t(grid.blocks.x)),
+                      int(i / std::uint64_t(grid.blocks.x) % std::uint64_t(grid.blocks.y)),
+                      int(i / (std::uint64_t(grid.blocks.x) * std::uint64_t(grid.blocks.y)))};
+  };
+
+  // 1. The transform.
+  auto t0 = std::chrono::steady_clock::now();
+  const Basis basis =
+      params.transform == Transform::Dct
+          ? dctBasis()
+          : kltBasis(
+                blockCount, [&](std::uint64_t i, float* out) { blockAt(blockOfIndex(i), out); },
+                workers, progress);
+  stats.transformSeconds = seconds(t0);
+
+  const int dcLevels = (1 << params.dcBits) - 1;
+  const double dcLo = vmin, dcStep = range / double(dcLevels);
+  const double maxError2 = std::pow(params.fidelity * range, 2) * kBlockVoxels;
+  std::array<std::vector<std::vector<int>>, 3> coefs;  // [partition][chapter]
+  for (int p = 0; p < 3; ++p)
+    for (int c = 0; c < chapterCount(p); ++c)
+      coefs[std::size_t(p)].push_back(chapterCoefficients(basis, p, firstChapterClass(p) + c));
+
+  // 2. Classification and the training material, per sub-volume.
+  t0 = std::chrono::steady_clock::now();
+  std::vector<SubPlan> plans(grid.subCount());
+  progress.begin("tvq: classify", plans.size());
+  for (std::uint64_t si = 0; si < plans.size(); ++si) {
+    SubPlan& plan = plans[si];
+    plan.first = grid.first(si), plan.extent = grid.extent(si);
+    const std::uint64_t local = Grid::volume(plan.extent);
+    plan.cls.assign(local, 0), plan.dc.assign(local, 0);
+    std::vector<float> coefficients(local * kBlockVoxels);
+    parallelFor(local, workers, [&](std::size_t i) {
+      const glm::ivec3 e = plan.extent;
+      const glm::ivec3 b = plan.first + glm::ivec3{int(i % std::size_t(e.x)),
+                                                   int(i / std::size_t(e.x) % std::size_t(e.y)),
+                                                   int(i / (std::size_t(e.x) * std::size_t(e.y)))};
+      float x[kBlockVoxels];
+      blockAt(b, x);
+      float* c = coefficients.data() + i * kBlockVoxels;
+      basis.forward(x, c);
+      const double mean = double(c[0]) / 8.0;
+      plan.dc[i] =
+          std::uint16_t(std::clamp(std::lround((mean - dcLo) / dcStep), 0L, long(dcLevels)));
+      plan.cls[i] = std::uint8_t(classify(basis, c, maxError2, params.classified));
+    });
+    // The background: the most common mean of the ZERO blocks.
+    std::vector<std::uint64_t> histogram(std::size_t(dcLevels) + 1, 0);
+    for (std::uint64_t i = 0; i < local; ++i)
+      if (plan.cls[i] == kZero) ++histogram[plan.dc[i]];
+    plan.background =
+        std::uint32_t(std::max_element(histogram.begin(), histogram.end()) - histogram.begin());
+    for (int p = 0; p < 3; ++p)
+      for (int c = 0; c < chapterCount(p); ++c) {
+        Chapter ch;
+        ch.cls = firstChapterClass(p) + c;
+        ch.coefs = coefs[std::size_t(p)][std::size_t(c)];
+        ch.dims = int(ch.coefs.size());
+        plan.chapters[std::size_t(p)].push_back(std::move(ch));
+      }
+    for (std::uint64_t i = 0; i < local; ++i) {
+      const int cls = plan.cls[i];
+      ++stats.classBlocks[std::size_t(cls)];
+      if (cls == kZero) {
+        if (plan.dc[i] == plan.background)
+          plan.cls[i] = 255;
+        else
+          ++plan.coded;
+        continue;
+      }
+      ++plan.coded;
+      const float* c = coefficients.data() + i * kBlockVoxels;
+      for (int p = 0; p < 3; ++p) {
+        if (cls < firstChapterClass(p)) continue;
+        Chapter& ch = plan.chapters[std::size_t(p)][std::size_t(cls - firstChapterClass(p))];
+        for (int k : ch.coefs) ch.vectors.push_back(c[k]);
+        ++ch.members;
+      }
+    }
+    for (int p = 0; p < 3; ++p) {
+      for (Chapter& ch : plan.chapters[std::size_t(p)]) {
+        std::vector<double> mean(std::size_t(ch.dims), 0.0);
+        for (std::uint64_t m = 0; m < ch.members; ++m)
+          for (int j = 0; j < ch.dims; ++j) {
+            const double v = ch.vectors[m * std::uint64_t(ch.dims) + std::uint64_t(j)];
+            mean[std::size_t(j)] += v, ch.zeroError += v * v;
+          }
+        double norm2 = 0;
+        for (double& v : mean) v /= double(std::max<std::uint64_t>(1, ch.members)), norm2 += v * v;
+        ch.meanError = std::max(0.0, ch.zeroError - double(ch.members) * norm2);
+      }
+      plan.curves[std::size_t(p)] = partitionCurve(plan.chapters[std::size_t(p)]);
+    }
+    stats.coded += plan.coded;
+    progress.advance();
+  }
+  progress.end();
+  stats.blocks = blockCount;
+
+  // 3. The allocation: --codebook-bits split among the partitions, or, for a size target, the
+  // Lagrangian trade-off whose file fits it (bisection on lambda).
+  int codeBits = params.codeBits;
+  if (params.targetBitsPerVoxel > 0) {
+    const double target = params.targetBitsPerVoxel * double(volume.voxelCount()) / 8.0;
+    const std::array<int, 3> most{kMaxCodeBits, kMaxCodeBits, kMaxCodeBits};
+    auto bytesAt = [&](double lambda) {
+      for (SubPlan& s : plans) allocate(s, lambda, most);
+      return double(plannedBytes(plans, params.dcBits));
+    };
+    if (bytesAt(std::numeric_limits<double>::infinity()) > target) {
+      throw std::invalid_argument(formatLine(
+          "--bits-per-voxel %g is below the smallest tvq file of this volume (%.3f bits per "
+          "voxel with --dc-bits %d: the means and occupancy alone); lower --dc-bits or raise the "
+          "target",
+          params.targetBitsPerVoxel,
+          8.0 * bytesAt(std::numeric_limits<double>::infinity()) / double(volume.voxelCount()),
+          params.dcBits));
+    }
+    double lo = -40, hi = 40;  // log2 of lambda, in squared value units per bit
+    if (bytesAt(0) <= target) {
+      hi = -std::numeric_limits<double>::infinity();
+    } else {
+      for (int i = 0; i < 60; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (bytesAt(std::exp2(mid)) > target ? lo : hi) = mid;
+      }
+    }
+    bytesAt(std::exp2(hi));
+    codeBits = 0;
+    for (const SubPlan& s : plans) codeBits = std::max(codeBits, s.bits[0] + s.bits[1] + s.bits[2]);
+  } else {
+    for (SubPlan& s : plans) allocateBits(s, codeBits);
+  }
+  stats.codeBits = codeBits;
+  stats.subvolumes = int(plans.size());
+
+  // 4. The chapters' codebooks (LBG), quantized to 16 bits per coefficient with a scale per
+  // partition, and every member's nearest codevector.
+  const double classifySeconds = seconds(t0);
+  t0 = std::chrono::steady_clock::now();
+  progress.begin("tvq: train codebooks (LBG)", plans.size() * 3 * 9);
+  struct Coded {
+    std::array<std::vector<std::vector<std::int16_t>>, 3> codebooks;  // [p][chapter]
+    std::array<float, 3> scale{};
+    std::array<std::vector<std::vector<std::uint32_t>>, 3> codes;  // [p][chapter][member]
+  };
+  std::vector<Coded> coded(plans.size());
+  std::mt19937_64 rng(params.seed);
+  for (std::size_t si = 0; si < plans.size(); ++si) {
+    SubPlan& plan = plans[si];
+    Coded& out = coded[si];
+    for (int p = 0; p < 3; ++p) {
+      auto& chapters = plan.chapters[std::size_t(p)];
+      std::vector<std::vector<float>> books(chapters.size());
+      float peak = 0;
+      for (std::size_t c = 0; c < chapters.size(); ++c) {
+        const Chapter& ch = chapters[c];
+        const std::uint64_t size = plan.sizes[std::size_t(p)][c];
+        if (size > 0) {
+          // A random sample of the members beyond trainingVectors.
+          std::vector<float> sample;
+          // At least kTrainingPerCodevector training vectors per codevector (fewer overfit).
+          const std::uint64_t train =
+              std::max<std::uint64_t>(params.trainingVectors, kTrainingPerCodevector * size);
+          if (ch.members > train) {
+            std::vector<std::uint64_t> pick(ch.members);
+            for (std::uint64_t m = 0; m < ch.members; ++m) pick[m] = m;
+            std::shuffle(pick.begin(), pick.end(), rng);
+            pick.resize(train);
+            std::sort(pick.begin(), pick.end());
+            sample.reserve(pick.size() * std::size_t(ch.dims));
+            for (std::uint64_t m : pick)
+              sample.insert(sample.end(),
+                            ch.vectors.begin() + std::ptrdiff_t(m * std::uint64_t(ch.dims)),
+                            ch.vectors.begin() + std::ptrdiff_t((m + 1) * std::uint64_t(ch.dims)));
+          }
+          books[c] = trainLbg(sample.empty() ? std::span<const float>(ch.vectors) : sample, ch.dims,
+                              size, params.iterations, rng(), workers);
+          for (float v : books[c]) peak = std::max(peak, std::abs(v));
+        }
+        progress.advance();
+      }
+      for (std::size_t c = chapters.size(); c < 9; ++c) progress.advance();
+      const float scale = peak > 0 ? peak / 32767.0f : 1.0f;
+      out.scale[std::size_t(p)] = scale;
+      out.codebooks[std::size_t(p)].resize(chapters.size());
+      out.codes[std::size_t(p)].resize(chapters.size());
+      for (std::size_t c = 0; c < chapters.size(); ++c) {
+        std::vector<std::int16_t>& q = out.codebooks[std::size_t(p)][c];
+        std::vector<float> dequantized(books[c].size());
+        q.resize(books[c].size());
+        for (std::size_t i = 0; i < books[c].size(); ++i) {
+          q[i] = std::int16_t(std::clamp(std::lround(books[c][i] / scale), -32767L, 32767L));
+          dequantized[i] = float(q[i]) * scale;
+        }
+        plan.sizes[std::size_t(p)][c] = q.size() / std::size_t(std::max(1, chapters[c].dims));
+        if (!q.empty())
+          out.codes[std::size_t(p)][c] =
+              nearestCodevectors(chapters[c].vectors, chapters[c].dims, dequantized, workers);
+        chapters[c].vectors = {};
+        chapters[c].vectors.shrink_to_fit();
+      }
+    }
+  }
+  progress.end();
+  stats.trainSeconds = seconds(t0);
+  stats.codeSeconds = classifySeconds;
+
+  // 5. The sections.
+  CompressedVolume cv;
+  cv.info = volumeInfo(volume, CodecId::Tvq);
+  std::vector<std::byte> params1, basisBytes, subBytes, bookBytes, occBytes, recBytes;
+  {
+    ByteWriter w(params1);
+    w.put<std::uint32_t>(std::uint32_t(params.transform));
+    w.put<std::uint32_t>(std::uint32_t(grid.s));
+    w.put<std::uint32_t>(std::uint32_t(params.dcBits));
+    w.put<std::uint32_t>(params.classified ? 1u : 0u);
+    w.put<std::uint32_t>(std::uint32_t(codeBits));
+    w.put<std::uint32_t>(0);
+    w.put<double>(params.fidelity);
+    w.put<double>(dcLo);
+    w.put<double>(dcStep);
+    for (int l = 0; l < kProgressiveLevels; ++l) w.put<double>(0.0);  // measured below
+    w.put<std::uint64_t>(plans.size());
+  }
+  {
+    ByteWriter w(basisBytes);
+    for (float v : basis.rows) w.put<float>(v);
+    for (std::uint8_t z : basis.zone) w.put<std::uint8_t>(z);
+  }
+  ByteWriter sw(subBytes), bw(bookBytes), ow(occBytes);
+  std::array<double, 3> bitSum{};
+  for (std::size_t si = 0; si < plans.size(); ++si) {
+    const SubPlan& plan = plans[si];
+    const Coded& out = coded[si];
+    for (int p = 0; p < 3; ++p) sw.put<std::uint8_t>(std::uint8_t(plan.bits[std::size_t(p)]));
+    sw.put<std::uint8_t>(0);
+    sw.put<std::uint32_t>(plan.background);
+    sw.put<std::uint64_t>(plan.coded);
+    for (int p = 0; p < 3; ++p) sw.put<float>(out.scale[std::size_t(p)]);
+    for (int p = 0; p < 3; ++p) {
+      bitSum[std::size_t(p)] += plan.bits[std::size_t(p)];
+      for (std::uint64_t s : plan.sizes[std::size_t(p)]) sw.put<std::uint32_t>(std::uint32_t(s));
+    }
+    for (int p = 0; p < 3; ++p)
+      for (const auto& book : out.codebooks[std::size_t(p)])
+        for (std::int16_t v : book) bw.put<std::int16_t>(v);
+    // Occupancy and records.
+    const std::uint64_t local = Grid::volume(plan.extent);
+    std::vector<std::uint64_t> words((local + 63) / 64, 0);
+    const int recordBits = params.dcBits + plan.bits[0] + plan.bits[1] + plan.bits[2];
+    std::vector<std::uint8_t> records((plan.coded * std::uint64_t(recordBits) + 7) / 8, 0);
+    std::uint64_t bit = 0;
+    auto putBits = [&](std::uint64_t value, int bits) {
+      for (int i = 0; i < bits; ++i, ++bit)
+        if ((value >> i) & 1) records[bit >> 3] |= std::uint8_t(1u << (bit & 7));
+    };
+    std::array<std::vector<std::uint64_t>, 3> next;    // next member per chapter
+    std::array<std::vector<std::uint64_t>, 3> offset;  // first global index per chapter
+    for (int p = 0; p < 3; ++p) {
+      next[std::size_t(p)].assign(plan.chapters[std::size_t(p)].size(), 0);
+      std::uint64_t o = 1;
+      for (std::uint64_t s : plan.sizes[std::size_t(p)])
+        offset[std::size_t(p)].push_back(o), o += s;
+    }
+    for (std::uint64_t i = 0; i < local; ++i) {
+      const int cls = plan.cls[i];
+      if (cls == 255) continue;
+      words[i >> 6] |= std::uint64_t(1) << (i & 63);
+      putBits(plan.dc[i], params.dcBits);
+      for (int p = 0; p < 3; ++p) {
+        std::uint64_t k = 0;
+        if (cls != kZero && cls >= firstChapterClass(p)) {
+          const std::size_t c = std::size_t(cls - firstChapterClass(p));
+          const std::uint64_t member = next[std::size_t(p)][c]++;
+          if (plan.sizes[std::size_t(p)][c] > 0)
+            k = offset[std::size_t(p)][c] + out.codes[std::size_t(p)][c][member];
+        }
+        putBits(k, plan.bits[std::size_t(p)]);
+      }
+    }
+    for (std::uint64_t word : words) ow.put<std::uint64_t>(word);
+    recBytes.insert(recBytes.end(), reinterpret_cast<const std::byte*>(records.data()),
+                    reinterpret_cast<const std::byte*>(records.data() + records.size()));
+  }
+  for (int p = 0; p < 3; ++p)
+    stats.meanCodeBits[std::size_t(p)] =
+        bitSum[std::size_t(p)] / double(std::max<std::size_t>(1, plans.size()));
+  stats.codebookBytes = bookBytes.size(), stats.recordBytes = recBytes.size();
+  stats.occupancyBytes = occBytes.size();
+  cv.sections.push_back({kParams, std::move(params1)});
+  cv.sections.push_back({kBasis, std::move(basisBytes)});
+  cv.sections.push_back({kSubvolumes, std::move(subBytes)});
+  cv.sections.push_back({kCodebooks, std::move(bookBytes)});
+  cv.sections.push_back({kOccupancy, std::move(occBytes)});
+  cv.sections.push_back({kRecords, std::move(recBytes)});
+
+  // 6. The PSNR of every progressive level, measured on the decoded volume.
+  progress.begin("tvq: measure PSNR", kProgressiveLevels);
+  {
+    const Layout layout(cv.info, cv.view());
+    for (int l = 0; l < kProgressiveLevels; ++l) {
+      stats.levelPsnr[std::size_t(l)] = psnr(volume, layout.decode(l));
+      progress.advance();
+    }
+  }
+  progress.end();
+  for (int l = 0; l < kProgressiveLevels; ++l) {
+    double v = stats.levelPsnr[std::size_t(l)];
+    std::memcpy(cv.sections[0].second.data() + 48 + 8 * std::size_t(l), &v, sizeof v);
+  }
+  return cv;
+}
+
+}  // namespace
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats) {
+  if (params.dcBits < 1 || params.dcBits > 16)
+    throw std::invalid_argument("--dc-bits must be in 1..16");
+  if (params.codeBits < 0 || params.codeBits > kMaxCodeBitsTotal)
+    throw std::invalid_argument("--codebook-bits must be in 0.." +
+                                std::to_string(kMaxCodeBitsTotal));
+  if (params.subvolumeVoxels < 4 || params.subvolumeVoxels > 4 * kMaxSubvolumeBlocks ||
+      params.subvolumeVoxels % 4)
+    throw std::invalid_argument("--subvolume must be a multiple of 4 in 4.." +
+                                std::to_string(4 * kMaxSubvolumeBlocks) + " voxels");
+  if (!(params.fidelity >= 0 && params.fidelity < 1))
+    throw std::invalid_argument("--fidelity must be in [0, 1)");
+  if (params.iterations < 1) throw std::invalid_argument("--iterations must be at least 1");
+  if (params.trainingVectors < 1)
+    throw std::invalid_argument("tvq: training vectors must be at least 1");
+  EncodeStats local;
+  EncodeStats& s = stats ? *stats : local;
+  s = EncodeStats{};
+  return dispatchScalar(
+      volume.type, [&](auto t) { return encodeTyped<decltype(t)>(volume, params, progress, s); });
+}
+
+// ---- Layout ------------------------------------------------------------------------------
+
+Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
+  static std::atomic<std::uint64_t> nextCacheId{1};
+  cacheId_ = nextCacheId.fetch_add(kProgressiveLevels);  // one id per progressive level
+  const std::string& src = sections.source;
+  ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
+  if (r.remaining() != kParamsBytes)
+    r.fail(std::to_string(r.remaining()) + " bytes, expected " + std::to_string(kParamsBytes));
+  const std::uint32_t transform = r.get<std::uint32_t>();
+  const std::uint32_t s = r.get<std::uint32_t>();
+  const std::uint32_t dcBits = r.get<std::uint32_t>();
+  const std::uint32_t classified = r.get<std::uint32_t>();
+  const std::uint32_t codeBits = r.get<std::uint32_t>();
+  const std::uint32_t reserved = r.get<std::uint32_t>();
+  fidelity_ = r.get<double>(), dcLo_ = r.get<double>(), dcStep_ = r.get<double>();
+  for (double& v : levelPsnr_) v = r.get<double>();
+  const std::uint64_t subCount = r.get<std::uint64_t>();
+  if (transform != 1 && transform != 2)
+    r.fail("transform " + std::to_string(transform) + " (1 KLT, 2 DCT)");
+  if (s < 1 || s > std::uint32_t(kMaxSubvolumeBlocks))
+    r.fail("sub-volume side " + std::to_string(s) + " blocks (1.." +
+           std::to_string(kMaxSubvolumeBlocks) + ")");
+  if (dcBits < 1 || dcBits > 16) r.fail("mean bits " + std::to_string(dcBits) + " (1..16)");
+  if (classified > 1) r.fail("classified flag " + std::to_string(classified));
+  if (codeBits > std::uint32_t(kMaxCodeBitsTotal)) r.fail("code bits " + std::to_string(codeBits));
+  if (reserved != 0) r.fail("reserved field is not zero");
+  if (!(fidelity_ >= 0 && fidelity_ < 1)) r.fail("fidelity out of range");
+  if (!std::isfinite(dcLo_) || std::abs(dcLo_) > 1e30) r.fail("mean offset is not a finite number");
+  if (!(dcStep_ > 0) || !(dcStep_ * 65536.0 < 1e30)) r.fail("mean step out of range");
+  for (double v : levelPsnr_)
+    if (std::isnan(v)) r.fail("a PSNR is not a number");
+  transform_ = Transform(transform), s_ = int(s), dcBits_ = int(dcBits);
+  classified_ = classified == 1, codeBits_ = int(codeBits);
+  const Grid grid(info.dims, s_);
+  blocks_ = grid.blocks, grid_ = grid.subs;
+  if (subCount != grid.subCount())
+    r.fail(std::to_string(subCount) + " sub-volumes, the grid has " +
+           std::to_string(grid.subCount()));
+
+  // The basis.
+  ByteReader br(sections.get(kBasis, "basis"), src, "section 'basis'");
+  if (br.remaining() != 64 * 64 * 4 + 64)
+    br.fail(std::to_string(br.remaining()) + " bytes, expected " +
+            std::to_string(64 * 64 * 4 + 64));
+  for (float& v : basis_.rows) {
+    v = br.get<float>();
+    if (!(std::abs(v) <= 1.0f)) br.fail("a basis value outside [-1, 1]");
+  }
+  std::array<int, 8> zoneSize{};
+  for (std::uint8_t& z : basis_.zone) {
+    z = br.get<std::uint8_t>();
+    if (z > 7) br.fail("zone " + std::to_string(z) + " (0..7)");
+    ++zoneSize[z];
+  }
+  if (basis_.zone[0] != 0) br.fail("coefficient 0 (the mean) is not in zone 0");
+  for (int z = 0; z < 8; ++z)
+    if (zoneSize[std::size_t(z)] != 8)
+      br.fail("zone " + std::to_string(z) + " holds " + std::to_string(zoneSize[std::size_t(z)]) +
+              " coefficients, not 8");
+  std::array<std::vector<int>, 3> chapterDims;
+  std::array<std::vector<std::vector<int>>, 3> chapterCoefs;
+  for (int p = 0; p < 3; ++p)
+    for (int c = 0; c < chapterCount(p); ++c) {
+      chapterCoefs[std::size_t(p)].push_back(
+          chapterCoefficients(basis_, p, firstChapterClass(p) + c));
+      chapterDims[std::size_t(p)].push_back(int(chapterCoefs[std::size_t(p)].back().size()));
+    }
+
+  // The sub-volume table.
+  ByteReader sr(sections.get(kSubvolumes, "sub-volumes"), src, "section 'sub-volumes'");
+  if (sr.remaining() != subCount * kSubvolumeBytes)
+    sr.fail(std::to_string(sr.remaining()) + " bytes for " + std::to_string(subCount) +
+            " sub-volumes of " + std::to_string(kSubvolumeBytes));
+  std::uint64_t bookValues = 0, words = 0, recordBytes = 0;
+  for (std::uint64_t i = 0; i < subCount; ++i) {
+    Sub sub;
+    const std::string which = "sub-volume " + std::to_string(i);
+    for (int& b : sub.bits) {
+      b = sr.get<std::uint8_t>();
+      if (b > kMaxCodeBits)
+        sr.fail(which + ": " + std::to_string(b) + " code bits (0.." +
+                std::to_string(kMaxCodeBits) + ")");
+    }
+    if (sr.get<std::uint8_t>() != 0) sr.fail(which + ": reserved byte is not zero");
+    sub.background = sr.get<std::uint32_t>();
+    if (sub.background >> dcBits_) sr.fail(which + ": background mean does not fit the mean bits");
+    sub.coded = sr.get<std::uint64_t>();
+    const std::uint64_t local = Grid::volume(grid.extent(i));
+    if (sub.coded > local)
+      sr.fail(which + ": " + std::to_string(sub.coded) + " coded blocks of " +
+              std::to_string(local));
+    for (float& v : sub.scale) {
+      v = sr.get<float>();
+      if (!(v >= 0 && v <= kMaxScale)) sr.fail(which + ": a codebook scale out of range");
+    }
+    for (int p = 0; p < 3; ++p) {
+      std::uint64_t total = 1;
+      sub.codebookAt[std::size_t(p)] = bookValues;
+      for (int c = 0; c < chapterCount(p); ++c) {
+        const std::uint32_t n = sr.get<std::uint32_t>();
+        sub.chapters[std::size_t(p)].push_back(n);
+        total += n;
+        bookValues += std::uint64_t(n) * std::uint64_t(chapterDims[std::size_t(p)][std::size_t(c)]);
+        if (total > (std::uint64_t(1) << sub.bits[std::size_t(p)]))
+          sr.fail(which + ": partition " + std::to_string(p) +
+                  "'s chapters hold more codevectors than its " +
+                  std::to_string(sub.bits[std::size_t(p)]) + " code bits address");
+      }
+      codevectors_[std::size_t(p)] += total - 1;
+    }
+    sub.firstWord = words, sub.firstRecordByte = recordBytes;
+    words += (local + 63) / 64;
+    recordBytes +=
+        (sub.coded * std::uint64_t(dcBits_ + sub.bits[0] + sub.bits[1] + sub.bits[2]) + 7) / 8;
+    coded_ += sub.coded;
+    subvolumes_.push_back(std::move(sub));
+  }
+  codebooks_ = sections.get(kCodebooks, "codebooks");
+  if (codebooks_.size() != bookValues * 2)
+    ByteReader(codebooks_, src, "section 'codebooks'")
+        .fail(std::to_string(codebooks_.size()) + " bytes, the chapters need " +
+              std::to_string(bookValues * 2));
+  const auto occupancy = sections.get(kOccupancy, "occupancy");
+  ByteReader orr(occupancy, src, "section 'occupancy'");
+  if (occupancy.size() != words * 8)
+    orr.fail(std::to_string(occupancy.size()) + " bytes, the sub-volumes need " +
+             std::to_string(words * 8));
+  const auto records = sections.get(kRecords, "records");
+  ByteReader rr(records, src, "section 'records'");
+  if (records.size() != recordBytes)
+    rr.fail(std::to_string(records.size()) + " bytes, the coded blocks need " +
+            std::to_string(recordBytes));
+
+  // The render buffer: the sub-volume table, each sub-volume's associated codebooks (zero
+  // vector first), occupancy words with their ranks, then the records.
+  auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
+  std::uint64_t at = subvolumesAt_ = 0;
+  at += subCount * sizeof(kernels::TvqSubvolume);
+  std::vector<kernels::TvqSubvolume> table(subCount);
+  for (std::uint64_t i = 0; i < subCount; ++i)
+    for (int p = 0; p < 3; ++p) {
+      std::uint64_t n = 1;
+      for (std::uint32_t c : subvolumes_[i].chapters[std::size_t(p)]) n += c;
+      table[i].codebookAt[p] = at = align8(at);
+      at += n * kBlockVoxels * sizeof(float);
+    }
+  const std::uint64_t occupancyAt = at = align8(at);
+  at += words * 8;
+  const std::uint64_t rankAt = at;
+  at += words * 4;
+  const std::uint64_t recordsAt = at = align8(at);
+  at += recordBytes + 8;  // readBits reads 8 bytes past the last record's byte
+  render_.assign(at, std::byte{0});
+  std::memcpy(render_.data() + occupancyAt, occupancy.data(), occupancy.size());
+  if (!records.empty()) std::memcpy(render_.data() + recordsAt, records.data(), records.size());
+  for (std::uint64_t i = 0; i < subCount; ++i) {
+    const Sub& sub = subvolumes_[i];
+    kernels::TvqSubvolume& t = table[i];
+    const glm::ivec3 first = grid.first(i), extent = grid.extent(i);
+    for (int a = 0; a < 3; ++a) t.firstBlock[a] = first[a], t.blocks[a] = extent[a];
+    for (int p = 0; p < 3; ++p) t.codeBits[p] = sub.bits[std::size_t(p)];
+    t.recordBits = dcBits_ + sub.bits[0] + sub.bits[1] + sub.bits[2];
+    t.background = float(dcLo_ + double(sub.background) * dcStep_);
+    t.occupancyAt = occupancyAt + sub.firstWord * 8;
+    t.rankAt = rankAt + sub.firstWord * 4;
+    t.recordsAt = recordsAt + sub.firstRecordByte;
+    // Ranks, and the occupancy's agreement with the table.
+    const std::uint64_t local = Grid::volume(extent);
+    const auto* w = reinterpret_cast<const std::uint64_t*>(render_.data() + t.occupancyAt);
+    auto* rank = reinterpret_cast<std::uint32_t*>(render_.data() + t.rankAt);
+    std::uint64_t seen = 0;
+    for (std::uint64_t j = 0; j < (local + 63) / 64; ++j) {
+      rank[j] = std::uint32_t(seen);
+      std::uint64_t word = w[j];
+      if (j == (local - 1) / 64 && local % 64 && (word >> (local % 64)))
+        orr.fail("sub-volume " + std::to_string(i) + ": bits set past its blocks");
+      seen += std::uint64_t(std::popcount(word));
+    }
+    if (seen != sub.coded)
+      orr.fail("sub-volume " + std::to_string(i) + ": " + std::to_string(seen) +
+               " coded blocks, the table says " + std::to_string(sub.coded));
+    // Associated codebooks: each codevector taken back through the inverse transform (section
+    // 4.3, equation 5), so that decoding never does.
+    const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
+    for (int p = 0; p < 3; ++p) {
+      float* out = reinterpret_cast<float*>(render_.data() + t.codebookAt[p]) + kBlockVoxels;
+      std::uint64_t value = sub.codebookAt[std::size_t(p)];
+      for (int c = 0; c < chapterCount(p); ++c) {
+        const auto& ks = chapterCoefs[std::size_t(p)][std::size_t(c)];
+        for (std::uint32_t v = 0; v < sub.chapters[std::size_t(p)][std::size_t(c)]; ++v) {
+          for (int k : ks) {
+            std::int16_t q;
+            std::memcpy(&q, book + value++, 2);
+            const float coef = float(q) * sub.scale[std::size_t(p)];
+            const float* row = basis_.row(k);
+            for (int j = 0; j < kBlockVoxels; ++j) out[j] += coef * row[j];
+          }
+          out += kBlockVoxels;
+        }
+      }
+    }
+    // Every record's codes name a codevector of its partition.
+    kernels::TvqDecoder d;
+    d.data = reinterpret_cast<const std::uint8_t*>(render_.data());
+    d.dcBits = dcBits_;
+    std::array<std::uint64_t, 3> limit{};
+    for (int p = 0; p < 3; ++p) {
+      limit[std::size_t(p)] = 1;
+      for (std::uint32_t c : sub.chapters[std::size_t(p)]) limit[std::size_t(p)] += c;
+    }
+    for (std::uint64_t j = 0; j < sub.coded; ++j) {
+      std::uint32_t dc, k[3];
+      d.codes(t, j, dc, k);
+      for (int p = 0; p < 3; ++p)
+        if (k[p] >= limit[std::size_t(p)])
+          rr.fail("sub-volume " + std::to_string(i) + ", record " + std::to_string(j) + ": code " +
+                  std::to_string(k[p]) + " of partition " + std::to_string(p) + " has " +
+                  std::to_string(limit[std::size_t(p)]) + " codevectors");
+    }
+  }
+  // The table goes into the render buffer as the kernels read it (memory, not a file format).
+  std::memcpy(render_.data() + subvolumesAt_, table.data(),
+              table.size() * sizeof(kernels::TvqSubvolume));
+}
+
+kernels::TvqView Layout::view(const std::byte* base, int partitions) const {
+  if (partitions < 0 || partitions > 3)
+    throw std::invalid_argument("tvq: progressive level out of range");
+  kernels::TvqView v;
+  v.setDims(info_.dims.x, info_.dims.y, info_.dims.z);
+  v.cacheId = cacheId_ + std::uint64_t(partitions);
+  auto& d = v.decoder;
+  d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
+  d.subvolumesAt = subvolumesAt_;
+  d.subvolumeBlocks = s_;
+  d.subvolumesX = grid_.x, d.subvolumesY = grid_.y;
+  d.dcBits = dcBits_;
+  d.dcLo = float(dcLo_), d.dcStep = float(dcStep_);
+  d.lo = float(info_.valueMin), d.hi = float(info_.valueMax);
+  d.partitions = partitions;
+  d.integral = info_.type != ScalarType::Float32;
+  return v;
+}
+
+bool Layout::coefficients(int bx, int by, int bz, float* c) const {
+  if (bx < 0 || by < 0 || bz < 0 || bx >= blocks_.x || by >= blocks_.y || bz >= blocks_.z)
+    throw std::out_of_range("tvq: block outside the volume");
+  for (int k = 0; k < kBlockVoxels; ++k) c[k] = 0;
+  const kernels::TvqView v = view();
+  const std::uint64_t key = v.decoder.key(bx, by, bz);
+  const std::uint64_t si = key >> 32;
+  const kernels::TvqSubvolume& t = v.decoder.subvolume(si);
+  if ((key & 0xFFFFFFFFull) == kernels::TvqDecoder::kUncoded) {
+    c[0] = 8.0f * t.background;
+    return false;
+  }
+  std::uint32_t dc, k[3];
+  v.decoder.codes(t, key & 0xFFFFFFFFull, dc, k);
+  c[0] = 8.0f * float(dcLo_ + double(dc) * dcStep_);
+  const Sub& sub = subvolumes_[si];
+  const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
+  for (int p = 0; p < 3; ++p) {
+    if (k[p] == 0) continue;  // the zero vector
+    std::uint64_t index = k[p] - 1, value = sub.codebookAt[std::size_t(p)];
+    for (int ch = 0; ch < chapterCount(p); ++ch) {
+      const auto ks = chapterCoefficients(basis_, p, firstChapterClass(p) + ch);
+      const std::uint64_t n = sub.chapters[std::size_t(p)][std::size_t(ch)];
+      if (index < n) {
+        value += index * ks.size();
+        for (int kk : ks) {
+          std::int16_t q;
+          std::memcpy(&q, book + value++, 2);
+          c[kk] = float(q) * sub.scale[std::size_t(p)];
+        }
+        break;
+      }
+      index -= n, value += n * ks.size();
+    }
+  }
+  return true;
+}
+
+RangeGrid Layout::rangeGrid(int partitions) const {
+  return brickRangeGrid(view(nullptr, partitions));
+}
+
+Volume Layout::decode(int partitions) const {
+  return decodeBricks(view(nullptr, partitions), info_.type, info_.spacing);
+}
+
+Volume decode(const VolumeInfo& info, const SectionSet& sections) {
+  return Layout(info, sections).decode();
+}
+
+}  // namespace voxwall::codec::tvq
