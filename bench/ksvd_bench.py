@@ -101,7 +101,7 @@ def show(row):
 
 # ---- voxwall codecs -----------------------------------------------------------------------
 
-REFUSED = "is below the smallest ksvd file"
+REFUSED = "is below the smallest"  # ksvd and tvq say so of a size target they cannot reach
 # Level 0 only: vq, svmm's base level and ZFP store no pyramid for render --lod, so the
 # rate-distortion rows compare like with like; one row shows what the pyramid adds.
 FLAT = ["--levels", "1"]

@@ -74,7 +74,9 @@ class TvqCodec final : public Codec {
          "tvq codec: bits of the lowpass, bandpass and highpass codes together per coded block "
          "(0..39), split among them by a Lagrangian allocation",
          "20"},
-        {"--bits-per-voxel", "tvq codec: the largest --codebook-bits whose file fits this size",
+        {"--bits-per-voxel",
+         "tvq codec: instead, the Lagrangian allocation of code bits and codebook sizes (their "
+         "storage counted) whose file fits this size",
          ""},
         {"--dc-bits", "tvq codec: bits of a block's quantized mean (1..16)", "8"},
         {"--subvolume",
