@@ -108,7 +108,8 @@ struct Params {
   double fidelity = 0.005;        // RMS truncation error a class may leave (x the value range)
   bool classified = true;         // false: every coded block is HPxyz
   int iterations = 10;            // LBG iterations after the last split
-  std::uint64_t trainingVectors = 32768;  // per chapter at most (a random sample beyond)
+  // LBG trains on at most max(this, 16 x the codevectors) of a chapter's blocks (a random sample).
+  std::uint64_t trainingVectors = 32768;
   int threads = 0;
   std::uint64_t seed = 1;
 };
