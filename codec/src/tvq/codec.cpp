@@ -72,7 +72,8 @@ struct Grid {
 struct Chapter {
   int cls = 0, dims = 0;
   std::vector<int> coefs;
-  std::vector<float> vectors;  // members x dims
+  std::vector<float> vectors;  // members x dims, only while its sub-volume is trained
+  std::vector<double> sum;     // of the members, per dimension
   std::uint64_t members = 0;
   double zeroError = 0, meanError = 0;  // squared error against the zero vector, the centroid
   // Modelled distortion with n codevectors (high-rate: meanError x n^(-2/dims)); 0 once every
@@ -247,15 +248,11 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
     for (int c = 0; c < chapterCount(p); ++c)
       coefs[std::size_t(p)].push_back(chapterCoefficients(basis, p, firstChapterClass(p) + c));
 
-  // 2. Classification and the training material, per sub-volume.
-  t0 = std::chrono::steady_clock::now();
-  std::vector<SubPlan> plans(grid.subCount());
-  progress.begin("tvq: classify", plans.size());
-  for (std::uint64_t si = 0; si < plans.size(); ++si) {
-    SubPlan& plan = plans[si];
-    plan.first = grid.first(si), plan.extent = grid.extent(si);
+  // The coefficients of a sub-volume's blocks (local index, x fastest). Computed twice, for the
+  // classification and again for training, so that the encoder holds one sub-volume's at a time.
+  auto transformed = [&](const SubPlan& plan,
+                         const std::function<void(std::size_t, const float*)>& each) {
     const std::uint64_t local = Grid::volume(plan.extent);
-    plan.cls.assign(local, 0), plan.dc.assign(local, 0);
     std::vector<float> coefficients(local * kBlockVoxels);
     parallelFor(local, workers, [&](std::size_t i) {
       const glm::ivec3 e = plan.extent;
@@ -266,6 +263,21 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
       blockAt(b, x);
       float* c = coefficients.data() + i * kBlockVoxels;
       basis.forward(x, c);
+      if (each) each(i, c);
+    });
+    return coefficients;
+  };
+
+  // 2. Classification and the chapters' statistics, per sub-volume.
+  t0 = std::chrono::steady_clock::now();
+  std::vector<SubPlan> plans(grid.subCount());
+  progress.begin("tvq: classify", plans.size());
+  for (std::uint64_t si = 0; si < plans.size(); ++si) {
+    SubPlan& plan = plans[si];
+    plan.first = grid.first(si), plan.extent = grid.extent(si);
+    const std::uint64_t local = Grid::volume(plan.extent);
+    plan.cls.assign(local, 0), plan.dc.assign(local, 0);
+    const std::vector<float> coefficients = transformed(plan, [&](std::size_t i, const float* c) {
       const double mean = double(c[0]) / 8.0;
       plan.dc[i] =
           std::uint16_t(std::clamp(std::lround((mean - dcLo) / dcStep), 0L, long(dcLevels)));
@@ -283,6 +295,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
         ch.cls = firstChapterClass(p) + c;
         ch.coefs = coefs[std::size_t(p)][std::size_t(c)];
         ch.dims = int(ch.coefs.size());
+        ch.sum.assign(std::size_t(ch.dims), 0.0);
         plan.chapters[std::size_t(p)].push_back(std::move(ch));
       }
     for (std::uint64_t i = 0; i < local; ++i) {
@@ -300,20 +313,20 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
       for (int p = 0; p < 3; ++p) {
         if (cls < firstChapterClass(p)) continue;
         Chapter& ch = plan.chapters[std::size_t(p)][std::size_t(cls - firstChapterClass(p))];
-        for (int k : ch.coefs) ch.vectors.push_back(c[k]);
+        for (int j = 0; j < ch.dims; ++j) {
+          const double v = c[ch.coefs[std::size_t(j)]];
+          ch.sum[std::size_t(j)] += v, ch.zeroError += v * v;
+        }
         ++ch.members;
       }
     }
     for (int p = 0; p < 3; ++p) {
       for (Chapter& ch : plan.chapters[std::size_t(p)]) {
-        std::vector<double> mean(std::size_t(ch.dims), 0.0);
-        for (std::uint64_t m = 0; m < ch.members; ++m)
-          for (int j = 0; j < ch.dims; ++j) {
-            const double v = ch.vectors[m * std::uint64_t(ch.dims) + std::uint64_t(j)];
-            mean[std::size_t(j)] += v, ch.zeroError += v * v;
-          }
         double norm2 = 0;
-        for (double& v : mean) v /= double(std::max<std::uint64_t>(1, ch.members)), norm2 += v * v;
+        for (double v : ch.sum) {
+          const double mean = v / double(std::max<std::uint64_t>(1, ch.members));
+          norm2 += mean * mean;
+        }
         ch.meanError = std::max(0.0, ch.zeroError - double(ch.members) * norm2);
       }
       plan.curves[std::size_t(p)] = partitionCurve(plan.chapters[std::size_t(p)]);
@@ -376,6 +389,20 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
   for (std::size_t si = 0; si < plans.size(); ++si) {
     SubPlan& plan = plans[si];
     Coded& out = coded[si];
+    // The members' vectors, in block order (the order the records take their codes in).
+    {
+      const std::vector<float> coefficients = transformed(plan, {});
+      for (std::size_t i = 0; i < plan.cls.size(); ++i) {
+        const int cls = plan.cls[i];
+        if (cls == 255 || cls == kZero) continue;
+        const float* c = coefficients.data() + i * kBlockVoxels;
+        for (int p = 0; p < 3; ++p) {
+          if (cls < firstChapterClass(p)) continue;
+          Chapter& ch = plan.chapters[std::size_t(p)][std::size_t(cls - firstChapterClass(p))];
+          for (int k : ch.coefs) ch.vectors.push_back(c[k]);
+        }
+      }
+    }
     for (int p = 0; p < 3; ++p) {
       auto& chapters = plan.chapters[std::size_t(p)];
       std::vector<std::vector<float>> books(chapters.size());
