@@ -298,6 +298,12 @@ TEST(Cli, TvqCompressInfoProgressiveRender) {
   expectOneLineError(runVoxwall("compress generated:menger:2 --codec tvq --transform wavelet "
                                 "-o /tmp/x.vwz"),
                      "voxwall: --transform must be klt or dct, not 'wavelet'");
+  expectOneLineError(runVoxwall("compress generated:menger:2 --codec tvq --codebook-bits 12 "
+                                "--bits-per-voxel 1 -o /tmp/x.vwz"),
+                     "voxwall: --codebook-bits and --bits-per-voxel exclude each other");
+  expectOneLineError(
+      runVoxwall("compress generated:menger:2 --codec tvq --subvolume 30 -o /tmp/x.vwz"),
+      "voxwall: --subvolume must be a multiple of 4, not 30");
 }
 
 TEST(Cli, CudaBackendWithoutADeviceFailsCleanly) {

@@ -173,3 +173,19 @@ TEST(RenderSettings, RankZeroNeedsMoreMemoryForTheFrame) {
   o.outGiven = true;  // frames written too: rank 0 assembles them
   EXPECT_GT(estimateRankBytes(jobSettings(o), 0, 2, 1 << 20, 0) - oneStreaming, 8 * screen);
 }
+
+// A codec's render flags (tvq's --progressive) change the picture: the resume manifest records
+// them, so --resume does not mix frames of two progressive levels.
+TEST(RenderSettings, ManifestRecordsTheCodecRenderFlags) {
+  RenderOptions o;
+  const auto job = jobSettings(o);
+  const auto render = renderSettings(o);
+  const std::string plain = manifest(o, job, render, 1);
+  EXPECT_EQ(plain.find("codec_options"), std::string::npos);
+  o.codecFlags["--progressive"] = "dc";
+  const std::string dc = manifest(o, job, render, 1);
+  EXPECT_NE(dc.find("\"--progressive\":\"dc\""), std::string::npos) << dc;
+  o.codecFlags["--progressive"] = "lp";
+  EXPECT_NE(manifest(o, job, render, 1), dc);
+  EXPECT_EQ(codecRenderOptions(o).text("--progressive", ""), "lp");
+}

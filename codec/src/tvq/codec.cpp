@@ -30,6 +30,8 @@ constexpr int kMaxCodeBitsTotal = 3 * kMaxCodeBits;
 constexpr std::uint64_t kMembersPerCodevector = 8;
 constexpr double kMaxScale = 1e30;
 constexpr std::uint64_t kTrainingPerCodevector = 16;
+// SubPlan::cls of a ZERO block equal to its sub-volume's background: it gets no record.
+constexpr std::uint8_t kUncoded = 255;
 
 double seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -70,7 +72,7 @@ struct Grid {
 
 // A chapter's training material and statistics in one sub-volume.
 struct Chapter {
-  int cls = 0, dims = 0;
+  int dims = 0;
   std::vector<int> coefs;
   std::vector<float> vectors;  // members x dims, only while its sub-volume is trained
   std::vector<double> sum;     // of the members, per dimension
@@ -134,7 +136,7 @@ struct SubPlan {
   glm::ivec3 first{}, extent{};
   std::uint32_t background = 0;
   std::uint64_t coded = 0;
-  std::vector<std::uint8_t> cls;  // per local block; kZero blocks that are uncoded: 255
+  std::vector<std::uint8_t> cls;  // per local block; kUncoded for a ZERO block without record
   std::vector<std::uint16_t> dc;  // per local block
   std::array<std::vector<Chapter>, 3> chapters;
   std::array<PartitionCurve, 3> curves;
@@ -292,7 +294,6 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
     for (int p = 0; p < 3; ++p)
       for (int c = 0; c < chapterCount(p); ++c) {
         Chapter ch;
-        ch.cls = firstChapterClass(p) + c;
         ch.coefs = coefs[std::size_t(p)][std::size_t(c)];
         ch.dims = int(ch.coefs.size());
         ch.sum.assign(std::size_t(ch.dims), 0.0);
@@ -303,7 +304,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
       ++stats.classBlocks[std::size_t(cls)];
       if (cls == kZero) {
         if (plan.dc[i] == plan.background)
-          plan.cls[i] = 255;
+          plan.cls[i] = kUncoded;
         else
           ++plan.coded;
         continue;
@@ -376,7 +377,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
 
   // 4. The chapters' codebooks (LBG), quantized to 16 bits per coefficient with a scale per
   // partition, and every member's nearest codevector.
-  const double classifySeconds = seconds(t0);
+  stats.classifySeconds = seconds(t0);
   t0 = std::chrono::steady_clock::now();
   progress.begin("tvq: train codebooks (LBG)", plans.size() * 3 * 9);
   struct Coded {
@@ -394,7 +395,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
       const std::vector<float> coefficients = transformed(plan, {});
       for (std::size_t i = 0; i < plan.cls.size(); ++i) {
         const int cls = plan.cls[i];
-        if (cls == 255 || cls == kZero) continue;
+        if (cls == kUncoded || cls == kZero) continue;
         const float* c = coefficients.data() + i * kBlockVoxels;
         for (int p = 0; p < 3; ++p) {
           if (cls < firstChapterClass(p)) continue;
@@ -458,7 +459,6 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
   }
   progress.end();
   stats.trainSeconds = seconds(t0);
-  stats.codeSeconds = classifySeconds;
 
   // 5. The sections.
   CompressedVolume cv;
@@ -520,7 +520,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
     }
     for (std::uint64_t i = 0; i < local; ++i) {
       const int cls = plan.cls[i];
-      if (cls == 255) continue;
+      if (cls == kUncoded) continue;
       words[i >> 6] |= std::uint64_t(1) << (i & 63);
       putBits(plan.dc[i], params.dcBits);
       for (int p = 0; p < 3; ++p) {

@@ -51,7 +51,7 @@ std::string encodeReport(const EncodeStats& s, const Volume& v, const Params& p)
                        humanBytes(double(s.occupancyBytes)).c_str(),
                        bitsPerVoxel(s.codebookBytes + s.recordBytes + s.occupancyBytes, v));
   report += formatLine("\n  transform %.2fs, classify %.2fs, train (LBG) and code %.2fs",
-                       s.transformSeconds, s.codeSeconds, s.trainSeconds);
+                       s.transformSeconds, s.classifySeconds, s.trainSeconds);
   report += "\n  PSNR per progressive level:";
   for (int l = 0; l < kProgressiveLevels; ++l)
     report += formatLine(" %s %s", kLevelLabels[l], psnrText(s.levelPsnr[std::size_t(l)]).c_str());

@@ -40,7 +40,7 @@ class CodecOptionValues {
   int integer(const std::string& flag, int fallback, int lo, int hi) const;
   double number(const std::string& flag, double fallback, double lo, double hi) const;
   bool flag(const std::string& flag) const { return given(flag); }
-  // The flags given, in order.
+  // The flags given, sorted by name.
   std::vector<std::string> flags() const {
     std::vector<std::string> out;
     for (const auto& [flag, value] : values_) out.push_back(flag);

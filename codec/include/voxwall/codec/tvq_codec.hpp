@@ -122,7 +122,7 @@ struct EncodeStats {
   std::array<double, 3> meanCodeBits{};  // LP, BP, HP bits, mean over sub-volumes
   std::uint64_t codebookBytes = 0, recordBytes = 0, occupancyBytes = 0;
   std::array<double, kProgressiveLevels> levelPsnr{};
-  double transformSeconds = 0, trainSeconds = 0, codeSeconds = 0;
+  double transformSeconds = 0, classifySeconds = 0, trainSeconds = 0;  // trainSeconds: LBG + coding
 };
 
 // Throws std::invalid_argument for bad parameters or a target no file meets.
