@@ -16,6 +16,8 @@ main=(
   libcli11-dev nlohmann-json3-dev libxxhash-dev libpugixml-dev
   libnifti2-dev libteem-dev zlib1g-dev libbz2-dev
   libasio-dev
+  # the sink's web page: Boost.Beast (header-only)
+  libboost-dev
   # real data: the MRI template used as the default volume
   mricron-data
 )
@@ -24,6 +26,8 @@ test=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # fuzzing: clang's libFuzzer
   clang libclang-rt-14-dev
+  # the browser test of the sink's web page (tests/web)
+  chromium chromium-driver python3-selenium
 )
 bench=(
   libjpeg-turbo-progs time

@@ -6,8 +6,11 @@
 # ${VOXWALL_RANKS:-2} MPI ranks straight onto the wall: every rank JPEG-compresses its part of
 # the screen and streams it to the sink, which writes each display's picture (and a mosaic of the
 # whole wall) to out/wall/ only when every display pixel of a frame has arrived.
+# While it runs, the wall is also in a browser: the sink serves its page on loopback and the
+# script prints the address (watch, see the balancer's rectangles, steer the camera).
 #   VOXWALL_WALL=walls/ci-2x2.json   another wall (a voxwall wall file or a Tide configuration)
 #   VOXWALL_FRAMES=6 VOXWALL_RANKS=2 frames and ranks
+#   VOXWALL_HTTP=127.0.0.1:8080      where the page is served (default: a free loopback port)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh main
@@ -24,7 +27,7 @@ mkdir -p out
 
 rm -rf out/wall
 "$voxwall" sink --wall "$wall" --listen 127.0.0.1:0 --out out/wall --mosaic --frames "$frames" \
-  --no-stdin > out/sink.log 2>&1 &
+  --http "${VOXWALL_HTTP:-127.0.0.1:0}" --no-stdin > out/sink.log 2>&1 &
 sink=$!
 trap 'kill "$sink" 2>/dev/null || true' EXIT
 port=
@@ -35,6 +38,13 @@ for _ in $(seq 200); do
 done
 [ -n "$port" ] || { cat out/sink.log; echo "the sink did not start" >&2; exit 1; }
 head -1 out/sink.log
+page=$(sed -n 's/.*wall page at \(http[^ ]*\).*/\1/p' out/sink.log)
+if [ -n "$page" ]; then
+  http_port=${page##*:}
+  http_port=${http_port%/}
+  echo "the wall in a browser while the job runs: $page (from another machine:" \
+    "ssh -L $http_port:127.0.0.1:$http_port $(hostname), then open that address)"
+fi
 
 mpirun=(mpirun --oversubscribe --bind-to none -np "${VOXWALL_RANKS:-2}")
 [ "$(id -u)" = 0 ] && mpirun+=(--allow-run-as-root)

@@ -11,6 +11,7 @@
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/frame_messages.hpp>
 #include <voxwall/net/tcp.hpp>
+#include <voxwall/net/wire.hpp>
 
 namespace voxwall::master {
 namespace fs = std::filesystem;
@@ -138,7 +139,9 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
       report.encodeSeconds = since(encodeStart);
       const auto before = streamer->bytesSent();
       streamer->setJob(task.jobId);
-      report.streamed = streamer->sendFrame(task.frame, encoded, task.decidedUnixMicros);
+      report.streamed =
+          streamer->sendFrame(task.frame, encoded, task.decidedUnixMicros, task.step,
+                              std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)));
       report.streamError = streamer->lastError();
       report.streamRefused = !streamer->refused().empty();
       report.streamedBytes = streamer->bytesSent() - before;
@@ -357,8 +360,9 @@ class MasterLoop {
     FrameSummary s;
     s.frame = f;
     readWall(f, s);
-    s.rects = cut();
-    net::FrameTask t = task(f, s.rects);
+    s.step = step(s.controls);
+    s.rects = cut(s.step);
+    net::FrameTask t = task(f, s.rects, s.step);
     auto taskBytes = net::encode(t);
     comm_.broadcast(taskBytes, timeoutMs_);
     auto own = renderRects(0, backend_, volume_, tf_, render_, job_, streamer_.get(), plan_, t,
@@ -380,7 +384,7 @@ class MasterLoop {
       grids[std::size_t(i)] = std::move(report.costs);
     }
     s.imbalance = imbalance(s.rankSeconds);
-    if (balancer_) {
+    if (balancer_ && s.step == 1) {  // an interactive frame's costs are of another screen
       balancer_->update(grids, s.rankSeconds);
       s.recuts = balancer_->recuts();
     }
@@ -448,22 +452,50 @@ class MasterLoop {
     }
   }
 
-  // Each rendering slot's rectangles this frame.
-  std::vector<std::vector<voxwall::Rect>> cut() const {
-    if (!balancer_) return staticCut_;
-    std::vector<std::vector<voxwall::Rect>> slotRects(static_cast<std::size_t>(slots_));
-    for (int i = 0; i < slots_; ++i) slotRects[std::size_t(i)] = {balancer_->cut()[std::size_t(i)]};
+  // The resolution of this frame: reduced while the wall's camera commands keep coming.
+  int step(int controls) {
+    const bool interactive = job_.stream && job_.outDir.empty() && job_.interactiveStep > 1;
+    if (!interactive) return 1;
+    if (controls > 0) lastCommand_ = Clock::now();
+    if (!lastCommand_ || since(*lastCommand_) >= job_.settleSeconds) return 1;
+    return job_.interactiveStep;
+  }
+
+  // Each rendering slot's rectangles this frame: at step > 1, the full-screen cut mapped onto the
+  // reduced screen (edge by edge, so the rectangles still tile it; one narrower than a step may
+  // vanish).
+  std::vector<std::vector<voxwall::Rect>> cut(int step) const {
+    std::vector<std::vector<voxwall::Rect>> slotRects = staticCut_;
+    if (balancer_)
+      for (int i = 0; i < slots_; ++i)
+        slotRects[std::size_t(i)] = {balancer_->cut()[std::size_t(i)]};
+    if (step == 1) return slotRects;
+    const auto edge = [step](int e, int side) {
+      return e >= side ? net::reducedSide(side, step) : e / step;
+    };
+    for (auto& rects : slotRects) {
+      std::vector<voxwall::Rect> reduced;
+      for (const auto& r : rects) {
+        const int x0 = edge(r.x, job_.width), x1 = edge(r.x + r.width, job_.width);
+        const int y0 = edge(r.y, job_.height), y1 = edge(r.y + r.height, job_.height);
+        if (x1 > x0 && y1 > y0) reduced.push_back({x0, y0, x1 - x0, y1 - y0});
+      }
+      rects = std::move(reduced);
+    }
     return slotRects;
   }
 
-  net::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects) const {
+  net::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects,
+                      int step) const {
     net::FrameTask t;
     t.frame = std::uint32_t(f);
     t.decidedUnixMicros = net::unixMicrosNow();
     t.jobId = jobId_;
     t.camera =
         node::orbitCamera(offset_.apply(job_.path.at(f)), node::boundingRadius(volume_.info()));
-    t.screenWidth = job_.width, t.screenHeight = job_.height;
+    t.step = step;
+    t.screenWidth = net::reducedSide(job_.width, step);
+    t.screenHeight = net::reducedSide(job_.height, step);
     t.cellPixels = job_.balancer.cellPixels;
     t.rects = byRank(slotRects, renderers_, comm_.size());
     t.watchdogMs = std::uint32_t(timeoutMs_);
@@ -519,6 +551,7 @@ class MasterLoop {
   std::optional<node::FramePlan> plan_;
   std::unique_ptr<net::ControlChannel> control_;
   CameraOffset offset_;
+  std::optional<Clock::time_point> lastCommand_;  // the last camera command from the wall
   double slowestFrame_ = 0;
   int timeoutMs_;
 };

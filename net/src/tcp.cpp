@@ -167,7 +167,8 @@ bool TileStreamer::ensureConnected() {
 }
 
 bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
-                             std::uint64_t decidedUnixMicros) {
+                             std::uint64_t decidedUnixMicros, int step,
+                             std::uint32_t renderMicros) {
   hello_.nextFrame = frame;
   if (!ensureConnected()) {
     if (lastError_.empty()) lastError_ = "waiting to reconnect";
@@ -176,8 +177,8 @@ bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>
   lastError_.clear();
   try {
     for (const auto& t : tiles) {
-      const auto bytes =
-          encodeMessage(frame, TileMessage{t.rect, t.codec, decidedUnixMicros, t.bytes});
+      const auto bytes = encodeMessage(
+          frame, TileMessage{t.rect, t.codec, decidedUnixMicros, t.bytes, step, renderMicros});
       connection_->send(bytes);
       bytesSent_ += bytes.size();
     }

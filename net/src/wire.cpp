@@ -1,5 +1,6 @@
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <voxwall/core/bytes.hpp>
@@ -74,12 +75,14 @@ std::vector<std::byte> encodeMessage(const Welcome& m) {
 
 std::vector<std::byte> encodeMessage(std::uint64_t frame, const TileMessage& m) {
   std::vector<std::byte> p;
-  p.reserve(29 + m.bytes.size());
+  p.reserve(34 + m.bytes.size());
   ByteWriter w(p);
   w.put(std::int32_t(m.rect.x)), w.put(std::int32_t(m.rect.y));
   w.put(std::int32_t(m.rect.width)), w.put(std::int32_t(m.rect.height));
   w.put(std::uint8_t(m.codec));
+  w.put(std::uint8_t(m.step));
   w.put(m.decidedUnixMicros);
+  w.put(m.renderMicros);
   w.putBytes(m.bytes);
   return frameMessage(MessageType::Tile, frame, p);
 }
@@ -181,6 +184,16 @@ Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& sou
   return m;
 }
 
+voxwall::Rect fullScreenRect(const voxwall::Rect& rect, int step, int screenWidth,
+                             int screenHeight) {
+  const long long x0 = std::min<long long>(std::int64_t(rect.x) * step, screenWidth);
+  const long long y0 = std::min<long long>(std::int64_t(rect.y) * step, screenHeight);
+  const long long x1 = std::min<long long>((std::int64_t(rect.x) + rect.width) * step, screenWidth);
+  const long long y1 =
+      std::min<long long>((std::int64_t(rect.y) + rect.height) * step, screenHeight);
+  return {int(x0), int(y0), int(std::max(0LL, x1 - x0)), int(std::max(0LL, y1 - y0))};
+}
+
 TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::string& source) {
   ByteReader r(payload, source, "Tile");
   TileMessage m;
@@ -193,7 +206,11 @@ TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::str
   const auto codec = r.get<std::uint8_t>();
   if (codec < 1 || codec > 3) r.fail("unknown tile codec " + std::to_string(codec));
   m.codec = TileCodec(codec);
+  m.step = r.get<std::uint8_t>();
+  if (m.step < 1 || m.step > kMaxStep)
+    r.fail("step " + std::to_string(m.step) + " (1.." + std::to_string(kMaxStep) + ")");
   m.decidedUnixMicros = r.get<std::uint64_t>();
+  m.renderMicros = r.get<std::uint32_t>();
   const auto rest = r.getBytes(r.remaining());
   m.bytes.assign(rest.begin(), rest.end());
   return m;

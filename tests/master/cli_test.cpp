@@ -174,6 +174,29 @@ TEST(Cli, BadArgumentsGiveOneLine) {
   EXPECT_NE(runVoxwall("render --no-such-flag").status, 0);
 }
 
+TEST(Cli, WallPageAndInteractiveFlagsAreChecked) {
+  const std::string wall = std::string(VOXWALL_WALLS_DIR) + "/ci-2x2.json";
+  expectOneLineError(runVoxwall("render generated:menger:2 --size 8x8 --no-write "
+                                "--interactive-step 0"),
+                     "voxwall: --interactive-step must be in [1, 16]");
+  expectOneLineError(runVoxwall("render generated:menger:2 --size 8x8 --no-write --settle -1"),
+                     "voxwall: --settle must be in [0, 3600] seconds");
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --http nonsense --no-stdin"),
+                     "voxwall: --http");
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --http-origin http://x --no-stdin"),
+                     "voxwall: --http-origin goes with --http");
+  expectOneLineError(
+      runVoxwall("sink --wall " + wall + " --http 127.0.0.1:0 --http-origin evil --no-stdin"),
+      "voxwall: --http-origin 'evil': expected http://HOST[:PORT]");
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --max-viewers 0 --no-stdin"),
+                     "voxwall: --max-viewers must be in [1, 4096]");
+  // The page's address is printed, and --help says what the flags do.
+  const auto help = runVoxwall("sink --help");
+  EXPECT_NE(help.out.find("--http"), std::string::npos);
+  EXPECT_NE(runVoxwall("render --help").out.find("--interactive-step"), std::string::npos);
+  EXPECT_NE(runVoxwall("render --help").out.find("still"), std::string::npos);
+}
+
 TEST(Cli, VqCompressInfoDecompressRender) {
   test::TempDir dir;
   const std::string vwz = dir.path("sl.vwz");

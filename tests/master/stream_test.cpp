@@ -146,6 +146,7 @@ TEST(Stream, ControlFromTheWallMovesTheCamera) {
   auto sink = startSink(dir.path("wall"));
   auto job = streamJob(sink->port(), net::TileCodec::Deflate, 4);
   job.path = master::CameraPath::orbit({}, 0);  // a still camera
+  job.interactiveStep = 1;  // full frames while steered, to compare them exactly (mpi.interactive)
   runJob(2, job, [&](const master::FrameSummary& f) {
     if (f.frame != 0) return;
     // Wait for rank 0's control connection, then send the command.
@@ -195,4 +196,43 @@ TEST(Stream, SinkRestartLosesOnlyFramesInFlight) {
       checkShownFrames(dir.path("a"), job, 0) + checkShownFrames(dir.path("b"), job, 0);
   EXPECT_GE(checked, 6);
   EXPECT_LT(checked, frames);  // frames in flight while no sink listened are gone
+}
+
+// While commands arrive the frames are interactive (1/4 per side, upsampled by the sink); once
+// the camera settled, the full frame equals the single-process render of the turned camera.
+TEST(Stream, SteeredFramesAreInteractiveUntilTheCameraSettles) {
+  test::TempDir dir;
+  auto sink = startSink(dir.path("wall"));
+  auto job = streamJob(sink->port(), net::TileCodec::Deflate, 8);
+  job.path = master::CameraPath::orbit({}, 0);
+  job.interactiveStep = 4;
+  job.settleSeconds = 0.3;
+  std::vector<int> steps;
+  runJob(2, job, [&](const master::FrameSummary& f) {
+    steps.push_back(f.step);
+    if (f.frame == 0) {
+      for (int i = 0; i < 500 && !sink->sink().stats().controllerConnected; ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      sink->sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    }
+  });
+  ASSERT_TRUE(waitSettled(*sink, 8));
+  sink->stop();
+  ASSERT_EQ(steps.size(), 8u);
+  EXPECT_EQ(steps[0], 1);
+  EXPECT_EQ(steps[1], 4);  // the frame that took the command
+  EXPECT_EQ(steps[7], 1);  // over a second later: settled
+  master::CameraOffset turned;
+  turned.azimuthDeg = 40;
+  const auto after = reference(job, 7, turned);
+  for (const auto& d : wall().displays) {
+    EXPECT_EQ(voxwall::readImage(displayFile(dir.path("wall"), 7, d.name)).pixels,
+              after.crop(d.rect).pixels)
+        << d.name;
+    // The interactive frame is whole: every display's picture was written.
+    EXPECT_TRUE(fs::exists(displayFile(dir.path("wall"), 1, d.name))) << d.name;
+  }
 }

@@ -24,6 +24,9 @@
 #   refused N         a render the sink refuses (wrong token) fails with one line, non-zero
 #   hostile N         hostile peers (tests/tools/hostile_peers) flood the sink while N ranks
 #                     render to it: every frame is presented and right, the sink keeps running
+#   interactive N     a camera command typed at the sink: the next frames are interactive (1/4
+#                     per side, upsampled, whole on every display), then, once the camera has
+#                     settled, a full frame equal (>= 40 dB) to a batch render of that camera
 # Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
 # scenarios; ctest sets both.
 set -uo pipefail
@@ -143,6 +146,53 @@ limited() {
 }
 
 case $scenario in
+  interactive)
+    n=$1
+    mkfifo commands
+    "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen 127.0.0.1:0 --out wall \
+      < commands > wall.log 2>&1 &
+    sink_pid=$!
+    exec 3> commands  # the sink's stdin, held open
+    wait_port wall.log
+    run "$n" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --frames 100000 --path still --threads 1 --interactive-step 4 --settle 1 -q \
+      > render.log 2>&1 &
+    render_pid=$!
+    for _ in $(seq 600); do grep -q "presented" wall.log && break; sleep 0.05; done
+    grep -q "presented" wall.log || { cat wall.log render.log; fail "the sink showed nothing"; }
+    echo "rotate 30 0" >&3
+    # An interactive frame, then a full one after it.
+    reduced="" settled=""
+    for _ in $(seq 1200); do
+      reduced=$(sed -n 's/^frame \([0-9]*\) presented.*interactive 1\/4.*/\1/p' wall.log | head -1)
+      if [ -n "$reduced" ]; then
+        settled=$(awk -v r="$reduced" '/presented/ && !/interactive/ {
+                    n = $2 + 0; if (n > r) { print n; exit } }' wall.log)
+        [ -n "$settled" ] && [ -f "wall/frame_$(printf %05d "$settled").done" ] && break
+      fi
+      sleep 0.05
+    done
+    kill -TERM "$render_pid" 2>/dev/null; wait "$render_pid" 2>/dev/null
+    exec 3>&-
+    kill -TERM "$sink_pid" 2>/dev/null; wait "$sink_pid" 2>/dev/null
+    [ -n "$reduced" ] || { cat wall.log; fail "no interactive frame after the command"; }
+    [ -n "$settled" ] || { tail wall.log; fail "no full frame after the interactive ones"; }
+    "$voxwall" render vol.vwz --size 196x132 --camera 60,20,2.6 --frames 1 --threads 1 -q \
+      --out ref || fail "reference render"
+    declare -A rects=([r0c0]="0 0" [r0c1]="100 0" [r1c0]="0 68" [r1c1]="100 68")
+    r=$(printf %05d "$reduced") s=$(printf %05d "$settled")
+    for d in r0c0 r0c1 r1c0 r1c1; do
+      [ -f "wall/frame_${r}_$d.png" ] || fail "interactive frame $reduced lacks display $d"
+      # shellcheck disable=SC2086
+      "$VOXWALL_COMPARE_CROP" ref/frame_00000.png ${rects[$d]} 96 64 "wall/frame_${s}_$d.png" 40 \
+        > /dev/null || fail "settled frame $settled display $d differs from the batch render"
+      # The interactive frame is the same picture, coarser: not blank, not another view.
+      # shellcheck disable=SC2086
+      "$VOXWALL_COMPARE_CROP" ref/frame_00000.png ${rects[$d]} 96 64 "wall/frame_${r}_$d.png" 15 \
+        > /dev/null || fail "interactive frame $reduced display $d is not the batch render's picture"
+    done
+    echo "interactive frame $reduced, then full frame $settled equal to the batch render"
+    ;;
   full-disk)
     frames=(render vol.vwz --size 240x160 --frames 12 --orbit-deg 30 --threads 1)
     "$voxwall" "${frames[@]}" -q --out ref || fail "reference render"

@@ -82,14 +82,27 @@ std::optional<std::string> FrameAssembler::outsideWindow(std::uint64_t frame) co
 std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
                                                       const net::TileMessage& tile, int rank,
                                                       const std::string& peer) {
-  const auto& r = tile.rect;
+  const auto& sent = tile.rect;
+  const int step = tile.step;
+  if (step < 1 || step > net::kMaxStep)
+    throw FormatError(peer, "tile step " + std::to_string(step) + " is not in [1, " +
+                                std::to_string(net::kMaxStep) + "]");
+  const int screenW = net::reducedSide(wall_.width, step);
+  const int screenH = net::reducedSide(wall_.height, step);
   // The one check of a rectangle from the wire against the screen (64-bit: no overflow).
-  if (!r.fitsIn(wall_.width, wall_.height))
-    throw FormatError(peer, "tile " + std::to_string(r.width) + "x" + std::to_string(r.height) +
-                                "+" + std::to_string(r.x) + "+" + std::to_string(r.y) +
-                                " is not on the " + std::to_string(wall_.width) + "x" +
-                                std::to_string(wall_.height) + " screen");
+  if (!sent.fitsIn(screenW, screenH))
+    throw FormatError(peer, "tile " + std::to_string(sent.width) + "x" +
+                                std::to_string(sent.height) + "+" + std::to_string(sent.x) + "+" +
+                                std::to_string(sent.y) + " is not on the " +
+                                std::to_string(screenW) + "x" + std::to_string(screenH) +
+                                (step > 1 ? " reduced screen (step " + std::to_string(step) + ")"
+                                          : std::string(" screen")));
+  const voxwall::Rect r = net::fullScreenRect(sent, step, wall_.width, wall_.height);
   auto it = open_.find(frame);
+  if (it != open_.end() && it->second.info.step != step)
+    throw FormatError(peer, "tile of frame " + std::to_string(frame) + " at step " +
+                                std::to_string(step) + ", its other tiles are at step " +
+                                std::to_string(it->second.info.step));
   if (it == open_.end()) {
     if (reported(frame)) return std::nullopt;  // settled; its fate was reported
     if (const auto why = outsideWindow(frame)) {
@@ -98,7 +111,8 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
     }
   }
   // Make room before decoding: what a tile costs is known from its rectangle.
-  const std::uint64_t need = std::uint64_t(r.area()) * 4 + (it == open_.end() ? coverageBytes_ : 0);
+  const std::uint64_t need =
+      std::uint64_t(sent.area()) * 4 + (it == open_.end() ? coverageBytes_ : 0);
   while (heldBytes_ + need > limits_.pendingBytes) {
     auto victim = open_.begin();
     if (victim != open_.end() && victim->first == frame) ++victim;
@@ -112,13 +126,14 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
     while (int(open_.size()) >= limits_.pendingFrames)
       drop(open_.begin()->first, "too many frames open");
   // Decode before touching the frame: a corrupt tile must not mark any pixel as arrived.
-  voxwall::Image image = net::decodeTile(tile.bytes, tile.codec, r.width, r.height, peer);
+  voxwall::Image image = net::decodeTile(tile.bytes, tile.codec, sent.width, sent.height, peer);
   it = open_.find(frame);
   if (it == open_.end()) {
     it = open_.emplace(frame, Open{}).first;
     it->second.covered.assign(coverageBytes_ / 8, 0);
     it->second.heldBytes = coverageBytes_;
     it->second.info.frame = frame;
+    it->second.info.step = step;
     heldBytes_ += coverageBytes_;
   }
   Open& f = it->second;
@@ -132,11 +147,13 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
       f.coveredDisplayPixels += displayMask_[i];
     }
   }
-  const std::uint64_t tileBytes = std::uint64_t(r.area()) * 4;
+  const std::uint64_t tileBytes = std::uint64_t(sent.area()) * 4;
   f.heldBytes += tileBytes;
   heldBytes_ += tileBytes;
   f.tiles.emplace_back(r, std::move(image));
   auto& info = f.info;
+  info.placements.push_back({r, rank});
+  info.rankRenderMicros[rank] = tile.renderMicros;
   info.decidedUnixMicros = info.decidedUnixMicros
                                ? std::min(info.decidedUnixMicros, tile.decidedUnixMicros)
                                : tile.decidedUnixMicros;
@@ -149,7 +166,20 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
   while (open_.begin()->first != frame) drop(open_.begin()->first, "a newer frame completed");
   AssembledFrame done = std::move(f.info);
   done.image = voxwall::Image(wall_.width, wall_.height);
-  for (const auto& [rect, pixels] : f.tiles) done.image.paste(pixels, rect);
+  for (const auto& [rect, pixels] : f.tiles) {
+    if (done.step == 1) {
+      done.image.paste(pixels, rect);
+      continue;
+    }
+    // Upsample: every pixel of the block repeats its reduced pixel (the rectangle starts on a
+    // block boundary; blocks at the screen's right and bottom edges are clipped).
+    const int s = done.step, x0 = rect.x / s, y0 = rect.y / s;
+    for (int y = 0; y < rect.height; ++y) {
+      const int sy = (rect.y + y) / s - y0;
+      for (int x = 0; x < rect.width; ++x)
+        done.image.at(rect.x + x, rect.y + y) = pixels.at((rect.x + x) / s - x0, sy);
+    }
+  }
   heldBytes_ -= f.heldBytes;
   open_.erase(open_.begin());
   lastComplete_ = frame;

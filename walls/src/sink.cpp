@@ -22,6 +22,7 @@
 #include <voxwall/walls/frame_files.hpp>
 #include <voxwall/walls/sink.hpp>
 #include <voxwall/walls/sink_core.hpp>
+#include <voxwall/walls/web_view.hpp>
 
 namespace voxwall::walls {
 
@@ -40,6 +41,7 @@ struct Sink::Impl : net::PeerHandler {
   asio::io_context io;
   std::unique_ptr<SinkCore> core;
   std::unique_ptr<net::Server> server;
+  std::unique_ptr<WebView> web;  // the browser view, when asked for
 
   // Presenter: the newest complete frame waits here; a newer one replaces it (stale).
   std::mutex presentMutex;
@@ -135,12 +137,27 @@ struct Sink::Impl : net::PeerHandler {
         s.meanLatencyMs = latencySumMs / presented;
       });
       char line[256];
+      const std::string interactive =
+          frame.data.step > 1 ? ", interactive 1/" + std::to_string(frame.data.step) : "";
       std::snprintf(line, sizeof line,
                     "frame %llu presented: %zu display(s), %d tiles from %zu rank(s), %.1f KiB, "
-                    "latency %.1f ms",
+                    "latency %.1f ms%s",
                     (unsigned long long)number, wall.displays.size(), frame.data.tiles,
-                    frame.data.ranks.size(), double(frame.data.bytes) / 1024, latencyMs);
+                    frame.data.ranks.size(), double(frame.data.bytes) / 1024, latencyMs,
+                    interactive.c_str());
       say(line);
+      if (web) {
+        ViewerFrame v;
+        v.image = std::make_shared<const voxwall::Image>(std::move(frame.data.image));
+        v.frame = number;
+        v.step = frame.data.step;
+        v.placements = std::move(frame.data.placements);
+        v.rankRenderMicros = std::move(frame.data.rankRenderMicros);
+        v.latencyMs = latencyMs;
+        v.bytes = frame.data.bytes;
+        v.stats = core->stats();
+        web->present(std::move(v));
+      }
       asio::post(io, [this, job = frame.job, number] {
         core->frameSettled(job, number, {net::FrameStatus::Presented, ""});
       });
@@ -180,20 +197,36 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
       s.say("sink: removed " + std::to_string(removed) + " file(s) of incomplete frames from " +
             s.settings.outDir);
   }
+  if (!s.settings.httpHost.empty()) {
+    WebViewSettings web;
+    web.host = s.settings.httpHost;
+    web.port = s.settings.httpPort;
+    web.token = s.settings.token;
+    web.origins = s.settings.httpOrigins;
+    web.maxViewers = s.settings.maxViewers;
+    s.web = std::make_unique<WebView>(
+        s.settings.wall, web, [this](const net::Control& c) { sendControl(c); }, s.log);
+  }
   s.presenter = std::thread([this] { impl_->present(); });
 }
 
-Sink::~Sink() { impl_->stopPresenter(); }
+Sink::~Sink() {
+  impl_->stopPresenter();
+  if (impl_->web) impl_->web->stop();
+}
 
 std::uint16_t Sink::port() const { return impl_->server->port(); }
+std::uint16_t Sink::httpPort() const { return impl_->web ? impl_->web->port() : 0; }
 
 void Sink::run() {
   impl_->server->start();
+  if (impl_->web) impl_->web->start();
   impl_->io.run();
   // Stop listening and hang up on every peer, so the port is free for a new sink at once.
   impl_->server->close();
   // Finish the frame being written before returning.
   impl_->stopPresenter();
+  if (impl_->web) impl_->web->stop();
   // Handlers the presenter posted last (its frame notes, a write error) still run here.
   impl_->io.restart();
   impl_->io.poll();

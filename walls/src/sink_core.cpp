@@ -34,7 +34,8 @@ SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
 void SinkCore::attach(net::Peer& peer) { peers_.insert(&peer); }
 
 void SinkCore::detach(net::Peer& peer) {
-  peers_.erase(&peer);
+  if (peers_.erase(&peer) && peer.greeted() && peer.hello().role == net::Role::Renderer)
+    updateStats([](SinkStats& s) { --s.renderersConnected; });
   if (controller_ == &peer) {
     controller_ = nullptr;
     updateStats([](SinkStats& s) { s.controllerConnected = false; });
@@ -136,6 +137,8 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   if (hello.role == net::Role::Controller) {
     controller_ = &peer;
     updateStats([](SinkStats& s) { s.controllerConnected = true; });
+  } else {
+    updateStats([](SinkStats& s) { ++s.renderersConnected; });
   }
   peer.send(net::encodeMessage(net::Welcome{wall.id, wall.width, wall.height}));
   return true;

@@ -162,6 +162,7 @@ master::CameraPath cameraPath(const RenderOptions& o) {
   if (o.frames < 1) throw std::invalid_argument("--frames must be at least 1");
   if (o.path == "orbit")
     return master::CameraPath::orbit(orbit, o.orbitDeg != 0 ? o.orbitDeg : 360.0 / o.frames);
+  if (o.path == "still") return master::CameraPath::orbit(orbit, 0.0);
   if (o.path == "orbit-zoom") {
     const int orbitFrames = std::max(1, o.frames / 2);
     return master::CameraPath::orbitThenZoom(orbit, orbitFrames, o.frames - orbitFrames, o.zoomTo);
@@ -208,6 +209,13 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   if (o.resume && o.noWrite)
     throw std::invalid_argument("--resume needs frames on disk, not --no-write");
   cutSettings(o, job);
+  if (o.interactiveStep < 1 || o.interactiveStep > net::kMaxStep)
+    throw std::invalid_argument("--interactive-step must be in [1, " +
+                                std::to_string(net::kMaxStep) + "]");
+  if (!(o.settle >= 0 && o.settle <= 3600))
+    throw std::invalid_argument("--settle must be in [0, 3600] seconds");
+  job.interactiveStep = o.interactiveStep;
+  job.settleSeconds = o.settle;
   return job;
 }
 
@@ -304,6 +312,13 @@ void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
       ->capture_default_str();
   cmd.add_option("--subsampling", o.subsampling, "JPEG chroma subsampling: 444, 422 or 420")
       ->capture_default_str();
+  cmd.add_option("--interactive-step", o.interactiveStep,
+                 "While camera commands from the wall keep arriving, render at 1/N per side (the "
+                 "sink upsamples); 1: always full resolution. Only when streaming without --out")
+      ->capture_default_str();
+  cmd.add_option("--settle", o.settle,
+                 "Seconds without a camera command after which full-resolution frames follow")
+      ->capture_default_str();
 }
 
 // How the screen is cut among the ranks, and the job's limits.
@@ -335,11 +350,13 @@ void addCutOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
 
 // The camera path and the frames.
 void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
-  cmd.add_option("--path", o.path,
-                 "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), "
-                 "orbit-zoom (a turn in half the frames, then a zoom to --zoom-to), or a key-frame "
-                 "JSON file ({\"keyframes\": [{\"frame\": 0, \"azimuth\": 30, \"elevation\": "
-                 "20, \"distance\": 2.6, \"fov\": 30, \"pan_x\": 0, \"pan_y\": 0}, ...]})")
+  cmd.add_option(
+         "--path", o.path,
+         "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), still (the "
+         "--camera of frame 0 throughout: it moves only when steered from the wall), "
+         "orbit-zoom (a turn in half the frames, then a zoom to --zoom-to), or a key-frame "
+         "JSON file ({\"keyframes\": [{\"frame\": 0, \"azimuth\": 30, \"elevation\": "
+         "20, \"distance\": 2.6, \"fov\": 30, \"pan_x\": 0, \"pan_y\": 0}, ...]})")
       ->capture_default_str();
   cmd.add_option("--zoom-to", o.zoomTo, "orbit-zoom: final camera distance in bounding radii")
       ->capture_default_str();

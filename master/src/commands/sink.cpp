@@ -3,6 +3,7 @@
 #include <iostream>
 #include <memory>
 #include <thread>
+#include <vector>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/sink.hpp>
 
@@ -13,8 +14,10 @@ namespace voxwall::cli {
 namespace {
 
 struct SinkOptions {
-  std::string wall, listen = "127.0.0.1:7400", out, token;
+  std::string wall, listen = "127.0.0.1:7400", out, token, http;
+  std::vector<std::string> httpOrigins;
   int surface = 0, frames = 0, pending = 4, maxPeers = 256, helloTimeoutMs = 5000;
+  int maxViewers = 64;
   std::uint64_t pendingMiB = 0;
   bool mosaic = false, quiet = false, noStdin = false;
 };
@@ -39,6 +42,19 @@ void runSink(const SinkOptions& o) {
   settings.helloTimeoutMs = o.helloTimeoutMs;
   if (o.pendingMiB > (1u << 20)) throw std::invalid_argument("--pending-mib is over 1 TiB");
   settings.pendingBytes = o.pendingMiB << 20;
+  if (!o.http.empty()) {
+    std::tie(settings.httpHost, settings.httpPort) = net::parseEndpoint(o.http, "--http");
+    for (const auto& origin : o.httpOrigins)
+      if (origin.rfind("http://", 0) != 0 && origin.rfind("https://", 0) != 0)
+        throw std::invalid_argument("--http-origin '" + origin +
+                                    "': expected http://HOST[:PORT] or https://HOST[:PORT]");
+    settings.httpOrigins = o.httpOrigins;
+  } else if (!o.httpOrigins.empty()) {
+    throw std::invalid_argument("--http-origin goes with --http");
+  }
+  if (o.maxViewers < 1 || o.maxViewers > 4096)
+    throw std::invalid_argument("--max-viewers must be in [1, 4096]");
+  settings.maxViewers = o.maxViewers;
 
   // SIGINT and SIGTERM end the sink cleanly (the frame being written is finished).
   sigset_t signals;
@@ -65,6 +81,12 @@ void runSink(const SinkOptions& o) {
                 wall.id.c_str(), wall.displays.size(), wall.width, wall.height,
                 settings.listenHost.c_str(), unsigned(sink.port()),
                 settings.token.empty() ? "" : " (token required)");
+  if (!quiet && sink.httpPort())
+    std::printf(
+        "sink: wall page at http://%s:%u/%s\n",
+        settings.httpHost.find(':') != std::string::npos ? ("[" + settings.httpHost + "]").c_str()
+                                                         : settings.httpHost.c_str(),
+        unsigned(sink.httpPort()), settings.token.empty() ? "" : " (it asks for the token)");
   std::fflush(stdout);
 
   std::thread signalWatcher([sinkPtr, signals] {
@@ -140,6 +162,16 @@ void addSinkCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--hello-timeout-ms", o->helloTimeoutMs,
                   "Drop a peer that has not said Hello by then")
+      ->capture_default_str();
+  cmd->add_option("--http", o->http,
+                  "Serve the wall page at HOST:PORT (e.g. 127.0.0.1:8080): the live wall, the "
+                  "load balancer's rectangles, and camera control by mouse and touch. Loopback is "
+                  "the safe choice: reach it through an SSH tunnel (ssh -L 8080:127.0.0.1:8080 "
+                  "wallhost). With --token the page asks for it");
+  cmd->add_option("--http-origin", o->httpOrigins,
+                  "Another Origin whose pages may use the wall page's WebSocket (e.g. "
+                  "http://localhost:8080 when tunnelled under another name); repeatable");
+  cmd->add_option("--max-viewers", o->maxViewers, "Browsers watching at once; more are refused")
       ->capture_default_str();
   cmd->add_flag("--no-stdin", o->noStdin, "Do not read camera commands from stdin");
   cmd->add_flag("-q,--quiet", o->quiet, "Print nothing but errors");

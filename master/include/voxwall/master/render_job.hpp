@@ -53,6 +53,12 @@ struct JobSettings {
   int watchdogMs = 120000;  // at least this; grows to 4x the slowest frame seen
   BalancerSettings balancer;
   std::optional<StreamSettings> stream;  // none: no wall sink
+  // Interactive frames: while camera commands from the wall keep arriving (the last one less than
+  // settleSeconds ago), frames are rendered at 1/interactiveStep per side and the sink upsamples
+  // them; then full frames follow. Only when streaming without writing frames (a batch job with
+  // an output folder never reduces). interactiveStep 1: never.
+  int interactiveStep = 4;
+  double settleSeconds = 0.5;
 };
 
 struct FrameSummary {
@@ -74,6 +80,7 @@ struct FrameSummary {
   double encodeSeconds = 0;  // the slowest rank's tile compression
   std::uint64_t streamedBytes = 0;
   int controls = 0;                    // camera commands from the wall applied to this frame
+  int step = 1;                        // > 1: an interactive frame at 1/step per side
   std::vector<std::string> sinkNotes;  // what the sink said about earlier frames (drops, refusals)
 };
 

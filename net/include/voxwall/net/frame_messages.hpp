@@ -12,7 +12,7 @@
 // Layout (little-endian, serialized field by field):
 //   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop),
 //               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
-//               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, u32
+//               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, i32 step, u32
 //               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
@@ -35,12 +35,14 @@ namespace voxwall::net {
 
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
-inline constexpr std::uint32_t kFrameMessageVersion = 3;  // 2: FrameTask.jobId; 3: no tfVersion
+// 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step.
+inline constexpr std::uint32_t kFrameMessageVersion = 4;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
 inline constexpr int kMaxScreenSide = 1 << 16;
 inline constexpr std::size_t kMaxStreamError = 256;
+inline constexpr int kMaxTaskStep = 16;  // the same bound as the wall protocol's (wire.hpp)
 
 struct FrameTask {
   std::uint32_t frame = 0;
@@ -50,7 +52,10 @@ struct FrameTask {
   node::Camera camera;
   std::uint32_t watchdogMs = 0;  // how long any rank waits for any other in this frame
   int screenWidth = 0, screenHeight = 0;
-  int cellPixels = 32;                            // cost grid cell size
+  int cellPixels = 32;  // cost grid cell size
+  // 1: a full frame. n > 1: an interactive frame, rendered at 1/n per side: screenWidth and
+  // screenHeight (and the rects) are then the reduced screen, ceil(virtual side / n).
+  int step = 1;
   std::vector<std::vector<voxwall::Rect>> rects;  // per rank (index = rank); may be empty
 };
 

@@ -52,9 +52,10 @@ class TileStreamer {
   // The render job the frames belong to (Hello.jobId); a change reconnects.
   void setJob(std::uint64_t jobId);
   // Returns whether the whole frame (tiles and FrameEnd) went out. A (re)connection announces
-  // `frame` as the next one in its Hello.
+  // `frame` as the next one in its Hello. `step` > 1: the tiles are of an interactive frame's
+  // reduced screen (wire.hpp); `renderMicros`: this rank's render time for the frame.
   bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
-                 std::uint64_t decidedUnixMicros);
+                 std::uint64_t decidedUnixMicros, int step = 1, std::uint32_t renderMicros = 0);
   // Why the last frame did not go out (empty when it did).
   const std::string& lastError() const { return lastError_; }
   // Why the sink refused this peer for good (empty while it has not).

@@ -14,7 +14,12 @@
 //   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, u64 jobId,
 //            u64 nextFrame, str wallId, str token         (at most kMaxHelloPayload bytes)
 //   Welcome  str wallId, i32 screenWidth, i32 screenHeight          (sink -> peer, after Hello)
-//   Tile     i32 x, y, width, height (virtual screen), u8 codec, u64 decidedUnixMicros, bytes
+//   Tile     i32 x, y, width, height, u8 codec, u8 step (1..kMaxStep), u64 decidedUnixMicros,
+//            u32 renderMicros, bytes. The rectangle is in pixels of the frame's screen: the virtual
+//            screen itself at step 1, or the reduced screen of an interactive frame,
+//            ceil(width / step) x ceil(height / step), whose pixel (x, y) stands for the step x
+//            step block of virtual-screen pixels at (x * step, y * step) (clipped at the edge).
+//            renderMicros: how long the sending rank took to render all its tiles of the frame.
 //   FrameEnd i32 rank, u32 tiles this rank sent for the frame
 //   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
 //   Bye      str reason
@@ -28,7 +33,8 @@
 // sink refuses peers of another job; after that, a new job id starts a new frame sequence (the
 // old job's open frames are dropped and a later Hello of the old job is refused) whose frame
 // window starts at the Hello's nextFrame (the frame the peer sends next).
-// Version history: 1 first release; 2 adds Hello.jobId and FrameNote.
+// Version history: 1 first release; 2 adds Hello.jobId and FrameNote; 3 adds Tile.step and
+// Tile.renderMicros (interactive frames, the load overlay).
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
 
@@ -43,13 +49,15 @@
 namespace voxwall::net {
 
 inline constexpr std::uint32_t kWireMagic = 0x50575756;
-inline constexpr std::uint16_t kWireVersion = 2;
+inline constexpr std::uint16_t kWireVersion = 3;
 inline constexpr std::size_t kHeaderBytes = 32;
 inline constexpr std::uint32_t kMaxPayload = 64u << 20;
 inline constexpr std::size_t kMaxString = 256;
 // The largest payload a peer may send before its Hello was accepted (a Hello is at most 533
 // bytes): nobody can make the sink hold memory before proving who it is.
 inline constexpr std::uint32_t kMaxHelloPayload = 1024;
+// The coarsest interactive frame: one pixel for kMaxStep x kMaxStep virtual-screen pixels.
+inline constexpr int kMaxStep = 16;
 
 enum class MessageType : std::uint16_t {
   Hello = 1,
@@ -75,11 +83,19 @@ struct Welcome {
   int screenWidth = 0, screenHeight = 0;
 };
 struct TileMessage {
-  voxwall::Rect rect;
+  voxwall::Rect rect;  // in pixels of the frame's screen (reduced when step > 1)
   TileCodec codec = TileCodec::Jpeg;
   std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the frame's camera
   std::vector<std::byte> bytes;
+  int step = 1;                    // 1: full resolution; n: an interactive frame, 1/n per side
+  std::uint32_t renderMicros = 0;  // the sending rank's render time for the whole frame
 };
+// The virtual-screen rectangle that `rect` of a frame rendered at `step` stands for, clipped to
+// the screenWidth x screenHeight virtual screen (empty when it lies outside).
+voxwall::Rect fullScreenRect(const voxwall::Rect& rect, int step, int screenWidth,
+                             int screenHeight);
+// The reduced screen of an interactive frame: ceil(side / step).
+inline int reducedSide(int side, int step) { return (side + step - 1) / step; }
 struct FrameEnd {
   int rank = 0;
   std::uint32_t tiles = 0;

@@ -27,6 +27,12 @@ namespace voxwall::walls {
 
 inline constexpr std::uint64_t kDefaultFrameWindow = 1 << 16;
 
+// Where one tile of a frame landed on the virtual screen, and who sent it.
+struct TilePlacement {
+  voxwall::Rect rect;  // virtual-screen pixels (an interactive frame's tile upsampled)
+  int rank = 0;
+};
+
 struct AssembledFrame {
   std::uint64_t frame = 0;
   voxwall::Image image;                 // the whole virtual screen
@@ -34,6 +40,11 @@ struct AssembledFrame {
   std::uint64_t bytes = 0;              // encoded tile bytes received
   int tiles = 0;
   std::set<int> ranks;
+  // 1: full resolution; n > 1: an interactive frame rendered at 1/n per side and upsampled here
+  // (every virtual-screen pixel repeats the reduced pixel whose block it lies in).
+  int step = 1;
+  std::vector<TilePlacement> placements;          // in arrival order
+  std::map<int, std::uint32_t> rankRenderMicros;  // per rank, its render time for the frame
 };
 
 struct FrameEvent {
@@ -60,8 +71,9 @@ class FrameAssembler {
   // `why`, and frame ids are judged afresh.
   void startSequence(std::uint64_t firstFrame, const std::string& why);
   // Adds one tile of `frame`; returns the frame when this tile completed it. Throws
-  // FormatError(peer, ...) for a tile outside the screen or one that does not decode (no pixel
-  // is marked then). Tiles of refused or already settled frames are ignored (reported once).
+  // FormatError(peer, ...) for a tile outside the screen (the reduced screen of its step), one
+  // whose step differs from the frame's other tiles, or one that does not decode (no pixel is
+  // marked then). Tiles of refused or already settled frames are ignored (reported once).
   std::optional<AssembledFrame> addTile(std::uint64_t frame, const net::TileMessage& tile, int rank,
                                         const std::string& peer);
 
@@ -73,7 +85,8 @@ class FrameAssembler {
   struct Open {
     std::vector<std::uint64_t> covered;  // bitmap over the virtual screen
     long long coveredDisplayPixels = 0;
-    std::vector<std::pair<voxwall::Rect, voxwall::Image>> tiles;  // in arrival order
+    // In arrival order: the virtual-screen rectangle and the pixels as sent (reduced at step > 1).
+    std::vector<std::pair<voxwall::Rect, voxwall::Image>> tiles;
     std::uint64_t heldBytes = 0;
     AssembledFrame info;  // everything but the image
   };

@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 #include <voxwall/net/wire.hpp>
 #include <voxwall/walls/wall.hpp>
 
@@ -31,12 +32,18 @@ struct SinkSettings {
   std::uint64_t frameWindow = 1 << 16;  // frame ids accepted past the last complete one
   int maxPeers = 256;                   // connections at once; more are refused
   int helloTimeoutMs = 5000;            // a peer that sends no Hello by then is dropped
+  // The browser view (web_view.hpp): empty httpHost: none. The token above guards it too.
+  std::string httpHost;
+  std::uint16_t httpPort = 0;            // 0: any free port (see Sink::httpPort)
+  std::vector<std::string> httpOrigins;  // other Origins whose pages may watch and steer
+  int maxViewers = 64;
 };
 
 struct SinkStats {
   int framesPresented = 0, framesDropped = 0, framesStale = 0, framesRefused = 0;
   int peersAccepted = 0, peersRefused = 0, peersDropped = 0;
   bool controllerConnected = false;  // rank 0's control connection is up
+  int renderersConnected = 0;        // rendering ranks greeted and connected now
   std::uint64_t bytesReceived = 0;
   double meanLatencyMs = 0;  // camera decided on rank 0 -> frame presented (same clock: one host)
 };
@@ -52,6 +59,8 @@ class Sink {
   explicit Sink(SinkSettings settings, SinkLog log = {});
   ~Sink();
   std::uint16_t port() const;
+  // The browser view's port (0 without one).
+  std::uint16_t httpPort() const;
   // Serves until maxFrames frames were settled or stop() was called. Thread: any one thread.
   // Throws FormatError when a frame cannot be written (full disk): the sink stops then, since
   // every later frame would be lost too.

@@ -1,0 +1,393 @@
+// The sink's browser view (`voxwall sink --http`) against clients on loopback: the page, what is
+// refused (token, Origin, garbage, oversized messages, paths), viewers that never read, many
+// viewers at once, and interactive (reduced) frames arriving upsampled and whole. The real
+// browser test is tests/web/wall_page_test.py.
+#include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+
+#include <atomic>
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <cstring>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <utility>
+#include <voxwall/core/errors.hpp>
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/frame_assembler.hpp>
+#include <voxwall/walls/web_view.hpp>
+
+#include "support/sink_runner.hpp"
+
+using namespace voxwall;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = boost::asio::ip::tcp;
+
+namespace {
+
+walls::SinkSettings webSink(const std::string& token = "") {
+  auto s = test::twoDisplaySink();
+  s.httpHost = "127.0.0.1";
+  s.token = token;
+  return s;
+}
+
+// One HTTP request; returns the status (0 when the server closed without answering) and body.
+std::pair<int, std::string> get(std::uint16_t port, const std::string& target,
+                                http::verb verb = http::verb::get, std::size_t headerBytes = 0) {
+  boost::asio::io_context io;
+  beast::tcp_stream stream(io);
+  stream.connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+  http::request<http::empty_body> req(verb, target, 11);
+  req.set(http::field::host, "127.0.0.1:" + std::to_string(port));
+  if (headerBytes) req.set("X-Padding", std::string(headerBytes, 'a'));
+  beast::error_code ec;
+  http::write(stream, req, ec);
+  beast::flat_buffer buffer;
+  http::response<http::string_body> res;
+  http::read(stream, buffer, res, ec);
+  if (ec) return {0, ""};
+  return {int(res.result_int()), res.body()};
+}
+
+// A WebSocket viewer. `origin` empty: no Origin header (not a browser).
+class Viewer {
+ public:
+  Viewer(std::uint16_t port, const std::string& origin = "") : ws_(io_) {
+    auto& socket = beast::get_lowest_layer(ws_).socket();
+    socket.connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+    // Blocking reads give up after 10 s instead of hanging the test.
+    timeval limit{10, 0};
+    ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &limit, sizeof limit);
+    ws_.set_option(websocket::stream_base::decorator([origin](websocket::request_type& req) {
+      if (!origin.empty()) req.set(http::field::origin, origin);
+    }));
+    ws_.handshake("127.0.0.1:" + std::to_string(port), "/ws", ec_);
+  }
+  bool open() const { return !ec_; }
+  void send(const std::string& text) {
+    ws_.text(true);
+    ws_.write(boost::asio::buffer(text), ec_);
+  }
+  void sendBinary(const std::string& bytes) {
+    ws_.binary(true);
+    ws_.write(boost::asio::buffer(bytes), ec_);
+  }
+  // The next message (empty with ec set when the connection closed or 10 s passed).
+  std::string read(bool* binary = nullptr) {
+    beast::flat_buffer buffer;
+    ws_.read(buffer, ec_);
+    if (ec_) return "";
+    if (binary) *binary = ws_.got_binary();
+    return beast::buffers_to_string(buffer.data());
+  }
+  // Reads until a binary frame message arrives; returns its JSON, and the JPEG in `jpeg`.
+  nlohmann::json readFrame(std::string* jpeg = nullptr) {
+    for (int i = 0; i < 50; ++i) {
+      bool binary = false;
+      const auto m = read(&binary);
+      if (ec_) return nullptr;
+      if (!binary) continue;
+      std::uint32_t n = 0;
+      std::memcpy(&n, m.data(), 4);
+      if (jpeg) *jpeg = m.substr(4 + n);
+      return nlohmann::json::parse(m.substr(4, n));
+    }
+    return nullptr;
+  }
+  // Whether the server closed the connection (reads until it does, at most 10 s).
+  bool closedByServer() {
+    for (int i = 0; i < 50 && !ec_; ++i) read();
+    return ec_ == websocket::error::closed || ec_ == boost::asio::error::eof ||
+           ec_ == boost::asio::error::connection_reset || ec_ == boost::asio::error::broken_pipe;
+  }
+  std::string closeReason() const { return std::string(ws_.reason().reason.c_str()); }
+  const beast::error_code& error() const { return ec_; }
+
+ private:
+  boost::asio::io_context io_;
+  websocket::stream<beast::tcp_stream> ws_;
+  beast::error_code ec_;
+};
+
+// A rendering rank: sends one frame of a `width` x `height` wall as two halves, at `step`;
+// `noise`: pixels JPEG cannot shrink (large viewer frames).
+class Renderer {
+ public:
+  Renderer(std::uint16_t port, std::string wallId = "t2x1", int width = 44, int height = 10)
+      : c_(net::Connection::open("127.0.0.1", port,
+                                 net::Hello{net::Role::Renderer, 0, 1, wallId, ""}, 2000)),
+        width_(width),
+        height_(height) {}
+  void frame(std::uint64_t id, int step = 1, bool noise = false) {
+    const int w = net::reducedSide(width_, step), h = net::reducedSide(height_, step);
+    const int half = w / 2;
+    std::uint32_t seed = std::uint32_t(id) * 2654435761u + 1;
+    for (auto [rect, colour] : {std::pair{voxwall::Rect{0, 0, half, h}, 0x0000ffu},
+                                std::pair{voxwall::Rect{half, 0, w - half, h}, 0x00ff00u}}) {
+      voxwall::Image image(rect.width, rect.height);
+      for (int y = 0; y < rect.height; ++y)
+        for (int x = 0; x < rect.width; ++x) {
+          seed = seed * 1664525u + 1013904223u;
+          image.at(x, y) =
+              0xff000000u | (noise ? seed >> 8 : colour | std::uint32_t((rect.x + x) * 4) << 16);
+        }
+      net::TileCodecSettings s;
+      s.codec = net::TileCodec::Raw;
+      s.segmentPixels = 4096;
+      for (const auto& t : net::encodeTiles(image, rect, {0, 0, 0}, s))
+        c_->send(net::encodeMessage(id, net::TileMessage{t.rect, t.codec, 0, t.bytes, step, 1500}));
+    }
+  }
+
+ private:
+  std::unique_ptr<net::Connection> c_;
+  int width_, height_;
+};
+
+}  // namespace
+
+TEST(WebView, ServesThePageAndNothingElse) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  ASSERT_NE(port, 0);
+  const auto [status, body] = get(port, "/");
+  EXPECT_EQ(status, 200);
+  EXPECT_NE(body.find("<canvas"), std::string::npos);
+  EXPECT_EQ(body, walls::webPage());
+  EXPECT_EQ(get(port, "/index.html").first, 200);
+  // No request maps to a file: not the sources, not /etc/passwd.
+  for (const char* path : {"/../etc/passwd", "/%2e%2e/etc/passwd", "/web/index.html", "/etc/passwd",
+                           "//etc/passwd", "/ws"})
+    EXPECT_EQ(get(port, path).first, 404) << path;
+  EXPECT_EQ(get(port, "/", http::verb::post).first, 405);
+  EXPECT_EQ(get(port, "/", http::verb::delete_).first, 405);
+  // Headers over 8 KiB: refused before they are held.
+  EXPECT_NE(get(port, "/", http::verb::get, 20000).first, 200);
+  // The server is still there.
+  EXPECT_EQ(get(port, "/").first, 200);
+}
+
+TEST(WebView, RefusesAForeignOriginAndTakesItsOwn) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  Viewer evil(port, "http://evil.example");
+  EXPECT_FALSE(evil.open());
+  Viewer own(port, "http://127.0.0.1:" + std::to_string(port));
+  ASSERT_TRUE(own.open()) << own.error().message();
+  const auto wall = nlohmann::json::parse(own.read());
+  EXPECT_EQ(wall["type"], "wall");
+  EXPECT_EQ(wall["width"], 44);
+  EXPECT_EQ(wall["displays"].size(), 2u);
+  EXPECT_FALSE(wall["token"].get<bool>());
+  EXPECT_NE(sink.log().find("refused a viewer from Origin 'http://evil.example'"),
+            std::string::npos)
+      << sink.log();
+}
+
+TEST(WebView, ATokenGuardsFramesAndControl) {
+  test::SinkRunner sink(webSink("s3cret"));
+  const auto port = sink.sink().httpPort();
+  // Rank 0's control connection, to see what reaches it.
+  net::ControlChannel control("127.0.0.1", sink.port(),
+                              net::Hello{net::Role::Controller, 0, 1, "t2x1", "s3cret"});
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  {
+    Viewer v(port);
+    ASSERT_TRUE(v.open());
+    EXPECT_TRUE(nlohmann::json::parse(v.read())["token"].get<bool>());
+    v.send("rotate 10 0");
+    EXPECT_TRUE(v.closedByServer());
+    EXPECT_EQ(v.closeReason(), "a command before the token");
+  }
+  {
+    Viewer v(port);
+    v.read();
+    v.send("auth wrong");
+    EXPECT_TRUE(v.closedByServer());
+    EXPECT_EQ(v.closeReason(), "wrong token");
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_TRUE(control.drain().empty());
+  Viewer v(port);
+  v.read();
+  v.send("auth s3cret");
+  EXPECT_EQ(nlohmann::json::parse(v.read())["type"], "auth");
+  v.send("rotate 10 -5");
+  std::vector<net::Control> got;
+  for (int i = 0; i < 500 && got.empty(); ++i) {
+    got = control.drain();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].command, net::ControlCommand::Rotate);
+  EXPECT_DOUBLE_EQ(got[0].a, 10);
+  EXPECT_DOUBLE_EQ(got[0].b, -5);
+}
+
+TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  // The reason the page is told, where the server gives one (Beast itself closes on a message
+  // over the limit and on text that is not UTF-8).
+  const std::pair<std::string, std::string> cases[] = {
+      {"binary", "binary messages are not taken"},
+      {"oversized", ""},
+      {"fly to the moon", "'fly to the moon': commands"},
+      {"zoom -1", "'zoom -1': commands"},
+      {"rotate 1e308 1e308", "values out of range"},
+      {std::string("rotate \0\xff 1", 11), ""},
+      {"auth", "commands"},
+  };
+  for (const auto& [what, reason] : cases) {
+    Viewer v(port);
+    ASSERT_TRUE(v.open());
+    v.read();
+    if (what == "binary")
+      v.sendBinary(std::string("\x00\x01\x02", 3));
+    else if (what == "oversized")
+      v.send(std::string(5000, 'x'));
+    else
+      v.send(what);
+    EXPECT_TRUE(v.closedByServer()) << what << ": " << v.error().message();
+    if (!reason.empty()) {
+      EXPECT_NE(v.closeReason().find(reason), std::string::npos) << what << ": " << v.closeReason();
+    }
+  }
+  // Raw garbage where an HTTP request belongs.
+  {
+    boost::asio::io_context io;
+    tcp::socket s(io);
+    s.connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+    boost::asio::write(s, boost::asio::buffer(std::string("\x16\x03\x01garbage\r\n\r\n")));
+    char buf[64];
+    beast::error_code ec;
+    while (!ec) s.read_some(boost::asio::buffer(buf), ec);  // the server closes
+  }
+  Viewer still(port);
+  EXPECT_TRUE(still.open());
+}
+
+// Tiles first: a viewer that never reads does not slow the wall; the others get the newest frame.
+// The frames are noise, 800x500: far more than the loopback socket buffers can take unread.
+TEST(WebView, AViewerThatNeverReadsDoesNotStallTileIntake) {
+  auto settings = webSink();
+  settings.wall = walls::parseWall(
+      R"({"wall": "big", "display": {"width": 800, "height": 500},
+          "grid": {"columns": 1, "rows": 1}})",
+      "test");
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  Viewer stuck(port);  // connects, then never reads a byte
+  ASSERT_TRUE(stuck.open());
+  Viewer reader(port);
+  ASSERT_TRUE(reader.open());
+  ASSERT_TRUE(nlohmann::json::parse(reader.read())["type"] == "wall");
+  Renderer rank(sink.port(), "big", 800, 500);
+  constexpr int kFrames = 120;
+  for (int f = 0; f < kFrames; ++f) rank.frame(std::uint64_t(f), 1, true);
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
+    return s.framesPresented + s.framesStale == kFrames;
+  })) << sink.log();
+  EXPECT_EQ(sink.sink().stats().framesDropped, 0);
+  // The reader gets frames, the newest among them, while the stuck one is still connected.
+  std::uint64_t last = 0;
+  for (int i = 0; i < kFrames; ++i) {
+    const auto meta = reader.readFrame();
+    ASSERT_FALSE(meta.is_null()) << reader.error().message();
+    last = meta["frame"].get<std::uint64_t>();
+    if (last == kFrames - 1) break;
+  }
+  EXPECT_EQ(last, std::uint64_t(kFrames - 1));
+  EXPECT_EQ(sink.sink().stats().framesPresented + sink.sink().stats().framesStale, kFrames);
+}
+
+TEST(WebView, FiftyViewersAtOnceEachGetTheFrame) {
+  auto settings = webSink();
+  settings.maxViewers = 50;
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  std::vector<std::unique_ptr<Viewer>> viewers;
+  for (int i = 0; i < 50; ++i) {
+    viewers.push_back(std::make_unique<Viewer>(port));
+    ASSERT_TRUE(viewers.back()->open()) << i;
+    viewers.back()->read();
+  }
+  EXPECT_FALSE(Viewer(port).open());  // the 51st is refused
+  Renderer rank(sink.port());
+  rank.frame(0);
+  for (auto& v : viewers) {
+    std::string jpeg;
+    const auto meta = v->readFrame(&jpeg);
+    ASSERT_FALSE(meta.is_null()) << v->error().message();
+    EXPECT_EQ(meta["frame"], 0);
+    EXPECT_EQ(meta["width"], 44);
+    EXPECT_EQ(meta["tiles"].size(), 2u);
+    EXPECT_EQ(meta["ranks"]["0"], 1.5);  // the rank's render time, in ms
+    const auto image = net::decodeTile(std::as_bytes(std::span(jpeg.data(), jpeg.size())),
+                                       net::TileCodec::Jpeg, 44, 10, "viewer frame");
+    EXPECT_EQ(image.width, 44);
+  }
+}
+
+// An interactive frame (1/4 per side) is presented whole: every virtual-screen pixel repeats the
+// reduced pixel of its block, up to the clipped blocks at the right and bottom edges.
+TEST(WebView, AnInteractiveFrameArrivesUpsampledAndWhole) {
+  auto settings = webSink();
+  walls::AssembledFrame got;
+  walls::FrameAssembler assembler(settings.wall, {}, {});
+  const int step = 4, w = net::reducedSide(44, step), h = net::reducedSide(10, step);
+  ASSERT_EQ(w, 11);
+  ASSERT_EQ(h, 3);
+  voxwall::Image reduced(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) reduced.at(x, y) = 0xff000000u | std::uint32_t(x * 20 + y);
+  net::TileCodecSettings s;
+  s.codec = net::TileCodec::Raw;
+  const auto left = net::encodeTiles(reduced.crop({0, 0, 5, h}), {0, 0, 5, h}, {0, 0, 0}, s)[0];
+  const auto right =
+      net::encodeTiles(reduced.crop({5, 0, w - 5, h}), {5, 0, w - 5, h}, {0, 0, 0}, s)[0];
+  EXPECT_FALSE(assembler.addTile(3, net::TileMessage{left.rect, left.codec, 0, left.bytes, step, 0},
+                                 0, "rank 0"));
+  // A tile of the same frame at another step is refused; nothing of it is marked.
+  EXPECT_THROW(assembler.addTile(3, net::TileMessage{right.rect, right.codec, 0, right.bytes, 2, 0},
+                                 1, "rank 1"),
+               FormatError);
+  // A rectangle off the reduced screen is refused.
+  EXPECT_THROW(
+      assembler.addTile(3, net::TileMessage{{5, 0, w - 4, h}, right.codec, 0, right.bytes, step, 0},
+                        1, "rank 1"),
+      FormatError);
+  const auto done = assembler.addTile(
+      3, net::TileMessage{right.rect, right.codec, 0, right.bytes, step, 0}, 1, "rank 1");
+  ASSERT_TRUE(done);
+  EXPECT_EQ(done->step, step);
+  ASSERT_EQ(done->image.width, 44);
+  ASSERT_EQ(done->image.height, 10);
+  for (int y = 0; y < 10; ++y)
+    for (int x = 0; x < 44; ++x)
+      ASSERT_EQ(done->image.at(x, y), reduced.at(x / step, y / step)) << x << "," << y;
+  ASSERT_EQ(done->placements.size(), 2u);
+  EXPECT_EQ(done->placements[1].rect, (voxwall::Rect{20, 0, 24, 10}));  // clipped at the edges
+  EXPECT_EQ(done->placements[1].rank, 1);
+}
+
+TEST(WebView, ViewersSeeTheStepOfAnInteractiveFrame) {
+  test::SinkRunner sink(webSink());
+  Viewer v(sink.sink().httpPort());
+  v.read();
+  Renderer rank(sink.port());
+  rank.frame(0, 4);
+  const auto meta = v.readFrame();
+  ASSERT_FALSE(meta.is_null());
+  EXPECT_EQ(meta["step"], 4);
+  EXPECT_NE(sink.log().find("frame 0 presented"), std::string::npos);
+  EXPECT_NE(sink.log().find("interactive 1/4"), std::string::npos) << sink.log();
+}

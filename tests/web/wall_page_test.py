@@ -1,0 +1,270 @@
+#!/usr/bin/env python3
+"""The wall page in a real browser: Debian's chromium, headless, driven by Selenium through
+chromedriver, opens the page of a `voxwall sink --http` fed by a 2-rank render on loopback.
+
+It checks that
+  - the wall image is on the page (a screenshot of the canvas is not blank) and is the frame the
+    sink presented (the page's picture against the sink's own mosaic file of that frame, PSNR);
+  - a mouse drag on the canvas steers the job: interactive (reduced) frames come first, then a
+    full frame from a moved camera (unlike the frame before the drag), again equal to what the
+    sink presented.
+
+Usage: wall_page_test.py --voxwall BIN --mpiexec MPIEXEC [--preflags "..."] --walls DIR
+                         [--wall ci-2x2] [--volume FILE] [--screenshot PNG] [--overlay]
+Exits 0 when every check passed; one line saying what failed and 1 otherwise.
+"""
+import argparse
+import base64
+import math
+import os
+import re
+import shlex
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import zlib
+
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.by import By
+
+
+class Failure(Exception):
+    pass
+
+
+def read_png(data):
+    """8-bit RGB or RGBA, non-interlaced PNG bytes -> (width, height, rows of RGB bytes)."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise Failure("not a PNG")
+    pos, idat, width = 8, b"", None
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        pos += 12 + length
+        if kind == b"IHDR":
+            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
+            if depth != 8 or colour not in (2, 6) or interlace:
+                raise Failure(f"PNG kind not handled (depth {depth}, colour {colour})")
+            channels = 3 if colour == 2 else 4
+        elif kind == b"IDAT":
+            idat += body
+    raw = zlib.decompress(idat)
+    stride = width * channels
+    rows, prev = [], bytearray(stride)
+    for y in range(height):
+        f = raw[y * (stride + 1)]
+        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - channels] if i >= channels else 0
+            b = prev[i]
+            c = prev[i - channels] if i >= channels else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 255
+            elif f == 2:
+                line[i] = (line[i] + b) & 255
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif f == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(bytes(line))
+        prev = line
+    rgb = [bytes(r[i] for i in range(len(r)) if i % channels < 3) for r in rows]
+    return width, height, rgb
+
+
+def psnr(a, b):
+    """PSNR in dB of two lists of RGB rows of equal size."""
+    se = n = 0
+    for ra, rb in zip(a, b):
+        se += sum((x - y) ** 2 for x, y in zip(ra, rb))
+        n += len(ra)
+    return math.inf if se == 0 else 10 * math.log10(255 * 255 * n / se)
+
+
+def wait(what, condition, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise Failure(f"timed out after {seconds} s waiting for {what}")
+
+
+def page_frame(driver):
+    """The newest frame the page drew: its metadata and its pixels as RGB rows."""
+    got = driver.execute_script("""
+        const s = window.voxwall;
+        if (!s.bitmap || !s.meta) return null;
+        const c = document.createElement('canvas');
+        c.width = s.bitmap.width; c.height = s.bitmap.height;
+        const g = c.getContext('2d');
+        g.drawImage(s.bitmap, 0, 0);
+        const px = g.getImageData(0, 0, c.width, c.height).data;
+        let bin = '';
+        for (let i = 0; i < px.length; i += 32768)
+          bin += String.fromCharCode.apply(null, px.subarray(i, i + 32768));
+        return {meta: s.meta, width: c.width, height: c.height, rgba: btoa(bin)};""")
+    if not got:
+        return None
+    rgba = base64.b64decode(got["rgba"])
+    w = got["width"]
+    rows = [bytes(b for i, b in enumerate(rgba[y * 4 * w:(y + 1) * 4 * w]) if i % 4 < 3)
+            for y in range(got["height"])]
+    return got["meta"], rows
+
+
+def check_against_sink(wall_dir, meta, rows, what):
+    """The page's frame against the mosaic the sink wrote for the same frame id."""
+    mosaic = os.path.join(wall_dir, "frame_%05d_mosaic.png" % meta["frame"])
+    wait(f"the sink's mosaic of frame {meta['frame']}", lambda: os.path.exists(mosaic), 20)
+    w, h, ref = read_png(open(mosaic, "rb").read())
+    if (w, h) != (meta["width"], meta["height"]):
+        raise Failure(f"{what}: the page shows {meta['width']}x{meta['height']}, the sink "
+                      f"presented {w}x{h}")
+    value = psnr(rows, ref)
+    if value < 30:
+        raise Failure(f"{what}: the page's frame {meta['frame']} is {value:.1f} dB from the frame "
+                      f"the sink presented (at least 30 expected)")
+    return value
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--voxwall", required=True)
+    ap.add_argument("--mpiexec", required=True)
+    ap.add_argument("--preflags", default="")
+    ap.add_argument("--walls", required=True)
+    ap.add_argument("--wall", default="ci-2x2")
+    ap.add_argument("--volume", help="volume to render (default: a generated Shepp-Logan)")
+    ap.add_argument("--screenshot", help="also save a screenshot of the page here")
+    ap.add_argument("--overlay", action="store_true", help="turn the overlay on for the screenshot")
+    ap.add_argument("--window", default="1100,760")
+    args = ap.parse_args()
+    args.voxwall, args.walls = os.path.abspath(args.voxwall), os.path.abspath(args.walls)
+    if args.volume:
+        args.volume = os.path.abspath(args.volume)
+
+    work = tempfile.mkdtemp(prefix="voxwall-web.")
+    procs = []
+    driver = None
+
+    def start(cmd, log):
+        p = subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT, cwd=work,
+                             start_new_session=True)
+        procs.append(p)
+        return p
+
+    try:
+        volume = args.volume
+        if not volume:
+            volume = os.path.join(work, "vol.vwz")
+            subprocess.run([args.voxwall, "compress", "generated:shepp-logan:64", "-o", volume,
+                            "-q"], check=True, timeout=120, stdout=subprocess.DEVNULL)
+        wall = os.path.join(args.walls, args.wall + ".json")
+        wall_dir = os.path.join(work, "wall")
+        sink_log = os.path.join(work, "sink.log")
+        sink = start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
+                      "127.0.0.1:0", "--out", wall_dir, "--mosaic", "--no-stdin"], sink_log)
+
+        def sink_ports():
+            text = open(sink_log).read()
+            tiles = re.search(r"listening on 127\.0\.0\.1:(\d+)", text)
+            page = re.search(r"wall page at (http://127\.0\.0\.1:\d+/)", text)
+            return (tiles.group(1), page.group(1)) if tiles and page else None
+
+        tile_port, url = wait("the sink to listen", sink_ports, 30)
+        render_log = os.path.join(work, "render.log")
+        start([args.mpiexec, *shlex.split(args.preflags), "-np", "2", args.voxwall, "render",
+               volume, "--wall", wall, "--sink", "127.0.0.1:" + tile_port, "--frames", "100000",
+               "--path", "still", "--threads", "1", "--settle", "1", "-q"], render_log)
+
+        options = webdriver.ChromeOptions()
+        options.binary_location = "/usr/bin/chromium"
+        for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                     "--no-first-run", "--disable-background-networking",
+                     "--disable-component-update", "--disable-sync",
+                     "--disable-dev-shm-usage", f"--window-size={args.window}",
+                     f"--user-data-dir={os.path.join(work, 'chromium')}"):
+            options.add_argument(flag)
+        driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+        driver.set_script_timeout(30)
+        driver.get(url)
+        state = lambda key: driver.execute_script(f"return window.voxwall.{key};")
+        wait("frames on the page", lambda: (state("frames") or 0) >= 3, 120)
+
+        # The wall is there: the canvas is not blank, and it is the frame the sink presented.
+        canvas = driver.find_element(By.ID, "wall")
+        w, h, shot = read_png(canvas.screenshot_as_png)
+        lit = sum(1 for row in shot for i in range(0, len(row), 3)
+                  if max(row[i:i + 3]) > 0x11 + 40)
+        if lit < 0.02 * w * h:
+            raise Failure(f"the page's wall looks blank: {lit} of {w * h} pixels lit")
+        before_meta, before = wait("a full frame on the page",
+                                   lambda: (f := page_frame(driver)) and f[0]["step"] == 1 and f,
+                                   60)
+        before_db = check_against_sink(wall_dir, before_meta, before, "before the drag")
+
+        # A drag steers the job: interactive frames, then a settled frame from a moved camera.
+        actions = ActionChains(driver)
+        actions.move_to_element(canvas).click_and_hold()
+        for _ in range(6):
+            actions.move_by_offset(25, 4).pause(0.05)
+        actions.release().perform()
+        wait("the drag's commands", lambda: (state("commands") or 0) > 0, 10)
+        wait("an interactive frame on the page", lambda: (state("reducedFrames") or 0) > 0, 60)
+        last_reduced = state("lastReducedFrame")
+        after_meta, after = wait(
+            "a full frame after the drag",
+            lambda: (f := page_frame(driver)) and f[0]["step"] == 1 and
+            f[0]["frame"] > last_reduced and f, 60)
+        moved_db = psnr(before, after)
+        if moved_db > 25:
+            raise Failure(f"the frame after the drag is {moved_db:.1f} dB from the one before: "
+                          "the camera did not move")
+        after_db = check_against_sink(wall_dir, after_meta, after, "after the drag")
+        if "interactive 1/" not in open(sink_log).read():
+            raise Failure("the sink's log marks no frame as interactive")
+
+        if args.screenshot:
+            if args.overlay:
+                driver.find_element(By.ID, "overlay").click()
+                time.sleep(1.0)
+            driver.save_screenshot(args.screenshot)
+        print(f"wall page: {state('frames')} frames drawn; frame {before_meta['frame']} "
+              f"{before_db:.1f} dB and frame {after_meta['frame']} {after_db:.1f} dB against the "
+              f"sink's; {state('reducedFrames')} interactive frame(s) during the drag; the frame "
+              f"after it {moved_db:.1f} dB from the one before (moved)")
+        return 0
+    except (Failure, subprocess.SubprocessError) as e:
+        print(f"FAIL: {e}", file=sys.stderr)
+        for log in ("sink.log", "render.log"):
+            path = os.path.join(work, log)
+            if os.path.exists(path):
+                print(f"--- {log} (last lines)", file=sys.stderr)
+                print("".join(open(path).readlines()[-15:]), file=sys.stderr)
+        return 1
+    finally:
+        if driver:
+            driver.quit()
+        for p in reversed(procs):
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+                p.wait(timeout=10)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
+                try:
+                    os.killpg(p.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+        subprocess.run(["rm", "-rf", work])
+
+
+if __name__ == "__main__":
+    sys.exit(main())
