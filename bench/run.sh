@@ -12,3 +12,5 @@ echo "== voxwall vs VTK vtkFixedPointVolumeRayCastMapper"
 xvfb-run -a -s "-screen 0 3000x2000x24" /usr/bin/python3 bench/compare_vtk.py --voxwall "$build/master/voxwall" "$@"
 echo "== What shading costs per codec: unshaded, six-sample gradients, cell gradients"
 /usr/bin/python3 bench/shading_bench.py --voxwall "$build/master/voxwall"
+echo "== Steering the bigeye wall: frames while dragging (interactive 1/4) against full frames"
+/usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading
