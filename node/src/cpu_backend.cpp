@@ -1,14 +1,20 @@
 // The CPU backend: threads over 16x16-pixel blocks of the tile, each pixel by raycastPixel.
 // Every pixel is independent of the others, so the image is the same for any thread count.
-#include <atomic>
 #include <chrono>
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/node/renderer.hpp>
 
+#include "cpu_blocks.hpp"
+
+// node/CMakeLists.txt compiles one translation unit per view type (cpu_view.cpp.in).
+static_assert(std::variant_size_v<voxwall::node::ViewVariant> == VOXWALL_CPU_VIEW_COUNT,
+              "a view type was added or removed: set VOXWALL_CPU_VIEW_COUNT in node/CMakeLists.txt "
+              "to the number of view types of codec::AnyView");
+
 namespace voxwall::node {
 namespace {
 
-constexpr int kBlockPixels = 16;
+using cpu::kBlockPixels;
 
 class CpuBackend final : public Backend {
  public:
@@ -22,35 +28,11 @@ class CpuBackend final : public Backend {
     out = Image(tile.width, tile.height);
     const int bx = (tile.width + kBlockPixels - 1) / kBlockPixels;
     const int by = (tile.height + kBlockPixels - 1) / kBlockPixels;
-    std::atomic<std::uint64_t> samples{0};
     // Each block's time, written by the one thread that renders it; spread into `costs` after.
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
-    const auto lut = plan.lut.view();
-    std::visit(
-        [&](const auto& view) {
-          voxwall::parallelFor(std::size_t(bx) * std::size_t(by), threads_, [&](std::size_t b) {
-            const auto blockStart =
-                costs ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-            const int x0 = int(b % std::size_t(bx)) * kBlockPixels;
-            const int y0 = int(b / std::size_t(bx)) * kBlockPixels;
-            const int x1 = std::min(x0 + kBlockPixels, tile.width);
-            const int y1 = std::min(y0 + kBlockPixels, tile.height);
-            std::uint64_t local = 0;
-            for (int y = y0; y < y1; ++y)
-              for (int x = x0; x < x1; ++x) {
-                const auto px =
-                    kernels::raycastPixel(view, plan.ray, lut, plan.skip, tile.x + x, tile.y + y);
-                out.at(x, y) = kernels::packRgba8(px.rgba);
-                local += px.samples;
-              }
-            samples.fetch_add(local, std::memory_order_relaxed);
-            if (costs)
-              blockSeconds[b] =
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - blockStart)
-                      .count();
-          });
-        },
-        volume.view());
+    const cpu::TileJob job{plan, tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr};
+    const std::uint64_t samples =
+        std::visit([&](const auto& view) { return cpu::renderBlocks(view, job); }, volume.view());
     if (costs)
       for (std::size_t b = 0; b < blockSeconds.size(); ++b) {
         const int x0 = int(b % std::size_t(bx)) * kBlockPixels;
@@ -60,7 +42,7 @@ class CpuBackend final : public Backend {
                    blockSeconds[b]);
       }
     TileStats stats;
-    stats.samples = samples.load();
+    stats.samples = samples;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
   }
