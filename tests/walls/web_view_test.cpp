@@ -41,12 +41,13 @@ walls::SinkSettings webSink(const std::string& token = "") {
 
 // One HTTP request; returns the status (0 when the server closed without answering) and body.
 std::pair<int, std::string> get(std::uint16_t port, const std::string& target,
-                                http::verb verb = http::verb::get, std::size_t headerBytes = 0) {
+                                http::verb verb = http::verb::get, std::size_t headerBytes = 0,
+                                const std::string& host = "") {
   boost::asio::io_context io;
   beast::tcp_stream stream(io);
   stream.connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
   http::request<http::empty_body> req(verb, target, 11);
-  req.set(http::field::host, "127.0.0.1:" + std::to_string(port));
+  req.set(http::field::host, host.empty() ? "127.0.0.1:" + std::to_string(port) : host);
   if (headerBytes) req.set("X-Padding", std::string(headerBytes, 'a'));
   beast::error_code ec;
   http::write(stream, req, ec);
@@ -171,8 +172,23 @@ TEST(WebView, ServesThePageAndNothingElse) {
   EXPECT_EQ(get(port, "/", http::verb::delete_).first, 405);
   // Headers over 8 KiB: refused before they are held.
   EXPECT_NE(get(port, "/", http::verb::get, 20000).first, 200);
+  // DNS rebinding: another site's name pointed at 127.0.0.1 is not served; loopback names, on
+  // any port (an SSH tunnel's), are.
+  EXPECT_EQ(get(port, "/", http::verb::get, 0, "evil.example:" + std::to_string(port)).first, 403);
+  EXPECT_EQ(get(port, "/ws", http::verb::get, 0, "evil.example").first, 403);
+  EXPECT_EQ(get(port, "/", http::verb::get, 0, "localhost:9000").first, 200);
+  EXPECT_EQ(get(port, "/", http::verb::get, 0, "[::1]:9000").first, 200);
   // The server is still there.
   EXPECT_EQ(get(port, "/").first, 200);
+}
+
+TEST(WebView, AnotherOriginGivenOnTheCommandLineMayWatch) {
+  auto settings = webSink();
+  settings.httpOrigins = {"http://wallhost.lab:8080"};
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  EXPECT_EQ(get(port, "/", http::verb::get, 0, "wallhost.lab:8080").first, 200);
+  EXPECT_EQ(get(port, "/", http::verb::get, 0, "wallhost.lab:9999").first, 403);
 }
 
 TEST(WebView, RefusesAForeignOriginAndTakesItsOwn) {

@@ -34,6 +34,7 @@ using Clock = std::chrono::steady_clock;
 constexpr std::size_t kMaxRequestHeader = 8192;
 constexpr auto kRequestTimeout = std::chrono::seconds(10);
 constexpr std::size_t kMaxQueuedText = 32;  // a viewer with more unsent notes is closed
+constexpr std::size_t kMaxRequests = 256;   // HTTP requests being read or answered at once
 
 std::string peerName(const tcp::socket& socket) {
   boost::system::error_code ec;
@@ -109,6 +110,7 @@ struct WebView::Impl {
   std::optional<ViewerFrame> pending;
   bool encodePosted = false;
   bool stopped = false;
+  bool loopback = true;  // served on a loopback address (hostAllowed)
   std::shared_ptr<bnet::steady_timer> stopTimer;
 
   void say(const std::string& line) {
@@ -119,6 +121,24 @@ struct WebView::Impl {
     if (!host.empty() && origin == "http://" + host) return true;
     return std::find(settings.origins.begin(), settings.origins.end(), origin) !=
            settings.origins.end();
+  }
+  // DNS rebinding: a page of evil.example whose name was pointed at 127.0.0.1 reaches a loopback
+  // server as a same-origin request. Served on loopback, only the loopback names (any port: an
+  // SSH tunnel may use another) and the hosts of --http-origin are answered.
+  bool hostAllowed(const std::string& host) const {
+    if (!loopback) return true;
+    std::string name = host;
+    if (name.starts_with("[")) {
+      name = name.substr(0, name.find(']') + 1);
+    } else if (const auto colon = name.rfind(':'); colon != std::string::npos) {
+      name = name.substr(0, colon);
+    }
+    if (name == "127.0.0.1" || name == "localhost" || name == "[::1]") return true;
+    for (const auto& origin : settings.origins) {
+      const auto start = origin.find("://");
+      if (start != std::string::npos && origin.substr(start + 3) == host) return true;
+    }
+    return false;
   }
   void accept();
   void encode();
@@ -330,8 +350,13 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
 
   void serve(http::request<http::empty_body> req) {
     const std::string target(req.target());
+    const std::string host(req[http::field::host]);
+    if (!view->hostAllowed(host)) {
+      view->say("sink: refused a request for Host '" + host.substr(0, 100) + "'");
+      return reply(http::status::forbidden, "this Host is not served here\n", "text/plain");
+    }
     if (websocket::is_upgrade(req)) {
-      const std::string origin(req[http::field::origin]), host(req[http::field::host]);
+      const std::string origin(req[http::field::origin]);
       if (target != "/ws")
         return reply(http::status::not_found, "no such WebSocket\n", "text/plain");
       if (!view->originAllowed(origin, host)) {
@@ -365,8 +390,14 @@ void WebView::Impl::accept() {
       timer->async_wait([self, timer](beast::error_code) { self->accept(); });
       return;
     }
-    auto session = std::make_shared<HttpSession>(std::move(socket), self);
     std::erase_if(self->requests, [](const auto& r) { return r.second.expired(); });
+    if (self->requests.size() >= kMaxRequests) {  // requests in flight; each ends within 10 s
+      boost::system::error_code ignored;
+      socket.close(ignored);
+      self->accept();
+      return;
+    }
+    auto session = std::make_shared<HttpSession>(std::move(socket), self);
     self->requests[session.get()] = session;
     session->start();
     self->accept();
@@ -461,6 +492,7 @@ WebView::WebView(const Wall& wall, WebViewSettings settings, Control control, Si
   try {
     const auto address = bnet::ip::make_address(s.settings.host);
     const tcp::endpoint endpoint(address, s.settings.port);
+    s.loopback = address.is_loopback();
     s.acceptor.open(endpoint.protocol());
     s.acceptor.set_option(bnet::socket_base::reuse_address(true));
     s.acceptor.bind(endpoint);

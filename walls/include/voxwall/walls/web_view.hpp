@@ -23,7 +23,9 @@
 // Security: with a token, a viewer gets no frame and no command is taken before "auth" with the
 // right one (a wrong one closes the connection). A WebSocket whose Origin is not this server's
 // own (http://<the Host it was asked as>) or one of `origins` is refused (403): another site's
-// page in the operator's browser cannot steer the wall. Anything else (binary from the page, an
+// page in the operator's browser cannot steer the wall. Served on loopback, a request whose Host
+// is not a loopback name (or the host of one of `origins`) is refused too (403; DNS rebinding).
+// At most 256 HTTP requests are read or answered at once. Anything else (binary from the page, an
 // unknown or malformed command, a message over the limit) closes the connection. Commands are
 // rate-limited per viewer. A viewer that does not keep up gets the newest frame when it is ready
 // (frames in between are dropped for it; the page counts them from "presented"); one that stops
