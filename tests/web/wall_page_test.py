@@ -7,7 +7,8 @@ It checks that
     sink presented (the page's picture against the sink's own mosaic file of that frame, PSNR);
   - a mouse drag on the canvas steers the job: interactive (reduced) frames come first, then a
     full frame from a moved camera (unlike the frame before the drag), again equal to what the
-    sink presented.
+    sink presented;
+  - touch works too: a one-finger drag sends a rotation, two fingers moving apart a zoom in.
 
 Usage: wall_page_test.py --voxwall BIN --mpiexec MPIEXEC [--preflags "..."] --walls DIR
                          [--wall ci-2x2] [--volume FILE] [--screenshot PNG] [--overlay]
@@ -30,6 +31,7 @@ import zlib
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.actions.action_builder import ActionBuilder
 from selenium.webdriver.common.by import By
 
 
@@ -233,6 +235,34 @@ def main():
         if "interactive 1/" not in open(sink_log).read():
             raise Failure("the sink's log marks no frame as interactive")
 
+        # Touch: one finger rotates, two fingers moving apart zoom in (pointer events).
+        def touch(moves):
+            builder = ActionBuilder(driver)
+            fingers = [builder.add_pointer_input("touch", f"finger{i}") for i in range(len(moves))]
+            for finger, (x0, x1) in zip(fingers, moves):
+                finger.create_pointer_move(x=x0, y=0, origin=canvas, duration=0)
+                finger.create_pointer_down(button=0)
+                for k in range(1, 6):
+                    finger.create_pointer_move(x=x0 + (x1 - x0) * k // 5, y=0, origin=canvas,
+                                               duration=60)
+                finger.create_pointer_up(button=0)
+            builder.perform()
+
+        def sent_since(count, word):
+            lines = driver.execute_script("return window.voxwall.sent;")[-count:] if count else []
+            return [line for line in lines if line.startswith(word)]
+
+        before = state("commands")
+        touch([(0, 120)])
+        wait("a rotation from a one-finger drag", lambda: sent_since(
+            state("commands") - before, "rotate"), 10)
+        before = state("commands")
+        touch([(-20, -140), (20, 140)])
+        zooms = wait("a zoom from two fingers moving apart", lambda: sent_since(
+            state("commands") - before, "zoom"), 10)
+        if not any(float(z.split()[1]) > 1 for z in zooms):
+            raise Failure(f"two fingers moving apart sent {zooms}, not a zoom in")
+
         if args.screenshot:
             if args.overlay:
                 driver.find_element(By.ID, "overlay").click()
@@ -241,7 +271,7 @@ def main():
         print(f"wall page: {state('frames')} frames drawn; frame {before_meta['frame']} "
               f"{before_db:.1f} dB and frame {after_meta['frame']} {after_db:.1f} dB against the "
               f"sink's; {state('reducedFrames')} interactive frame(s) during the drag; the frame "
-              f"after it {moved_db:.1f} dB from the one before (moved)")
+              f"after it {moved_db:.1f} dB from the one before (moved); touch: rotate and {zooms[0]}")
         return 0
     except (Failure, subprocess.SubprocessError) as e:
         print(f"FAIL: {e}", file=sys.stderr)
