@@ -1,6 +1,7 @@
 // The CUDA backend: uploads the compressed volume once, the transfer-function table and the
 // skip grid per frame, and launches one thread per pixel running the same raycastPixel as the
-// CPU backend. Only allocation, upload, launch and download live here (docs/architecture.md).
+// CPU backend. Only allocation, upload, launch and download live here (docs/architecture.md);
+// the kernel is compiled per view type (cuda_launch.hpp).
 #include <cuda_runtime.h>
 
 #include <chrono>
@@ -10,6 +11,12 @@
 #include <type_traits>
 #include <vector>
 #include <voxwall/node/renderer.hpp>
+
+#include "cuda_launch.hpp"
+
+// node/CMakeLists.txt compiles one unit per view type (cuda_view.cu.in), as for the CPU.
+static_assert(std::variant_size_v<voxwall::node::ViewVariant> == VOXWALL_CPU_VIEW_COUNT,
+              "set VOXWALL_CPU_VIEW_COUNT in node/CMakeLists.txt to the number of view types");
 
 #define VOXWALL_CUDA_CHECK(call) ::voxwall::node::cudaCheck((call), #call, __FILE__, __LINE__)
 
@@ -127,24 +134,6 @@ class DeviceArrays {
   std::vector<std::unique_ptr<DeviceBuffer>> buffers_;
 };
 
-template <class View>
-__global__ void raycastKernel(View view, kernels::RayFrame frame, kernels::TransferLut lut,
-                              kernels::SkipGrid skip, int tileX, int tileY, int tileW, int tileH,
-                              std::uint32_t* out, unsigned long long* samples) {
-  const int x = int(blockIdx.x * blockDim.x + threadIdx.x);
-  const int y = int(blockIdx.y * blockDim.y + threadIdx.y);
-  unsigned count = 0;
-  if (x < tileW && y < tileH) {
-    const auto r = kernels::raycastPixel(view, frame, lut, skip, tileX + x, tileY + y);
-    out[std::size_t(y) * std::size_t(tileW) + std::size_t(x)] = kernels::packRgba8(r.rgba);
-    count = r.samples;
-  }
-  // One atomic per warp instead of one per pixel.
-  count = __reduce_add_sync(0xffffffffu, count);
-  if ((threadIdx.x + threadIdx.y * blockDim.x) % 32 == 0)
-    atomicAdd(samples, (unsigned long long)count);
-}
-
 class CudaBackend final : public Backend {
  public:
   CudaBackend() {
@@ -189,12 +178,14 @@ class CudaBackend final : public Backend {
     const dim3 grid((tile.width + 15) / 16, (tile.height + 7) / 8);
     const auto lut = plan.lut.view(lut_.as<glm::vec4>());
     const auto arrays = deviceArrays_.build(payload, prop_);
-    std::visit(
-        [&](const auto& view) {
-          raycastKernel<<<grid, block>>>(view, plan.ray, lut, skip, tile.x, tile.y, tile.width,
-                                         tile.height, image_.as<std::uint32_t>(), samples_);
-        },
-        payload.deviceView(volumeBytes_.as<std::byte>(), arrays));
+    cuda::Launch launch;
+    launch.grid = grid, launch.block = block;
+    launch.frame = plan.ray, launch.lut = lut, launch.skip = skip;
+    launch.tileX = tile.x, launch.tileY = tile.y, launch.tileW = tile.width;
+    launch.tileH = tile.height;
+    launch.out = image_.as<std::uint32_t>(), launch.samples = samples_;
+    std::visit([&](const auto& view) { cuda::launchRaycast(view, launch); },
+               payload.deviceView(volumeBytes_.as<std::byte>(), arrays));
     VOXWALL_CUDA_CHECK(cudaGetLastError());
     out = Image(tile.width, tile.height);
     VOXWALL_CUDA_CHECK(cudaMemcpy(out.pixels.data(), image_.as<std::uint32_t>(),
