@@ -103,11 +103,13 @@ class Viewer {
     }
     return nullptr;
   }
-  // Whether the server closed the connection (reads until it does, at most 10 s).
+  // Whether the server closed the connection (reads until it does, at most 10 s). Which error
+  // says so depends on timing (a close frame, EOF, a reset, or a write that found the socket
+  // gone); only a read that timed out means the connection is still open.
   bool closedByServer() {
     for (int i = 0; i < 50 && !ec_; ++i) read();
-    return ec_ == websocket::error::closed || ec_ == boost::asio::error::eof ||
-           ec_ == boost::asio::error::connection_reset || ec_ == boost::asio::error::broken_pipe;
+    return ec_ && ec_ != boost::asio::error::would_block && ec_ != boost::asio::error::try_again &&
+           ec_ != boost::asio::error::timed_out;
   }
   std::string closeReason() const { return std::string(ws_.reason().reason.c_str()); }
   const beast::error_code& error() const { return ec_; }

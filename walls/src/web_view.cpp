@@ -151,17 +151,20 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   WebView::Impl* view;
   std::string name;
   beast::flat_buffer in;
-  bool authed = false, open = false, writing = false, closing = false;
+  bool authed = false, open = false, writing = false, closing = false, counted = true;
   std::deque<std::string> notes;
   std::shared_ptr<const std::string> frame, writingFrame;
   std::string writingNote;
   double tokens = 0;
   Clock::time_point refilled = Clock::now();
 
+  // Counted among the viewers from here (a handshake in progress takes a place too, so
+  // --max-viewers bounds what handshakes can hold), until gone().
   WsSession(tcp::socket socket, WebView::Impl* v) : ws(std::move(socket)), view(v) {
     name = peerName(beast::get_lowest_layer(ws).socket());
     authed = view->settings.token.empty();
     tokens = 2 * view->settings.commandsPerSecond;
+    ++view->viewerCount;
   }
 
   void start(http::request<http::empty_body> request) {
@@ -176,20 +179,24 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
       if (ec) return self->gone("handshake: " + ec.message());
       self->open = true;
       self->view->sessions[self.get()] = self;
-      const int n = ++self->view->viewerCount;
-      self->view->say("sink: " + self->name + " connected (" + std::to_string(n) + " watching)");
+      self->view->say("sink: " + self->name + " connected (" +
+                      std::to_string(self->view->viewerCount.load()) + " watching)");
       self->note(self->view->wallJson);
       self->read();
     });
   }
 
   void gone(const std::string& why) {
+    if (counted) {
+      counted = false;
+      const int n = --view->viewerCount;
+      if (open)
+        view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
+                  std::to_string(n) + " watching");
+    }
     if (open) {
       open = false;
       view->sessions.erase(this);
-      const int n = --view->viewerCount;
-      view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
-                std::to_string(n) + " watching");
     }
     beast::get_lowest_layer(ws).close();
   }
