@@ -189,3 +189,17 @@ TEST(RenderSettings, ManifestRecordsTheCodecRenderFlags) {
   EXPECT_NE(manifest(o, job, render, 1), dc);
   EXPECT_EQ(codecRenderOptions(o).text("--progressive", ""), "lp");
 }
+
+// --path still: frame 0's camera for every frame, so the camera moves only when steered.
+TEST(RenderSettings, AStillPathKeepsTheCamera) {
+  RenderOptions o;
+  o.path = "still";
+  o.frames = 50;
+  o.camera = "40,10,3";
+  const auto job = jobSettings(o);
+  EXPECT_EQ(job.path.at(0).azimuthDeg, 40);
+  EXPECT_EQ(job.path.at(49).azimuthDeg, 40);
+  EXPECT_EQ(job.path.at(49).distance, 3);
+  o.path = "orbit";
+  EXPECT_NE(jobSettings(o).path.at(49).azimuthDeg, 40);
+}

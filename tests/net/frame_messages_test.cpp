@@ -18,6 +18,7 @@ net::FrameTask sampleTask() {
   t.screenWidth = 64, t.screenHeight = 48;
   t.cellPixels = 16;
   t.jobId = 0xfeedf00d12345678ull;
+  t.step = 2;
   t.rects = {{{0, 0, 32, 48}}, {{32, 0, 32, 20}, {32, 20, 32, 28}}, {}};
   return t;
 }
@@ -67,7 +68,21 @@ TEST(FrameTask, RoundTrips) {
   EXPECT_EQ(back.watchdogMs, 5000u);
   EXPECT_EQ(back.jobId, 0xfeedf00d12345678ull);
   EXPECT_EQ(back.cellPixels, 16);
+  EXPECT_EQ(back.step, 2);
   EXPECT_EQ(back.rects, t.rects);
+}
+
+TEST(FrameTask, RejectsAStepOutOfRange) {
+  for (const int step : {0, -1, net::kMaxTaskStep + 1}) {
+    auto t = sampleTask();
+    t.step = step;
+    try {
+      net::decodeFrameTask(net::encode(t), "task");
+      ADD_FAILURE() << "step " << step << " accepted";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("step"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(FrameTask, RejectsEveryTruncation) {

@@ -32,6 +32,8 @@ std::vector<std::byte> sampleTile() {
   t.codec = net::TileCodec::Deflate;
   t.decidedUnixMicros = 123456789;
   t.bytes = {std::byte{1}, std::byte{2}, std::byte{3}};
+  t.step = 4;
+  t.renderMicros = 2500;
   return net::encodeMessage(42, t);
 }
 
@@ -70,6 +72,8 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
     EXPECT_EQ(tile.codec, net::TileCodec::Deflate);
     EXPECT_EQ(tile.decidedUnixMicros, 123456789u);
     EXPECT_EQ(tile.bytes.size(), 3u);
+    EXPECT_EQ(tile.step, 4);
+    EXPECT_EQ(tile.renderMicros, 2500u);
     EXPECT_EQ(net::decodeFrameEnd(m[3].payload, "t").tiles, 7u);
     const auto control = net::decodeControl(m[4].payload, "t");
     EXPECT_EQ(control.command, net::ControlCommand::Pan);
@@ -169,6 +173,27 @@ TEST(Wire, PayloadDecodersCheckEveryField) {
   t.assign(tile.begin() + net::kHeaderBytes, tile.end());
   t[16] = std::byte{7};  // codec
   EXPECT_THROW(net::decodeTileMessage(t, "t"), FormatError);
+  for (const int step : {0, net::kMaxStep + 1, 255}) {
+    t.assign(tile.begin() + net::kHeaderBytes, tile.end());
+    t[17] = std::byte(step);  // the step, after the codec
+    try {
+      net::decodeTileMessage(t, "t");
+      ADD_FAILURE() << "step " << step << " accepted";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("step " + std::to_string(step)), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+// A reduced rectangle stands for its blocks of the virtual screen, clipped at the edges.
+TEST(Wire, ReducedRectanglesMapOntoTheVirtualScreen) {
+  EXPECT_EQ(net::reducedSide(5772, 4), 1443);
+  EXPECT_EQ(net::reducedSide(4338, 4), 1085);
+  EXPECT_EQ(net::fullScreenRect({0, 0, 10, 10}, 1, 100, 100), (voxwall::Rect{0, 0, 10, 10}));
+  EXPECT_EQ(net::fullScreenRect({2, 3, 4, 5}, 4, 100, 100), (voxwall::Rect{8, 12, 16, 20}));
+  // The last reduced column of a 4338-high screen covers rows 4336..4337 only.
+  EXPECT_EQ(net::fullScreenRect({0, 1084, 1, 1}, 4, 5772, 4338), (voxwall::Rect{0, 4336, 4, 2}));
 }
 
 TEST(Wire, RandomCorruptionNeverCrashes) {

@@ -250,6 +250,49 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
   EXPECT_DOUBLE_EQ(got[0].b, -5);
 }
 
+// A viewer that floods commands: a burst of 120 goes through, the rest are dropped and it is told.
+TEST(WebView, CommandsBeyondTheRateAreDroppedAndTheViewerIsTold) {
+  test::SinkRunner sink(webSink());
+  net::ControlChannel control("127.0.0.1", sink.port(),
+                              net::Hello{net::Role::Controller, 0, 1, "t2x1", ""});
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  Viewer v(sink.sink().httpPort());
+  v.read();
+  constexpr int kSent = 400;  // refilling 280 commands at 60/s would take over 4 s
+  for (int i = 0; i < kSent; ++i) v.send("rotate 1 0");
+  bool told = false;
+  for (int i = 0; i < 50 && !told; ++i) {
+    const auto m = v.read();
+    ASSERT_FALSE(v.error()) << v.error().message();
+    told = m.find("too many commands") != std::string::npos;
+  }
+  EXPECT_TRUE(told);
+  std::size_t got = 0;
+  for (int i = 0; i < 100; ++i) {
+    got += control.drain().size();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_GE(got, 120u);
+  EXPECT_LT(got, std::size_t(kSent));
+}
+
+// Connections that never send a request hold at most 256 places, each for at most 10 s.
+TEST(WebView, IdleConnectionsAreBoundedAndCutOff) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  boost::asio::io_context io;
+  std::vector<std::unique_ptr<tcp::socket>> idle;
+  for (int i = 0; i < 256; ++i) {
+    idle.push_back(std::make_unique<tcp::socket>(io));
+    idle.back()->connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(get(port, "/").first, 0);  // closed unanswered: no place left
+  idle.clear();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(get(port, "/").first, 200);
+}
+
 TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
   test::SinkRunner sink(webSink());
   const auto port = sink.sink().httpPort();

@@ -159,7 +159,6 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
                                : tile.decidedUnixMicros;
   info.bytes += tile.bytes.size();
   ++info.tiles;
-  info.ranks.insert(rank);
   if (f.coveredDisplayPixels < displayPixels_) return std::nullopt;
 
   // Complete: older frames can never be shown now, and frames far ahead are bogus.

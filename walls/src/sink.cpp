@@ -143,21 +143,12 @@ struct Sink::Impl : net::PeerHandler {
                     "frame %llu presented: %zu display(s), %d tiles from %zu rank(s), %.1f KiB, "
                     "latency %.1f ms%s",
                     (unsigned long long)number, wall.displays.size(), frame.data.tiles,
-                    frame.data.ranks.size(), double(frame.data.bytes) / 1024, latencyMs,
+                    frame.data.rankRenderMicros.size(), double(frame.data.bytes) / 1024, latencyMs,
                     interactive.c_str());
       say(line);
-      if (web) {
-        ViewerFrame v;
-        v.image = std::make_shared<const voxwall::Image>(std::move(frame.data.image));
-        v.frame = number;
-        v.step = frame.data.step;
-        v.placements = std::move(frame.data.placements);
-        v.rankRenderMicros = std::move(frame.data.rankRenderMicros);
-        v.latencyMs = latencyMs;
-        v.bytes = frame.data.bytes;
-        v.stats = core->stats();
-        web->present(std::move(v));
-      }
+      if (web)
+        web->present({std::make_shared<const AssembledFrame>(std::move(frame.data)), latencyMs,
+                      core->stats()});
       asio::post(io, [this, job = frame.job, number] {
         core->frameSettled(job, number, {net::FrameStatus::Presented, ""});
       });

@@ -105,7 +105,6 @@ struct WebView::Impl {
   std::map<WsSession*, std::weak_ptr<WsSession>> sessions;      // the io thread's
   std::map<HttpSession*, std::weak_ptr<HttpSession>> requests;  // likewise
   std::atomic<int> viewerCount{0};
-  std::atomic<std::uint64_t> sent{0};
   std::mutex pendingMutex;
   std::optional<ViewerFrame> pending;
   bool encodePosted = false;
@@ -303,7 +302,6 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
       frame.reset();
       ws.binary(true);
       ws.async_write(bnet::buffer(*writingFrame), done);
-      ++view->sent;
     }
   }
 };
@@ -418,12 +416,13 @@ void WebView::Impl::encode() {
     encodePosted = false;
     f.swap(pending);
   }
-  if (!f || !f->image || stopped) return;
+  if (!f || !f->frame || stopped) return;
+  const AssembledFrame& frame = *f->frame;
   bool anyone = false;
   for (const auto& [p, weak] : sessions)
     if (const auto s = weak.lock(); s && s->authed) anyone = true;
   if (!anyone) return;
-  const voxwall::Image small = scaleDown(*f->image, settings.maxWidth);
+  const voxwall::Image small = scaleDown(frame.image, settings.maxWidth);
   net::TileCodecSettings codec;
   codec.codec = net::TileCodec::Jpeg;
   codec.jpegQuality = settings.jpegQuality;
@@ -433,24 +432,24 @@ void WebView::Impl::encode() {
       net::encodeTiles(small, {0, 0, small.width, small.height}, wall.background, codec);
   if (parts.size() != 1) return;
   nlohmann::json meta = {{"type", "frame"},
-                         {"frame", f->frame},
-                         {"step", f->step},
+                         {"frame", frame.frame},
+                         {"step", frame.step},
                          {"width", small.width},
                          {"height", small.height},
                          {"latency_ms", f->latencyMs},
-                         {"bytes", f->bytes},
+                         {"bytes", frame.bytes},
                          {"presented", f->stats.framesPresented},
                          {"dropped", f->stats.framesDropped + f->stats.framesStale},
                          {"ranks_connected", f->stats.renderersConnected}};
   auto& tiles = meta["tiles"] = nlohmann::json::array();
-  for (const auto& t : mergePlacements(f->placements))
+  for (const auto& t : mergePlacements(frame.placements))
     tiles.push_back({{"rank", t.rank},
                      {"x", t.rect.x},
                      {"y", t.rect.y},
                      {"w", t.rect.width},
                      {"h", t.rect.height}});
   auto& ranks = meta["ranks"] = nlohmann::json::object();
-  for (const auto& [rank, micros] : f->rankRenderMicros)
+  for (const auto& [rank, micros] : frame.rankRenderMicros)
     ranks[std::to_string(rank)] = double(micros) / 1e3;
   const std::string json = meta.dump();
   auto message = std::make_shared<std::string>();
@@ -556,8 +555,5 @@ void WebView::present(ViewerFrame frame) {
   s.encodePosted = true;
   bnet::post(s.io, [impl = impl_.get()] { impl->encode(); });
 }
-
-int WebView::viewers() const { return impl_->viewerCount; }
-std::uint64_t WebView::framesSent() const { return impl_->sent; }
 
 }  // namespace voxwall::walls

@@ -39,12 +39,12 @@ struct AssembledFrame {
   std::uint64_t decidedUnixMicros = 0;  // earliest camera decision of its tiles (rank 0's clock)
   std::uint64_t bytes = 0;              // encoded tile bytes received
   int tiles = 0;
-  std::set<int> ranks;
   // 1: full resolution; n > 1: an interactive frame rendered at 1/n per side and upsampled here
   // (every virtual-screen pixel repeats the reduced pixel whose block it lies in).
   int step = 1;
-  std::vector<TilePlacement> placements;          // in arrival order
-  std::map<int, std::uint32_t> rankRenderMicros;  // per rank, its render time for the frame
+  std::vector<TilePlacement> placements;  // in arrival order
+  // Every rank that sent tiles of the frame, with its render time for the frame.
+  std::map<int, std::uint32_t> rankRenderMicros;
 };
 
 struct FrameEvent {

@@ -34,7 +34,6 @@
 
 #include <cstdint>
 #include <functional>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,16 +58,12 @@ struct WebViewSettings {
   double commandsPerSecond = 60;  // per viewer (a burst of twice that is allowed)
 };
 
-// One presented frame as the viewers see it.
+// One presented frame as the viewers see it: the assembler's frame (handed over, not copied),
+// what it took to present it and the sink's numbers then.
 struct ViewerFrame {
-  std::shared_ptr<const voxwall::Image> image;  // the whole virtual screen
-  std::uint64_t frame = 0;
-  int step = 1;
-  std::vector<TilePlacement> placements;
-  std::map<int, std::uint32_t> rankRenderMicros;
+  std::shared_ptr<const AssembledFrame> frame;
   double latencyMs = 0;
-  std::uint64_t bytes = 0;
-  SinkStats stats;  // the sink's numbers when it was presented
+  SinkStats stats;
 };
 
 class WebView {
@@ -85,9 +80,6 @@ class WebView {
   // The newest presented frame; returns at once (the web thread scales and encodes it, and only
   // when someone watches). Thread-safe.
   void present(ViewerFrame frame);
-  // Viewers connected now / frames sent to viewers so far. Thread-safe.
-  int viewers() const;
-  std::uint64_t framesSent() const;
 
   struct Impl;  // web_view.cpp's (its connections reach it)
 
