@@ -30,7 +30,7 @@ node::TransferFunction comparisonTf() {
 }
 
 // Args: threads, shading (0/1), empty-space skipping (0/1), gradients (0: six samples per
-// shaded sample, 1: cell gradients).
+// shaded sample, 1: cell gradients), packets (0: one ray at a time, 1: SIMD packets).
 void BM_RaycastFrame(benchmark::State& state) {
   const int threads = int(state.range(0));
   node::RenderSettings settings;
@@ -40,7 +40,8 @@ void BM_RaycastFrame(benchmark::State& state) {
   node::Orbit orbit;  // 3/4 view: azimuth 30, elevation 20
   const auto camera = node::orbitCamera(orbit, node::boundingRadius(volume().info()));
   const auto plan = node::planFrame(volume(), camera, 1920, 1080, comparisonTf(), settings);
-  auto backend = node::makeCpuBackend(threads);
+  auto backend = node::makeCpuBackend(threads, state.range(4) != 0);
+  state.SetLabel(backend->name());
   voxwall::Image image;
   std::uint64_t samples = 0;
   for (auto _ : state) {
@@ -55,14 +56,17 @@ void BM_RaycastFrame(benchmark::State& state) {
 }
 
 BENCHMARK(BM_RaycastFrame)
-    ->ArgNames({"threads", "shading", "skip", "cell_gradients"})
-    ->Args({1, 0, 1, 1})
-    ->Args({1, 1, 1, 0})
-    ->Args({1, 1, 1, 1})
-    ->Args({2, 0, 1, 1})
-    ->Args({2, 0, 0, 1})
-    ->Args({2, 1, 1, 0})
-    ->Args({2, 1, 1, 1})
+    ->ArgNames({"threads", "shading", "skip", "cell_gradients", "packets"})
+    ->Args({1, 0, 1, 1, 0})
+    ->Args({1, 0, 1, 1, 1})
+    ->Args({1, 1, 1, 1, 0})
+    ->Args({1, 1, 1, 1, 1})
+    ->Args({2, 0, 1, 1, 0})
+    ->Args({2, 0, 1, 1, 1})
+    ->Args({2, 0, 0, 1, 1})
+    ->Args({2, 1, 1, 0, 1})
+    ->Args({2, 1, 1, 1, 0})
+    ->Args({2, 1, 1, 1, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(2.0);

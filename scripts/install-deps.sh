@@ -18,6 +18,8 @@ main=(
   libasio-dev
   # the sink's web page: Boost.Beast (header-only)
   libboost-dev
+  # the CPU raycaster's SIMD ray packets, with runtime dispatch
+  libhwy-dev
   # real data: the MRI template used as the default volume
   mricron-data
 )

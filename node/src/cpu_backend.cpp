@@ -1,5 +1,6 @@
-// The CPU backend: threads over 16x16-pixel blocks of the tile, each pixel by raycastPixel.
-// Every pixel is independent of the others, so the image is the same for any thread count.
+// The CPU backend: threads over 16x16-pixel blocks of the tile, each block in SIMD packets of
+// rays (raycastLanes over Highway vectors) or, without packets, each pixel by raycastPixel. Every
+// pixel is independent of the others, so the image is the same for any thread count.
 #include <chrono>
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/node/renderer.hpp>
@@ -18,8 +19,15 @@ using cpu::kBlockPixels;
 
 class CpuBackend final : public Backend {
  public:
-  explicit CpuBackend(int threads) : threads_(voxwall::resolveThreads(threads)) {}
-  std::string name() const override { return "cpu (" + std::to_string(threads_) + " threads)"; }
+  CpuBackend(int threads, bool packets)
+      : threads_(voxwall::resolveThreads(threads)), packets_(packets && cpu::packetLanes() > 1) {}
+  std::string name() const override {
+    return "cpu (" + std::to_string(threads_) + " threads, " +
+           (packets_ ? cpu::packetTarget() + " packets of " + std::to_string(cpu::packetLanes()) +
+                           " rays"
+                     : std::string("one ray at a time")) +
+           ")";
+  }
 
   TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
                        Image& out, CostGrid* costs) override {
@@ -30,7 +38,8 @@ class CpuBackend final : public Backend {
     const int by = (tile.height + kBlockPixels - 1) / kBlockPixels;
     // Each block's time, written by the one thread that renders it; spread into `costs` after.
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
-    const cpu::TileJob job{plan, tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr};
+    const cpu::TileJob job{plan,    tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
+                           packets_};
     const std::uint64_t samples =
         std::visit([&](const auto& view) { return cpu::renderBlocks(view, job); }, volume.view());
     if (costs)
@@ -49,13 +58,16 @@ class CpuBackend final : public Backend {
 
  private:
   int threads_;
+  bool packets_;
 };
 
 }  // namespace
 
-std::unique_ptr<Backend> makeCpuBackend(int threads) {
-  return std::make_unique<CpuBackend>(threads);
+std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets) {
+  return std::make_unique<CpuBackend>(threads, packets);
 }
+
+std::size_t cpuPacketLanes() { return cpu::packetLanes(); }
 
 std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads) {
   if (kind == BackendKind::Cuda) return makeCudaBackend();

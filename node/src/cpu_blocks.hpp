@@ -1,10 +1,13 @@
 // The CPU backend's per-tile work, split by view type: cpu_backend.cpp dispatches on the volume's
 // view, and each view's raycaster is compiled in a translation unit of its own (CMake writes one
 // per view from cpu_view.cpp.in), so a build spreads the heaviest code over all its cores
-// instead of compiling every view's instantiation in one file.
+// instead of compiling every view's instantiation in one file. Each of those units compiles the
+// packet raycaster once per SIMD instruction set (cpu_view_targets.hpp) and picks the best the
+// CPU has when it runs.
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <variant>
 #include <vector>
 #include <voxwall/node/renderer.hpp>
@@ -20,11 +23,16 @@ struct TileJob {
   Image& out;
   int blocksX, blocksY, threads;
   std::vector<double>* blockSeconds;  // per block, when the costs are measured (else null)
+  bool packets = true;                // SIMD ray packets where the CPU has them, else one ray
 };
 
 // Renders every block of `job` from `view`; returns the samples taken. Defined in
-// cpu_blocks_impl.hpp, instantiated once per view type.
+// cpu_view_targets.hpp, instantiated once per view type.
 template <class View>
 std::uint64_t renderBlocks(const View& view, const TileJob& job);
+
+// The rays per packet on this CPU (1: no SIMD instruction set the build has), and its name.
+std::size_t packetLanes();
+std::string packetTarget();
 
 }  // namespace voxwall::node::cpu

@@ -83,7 +83,12 @@ class Backend {
 
 // threads: CPU worker threads (0 = all cores). Cuda throws CudaError when no device is usable.
 std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0);
-std::unique_ptr<Backend> makeCpuBackend(int threads);
+// packets: trace SIMD packets of neighbouring rays where the CPU has an instruction set the build
+// compiled them for (AVX2, AVX-512); false, or no such set: one ray at a time (the same per-ray
+// code, as CUDA runs it). Both give the same picture to rounding.
+std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true);
+// Rays per packet of the CPU backend on this CPU (1: none of the build's SIMD targets runs here).
+std::size_t cpuPacketLanes();
 std::unique_ptr<Backend> makeCudaBackend();
 // Whether the CUDA backend can run here; otherwise `reason` says why (not built, no device...).
 bool cudaAvailable(std::string* reason = nullptr);

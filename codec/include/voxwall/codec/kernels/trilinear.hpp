@@ -23,11 +23,13 @@ VOXWALL_HD_INLINE int ceilToInt(float x) {
 }
 
 // The trilinear blend of a cell's eight corner values at fractions (tx, ty, tz) in [0, 1]: corner
-// i sits at (+x if bit 0, +y if bit 1, +z if bit 2). Every view blends through this one function.
-VOXWALL_HD_INLINE float blendCorners(const float* c, float tx, float ty, float tz) {
-  const float c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
-  const float c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
-  const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+// i sits at (+x if bit 0, +y if bit 1, +z if bit 2). Every view blends through this one function
+// (V: float, or a SIMD vector of the CPU's ray packets).
+template <class V>
+VOXWALL_HD_INLINE V blendCorners(const V* c, V tx, V ty, V tz) {
+  const V c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
+  const V c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
+  const V c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
   return c0 + tz * (c1 - c0);
 }
 
@@ -44,21 +46,21 @@ VOXWALL_HD_INLINE float blendCorners(const float* c, float tx, float ty, float t
 // view gets the gradient the raycaster used to take six samples (48 voxel reads) for from 24
 // reads per cell, reused by every sample in the cell.
 // One of them: axis A, corner I, with constant offsets so every read is a fixed address.
-template <int A, int I, class At>
-VOXWALL_HD_INLINE float cornerDifference(const float* c, const At& at) {
+template <int A, int I, class V, class At>
+VOXWALL_HD_INLINE V cornerDifference(const V* c, const At& at) {
   constexpr int bit = 1 << A, x = I & 1, y = (I >> 1) & 1, z = I >> 2;
   if constexpr ((I & bit) != 0)  // the upper corner: two voxels past the lower one, minus it
     return at(A == 0 ? 2 : x, A == 1 ? 2 : y, A == 2 ? 2 : z) - c[I ^ bit];
   else  // the lower corner: the upper one minus the voxel before
     return c[I | bit] - at(A == 0 ? -1 : x, A == 1 ? -1 : y, A == 2 ? -1 : z);
 }
-template <class At, int... K>
-VOXWALL_HD_INLINE void cornerDifferences(const float* c, const At& at, float* d,
+template <class V, class At, int... K>
+VOXWALL_HD_INLINE void cornerDifferences(const V* c, const At& at, V* d,
                                          std::integer_sequence<int, K...>) {
   ((d[K] = cornerDifference<K / 8, K % 8>(c, at)), ...);
 }
-template <class At>
-VOXWALL_HD_INLINE void cornerDifferences(const float* c, const At& at, float* d) {
+template <class V, class At>
+VOXWALL_HD_INLINE void cornerDifferences(const V* c, const At& at, V* d) {
   cornerDifferences(c, at, d, std::make_integer_sequence<int, 24>());
 }
 

@@ -144,150 +144,346 @@ VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& invD, const
   return t;
 }
 
-// Composites one sample at index-space position p; returns true when the ray is opaque enough
-// to stop. `transparent` tells whether the sample's opacity was zero.
+// The shading gradient (world units) at p, right after view.sample(p, cache): from the view's
+// cell hook (GradientView) where it has one and f.cellGradients, else from six trilinear samples
+// one voxel either side of the sample (central differences over two voxels).
 template <codec::kernels::VolumeView View>
-VOXWALL_HD_INLINE bool shadeAndComposite(const View& view, typename View::RayCache& cache,
-                                         const RayFrame& f, const TransferLut& lut,
-                                         const glm::vec3& p, const glm::vec3& dir, glm::vec4& acc,
-                                         bool& transparent) {
-  const glm::vec4 c = lut.lookup(view.sample(p.x, p.y, p.z, cache));
-  transparent = c.a <= 0.0f;
-  glm::vec3 color(c.r, c.g, c.b);
-  // A transparent sample composites nothing; only the (costly) shading branches on it.
-  if (f.shading && c.a > 0.0f) {
-    const glm::vec3 g = 0.5f * f.invSpacing;  // central differences over two voxels, world units
-    glm::vec3 grad;
-    bool fromCell = false;
-    if constexpr (codec::kernels::GradientView<View>) {
-      float d[3];
-      if (f.cellGradients && view.gradient(p.x, p.y, p.z, cache, d)) {
-        grad = glm::vec3(d[0], d[1], d[2]) * g;
-        fromCell = true;
-      }
-    }
-    if (!fromCell)
-      grad = glm::vec3((view.sampleNear(p.x + 1.0f, p.y, p.z, cache) -
-                        view.sampleNear(p.x - 1.0f, p.y, p.z, cache)) *
-                           g.x,
-                       (view.sampleNear(p.x, p.y + 1.0f, p.z, cache) -
-                        view.sampleNear(p.x, p.y - 1.0f, p.z, cache)) *
-                           g.y,
-                       (view.sampleNear(p.x, p.y, p.z + 1.0f, cache) -
-                        view.sampleNear(p.x, p.y, p.z - 1.0f, cache)) *
-                           g.z);
-    color = shade(color, grad, dir, f);
+VOXWALL_HD_INLINE glm::vec3 sampleGradient(const View& view, typename View::RayCache& cache,
+                                           const RayFrame& f, const glm::vec3& p) {
+  const glm::vec3 g = 0.5f * f.invSpacing;
+  if constexpr (codec::kernels::GradientView<View>) {
+    float d[3];
+    if (f.cellGradients && view.gradient(p.x, p.y, p.z, cache, d))
+      return glm::vec3(d[0], d[1], d[2]) * g;
   }
-  compositeOver(acc, color, c.a);
-  return acc.a >= f.earlyTermination;
+  return glm::vec3((view.sampleNear(p.x + 1.0f, p.y, p.z, cache) -
+                    view.sampleNear(p.x - 1.0f, p.y, p.z, cache)) *
+                       g.x,
+                   (view.sampleNear(p.x, p.y + 1.0f, p.z, cache) -
+                    view.sampleNear(p.x, p.y - 1.0f, p.z, cache)) *
+                       g.y,
+                   (view.sampleNear(p.x, p.y, p.z + 1.0f, cache) -
+                    view.sampleNear(p.x, p.y, p.z - 1.0f, cache)) *
+                       g.z);
 }
 
-// Renders one pixel of the virtual screen. `View` meets the view contract (VolumeView in
-// view_concept.hpp: sample(x, y, z, RayCache&) is the trilinear sample in index space, the cache
-// per-ray state the view may use to reuse work between consecutive samples, sampleNear the
-// gradient's neighbours); its values are looked up in `lut`. Samples
-// sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid the ray walks coarse cells: a
-// cell's emptiness is looked up once per crossing and an empty cell is jumped over; inside a
-// non-empty cell, a sample whose fine cell is empty is skipped (checked only after a transparent
-// sample). A skipped sample would have had opacity exactly zero, and positions are computed from
-// k, never accumulated, so the image is the same with and without skipping.
-template <codec::kernels::VolumeView View>
-VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
-                                           const TransferLut& lut, const SkipGrid& skip, int px,
-                                           int py) {
-  PixelResult out;
-  const glm::vec3 dir = pixelDirection(f, px, py);
+// For a traversal view, after a transparent sample k: the next sample index to take, past the
+// region around sample k where every sample has its value (cache.region*, for this level only),
+// or k + 1 when the view reports none (Faas 2016, sections 3.2.2-3.2.4).
+template <class Cache>
+VOXWALL_HD_INLINE int regionEnd(const Cache& cache, const glm::vec3& o, const glm::vec3& invD,
+                                const RayFrame& f, float tEnter, float invStep, int steps, int k) {
+  if (!cache.regionValid) return k + 1;
+  float tOut = boxExit(o, invD, glm::vec3(cache.regionLo[0], cache.regionLo[1], cache.regionLo[2]),
+                       glm::vec3(cache.regionHi[0], cache.regionHi[1], cache.regionHi[2]));
+  if (f.lodAngle > 0.0f) {  // the footprint picks another level from here on
+    const float tLevel = cache.regionFootprintMax / f.lodAngle;
+    tOut = tLevel < tOut ? tLevel : tOut;
+  }
+  const float kr = (tOut - tEnter) * invStep - 0.5f;
+  const int kNext = kr >= float(steps) ? steps : codec::kernels::ceilToInt(kr);
+  return kNext > k + 1 ? kNext : k + 1;
+}
+
+// Three and four values of a lane type (a vector and a colour per lane).
+template <class F>
+struct Lanes3 {
+  F x, y, z;
+};
+template <class F>
+struct Lanes4 {
+  F r, g, b, a;
+};
+
+// The lane policy of raycastLanes for one ray at a time: a lane is a plain float, a mask a bool.
+// CUDA (one thread per ray) and the CPU's scalar path run it. node/src/cpu_view_targets.hpp gives
+// the same operations over SIMD vectors of neighbouring rays (Highway), so one body of per-ray
+// code serves both: SPMD on SIMD, as ISPC and OSPRay do. Every operation keeps the scalar code's
+// semantics (a ternary's NaN behaviour included), so the two paths give the same picture.
+struct ScalarLanes {
+  using F = float;
+  using I = int;
+  using M = bool;
+  template <class View>
+  using Caches = typename View::RayCache;
+
+  static VOXWALL_HD_INLINE F splat(float v) { return v; }
+  static VOXWALL_HD_INLINE I splatI(int v) { return v; }
+  static VOXWALL_HD_INLINE F select(M m, F a, F b) { return m ? a : b; }
+  static VOXWALL_HD_INLINE I selectI(M m, I a, I b) { return m ? a : b; }
+  static VOXWALL_HD_INLINE M selectM(M m, M a, M b) { return m ? a : b; }
+  static VOXWALL_HD_INLINE M both(M a, M b) { return a && b; }
+  static VOXWALL_HD_INLINE M either(M a, M b) { return a || b; }
+  static VOXWALL_HD_INLINE M butNot(M a, M b) { return a && !b; }
+  static VOXWALL_HD_INLINE bool any(M m) { return m; }
+  static VOXWALL_HD_INLINE M lessI(I a, I b) { return a < b; }
+  static VOXWALL_HD_INLINE M isZeroI(I a) { return a == 0; }
+  static VOXWALL_HD_INLINE F sqrt(F v) { return sqrtf(v); }
+  static VOXWALL_HD_INLINE F abs(F v) { return fabsf(v); }
+  static VOXWALL_HD_INLINE F pow(F v, float e) { return powf(v, e); }
+  static VOXWALL_HD_INLINE I trunc(F v) { return int(v); }
+  static VOXWALL_HD_INLINE F toFloat(I v) { return float(v); }
+  static VOXWALL_HD_INLINE I shiftRight(I v, int s) { return v >> s; }
+  static VOXWALL_HD_INLINE I ceilInt(F v) { return codec::kernels::ceilToInt(v); }
+  // Where m: is base[index] non-zero (a skip grid's cell)?
+  static VOXWALL_HD_INLINE M byteSet(const std::uint8_t* base, I index, M m) {
+    return m && base[index] != 0;
+  }
+  static VOXWALL_HD_INLINE Lanes4<F> lookup(const TransferLut& lut, F value) {
+    const glm::vec4 c = lut.lookup(value);
+    return {c.r, c.g, c.b, c.a};
+  }
+
+  // The view, where m.
+  template <class View>
+  static VOXWALL_HD_INLINE F sample(const View& view, Caches<View>& cache, const Lanes3<F>& p, M) {
+    return view.sample(p.x, p.y, p.z, cache);
+  }
+  template <class View>
+  static VOXWALL_HD_INLINE Lanes3<F> gradient(const View& view, Caches<View>& cache,
+                                              const RayFrame& f, const Lanes3<F>& p, M) {
+    const glm::vec3 g = sampleGradient(view, cache, f, glm::vec3(p.x, p.y, p.z));
+    return {g.x, g.y, g.z};
+  }
+  template <class View>
+  static VOXWALL_HD_INLINE void setNearest(Caches<View>& cache, bool nearest) {
+    cache.nearest = nearest;
+  }
+  template <class View>
+  static VOXWALL_HD_INLINE void setFootprint(Caches<View>& cache, F footprint, M) {
+    cache.footprint = footprint;
+  }
+  template <class View>
+  static VOXWALL_HD_INLINE I regionEnd(const Caches<View>& cache, const glm::vec3& o,
+                                       const Lanes3<F>& invD, const RayFrame& f, F tEnter,
+                                       float invStep, I steps, I k, M) {
+    return kernels::regionEnd(cache, o, glm::vec3(invD.x, invD.y, invD.z), f, tEnter, invStep,
+                              steps, k);
+  }
+};
+
+// Blinn-Phong (shade) over lanes.
+template <class L>
+VOXWALL_HD_INLINE Lanes3<typename L::F> shadeLanes(const Lanes3<typename L::F>& color,
+                                                   const Lanes3<typename L::F>& grad,
+                                                   const Lanes3<typename L::F>& dir,
+                                                   const RayFrame& f) {
+  using F = typename L::F;
+  const F len = L::sqrt(grad.x * grad.x + grad.y * grad.y + grad.z * grad.z);
+  const F zero = L::splat(0.0f);
+  const auto flat = L::butNot(zero == zero, len > L::splat(1e-12f));  // homogeneous: unshaded
+  const F nl = L::abs(grad.x * dir.x + grad.y * dir.y + grad.z * dir.z) / len;
+  F power;
+  if (f.shininessInt < 0) {
+    power = L::pow(nl, f.shininess);
+  } else {
+    power = L::splat(1.0f);
+    F base = nl;
+    for (int e = f.shininessInt; e; e >>= 1) {
+      if (e & 1) power = power * base;
+      base = base * base;
+    }
+  }
+  const F spec = L::splat(f.specular) * power;
+  const F kd = L::splat(f.ambient) + L::splat(f.diffuse) * nl;
+  const F kFlat = L::splat(f.ambient + f.diffuse), one = L::splat(1.0f);
+  auto channel = [&](F c) {
+    const F lit = c * kd + spec;
+    return L::select(flat, c * kFlat, L::select(one < lit, one, lit));
+  };
+  return {channel(color.x), channel(color.y), channel(color.z)};
+}
+
+// Traces the rays through pixels (px, py) of the virtual screen, one per lane of L (valid: the
+// lanes that hold a pixel), into premultiplied colour and opacity and the samples taken.
+// `View` meets the view contract (VolumeView in view_concept.hpp: sample(x, y, z, RayCache&) is
+// the trilinear sample in index space, the cache per-ray state the view may use to reuse work
+// between consecutive samples, sampleNear the gradient's neighbours); its values are looked up
+// in `lut`. Samples sit at t = tEnter + (k + 1/2) * stepWorld. With a skip grid each ray walks
+// coarse cells: a cell's emptiness is looked up once per crossing and an empty cell is jumped
+// over; inside a non-empty cell, a sample whose fine cell is empty is skipped (checked only after
+// a transparent sample). A skipped sample would have had opacity exactly zero, and positions
+// are computed from k, never accumulated, so the image is the same with and without skipping.
+// Every lane keeps its own k, cell and cache; a lane drops out when its ray terminates or leaves
+// the volume, and the packet ends when all have.
+template <class L, codec::kernels::VolumeView View>
+VOXWALL_HD_INLINE void raycastLanes(const View& view, const RayFrame& f, const TransferLut& lut,
+                                    const SkipGrid& skip, typename L::I px, typename L::I py,
+                                    typename L::M valid, Lanes4<typename L::F>& acc,
+                                    typename L::I& samples) {
+  using F = typename L::F;
+  using I = typename L::I;
+  using M = typename L::M;
+  const F zero = L::splat(0.0f), one = L::splat(1.0f), half = L::splat(0.5f);
+  acc = {zero, zero, zero, zero};
+  samples = L::splatI(0);
+  // The unit direction through the pixel's centre (pixelDirection).
+  const F sx = (L::toFloat(px) + half) / L::splat(float(f.screen.x)) * L::splat(2.0f) - one;
+  const F sy = one - (L::toFloat(py) + half) / L::splat(float(f.screen.y)) * L::splat(2.0f);
+  Lanes3<F> dir{L::splat(f.forward.x) + sx * L::splat(f.right.x) + sy * L::splat(f.up.x),
+                L::splat(f.forward.y) + sx * L::splat(f.right.y) + sy * L::splat(f.up.y),
+                L::splat(f.forward.z) + sx * L::splat(f.right.z) + sy * L::splat(f.up.z)};
+  const F invLen = one / L::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
+  dir = {dir.x * invLen, dir.y * invLen, dir.z * invLen};
+  // Index space: the eye is the same for every ray.
   const glm::vec3 o = f.eyeWorld * f.invSpacing + f.centerIndex;
-  const glm::vec3 d = dir * f.invSpacing;
-  float tEnter, tExit;
-  if (!rayBox(o, d, glm::vec3(-0.5f), f.boxMax, tEnter, tExit)) return out;
-  tEnter = tEnter > 0.0f ? tEnter : 0.0f;
-  if (tExit <= tEnter) return out;
+  const Lanes3<F> d{dir.x * L::splat(f.invSpacing.x), dir.y * L::splat(f.invSpacing.y),
+                    dir.z * L::splat(f.invSpacing.z)};
+  const Lanes3<F> invD{one / d.x, one / d.y, one / d.z};
+  // Entry and exit of the box [-0.5, dims - 0.5] (rayBox).
+  M hit = valid;
+  F t0 = L::splat(-INFINITY), t1 = L::splat(INFINITY);
+  auto slab = [&](float oa, F da, F inv, float lo, float hi) {
+    const M flat = da == zero;
+    if (oa < lo || oa > hi) hit = L::butNot(hit, flat);  // parallel to the slab, outside it
+    F tn = (L::splat(lo) - L::splat(oa)) * inv, tf = (L::splat(hi) - L::splat(oa)) * inv;
+    const M swap = tn > tf;
+    const F s = tn;
+    tn = L::select(swap, tf, tn), tf = L::select(swap, s, tf);
+    t0 = L::select(L::butNot(tn > t0, flat), tn, t0);
+    t1 = L::select(L::butNot(tf < t1, flat), tf, t1);
+  };
+  slab(o.x, d.x, invD.x, -0.5f, f.boxMax.x);
+  slab(o.y, d.y, invD.y, -0.5f, f.boxMax.y);
+  slab(o.z, d.z, invD.z, -0.5f, f.boxMax.z);
+  hit = L::both(hit, t0 <= t1);
+  const F tEnter = L::select(hit, L::select(t0 > zero, t0, zero), zero);
+  const F tExit = L::select(hit, t1, zero);
+  hit = L::both(hit, tExit > tEnter);
+  if (!L::any(hit)) return;
   // Samples at (k + 1/2) steps that lie inside [tEnter, tExit); robust to rounding at the exit.
-  const int steps = codec::kernels::ceilToInt((tExit - tEnter) / f.stepWorld - 0.5f);
+  const I steps =
+      L::selectI(hit, L::ceilInt((tExit - tEnter) / L::splat(f.stepWorld) - half), L::splatI(0));
   const float invStep = 1.0f / f.stepWorld;
-  const glm::vec3 invD(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
-  glm::vec4 acc(0.0f);
-  bool transparent = true;        // was the last sample fully transparent?
-  typename View::RayCache cache;  // the view's per-ray state (e.g. the last cell's corners)
+  const F step = L::splat(f.stepWorld);
+  const I oneI = L::splatI(1), zeroI = L::splatI(0);
+  typename L::template Caches<View> cache;  // the view's per-ray state (e.g. the last cell)
   // Views that traverse a mip hierarchy (svmm) take the sampling mode and the ray's footprint,
   // and report the region around a sample where every sample has its value (a terminal block):
-  // a transparent one is skipped in one step (Faas 2016, sections 3.2.2-3.2.4).
+  // a transparent one is skipped in one step.
   constexpr bool traversal = requires { View::kTraversal; };
   static_assert(!traversal || codec::kernels::TraversalView<View>,
                 "a view that declares kTraversal must meet TraversalView: its RayCache needs "
                 "footprint, nearest, regionValid, regionLo/Hi and regionFootprintMax");
-  if constexpr (traversal) cache.nearest = f.nearest;
-  int k = 0;
-  while (k < steps) {
-    int kEnd = steps;
+  if constexpr (traversal) L::template setNearest<View>(cache, f.nearest);
+  I k = zeroI, kEnd = zeroI;  // the next sample and the end of its coarse cell
+  M live = L::both(hit, L::lessI(zeroI, steps));
+  M transparent = hit;  // was the ray's last sample fully transparent?
+  auto position = [&](const F& t) {
+    return Lanes3<F>{L::splat(o.x) + t * d.x, L::splat(o.y) + t * d.y, L::splat(o.z) + t * d.z};
+  };
+  // The voxel index of a position, 0 for the volume's outer half voxel below 0.
+  auto voxelIndex = [&](const F& v) { return L::selectI(v < zero, zeroI, L::trunc(v)); };
+  while (L::any(live)) {
     if (skip.empty) {
-      const glm::vec3 p = o + (tEnter + (float(k) + 0.5f) * f.stepWorld) * d;
-      // The cell of the sample's lower trilinear corner: its range covers every voxel it reads.
-      const int vx = p.x < 0.0f ? 0 : int(p.x), vy = p.y < 0.0f ? 0 : int(p.y),
-                vz = p.z < 0.0f ? 0 : int(p.z);
-      const int cx = vx >> skip.cellShift, cy = vy >> skip.cellShift, cz = vz >> skip.cellShift;
-      const float size = float(1 << skip.cellShift);
-      // Cell 0 also holds positions in [-0.5, 0): extend its lower bound.
-      const glm::vec3 lo(cx ? float(cx) * size : -1.0f, cy ? float(cy) * size : -1.0f,
-                         cz ? float(cz) * size : -1.0f);
-      const glm::vec3 hi(float(cx + 1) * size, float(cy + 1) * size, float(cz + 1) * size);
-      // First sample index at or past the cell's exit; at least the next one.
-      const float kCell = (boxExit(o, invD, lo, hi) - tEnter) * invStep - 0.5f;
-      kEnd = kCell >= float(steps) ? steps : codec::kernels::ceilToInt(kCell);
-      kEnd = kEnd > k + 1 ? kEnd : k + 1;
-      const bool inside = cx < skip.cellsX && cy < skip.cellsY && cz < skip.cellsZ;
-      if (inside && skip.empty[(std::size_t(cz) * std::size_t(skip.cellsY) + std::size_t(cy)) *
-                                   std::size_t(skip.cellsX) +
-                               std::size_t(cx)]) {
-        k = kEnd;
-        continue;
+      // Lanes past their coarse cell look up the next one, and jump it while it is empty.
+      M need = L::butNot(live, L::lessI(k, kEnd));
+      while (L::any(need)) {
+        const Lanes3<F> p = position(tEnter + (L::toFloat(k) + half) * step);
+        // The cell of the sample's lower trilinear corner: its range covers every voxel it reads.
+        const I cx = L::shiftRight(voxelIndex(p.x), skip.cellShift);
+        const I cy = L::shiftRight(voxelIndex(p.y), skip.cellShift);
+        const I cz = L::shiftRight(voxelIndex(p.z), skip.cellShift);
+        const F size = L::splat(float(1 << skip.cellShift)), below = L::splat(-1.0f);
+        // Cell 0 also holds positions in [-0.5, 0): extend its lower bound. Then the ray
+        // parameter where it leaves the cell (boxExit).
+        F tCell = L::splat(INFINITY);
+        auto exitAlong = [&](const I& c, const F& inv, float oa) {
+          const F lo = L::select(L::isZeroI(c), below, L::toFloat(c) * size);
+          const F hi = L::toFloat(c + oneI) * size;
+          const F ta = (L::select(inv > zero, hi, lo) - L::splat(oa)) * inv;
+          tCell = L::select(ta < tCell, ta, tCell);
+        };
+        exitAlong(cx, invD.x, o.x);
+        exitAlong(cy, invD.y, o.y);
+        exitAlong(cz, invD.z, o.z);
+        // First sample index at or past the cell's exit; at least the next one.
+        const F kCell = (tCell - tEnter) * L::splat(invStep) - half;
+        I next = L::selectI(kCell >= L::toFloat(steps), steps,
+                            L::ceilInt(L::select(kCell >= L::toFloat(steps), zero, kCell)));
+        next = L::selectI(L::lessI(k + oneI, next), next, k + oneI);
+        kEnd = L::selectI(need, next, kEnd);
+        const M inside = L::both(
+            L::both(L::lessI(cx, L::splatI(skip.cellsX)), L::lessI(cy, L::splatI(skip.cellsY))),
+            L::lessI(cz, L::splatI(skip.cellsZ)));
+        const I cell = (cz * L::splatI(skip.cellsY) + cy) * L::splatI(skip.cellsX) + cx;
+        const M empty = L::byteSet(skip.empty, cell, L::both(need, inside));
+        k = L::selectI(empty, kEnd, k);
+        live = L::both(live, L::lessI(k, steps));
+        need = L::both(empty, live);
+      }
+      if (!L::any(live)) break;
+    }
+    const F t = tEnter + (L::toFloat(k) + half) * step;
+    const Lanes3<F> p = position(t);
+    M go = live;
+    M skipped = zero != zero;  // none yet
+    // Fine cells are checked only after a transparent sample: inside opaque material they
+    // would almost never skip, and the check costs as much as a tenth of a sample.
+    if (skip.fineEmpty) {
+      const M check = L::both(go, transparent);
+      if (L::any(check)) {
+        auto fine = [&](const F& v, int cells) {
+          const I c = L::shiftRight(voxelIndex(v), skip.fineShift), last = L::splatI(cells - 1);
+          return L::selectI(L::lessI(c, last), c, last);
+        };
+        const I fx = fine(p.x, skip.fineX), fy = fine(p.y, skip.fineY), fz = fine(p.z, skip.fineZ);
+        const I cell = (fz * L::splatI(skip.fineY) + fy) * L::splatI(skip.fineX) + fx;
+        skipped = L::byteSet(skip.fineEmpty, cell, check);
+        go = L::butNot(go, skipped);
       }
     }
-    for (; k < kEnd; ++k) {
-      const glm::vec3 p = o + (tEnter + (float(k) + 0.5f) * f.stepWorld) * d;
-      // Fine cells are checked only after a transparent sample: inside opaque material they
-      // would almost never skip, and the check costs as much as a tenth of a sample.
-      if (skip.fineEmpty && transparent) {
-        int fx = (p.x < 0.0f ? 0 : int(p.x)) >> skip.fineShift;
-        int fy = (p.y < 0.0f ? 0 : int(p.y)) >> skip.fineShift;
-        int fz = (p.z < 0.0f ? 0 : int(p.z)) >> skip.fineShift;
-        fx = fx < skip.fineX ? fx : skip.fineX - 1;
-        fy = fy < skip.fineY ? fy : skip.fineY - 1;
-        fz = fz < skip.fineZ ? fz : skip.fineZ - 1;
-        if (skip.fineEmpty[(std::size_t(fz) * std::size_t(skip.fineY) + std::size_t(fy)) *
-                               std::size_t(skip.fineX) +
-                           std::size_t(fx)])
-          continue;
-      }
-      ++out.samples;
+    if (L::any(go)) {
+      samples = samples + L::selectI(go, oneI, zeroI);
       if constexpr (traversal) {
-        if (f.lodAngle > 0.0f)
-          cache.footprint = (tEnter + (float(k) + 0.5f) * f.stepWorld) * f.lodAngle;
+        if (f.lodAngle > 0.0f) L::template setFootprint<View>(cache, t * L::splat(f.lodAngle), go);
       }
-      if (shadeAndComposite(view, cache, f, lut, p, dir, acc, transparent)) {
-        out.rgba = acc;
-        return out;
+      const Lanes4<F> c = L::lookup(lut, L::sample(view, cache, p, go));
+      transparent = L::selectM(go, c.a <= zero, transparent);
+      Lanes3<F> color{c.r, c.g, c.b};
+      // A transparent sample composites nothing; only the (costly) shading branches on it.
+      if (f.shading) {
+        const M lit = L::both(go, c.a > zero);
+        if (L::any(lit)) {
+          const Lanes3<F> shaded =
+              shadeLanes<L>(color, L::template gradient<View>(view, cache, f, p, lit), dir, f);
+          color = {L::select(lit, shaded.x, color.x), L::select(lit, shaded.y, color.y),
+                   L::select(lit, shaded.z, color.z)};
+        }
       }
+      // Front-to-back "over" (compositeOver); lanes not sampling add nothing.
+      const F w = (one - acc.a) * L::select(go, c.a, zero);
+      acc.r = acc.r + w * color.x;
+      acc.g = acc.g + w * color.y;
+      acc.b = acc.b + w * color.z;
+      acc.a = acc.a + w;
+      const M done = L::both(go, acc.a >= L::splat(f.earlyTermination));
+      live = L::butNot(live, done);
       if constexpr (traversal) {
-        if (transparent && cache.regionValid) {
-          float tOut =
-              boxExit(o, invD, glm::vec3(cache.regionLo[0], cache.regionLo[1], cache.regionLo[2]),
-                      glm::vec3(cache.regionHi[0], cache.regionHi[1], cache.regionHi[2]));
-          // The region holds for this level only: stop where the footprint picks another.
-          if (f.lodAngle > 0.0f) {
-            const float tLevel = cache.regionFootprintMax / f.lodAngle;
-            tOut = tLevel < tOut ? tLevel : tOut;
-          }
-          // Samples before index kr lie inside the region: same value, also transparent.
-          const float kr = (tOut - tEnter) * invStep - 0.5f;
-          const int kNext = kr >= float(steps) ? steps : codec::kernels::ceilToInt(kr);
-          if (kNext > k + 1) k = kNext - 1;
+        const M region = L::butNot(L::both(go, transparent), done);
+        if (L::any(region)) {
+          const I next =
+              L::template regionEnd<View>(cache, o, invD, f, tEnter, invStep, steps, k, region);
+          k = L::selectI(region, next - oneI, k);
         }
       }
     }
+    k = k + L::selectI(L::either(go, skipped), oneI, zeroI);
+    live = L::both(live, L::lessI(k, steps));
   }
-  out.rgba = acc;
+}
+
+// Renders one pixel of the virtual screen: raycastLanes for a single ray.
+template <codec::kernels::VolumeView View>
+VOXWALL_HD_INLINE PixelResult raycastPixel(const View& view, const RayFrame& f,
+                                           const TransferLut& lut, const SkipGrid& skip, int px,
+                                           int py) {
+  Lanes4<float> acc;
+  int samples;
+  raycastLanes<ScalarLanes>(view, f, lut, skip, px, py, true, acc, samples);
+  PixelResult out;
+  out.rgba = glm::vec4(acc.r, acc.g, acc.b, acc.a);
+  out.samples = std::uint32_t(samples);
   return out;
 }
 

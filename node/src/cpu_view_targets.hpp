@@ -1,0 +1,363 @@
+// The CPU raycaster of one view type (VOXWALL_VIEW_INDEX), once per SIMD target: Highway's
+// foreach_target.h includes this file again for each instruction set the build targets
+// (HWY_TARGETS, set in node/CMakeLists.txt), and HWY_DYNAMIC_DISPATCH calls the best one the CPU
+// running it supports. No include guard, by design.
+//
+// On a SIMD target a packet of neighbouring rays (4x4 pixels with 16 lanes, 4x2 with 8) runs the
+// per-ray code of raycastLanes (kernels/raycast.hpp) through HwyLanes: a lane per ray, a mask
+// for the rays still going. The view's own sample, gradient and traversal hooks run per lane
+// (each ray keeps its view cache); ray setup, skipping, the transfer function, shading and
+// compositing run on whole vectors.
+#include <hwy/highway.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <type_traits>
+#include <voxwall/node/kernels/raycast.hpp>
+
+#include "cpu_blocks_impl.hpp"
+
+HWY_BEFORE_NAMESPACE();
+namespace voxwall::node::cpu {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+#if HWY_TARGET != HWY_EMU128 && HWY_TARGET != HWY_SCALAR
+#define VOXWALL_PACKETS 1
+#else
+#define VOXWALL_PACKETS 0
+#endif
+
+#if VOXWALL_PACKETS
+template <class V>
+inline constexpr bool kRaw = false;
+template <class T>
+inline constexpr bool kRaw<codec::kernels::RawView<T>> = true;
+
+// raycastLanes' lane policy (see kernels::ScalarLanes) over Highway vectors of floats and int32.
+struct HwyLanes {
+  using D = hn::ScalableTag<float>;
+  using DI = hn::RebindToSigned<D>;
+  using DU = hn::RebindToUnsigned<D>;
+  using F = hn::Vec<D>;
+  using I = hn::Vec<DI>;
+  using M = hn::Mask<D>;
+  static constexpr std::size_t kLanes = hn::MaxLanes(D());
+  static_assert(kLanes >= 4 && kLanes <= 64 && (kLanes & (kLanes - 1)) == 0);
+  template <class View>
+  struct Caches {
+    typename View::RayCache lane[kLanes];  // the view's own, one per ray
+    F c[8];  // the corners of the last sample of a view sampled on vectors (RawView)
+  };
+
+  static HWY_INLINE F splat(float v) { return hn::Set(D(), v); }
+  static HWY_INLINE I splatI(int v) { return hn::Set(DI(), v); }
+  static HWY_INLINE F select(M m, F a, F b) { return hn::IfThenElse(m, a, b); }
+  static HWY_INLINE I selectI(M m, I a, I b) {
+    return hn::IfThenElse(hn::RebindMask(DI(), m), a, b);
+  }
+  static HWY_INLINE M selectM(M m, M a, M b) { return hn::Or(hn::And(m, a), hn::AndNot(m, b)); }
+  static HWY_INLINE M both(M a, M b) { return hn::And(a, b); }
+  static HWY_INLINE M either(M a, M b) { return hn::Or(a, b); }
+  static HWY_INLINE M butNot(M a, M b) { return hn::AndNot(b, a); }
+  static HWY_INLINE bool any(M m) { return !hn::AllFalse(D(), m); }
+  static HWY_INLINE M lessI(I a, I b) { return hn::RebindMask(D(), a < b); }
+  static HWY_INLINE M isZeroI(I a) { return hn::RebindMask(D(), a == hn::Zero(DI())); }
+  static HWY_INLINE F sqrt(F v) { return hn::Sqrt(v); }
+  static HWY_INLINE F abs(F v) { return hn::Abs(v); }
+  static HWY_INLINE I trunc(F v) { return hn::ConvertTo(DI(), v); }
+  static HWY_INLINE F toFloat(I v) { return hn::ConvertTo(D(), v); }
+  static HWY_INLINE I shiftRight(I v, int s) { return hn::ShiftRightSame(v, s); }
+  static HWY_INLINE I ceilInt(F v) {
+    const I i = trunc(v);
+    return i + selectI(v > toFloat(i), splatI(1), splatI(0));
+  }
+
+  // The lanes of m as bits, lane 0 lowest.
+  static HWY_INLINE std::uint64_t bits(M m) {
+    std::uint8_t b[8] = {};
+    hn::StoreMaskBits(D(), m, b);
+    std::uint64_t v;
+    std::memcpy(&v, b, sizeof v);
+    return v;
+  }
+  // Calls fn(lane) for each lane set in m.
+  template <class Fn>
+  static HWY_INLINE void forLanes(M m, const Fn& fn) {
+    for (std::uint64_t b = bits(m); b; b &= b - 1) fn(std::size_t(std::countr_zero(b)));
+  }
+
+  static HWY_INLINE F pow(F v, float e) {
+    HWY_ALIGN float x[kLanes];
+    hn::Store(v, D(), x);
+    for (std::size_t i = 0; i < kLanes; ++i) x[i] = powf(x[i], e);
+    return hn::Load(D(), x);
+  }
+
+  // Where m: is base[index] non-zero? The bytes are gathered as the aligned 32-bit words that
+  // hold them (such a word never crosses a page, so it is readable wherever its byte is).
+  static HWY_INLINE M byteSet(const std::uint8_t* base, I index, M m) {
+    const std::uintptr_t address = reinterpret_cast<std::uintptr_t>(base);
+    const auto* words = reinterpret_cast<const std::int32_t*>(address & ~std::uintptr_t(3));
+    const I at = selectI(m, index, splatI(0)) + splatI(int(address & 3));
+    const auto word = hn::BitCast(DU(), hn::GatherIndex(DI(), words, hn::ShiftRight<2>(at)));
+    const auto shift = hn::BitCast(DU(), hn::ShiftLeft<3>(hn::And(at, splatI(3))));
+    const auto byte = hn::And(hn::Shr(word, shift), hn::Set(DU(), 0xFFu));
+    return both(m, hn::RebindMask(D(), byte != hn::Zero(DU())));
+  }
+
+  static HWY_INLINE kernels::Lanes4<F> lookup(const kernels::TransferLut& lut, F value) {
+    // Clamped as TransferLut::lookup does (Max and Min also take a NaN to 0).
+    F f = (value - splat(lut.lo)) * splat(lut.scale);
+    f = hn::Min(hn::Max(f, hn::Zero(D())), splat(lut.last));
+    const I i = trunc(f);
+    const F t = f - toFloat(i);
+    const float* base = reinterpret_cast<const float*>(lut.entries);
+    const I at = hn::ShiftLeft<2>(i);
+    auto channel = [&](int c) {
+      const F a = hn::GatherIndex(D(), base + c, at), b = hn::GatherIndex(D(), base + 4 + c, at);
+      return a + t * (b - a);
+    };
+    return {channel(0), channel(1), channel(2), channel(3)};
+  }
+
+  // RawView sampled on whole vectors: the corners gathered from the bricks in one go per
+  // corner. Needs element offsets below 2^31 bytes (else the view runs per lane).
+  template <class T>
+  static HWY_INLINE bool gathers(const codec::kernels::RawView<T>& v) {
+    const std::uint64_t bricksZ =
+        (std::uint64_t(v.dimZ) + std::uint64_t(v.mask)) >> unsigned(v.brickShift);
+    return reinterpret_cast<std::uintptr_t>(v.bricks) % alignof(T) == 0 &&
+           v.brickStrideZ * bricksZ * sizeof(T) + 8 < (std::uint64_t(1) << 31);
+  }
+  // base[index] per lane, as floats. Narrow types are gathered as the aligned 32-bit words that
+  // hold them (readable wherever the element is) and shifted out.
+  template <class T>
+  static HWY_INLINE F gather(const T* base, I index) {
+    if constexpr (std::is_same_v<T, float>) {
+      return hn::GatherIndex(D(), base, index);
+    } else {
+      static_assert(sizeof(T) == 1 || sizeof(T) == 2);
+      const std::uintptr_t address = reinterpret_cast<std::uintptr_t>(base);
+      const auto* words = reinterpret_cast<const std::int32_t*>(address & ~std::uintptr_t(3));
+      const I at = hn::ShiftLeft < sizeof(T) == 2 ? 1 : 0 > (index) + splatI(int(address & 3));
+      const auto word = hn::BitCast(DU(), hn::GatherIndex(DI(), words, hn::ShiftRight<2>(at)));
+      const auto shift = hn::BitCast(DU(), hn::ShiftLeft<3>(hn::And(at, splatI(3))));
+      const I bitsOf = hn::BitCast(DI(), hn::Shr(word, shift));
+      if constexpr (std::is_same_v<T, std::int16_t>)
+        return toFloat(hn::ShiftRight<16>(hn::ShiftLeft<16>(bitsOf)));
+      else
+        return toFloat(hn::And(bitsOf, splatI(sizeof(T) == 1 ? 0xFF : 0xFFFF)));
+    }
+  }
+  // The clamped position RawView::sample takes (Max and Min also take a NaN to 0).
+  static HWY_INLINE F clampTo(F p, float hi) {
+    return hn::Min(hn::Max(p, hn::Zero(D())), splat(hi));
+  }
+  template <class T, class Cache>
+  static HWY_INLINE F rawSample(const codec::kernels::RawView<T>& v, Cache& cache,
+                                const kernels::Lanes3<F>& p) {
+    const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
+    const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
+    const I s = splatI(v.mask);
+    const I o = hn::ShiftRightSame(ix, v.brickShift) * splatI(int(v.brickStrideX)) +
+                hn::ShiftRightSame(iy, v.brickShift) * splatI(int(v.brickStrideY)) +
+                hn::ShiftRightSame(iz, v.brickShift) * splatI(int(v.brickStrideZ)) +
+                hn::And(ix, s) + hn::And(iy, s) * splatI(v.rowStride) +
+                hn::And(iz, s) * splatI(v.sliceStride);
+    const I dy = splatI(v.rowStride), dz = splatI(v.sliceStride), dx = splatI(1);
+    F* c = cache.c;  // corner (ix + 1, ...) is in the brick's apron
+    c[0] = gather(v.bricks, o), c[1] = gather(v.bricks, o + dx);
+    c[2] = gather(v.bricks, o + dy), c[3] = gather(v.bricks, o + dy + dx);
+    c[4] = gather(v.bricks, o + dz), c[5] = gather(v.bricks, o + dz + dx);
+    c[6] = gather(v.bricks, o + dz + dy), c[7] = gather(v.bricks, o + dz + dy + dx);
+    return codec::kernels::blendCorners(c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+  }
+  // RawView's cell gradient (cornerDifferences over the 24 voxels around the cell, clamped to
+  // the volume) on vectors, right after rawSample at the same positions.
+  template <class T, class Cache>
+  static HWY_INLINE kernels::Lanes3<F> rawGradient(const codec::kernels::RawView<T>& v,
+                                                   Cache& cache, const kernels::RayFrame& f,
+                                                   const kernels::Lanes3<F>& p) {
+    const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
+    const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
+    const I s = splatI(v.mask);
+    // Offsets -1 .. 2 along each axis, clamped, as their part of the element offset.
+    I ox[4], oy[4], oz[4];
+    for (int a = 0; a < 4; ++a) {
+      auto clampAxis = [&](const I& i, int dim) {
+        return hn::Min(hn::Max(i + splatI(a - 1), splatI(0)), splatI(dim - 1));
+      };
+      const I qx = clampAxis(ix, v.dimX), qy = clampAxis(iy, v.dimY), qz = clampAxis(iz, v.dimZ);
+      ox[a] = hn::ShiftRightSame(qx, v.brickShift) * splatI(int(v.brickStrideX)) + hn::And(qx, s);
+      oy[a] = hn::ShiftRightSame(qy, v.brickShift) * splatI(int(v.brickStrideY)) +
+              hn::And(qy, s) * splatI(v.rowStride);
+      oz[a] = hn::ShiftRightSame(qz, v.brickShift) * splatI(int(v.brickStrideZ)) +
+              hn::And(qz, s) * splatI(v.sliceStride);
+    }
+    auto at = [&](int dx, int dy, int dz) {
+      return gather(v.bricks, ox[dx + 1] + oy[dy + 1] + oz[dz + 1]);
+    };
+    F d[24];
+    codec::kernels::cornerDifferences(cache.c, at, d);
+    const F tx = x - toFloat(ix), ty = y - toFloat(iy), tz = z - toFloat(iz);
+    return {codec::kernels::blendCorners(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
+            codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
+            codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
+  }
+
+  // The view's hooks where m: on vectors for RawView, else per lane (each ray its own cache).
+  template <class View>
+  static HWY_INLINE F sample(const View& view, Caches<View>& cache, const kernels::Lanes3<F>& p,
+                             M m) {
+    if constexpr (kRaw<View>) {
+      if (gathers(view)) return rawSample(view, cache, p);
+    }
+    HWY_ALIGN float x[kLanes], y[kLanes], z[kLanes], out[kLanes] = {};
+    hn::Store(p.x, D(), x), hn::Store(p.y, D(), y), hn::Store(p.z, D(), z);
+    forLanes(m, [&](std::size_t i) { out[i] = view.sample(x[i], y[i], z[i], cache.lane[i]); });
+    return hn::Load(D(), out);
+  }
+  template <class View>
+  static HWY_INLINE kernels::Lanes3<F> gradient(const View& view, Caches<View>& cache,
+                                                const kernels::RayFrame& f,
+                                                const kernels::Lanes3<F>& p, M m) {
+    kernels::Lanes3<F> vectors{hn::Zero(D()), hn::Zero(D()), hn::Zero(D())};
+    if constexpr (kRaw<View>) {
+      if (f.cellGradients && gathers(view)) {
+        // The volume's outer half voxel takes the six samples (outsideGrid), per lane below.
+        const F zero = hn::Zero(D());
+        const M inner =
+            both(both(both(p.x >= zero, p.y >= zero), both(p.z >= zero, p.x <= splat(view.maxX))),
+                 both(p.y <= splat(view.maxY), p.z <= splat(view.maxZ)));
+        vectors = rawGradient(view, cache, f, p);
+        m = butNot(m, inner);
+        if (!any(m)) return vectors;
+      }
+    }
+    HWY_ALIGN float x[kLanes], y[kLanes], z[kLanes], gx[kLanes], gy[kLanes], gz[kLanes];
+    hn::Store(p.x, D(), x), hn::Store(p.y, D(), y), hn::Store(p.z, D(), z);
+    hn::Store(vectors.x, D(), gx), hn::Store(vectors.y, D(), gy), hn::Store(vectors.z, D(), gz);
+    forLanes(m, [&](std::size_t i) {
+      const glm::vec3 g =
+          kernels::sampleGradient(view, cache.lane[i], f, glm::vec3(x[i], y[i], z[i]));
+      gx[i] = g.x, gy[i] = g.y, gz[i] = g.z;
+    });
+    return {hn::Load(D(), gx), hn::Load(D(), gy), hn::Load(D(), gz)};
+  }
+  template <class View>
+  static HWY_INLINE void setNearest(Caches<View>& cache, bool nearest) {
+    for (auto& c : cache.lane) c.nearest = nearest;
+  }
+  template <class View>
+  static HWY_INLINE void setFootprint(Caches<View>& cache, F footprint, M m) {
+    HWY_ALIGN float v[kLanes];
+    hn::Store(footprint, D(), v);
+    forLanes(m, [&](std::size_t i) { cache.lane[i].footprint = v[i]; });
+  }
+  template <class View>
+  static HWY_INLINE I regionEnd(const Caches<View>& cache, const glm::vec3& o,
+                                const kernels::Lanes3<F>& invD, const kernels::RayFrame& f,
+                                F tEnter, float invStep, I steps, I k, M m) {
+    HWY_ALIGN float ix[kLanes], iy[kLanes], iz[kLanes], te[kLanes];
+    HWY_ALIGN std::int32_t st[kLanes], kk[kLanes], out[kLanes];
+    hn::Store(invD.x, D(), ix), hn::Store(invD.y, D(), iy), hn::Store(invD.z, D(), iz);
+    hn::Store(tEnter, D(), te), hn::Store(steps, DI(), st), hn::Store(k, DI(), kk);
+    hn::Store(k + splatI(1), DI(), out);
+    forLanes(m, [&](std::size_t i) {
+      out[i] = kernels::regionEnd(cache.lane[i], o, glm::vec3(ix[i], iy[i], iz[i]), f, te[i],
+                                  invStep, st[i], kk[i]);
+    });
+    return hn::Load(DI(), out);
+  }
+};
+
+// Packets of kW x kH rays over each block.
+template <class View>
+std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
+  using L = HwyLanes;
+  constexpr int kW = L::kLanes >= 8 ? 4 : 2, kH = int(L::kLanes) / kW;
+  static_assert(kBlockPixels % kW == 0 && kBlockPixels % kH == 0);
+  const auto lut = job.plan.lut.view();
+  const L::DI di;
+  const auto lane = hn::Iota(di, 0);
+  const auto laneX = hn::And(lane, hn::Set(di, kW - 1)),
+             laneY = hn::ShiftRight < kW == 4 ? 2 : 1 > (lane);
+  return forEachBlock(job, [&](int x0, int y0, int x1, int y1, std::uint64_t& samples) {
+    HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
+    HWY_ALIGN std::int32_t n[L::kLanes];
+    for (int y = y0; y < y1; y += kH)
+      for (int x = x0; x < x1; x += kW) {
+        const auto lx = laneX + hn::Set(di, x), ly = laneY + hn::Set(di, y);
+        const L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
+        kernels::Lanes4<L::F> acc;
+        L::I count;
+        kernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
+                                 lx + hn::Set(di, job.tile.x), ly + hn::Set(di, job.tile.y), valid,
+                                 acc, count);
+        hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
+        hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(count, di, n);
+        L::forLanes(valid, [&](std::size_t i) {
+          job.out.at(x + int(i) % kW, y + int(i) / kW) =
+              kernels::packRgba8(glm::vec4(r[i], g[i], b[i], a[i]));
+          samples += std::uint64_t(n[i]);
+        });
+      }
+  });
+}
+#endif  // VOXWALL_PACKETS
+
+using View = std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>;
+
+std::uint64_t renderViewBlocks(const View& view, const TileJob& job) {
+#if VOXWALL_PACKETS
+  if (job.packets) return renderPacketBlocks(view, job);
+#endif
+  return renderScalarBlocks(view, job);
+}
+
+#if VOXWALL_VIEW_INDEX == 0
+std::size_t targetLanes() {
+#if VOXWALL_PACKETS
+  return HwyLanes::kLanes;
+#else
+  return 1;
+#endif
+}
+#endif
+
+#undef VOXWALL_PACKETS
+
+}  // namespace HWY_NAMESPACE
+}  // namespace voxwall::node::cpu
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace voxwall::node::cpu {
+
+HWY_EXPORT(renderViewBlocks);
+
+// What cpu_backend.cpp calls (cpu_blocks.hpp): the best target's raycaster.
+std::uint64_t dispatchBlocks(
+    const std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>& view, const TileJob& job) {
+  return HWY_DYNAMIC_DISPATCH(renderViewBlocks)(view, job);
+}
+template <class View>
+std::uint64_t renderBlocks(const View& view, const TileJob& job) {
+  return dispatchBlocks(view, job);
+}
+template std::uint64_t renderBlocks(
+    const std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>& view, const TileJob& job);
+
+#if VOXWALL_VIEW_INDEX == 0
+HWY_EXPORT(targetLanes);
+std::size_t packetLanes() { return HWY_DYNAMIC_DISPATCH(targetLanes)(); }
+std::string packetTarget() {
+  const std::int64_t best = std::int64_t(hwy::SupportedTargets()) & std::int64_t(HWY_TARGETS);
+  return hwy::TargetName(best & -best);
+}
+#endif
+
+}  // namespace voxwall::node::cpu
+#endif  // HWY_ONCE

@@ -1,0 +1,132 @@
+// The CPU's SIMD ray packets against its one-ray-at-a-time path (the per-ray code CUDA runs), for
+// every view type the raycaster is compiled for: the same picture within a rounding step, shaded
+// and unshaded, with and without skipping, on tiles whose edges cut packets.
+#include <gtest/gtest.h>
+
+#include <set>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/ksvd_codec.hpp>
+#include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/codec/tvq_codec.hpp>
+#include <voxwall/codec/vq_codec.hpp>
+#include <voxwall/node/renderer.hpp>
+
+#include "support/image_expect.hpp"
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+using namespace voxwall::node;
+
+namespace {
+
+struct Case {
+  std::string name;
+  RenderVolume volume;
+  TransferFunction tf;
+};
+
+// One volume per view type of the raycaster (codec::AnyView).
+std::vector<Case> everyView(const test::TempDir& dir) {
+  std::vector<Case> cases;
+  const auto ct = TransferFunction::preset("ct-soft").rescaled(0, 255);
+  const auto unit = TransferFunction::preset("cool-warm").rescaled(0, 1);
+  const auto signedTf = TransferFunction::preset("ct-soft").rescaled(-100, 155);
+  voxwall::Progress quiet;
+  // Odd sizes: cells straddle brick borders and the padded edge.
+  const codec::Volume sl = codec::generateSheppLogan(45);
+  cases.push_back({"raw uint8", RenderVolume::fromVolume(sl, 16), ct});
+  codec::Volume wide = codec::Volume::allocate(sl.dims, codec::ScalarType::UInt16);
+  codec::Volume signedV = codec::Volume::allocate(sl.dims, codec::ScalarType::Int16);
+  for (std::size_t i = 0; i < sl.as<std::uint8_t>().size(); ++i) {
+    wide.as<std::uint16_t>()[i] = std::uint16_t(sl.as<std::uint8_t>()[i] * 257);
+    signedV.as<std::int16_t>()[i] = std::int16_t(int(sl.as<std::uint8_t>()[i]) - 100);
+  }
+  wide.computeRange(), signedV.computeRange();
+  cases.push_back({"raw uint16", RenderVolume::fromVolume(wide, 8), ct.rescaled(0, 65535)});
+  cases.push_back({"raw int16", RenderVolume::fromVolume(signedV, 8), signedTf});
+  const codec::Volume ml = codec::generateMarschnerLobb(37, codec::ScalarType::Float32);
+  cases.push_back({"raw float32", RenderVolume::fromVolume(ml, 16), unit});
+  auto file = [&](const std::string& name, const codec::CompressedVolume& c) {
+    codec::writeContainer(c, dir.path(name));
+    return RenderVolume::open(dir.path(name));
+  };
+  cases.push_back({"vq", file("vq.vwz", codec::vq::encode(sl, {}, quiet)), ct});
+  cases.push_back({"svmm", file("svmm.vwz", codec::svmm::encode(sl, {}, quiet)), ct});
+  for (int side : {4, 6, 8}) {
+    const std::string tag = std::to_string(side);  // (GCC 12 warns on "k" + to_string())
+    codec::ksvd::Params p;
+    p.blockSide = side, p.atoms = 48, p.sparsity = 5, p.iterations = 3;
+    cases.push_back(
+        {"ksvd " + tag, file("k" + tag + ".vwz", codec::ksvd::encode(ml, p, quiet)), unit});
+  }
+  codec::tvq::Params tp;
+  tp.codeBits = 10, tp.iterations = 3, tp.subvolumeVoxels = 24;
+  cases.push_back({"tvq", file("tvq.vwz", codec::tvq::encode(sl, tp, quiet)), ct});
+  return cases;
+}
+
+Image render(const Case& c, const RenderSettings& s, bool packets, const Rect& tile) {
+  Orbit o;
+  o.azimuthDeg = 35, o.elevationDeg = 25;
+  const Camera camera = orbitCamera(o, boundingRadius(c.volume.info()));
+  const auto plan = planFrame(c.volume, camera, 96, 72, c.tf, s);
+  Image out;
+  makeCpuBackend(2, packets)->render(c.volume, plan, tile, out);
+  return out;
+}
+
+}  // namespace
+
+TEST(Packets, SameImageAsOneRayAtATimeForEveryView) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "this CPU has no SIMD target the build compiled";
+  EXPECT_NE(makeCpuBackend(1, true)->name().find("packets"), std::string::npos);
+  EXPECT_NE(makeCpuBackend(1, false)->name().find("one ray at a time"), std::string::npos);
+  test::TempDir dir;
+  const auto cases = everyView(dir);
+  std::set<std::size_t> views;
+  for (const auto& c : cases) views.insert(c.volume.view().index());
+  EXPECT_EQ(views.size(), std::variant_size_v<ViewVariant>) << "a view type has no case here";
+  // The whole screen, and a tile whose size and origin are no multiple of a packet's 4 x 4.
+  const Rect tiles[] = {{0, 0, 96, 72}, {13, 7, 37, 23}};
+  for (const auto& c : cases)
+    for (bool shading : {false, true})
+      for (bool skipping : {true, false})
+        for (const Rect& tile : tiles) {
+          RenderSettings s;
+          s.shading = shading, s.emptySpaceSkipping = skipping;
+          const std::string label = c.name + (shading ? " shaded" : "") +
+                                    (skipping ? "" : " no skipping") + " tile " +
+                                    std::to_string(tile.width) + "x" + std::to_string(tile.height);
+          const Image scalar = render(c, s, false, tile);
+          const Image packets = render(c, s, true, tile);
+          // Not a blank picture compared with another.
+          if (tile.width == 96) {
+            std::size_t lit = 0;
+            for (auto p : scalar.pixels) lit += (p >> 24) > 8;
+            EXPECT_GT(lit, scalar.pixels.size() / 10) << label;
+          }
+          test::expectImagesNear(scalar, packets, 1, 60.0, label);
+        }
+}
+
+// The six-sample gradients and svmm's nearest sampling and levels of detail take the views'
+// per-lane hooks: the same picture too.
+TEST(Packets, SixSampleGradientsAndSvmmTraversalMatch) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "this CPU has no SIMD target the build compiled";
+  test::TempDir dir;
+  for (const auto& c : everyView(dir)) {
+    RenderSettings s;
+    s.shading = true, s.cellGradients = false;
+    test::expectImagesNear(render(c, s, false, {0, 0, 96, 72}), render(c, s, true, {0, 0, 96, 72}),
+                           1, 60.0, c.name + " six samples");
+    if (!c.volume.traversal()) continue;
+    for (bool nearest : {true, false}) {
+      RenderSettings t;
+      t.nearest = nearest, t.levelOfDetail = true, t.shading = true;
+      test::expectImagesNear(render(c, t, false, {0, 0, 96, 72}),
+                             render(c, t, true, {0, 0, 96, 72}), 1, 60.0,
+                             c.name + (nearest ? " nearest" : "") + " level of detail");
+    }
+  }
+}
