@@ -10,6 +10,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/image.hpp>
+#include <voxwall/node/renderer.hpp>
 
 #include "support/temp_dir.hpp"
 
@@ -554,4 +555,25 @@ TEST(Cli, ParaViewPresetsAreAppliedAsParaViewDoes) {
   expectOneLineError(
       runVoxwall(render + "--no-write --tf mri --opacity '" + presets + ":Cool to Warm'"),
       "voxwall: --opacity " + presets + ":Cool to Warm: it has no opacity");
+}
+
+// --simd: the render line names the backend's packets or one ray at a time, and both give the
+// same picture (Packets.* checks every view; here through the command line).
+TEST(Cli, SimdChoosesPacketsOrOneRayAtATime) {
+  expectOneLineError(runVoxwall("render generated:menger:2 --size 8x8 --no-write --simd maybe"),
+                     "voxwall: --simd");
+  test::TempDir dir;
+  std::string lines[2];
+  for (int i = 0; i < 2; ++i) {
+    const std::string simd = i == 0 ? "on" : "off";
+    const CliRun r = runVoxwall("render generated:shepp-logan:24 --size 40x30 --shading --simd " +
+                                simd + " --out " + dir.path(simd));
+    ASSERT_EQ(r.status, 0) << r.out;
+    lines[i] = r.out;
+  }
+  if (node::cpuPacketLanes() > 1) EXPECT_NE(lines[0].find(" packets of "), std::string::npos);
+  EXPECT_NE(lines[1].find("one ray at a time"), std::string::npos) << lines[1];
+  const auto on = voxwall::readImage(dir.path("on") + "/frame_00000.png");
+  const auto off = voxwall::readImage(dir.path("off") + "/frame_00000.png");
+  EXPECT_LE(voxwall::compareImages(on, off).maxAbs, 1);
 }

@@ -88,8 +88,8 @@ std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Commu
                    "share; mpirun --bind-to none lets it use them\n",
                    comm.rank(), threads, share);
   }
-  return node::makeBackend(o.backend == "cuda" ? node::BackendKind::Cuda : node::BackendKind::Cpu,
-                           threads);
+  if (o.backend == "cuda") return node::makeBackend(node::BackendKind::Cuda, threads);
+  return node::makeCpuBackend(threads, o.simd == "on");
 }
 
 // Everything a rank does before the job; throws what is wrong on this rank.

@@ -423,6 +423,11 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--threads", o.threads,
                  "CPU backend threads per rank (0 = the host's cores shared by its ranks)")
       ->capture_default_str();
+  cmd.add_option("--simd", o.simd,
+                 "CPU backend: on traces SIMD packets of rays (AVX2 or AVX-512, whichever the CPU "
+                 "has), off one ray at a time (the same picture, slower; for comparison)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
 }
 
 // Frame files and what is printed.
