@@ -4,8 +4,8 @@ gradients (`--gradients samples`) and shaded frames with cell gradients (`--grad
 default), on the same file, camera and transfer function.
 
 The volume is the MRI template (mricron-data), or a generated 256^3 Shepp-Logan phantom without
-it, stored as raw, lossless vq, svmm (--quality 100) and ksvd (defaults, --levels 1). Every
-render is one 1920x1080 frame (`voxwall render --no-write`) with the VTK comparison's transfer
+it, stored as raw, lossless vq, svmm (--quality 100), ksvd (defaults, --levels 1) and tvq
+(defaults). Every render is one 1920x1080 frame (`voxwall render --no-write`) with the VTK comparison's transfer
 function (bench/data/vtk-comparison-tf.json); the variants are run in turn, --reps times, and the
 fastest of each is kept (the VM is shared: compare ratios within one run). Prints a markdown
 table: ms per frame, shaded / unshaded, samples / cell, and each codec's frame / raw's frame.
@@ -43,17 +43,18 @@ def main():
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--threads", default="1")
     ap.add_argument("--reps", type=int, default=3)
-    ap.add_argument("--codecs", default="raw,vq,svmm,ksvd")
+    ap.add_argument("--codecs", default="raw,vq,svmm,ksvd,tvq")
     args = ap.parse_args()
     tf = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "vtk-comparison-tf.json")
     work = tempfile.mkdtemp(prefix="voxwall-shading-")
     source = MRI if os.path.exists(MRI) else "generated:shepp-logan:256"
-    options = {"raw": [], "vq": [], "svmm": ["--quality", "100"], "ksvd": ["--levels", "1"]}
+    options = {"raw": [], "vq": [], "svmm": ["--quality", "100"], "ksvd": ["--levels", "1"],
+               "tvq": []}
     codecs = args.codecs.split(",")
     files = {}
     for codec in codecs:
         if codec not in options:
-            sys.exit("unknown codec %s (expected raw, vq, svmm or ksvd)" % codec)
+            sys.exit("unknown codec %s (expected raw, vq, svmm, ksvd or tvq)" % codec)
         files[codec] = os.path.join(work, codec + ".vwz")
         print("compressing %s as %s" % (source, codec), file=sys.stderr)
         run([args.voxwall, "compress", source, "--codec", codec, "-o", files[codec], "-q"]

@@ -571,7 +571,9 @@ TEST(Cli, SimdChoosesPacketsOrOneRayAtATime) {
     ASSERT_EQ(r.status, 0) << r.out;
     lines[i] = r.out;
   }
-  if (node::cpuPacketLanes() > 1) EXPECT_NE(lines[0].find(" packets of "), std::string::npos);
+  if (node::cpuPacketLanes() > 1) {
+    EXPECT_NE(lines[0].find(" packets of "), std::string::npos) << lines[0];
+  }
   EXPECT_NE(lines[1].find("one ray at a time"), std::string::npos) << lines[1];
   const auto on = voxwall::readImage(dir.path("on") + "/frame_00000.png");
   const auto off = voxwall::readImage(dir.path("off") + "/frame_00000.png");
