@@ -233,6 +233,7 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   if (o.gradients != "cell" && o.gradients != "samples")
     throw std::invalid_argument("--gradients: expected cell or samples");
   render.cellGradients = o.gradients == "cell";
+  if (o.simd != "on" && o.simd != "off") throw std::invalid_argument("--simd: expected on or off");
   render.emptySpaceSkipping = !o.noSkip;
   if (o.sampling != "trilinear" && o.sampling != "nearest")
     throw std::invalid_argument("--sampling: expected trilinear or nearest");
@@ -426,7 +427,6 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--simd", o.simd,
                  "CPU backend: on traces SIMD packets of rays (AVX2 or AVX-512, whichever the CPU "
                  "has), off one ray at a time (the same picture, slower; for comparison)")
-      ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
 }
 
