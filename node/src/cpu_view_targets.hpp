@@ -282,8 +282,8 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
   const auto lut = job.plan.lut.view();
   const L::DI di;
   const auto lane = hn::Iota(di, 0);
-  const auto laneX = hn::And(lane, hn::Set(di, kW - 1)),
-             laneY = hn::ShiftRight < kW == 4 ? 2 : 1 > (lane);
+  constexpr int kRowShift = kW == 4 ? 2 : 1;  // lane / kW
+  const auto laneX = hn::And(lane, hn::Set(di, kW - 1)), laneY = hn::ShiftRight<kRowShift>(lane);
   return forEachBlock(job, [&](int x0, int y0, int x1, int y1, std::uint64_t& samples) {
     HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
     HWY_ALIGN std::int32_t n[L::kLanes];
