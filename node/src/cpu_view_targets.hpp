@@ -95,16 +95,9 @@ struct HwyLanes {
     return hn::Load(D(), x);
   }
 
-  // Where m: is base[index] non-zero? The bytes are gathered as the aligned 32-bit words that
-  // hold them (such a word never crosses a page, so it is readable wherever its byte is).
+  // Where m: is base[index] non-zero (a skip grid's cell)? Other lanes read byte 0.
   static HWY_INLINE M byteSet(const std::uint8_t* base, I index, M m) {
-    const std::uintptr_t address = reinterpret_cast<std::uintptr_t>(base);
-    const auto* words = reinterpret_cast<const std::int32_t*>(address & ~std::uintptr_t(3));
-    const I at = selectI(m, index, splatI(0)) + splatI(int(address & 3));
-    const auto word = hn::BitCast(DU(), hn::GatherIndex(DI(), words, hn::ShiftRight<2>(at)));
-    const auto shift = hn::BitCast(DU(), hn::ShiftLeft<3>(hn::And(at, splatI(3))));
-    const auto byte = hn::And(hn::Shr(word, shift), hn::Set(DU(), 0xFFu));
-    return both(m, hn::RebindMask(D(), byte != hn::Zero(DU())));
+    return both(m, gather(base, selectI(m, index, splatI(0))) != hn::Zero(D()));
   }
 
   static HWY_INLINE kernels::Lanes4<F> lookup(const kernels::TransferLut& lut, F value) {

@@ -67,71 +67,6 @@ struct PixelResult {
   std::uint32_t samples = 0;
 };
 
-// Intersects o + t d with the box [lo, hi]; returns false when it misses. d may have zeros.
-VOXWALL_HD_INLINE bool rayBox(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo,
-                              const glm::vec3& hi, float& tEnter, float& tExit) {
-  float t0 = -INFINITY, t1 = INFINITY;
-  for (int a = 0; a < 3; ++a) {
-    if (d[a] == 0.0f) {
-      if (o[a] < lo[a] || o[a] > hi[a]) return false;
-      continue;
-    }
-    const float inv = 1.0f / d[a];
-    float tn = (lo[a] - o[a]) * inv, tf = (hi[a] - o[a]) * inv;
-    if (tn > tf) {
-      const float s = tn;
-      tn = tf, tf = s;
-    }
-    t0 = tn > t0 ? tn : t0;
-    t1 = tf < t1 ? tf : t1;
-  }
-  tEnter = t0, tExit = t1;
-  return t0 <= t1;
-}
-
-// Front-to-back "over" of a straight-colour sample with opacity alpha onto premultiplied acc.
-VOXWALL_HD_INLINE void compositeOver(glm::vec4& acc, const glm::vec3& color, float alpha) {
-  const float w = (1.0f - acc.a) * alpha;
-  acc.r += w * color.r;
-  acc.g += w * color.g;
-  acc.b += w * color.b;
-  acc.a += w;
-}
-
-// nl^shininess. An integer exponent (the default 10) is taken by repeated squaring, a few
-// multiplies where powf is a library call of about a hundred instructions; the result is
-// powf's to a few units in the last place.
-VOXWALL_HD_INLINE float specularPower(float nl, const RayFrame& f) {
-  if (f.shininessInt < 0) return powf(nl, f.shininess);
-  float result = 1.0f, base = nl;
-  for (int e = f.shininessInt; e; e >>= 1) {
-    if (e & 1) result *= base;
-    base *= base;
-  }
-  return result;
-}
-
-// Blinn-Phong with a headlight (light and viewer along -dir), two-sided, white specular.
-VOXWALL_HD_INLINE glm::vec3 shade(const glm::vec3& color, const glm::vec3& gradientWorld,
-                                  const glm::vec3& dir, const RayFrame& f) {
-  const float len = sqrtf(glm::dot(gradientWorld, gradientWorld));
-  if (!(len > 1e-12f)) return color * (f.ambient + f.diffuse);  // homogeneous: unshaded
-  // |n . dir| with n = gradient / len, one division instead of normalizing (three); light =
-  // viewer, so the halfway vector is the light.
-  const float nl = fabsf(glm::dot(gradientWorld, dir)) / len;
-  const float spec = f.specular * specularPower(nl, f);
-  const glm::vec3 c = color * (f.ambient + f.diffuse * nl) + glm::vec3(spec);
-  return glm::min(c, glm::vec3(1.0f));
-}
-
-// Unit world-space direction of the ray through the centre of pixel (px, py) of the virtual
-// screen. Tiles use the same global pixel coordinates, so a tile's rays are the full render's.
-VOXWALL_HD_INLINE glm::vec3 pixelDirection(const RayFrame& f, int px, int py) {
-  const float sx = (float(px) + 0.5f) / float(f.screen.x) * 2.0f - 1.0f;
-  const float sy = 1.0f - (float(py) + 0.5f) / float(f.screen.y) * 2.0f;
-  return glm::normalize(f.forward + sx * f.right + sy * f.up);
-}
-
 // Ray parameter where o + t invD^-1 leaves the box [lo, hi) it is inside of (index space);
 // invD holds 1/d per axis (+-inf where d is 0, which never wins the minimum).
 VOXWALL_HD_INLINE float boxExit(const glm::vec3& o, const glm::vec3& invD, const glm::vec3& lo,
@@ -262,7 +197,9 @@ struct ScalarLanes {
   }
 };
 
-// Blinn-Phong (shade) over lanes.
+// Blinn-Phong with a headlight (light and viewer along -dir), two-sided, white specular, over
+// lanes. An integer shininess (the default 10) is taken by repeated squaring, a few multiplies
+// where powf is a library call of about a hundred instructions.
 template <class L>
 VOXWALL_HD_INLINE Lanes3<typename L::F> shadeLanes(const Lanes3<typename L::F>& color,
                                                    const Lanes3<typename L::F>& grad,
@@ -294,6 +231,82 @@ VOXWALL_HD_INLINE Lanes3<typename L::F> shadeLanes(const Lanes3<typename L::F>& 
   return {channel(color.x), channel(color.y), channel(color.z)};
 }
 
+// Unit world-space direction of the ray through the centre of pixel (px, py) of the virtual
+// screen. Tiles use the same global pixel coordinates, so a tile's rays are the full render's.
+template <class L>
+VOXWALL_HD_INLINE Lanes3<typename L::F> pixelDirectionLanes(const RayFrame& f, typename L::I px,
+                                                            typename L::I py) {
+  using F = typename L::F;
+  const F one = L::splat(1.0f), half = L::splat(0.5f);
+  const F sx = (L::toFloat(px) + half) / L::splat(float(f.screen.x)) * L::splat(2.0f) - one;
+  const F sy = one - (L::toFloat(py) + half) / L::splat(float(f.screen.y)) * L::splat(2.0f);
+  const Lanes3<F> dir{L::splat(f.forward.x) + sx * L::splat(f.right.x) + sy * L::splat(f.up.x),
+                      L::splat(f.forward.y) + sx * L::splat(f.right.y) + sy * L::splat(f.up.y),
+                      L::splat(f.forward.z) + sx * L::splat(f.right.z) + sy * L::splat(f.up.z)};
+  const F invLen = one / L::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
+  return {dir.x * invLen, dir.y * invLen, dir.z * invLen};
+}
+
+// Intersects o + t d with the box [lo, hi] in the lanes of m: returns the lanes that hit, with
+// their entry and exit in t0 and t1. d may have zeros (invD = 1 / d is then infinite).
+template <class L>
+VOXWALL_HD_INLINE typename L::M rayBoxLanes(const glm::vec3& o, const Lanes3<typename L::F>& d,
+                                            const Lanes3<typename L::F>& invD, const glm::vec3& lo,
+                                            const glm::vec3& hi, typename L::M m, typename L::F& t0,
+                                            typename L::F& t1) {
+  using F = typename L::F;
+  const F zero = L::splat(0.0f);
+  t0 = L::splat(-INFINITY), t1 = L::splat(INFINITY);
+  auto slab = [&](float oa, F da, F inv, float la, float ha) {
+    const auto flat = da == zero;
+    if (oa < la || oa > ha) m = L::butNot(m, flat);  // parallel to the slab, outside it
+    F tn = (L::splat(la) - L::splat(oa)) * inv, tf = (L::splat(ha) - L::splat(oa)) * inv;
+    const auto swap = tn > tf;
+    const F s = tn;
+    tn = L::select(swap, tf, tn), tf = L::select(swap, s, tf);
+    t0 = L::select(L::butNot(tn > t0, flat), tn, t0);
+    t1 = L::select(L::butNot(tf < t1, flat), tf, t1);
+  };
+  slab(o.x, d.x, invD.x, lo.x, hi.x);
+  slab(o.y, d.y, invD.y, lo.y, hi.y);
+  slab(o.z, d.z, invD.z, lo.z, hi.z);
+  return L::both(m, t0 <= t1);
+}
+
+// Front-to-back "over" of straight-colour samples with opacity alpha onto premultiplied acc.
+template <class L>
+VOXWALL_HD_INLINE void compositeLanes(Lanes4<typename L::F>& acc,
+                                      const Lanes3<typename L::F>& color, typename L::F alpha) {
+  const typename L::F w = (L::splat(1.0f) - acc.a) * alpha;
+  acc.r = acc.r + w * color.x;
+  acc.g = acc.g + w * color.y;
+  acc.b = acc.b + w * color.z;
+  acc.a = acc.a + w;
+}
+
+// The same for one ray (what the kernel tests check).
+VOXWALL_HD_INLINE glm::vec3 pixelDirection(const RayFrame& f, int px, int py) {
+  const Lanes3<float> d = pixelDirectionLanes<ScalarLanes>(f, px, py);
+  return glm::vec3(d.x, d.y, d.z);
+}
+VOXWALL_HD_INLINE bool rayBox(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo,
+                              const glm::vec3& hi, float& tEnter, float& tExit) {
+  return rayBoxLanes<ScalarLanes>(o, {d.x, d.y, d.z}, {1.0f / d.x, 1.0f / d.y, 1.0f / d.z}, lo, hi,
+                                  true, tEnter, tExit);
+}
+VOXWALL_HD_INLINE void compositeOver(glm::vec4& acc, const glm::vec3& color, float alpha) {
+  Lanes4<float> a{acc.r, acc.g, acc.b, acc.a};
+  compositeLanes<ScalarLanes>(a, {color.r, color.g, color.b}, alpha);
+  acc = glm::vec4(a.r, a.g, a.b, a.a);
+}
+VOXWALL_HD_INLINE glm::vec3 shade(const glm::vec3& color, const glm::vec3& gradientWorld,
+                                  const glm::vec3& dir, const RayFrame& f) {
+  const Lanes3<float> c = shadeLanes<ScalarLanes>(
+      {color.r, color.g, color.b}, {gradientWorld.x, gradientWorld.y, gradientWorld.z},
+      {dir.x, dir.y, dir.z}, f);
+  return glm::vec3(c.x, c.y, c.z);
+}
+
 // Traces the rays through pixels (px, py) of the virtual screen, one per lane of L (valid: the
 // lanes that hold a pixel), into premultiplied colour and opacity and the samples taken.
 // `View` meets the view contract (VolumeView in view_concept.hpp: sample(x, y, z, RayCache&) is
@@ -317,36 +330,15 @@ VOXWALL_HD_INLINE void raycastLanes(const View& view, const RayFrame& f, const T
   const F zero = L::splat(0.0f), one = L::splat(1.0f), half = L::splat(0.5f);
   acc = {zero, zero, zero, zero};
   samples = L::splatI(0);
-  // The unit direction through the pixel's centre (pixelDirection).
-  const F sx = (L::toFloat(px) + half) / L::splat(float(f.screen.x)) * L::splat(2.0f) - one;
-  const F sy = one - (L::toFloat(py) + half) / L::splat(float(f.screen.y)) * L::splat(2.0f);
-  Lanes3<F> dir{L::splat(f.forward.x) + sx * L::splat(f.right.x) + sy * L::splat(f.up.x),
-                L::splat(f.forward.y) + sx * L::splat(f.right.y) + sy * L::splat(f.up.y),
-                L::splat(f.forward.z) + sx * L::splat(f.right.z) + sy * L::splat(f.up.z)};
-  const F invLen = one / L::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
-  dir = {dir.x * invLen, dir.y * invLen, dir.z * invLen};
+  const Lanes3<F> dir = pixelDirectionLanes<L>(f, px, py);
   // Index space: the eye is the same for every ray.
   const glm::vec3 o = f.eyeWorld * f.invSpacing + f.centerIndex;
   const Lanes3<F> d{dir.x * L::splat(f.invSpacing.x), dir.y * L::splat(f.invSpacing.y),
                     dir.z * L::splat(f.invSpacing.z)};
   const Lanes3<F> invD{one / d.x, one / d.y, one / d.z};
-  // Entry and exit of the box [-0.5, dims - 0.5] (rayBox).
-  M hit = valid;
-  F t0 = L::splat(-INFINITY), t1 = L::splat(INFINITY);
-  auto slab = [&](float oa, F da, F inv, float lo, float hi) {
-    const M flat = da == zero;
-    if (oa < lo || oa > hi) hit = L::butNot(hit, flat);  // parallel to the slab, outside it
-    F tn = (L::splat(lo) - L::splat(oa)) * inv, tf = (L::splat(hi) - L::splat(oa)) * inv;
-    const M swap = tn > tf;
-    const F s = tn;
-    tn = L::select(swap, tf, tn), tf = L::select(swap, s, tf);
-    t0 = L::select(L::butNot(tn > t0, flat), tn, t0);
-    t1 = L::select(L::butNot(tf < t1, flat), tf, t1);
-  };
-  slab(o.x, d.x, invD.x, -0.5f, f.boxMax.x);
-  slab(o.y, d.y, invD.y, -0.5f, f.boxMax.y);
-  slab(o.z, d.z, invD.z, -0.5f, f.boxMax.z);
-  hit = L::both(hit, t0 <= t1);
+  // Entry and exit of the box [-0.5, dims - 0.5].
+  F t0, t1;
+  M hit = rayBoxLanes<L>(o, d, invD, glm::vec3(-0.5f), f.boxMax, valid, t0, t1);
   const F tEnter = L::select(hit, L::select(t0 > zero, t0, zero), zero);
   const F tExit = L::select(hit, t1, zero);
   hit = L::both(hit, tExit > tEnter);
@@ -451,12 +443,7 @@ VOXWALL_HD_INLINE void raycastLanes(const View& view, const RayFrame& f, const T
                    L::select(lit, shaded.z, color.z)};
         }
       }
-      // Front-to-back "over" (compositeOver); lanes not sampling add nothing.
-      const F w = (one - acc.a) * L::select(go, c.a, zero);
-      acc.r = acc.r + w * color.x;
-      acc.g = acc.g + w * color.y;
-      acc.b = acc.b + w * color.z;
-      acc.a = acc.a + w;
+      compositeLanes<L>(acc, color, L::select(go, c.a, zero));  // lanes not sampling add nothing
       const M done = L::both(go, acc.a >= L::splat(f.earlyTermination));
       live = L::butNot(live, done);
       if constexpr (traversal) {
