@@ -168,6 +168,25 @@ TEST(RankReport, RoundTrips) {
   EXPECT_NEAR(back.costs.total(), 0.25, 1e-12);
 }
 
+// A rank that streamed its tiles (or was not asked for pixels) reports rectangles only: the
+// decoded tiles have no pixels, and the master pastes none (found by fuzz.frame_messages, whose
+// check had assumed every tile carries its pixels).
+TEST(RankReport, WithoutPixelsCarriesRectanglesOnly) {
+  const auto t = sampleTask();
+  auto r = sampleReport(t);
+  r.pixels = false, r.streamed = true;
+  const auto bytes = net::encode(r);
+  EXPECT_EQ(bytes.size(), net::encode(sampleReport(t)).size() - 32 * 48 * 4);
+  const auto back = net::decodeRankReport(bytes, t, "test");
+  EXPECT_FALSE(back.pixels);
+  EXPECT_TRUE(back.streamed);
+  ASSERT_EQ(back.tiles.size(), r.tiles.size());
+  for (std::size_t i = 0; i < back.tiles.size(); ++i) {
+    EXPECT_EQ(back.tiles[i].rect, r.tiles[i].rect);
+    EXPECT_TRUE(back.tiles[i].image.pixels.empty());
+  }
+}
+
 TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   const auto t = sampleTask();
   const auto bytes = net::encode(sampleReport(t));
