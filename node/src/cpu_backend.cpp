@@ -2,6 +2,7 @@
 // rays (raycastLanes over Highway vectors) or, without packets, each pixel by raycastPixel. Every
 // pixel is independent of the others, so the image is the same for any thread count.
 #include <chrono>
+#include <voxwall/codec/decoded_pages.hpp>
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -19,8 +20,10 @@ using cpu::kBlockPixels;
 
 class CpuBackend final : public Backend {
  public:
-  CpuBackend(int threads, bool packets)
-      : threads_(voxwall::resolveThreads(threads)), packets_(packets && cpu::packetLanes() > 1) {}
+  CpuBackend(int threads, bool packets, std::uint64_t decodeCacheBytes)
+      : threads_(voxwall::resolveThreads(threads)),
+        packets_(packets && cpu::packetLanes() > 1),
+        decodeCacheBytes_(decodeCacheBytes) {}
   std::string name() const override {
     return "cpu (" + std::to_string(threads_) + " threads, " +
            (packets_ ? cpu::packetTarget() + " packets of " + std::to_string(cpu::packetLanes()) +
@@ -40,8 +43,12 @@ class CpuBackend final : public Backend {
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
     const cpu::TileJob job{plan,    tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
                            packets_};
-    const std::uint64_t samples =
-        std::visit([&](const auto& view) { return cpu::renderBlocks(view, job); }, volume.view());
+    const std::uint64_t samples = std::visit(
+        [&](auto view) {
+          if constexpr (cpu::kPaged<decltype(view)>) attachPages(cpu::pagedLevel(view));
+          return cpu::renderBlocks(view, job);
+        },
+        volume.view());
     if (costs)
       for (std::size_t b = 0; b < blockSeconds.size(); ++b) {
         const int x0 = int(b % std::size_t(bx)) * kBlockPixels;
@@ -56,15 +63,51 @@ class CpuBackend final : public Backend {
     return stats;
   }
 
+  DecodeCacheUse decodeCacheUse() const {
+    if (!pages_) return {};
+    return {std::uint64_t(pages_->decodedPages()) * pages_->pageBytes(), pages_->allPagesBytes(),
+            std::uint64_t(pages_->capacityPages()) * pages_->pageBytes()};
+  }
+
  private:
+  // Gives a brick-coded level the pages the packets sample: the same ones frame after frame
+  // while the volume stays (renderTile runs on one thread at a time; its workers fill pages).
+  template <class Level>
+  void attachPages(Level& level) {
+    if (!packets_ || decodeCacheBytes_ == 0) return;
+    if (!pages_ || !pages_->holds(level))
+      pages_ = codec::DecodedPages::make(level, decodeCacheBytes_);
+    level.pages = pages_.get();
+  }
+
   int threads_;
   bool packets_;
+  std::uint64_t decodeCacheBytes_;
+  std::unique_ptr<codec::DecodedPages> pages_;
 };
 
 }  // namespace
 
-std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets) {
-  return std::make_unique<CpuBackend>(threads, packets);
+std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets, std::uint64_t decodeCacheBytes) {
+  return std::make_unique<CpuBackend>(threads, packets, decodeCacheBytes);
+}
+
+std::uint64_t cpuDecodeCacheNeed(const RenderVolume& volume, std::uint64_t decodeCacheBytes) {
+  if (decodeCacheBytes == 0 || cpu::packetLanes() <= 1) return 0;
+  return std::visit(
+      [&](auto view) -> std::uint64_t {
+        if constexpr (cpu::kPaged<decltype(view)>) {
+          return codec::DecodedPages::bytesFor(cpu::pagedLevel(view), decodeCacheBytes);
+        } else {
+          return 0;
+        }
+      },
+      volume.view());
+}
+
+DecodeCacheUse cpuDecodeCacheUse(const Backend& backend) {
+  const auto* cpu = dynamic_cast<const CpuBackend*>(&backend);
+  return cpu ? cpu->decodeCacheUse() : DecodeCacheUse{};
 }
 
 std::size_t cpuPacketLanes() { return cpu::packetLanes(); }

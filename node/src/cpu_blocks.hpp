@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 #include <voxwall/node/renderer.hpp>
@@ -15,6 +16,23 @@
 namespace voxwall::node::cpu {
 
 inline constexpr int kBlockPixels = 16;
+
+// Views whose full-resolution voxels the packets sample from the backend's decoded pages
+// (codec/decoded_pages.hpp) when it has some: the brick views (vq, tvq), ksvd's level 0 and svmm.
+template <class V>
+inline constexpr bool kKsvd = false;
+template <int S>
+inline constexpr bool kKsvd<codec::kernels::KsvdView<S>> = true;
+template <class V>
+inline constexpr bool kPaged =
+    kKsvd<V> || codec::kernels::BrickView<V> || std::is_same_v<V, codec::kernels::SvmmView>;
+template <class View>
+auto& pagedLevel(View& view) {
+  if constexpr (kKsvd<std::remove_const_t<View>>)
+    return view.level[0];
+  else
+    return view;
+}
 
 // One tile's blocks of kBlockPixels x kBlockPixels, rendered by `threads` threads.
 struct TileJob {

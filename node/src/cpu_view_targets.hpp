@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstring>
 #include <type_traits>
+#include <voxwall/codec/decoded_pages.hpp>
 #include <voxwall/node/kernels/raycast.hpp>
 
 #include "cpu_blocks_impl.hpp"
@@ -48,7 +49,9 @@ struct HwyLanes {
   template <class View>
   struct Caches {
     typename View::RayCache lane[kLanes];  // the view's own, one per ray
-    F c[8];  // the corners of the last sample of a view sampled on vectors (RawView)
+    F c[8];    // the corners of the last sample of a view sampled on vectors (raw, pages)
+    I pageAt;  // decoded pages: the pool offset of the last sample's cell, where `paged`
+    M paged;
   };
 
   static HWY_INLINE F splat(float v) { return hn::Set(D(), v); }
@@ -200,6 +203,110 @@ struct HwyLanes {
             codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
   }
 
+  // A brick-coded level sampled from its decoded pages where m, on vectors: one gather in the
+  // page table, the pages a lane misses decoded at once (fill), then the eight corners gathered
+  // from the page as from a raw brick. Sets cache.paged to the lanes served (a lane whose page
+  // found the pool full is not) and cache.pageAt, cache.c for the gradient.
+  template <class Level>
+  static HWY_INLINE F pageValue(const Level& v, F stored) {
+    if constexpr (codec::PageFormat<Level>::kValues)
+      return stored + splat(codec::PageFormat<Level>::bias(v));
+    else
+      return stored;
+  }
+  template <class Level, class Cache>
+  static HWY_INLINE F pageSample(const Level& v, Cache& cache, const kernels::Lanes3<F>& p, M m) {
+    using P = codec::DecodedPages;
+    P& pages = *v.pages;
+    const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
+    const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
+    const I page =
+        (hn::ShiftRight<P::kShift>(iz) * splatI(pages.pagesY) + hn::ShiftRight<P::kShift>(iy)) *
+            splatI(pages.pagesX) +
+        hn::ShiftRight<P::kShift>(ix);
+    I slot = hn::GatherIndex(DI(), pages.table(), page);
+    // Entries are published with a release store after their page is written.
+    std::atomic_thread_fence(std::memory_order_acquire);
+    const M miss = both(m, lessI(slot, splatI(0)));
+    if (any(miss)) {
+      HWY_ALIGN std::int32_t s[kLanes], at[kLanes];
+      hn::Store(slot, DI(), s), hn::Store(page, DI(), at);
+      forLanes(miss, [&](std::size_t i) { s[i] = pages.fill(at[i], v); });
+      slot = hn::Load(DI(), s);
+    }
+    const M paged = butNot(m, lessI(slot, splatI(0)));
+    const I low = splatI(P::kSide - 1), one = splatI(1);
+    const I o = selectI(paged, slot, splatI(0)) + (hn::And(ix, low) + one) +
+                (hn::And(iy, low) + one) * splatI(P::kRow) +
+                (hn::And(iz, low) + one) * splatI(P::kSlice);
+    cache.pageAt = o, cache.paged = paged;
+    const auto* pool = static_cast<const typename codec::PageFormat<Level>::Stored*>(pages.pool());
+    F* c = cache.c;
+    for (int i = 0; i < 8; ++i)
+      c[i] = pageValue(
+          v, gather(pool, o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice)));
+    return codec::kernels::blendCorners(c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+  }
+  // The cell gradient of the lanes pageSample served, from the same page (its apron holds the
+  // cell's 24 neighbours, clamped at the volume's faces as the view clamps them).
+  template <class Level, class Cache>
+  static HWY_INLINE kernels::Lanes3<F> pageGradient(const Level& v, Cache& cache,
+                                                    const kernels::RayFrame& f,
+                                                    const kernels::Lanes3<F>& p) {
+    using P = codec::DecodedPages;
+    const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
+    const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
+    const auto* pool =
+        static_cast<const typename codec::PageFormat<Level>::Stored*>(v.pages->pool());
+    const I o = cache.pageAt;
+    auto at = [&](int dx, int dy, int dz) {
+      return pageValue(v, gather(pool, o + splatI(dx + dy * P::kRow + dz * P::kSlice)));
+    };
+    F d[24];
+    codec::kernels::cornerDifferences(cache.c, at, d);
+    const F tx = x - toFloat(ix), ty = y - toFloat(iy), tz = z - toFloat(iz);
+    return {codec::kernels::blendCorners(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
+            codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
+            codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
+  }
+  // The lanes of m whose sample reads the paged level: all for a brick view; for a view with
+  // levels (ksvd, svmm) those whose footprint picks the full-resolution level, with trilinear
+  // sampling (the views' sample()).
+  template <class View>
+  static HWY_INLINE M pageLanes(const View& view, const Caches<View>& cache, M m) {
+    if constexpr (requires { View::kTraversal; }) {
+      if (cache.lane[0].nearest) return hn::FirstN(D(), 0);  // set alike in every lane
+      HWY_ALIGN std::int32_t level0[kLanes];
+      for (std::size_t i = 0; i < kLanes; ++i) {
+        const float footprint = cache.lane[i].footprint;
+        level0[i] = footprint >= 2.0f && view.lodLevel(footprint) != 0 ? 0 : -1;
+      }
+      return both(m, hn::RebindMask(D(), hn::Load(DI(), level0) != hn::Zero(DI())));
+    } else {
+      (void)view, (void)cache;
+      return m;
+    }
+  }
+  // A lane sampled from pages left its view cache as it was: before the view's own hooks run
+  // on it, tell a view with levels that the lane is on level 0 (and svmm that its cell is gone).
+  template <class View>
+  static HWY_INLINE void leavePages(const View& view, typename View::RayCache& rc) {
+    if constexpr (kKsvd<View>) {
+      view.enter(0, rc);
+    } else if constexpr (std::is_same_v<View, codec::kernels::SvmmView>) {
+      rc.il = 0, rc.ix = rc.iy = rc.iz = -1;
+    } else {
+      (void)view, (void)rc;
+    }
+  }
+  // Both inside [0, dim - 1] on every axis (else the view's gradient takes six samples).
+  template <class Level>
+  static HWY_INLINE M insideGrid(const Level& v, const kernels::Lanes3<F>& p) {
+    const F zero = hn::Zero(D());
+    return both(both(both(p.x >= zero, p.y >= zero), both(p.z >= zero, p.x <= splat(v.maxX))),
+                both(p.y <= splat(v.maxY), p.z <= splat(v.maxZ)));
+  }
+
   // The view's hooks where m: on vectors for RawView, else per lane (each ray its own cache).
   template <class View>
   static HWY_INLINE F sample(const View& view, Caches<View>& cache, const kernels::Lanes3<F>& p,
@@ -208,6 +315,19 @@ struct HwyLanes {
       if (gathers(view)) return rawSample(view, cache, p);
     }
     HWY_ALIGN float x[kLanes], y[kLanes], z[kLanes], out[kLanes] = {};
+    if constexpr (kPaged<View>) {
+      const auto& level = pagedLevel(view);
+      cache.paged = hn::FirstN(D(), 0);
+      if (level.pages) {
+        const M lanes = pageLanes(view, cache, m);
+        if (any(lanes)) {
+          const F value = pageSample(level, cache, p, lanes);
+          m = butNot(m, cache.paged);  // the rest decode through the view's caches
+          if (!any(m)) return value;
+          hn::Store(value, D(), out);
+        }
+      }
+    }
     hn::Store(p.x, D(), x), hn::Store(p.y, D(), y), hn::Store(p.z, D(), z);
     forLanes(m, [&](std::size_t i) { out[i] = view.sample(x[i], y[i], z[i], cache.lane[i]); });
     return hn::Load(D(), out);
@@ -229,10 +349,25 @@ struct HwyLanes {
         if (!any(m)) return vectors;
       }
     }
+    M paged = hn::FirstN(D(), 0);
+    if constexpr (kPaged<View>) {
+      const auto& level = pagedLevel(view);
+      paged = both(m, cache.paged);
+      if (f.cellGradients && level.pages) {
+        const M lanes = both(paged, insideGrid(level, p));
+        if (any(lanes)) {
+          vectors = pageGradient(level, cache, f, p);
+          m = butNot(m, lanes);
+          if (!any(m)) return vectors;
+        }
+      }
+    }
     HWY_ALIGN float x[kLanes], y[kLanes], z[kLanes], gx[kLanes], gy[kLanes], gz[kLanes];
     hn::Store(p.x, D(), x), hn::Store(p.y, D(), y), hn::Store(p.z, D(), z);
     hn::Store(vectors.x, D(), gx), hn::Store(vectors.y, D(), gy), hn::Store(vectors.z, D(), gz);
+    const std::uint64_t pagedBits = bits(paged);
     forLanes(m, [&](std::size_t i) {
+      if (pagedBits >> i & 1) leavePages(view, cache.lane[i]);
       const glm::vec3 g =
           kernels::sampleGradient(view, cache.lane[i], f, glm::vec3(x[i], y[i], z[i]));
       gx[i] = g.x, gy[i] = g.y, gz[i] = g.z;
@@ -258,6 +393,8 @@ struct HwyLanes {
     hn::Store(invD.x, D(), ix), hn::Store(invD.y, D(), iy), hn::Store(invD.z, D(), iz);
     hn::Store(tEnter, D(), te), hn::Store(steps, DI(), st), hn::Store(k, DI(), kk);
     hn::Store(k + splatI(1), DI(), out);
+    // A lane sampled from pages knows no region: it takes the next sample.
+    if constexpr (kPaged<View>) m = butNot(m, cache.paged);
     forLanes(m, [&](std::size_t i) {
       out[i] = kernels::regionEnd(cache.lane[i], o, glm::vec3(ix[i], iy[i], iz[i]), f, te[i],
                                   invStep, st[i], kk[i]);

@@ -579,3 +579,40 @@ TEST(Cli, SimdChoosesPacketsOrOneRayAtATime) {
   const auto off = voxwall::readImage(dir.path("off") + "/frame_00000.png");
   EXPECT_LE(voxwall::compareImages(on, off).maxAbs, 1);
 }
+
+// --decode-cache: a wrong size is the one-line error; the dry run counts the decoded pages of a
+// brick-coded volume in what a rank needs (a 40^3 vq volume is 8 pages of 35^3 16-bit voxels),
+// and the picture is the same with and without them.
+TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
+  expectOneLineError(
+      runVoxwall("render generated:menger:2 --size 8x8 --no-write --decode-cache lots"),
+      "voxwall: --decode-cache: expected a size");
+  test::TempDir dir;
+  const std::string vq = dir.path("sl.vwz");
+  ASSERT_EQ(runVoxwall("compress generated:shepp-logan:40 --codec vq -q -o " + vq).status, 0);
+  auto dryRun = [&](const std::string& cache) {
+    const CliRun r = runVoxwall("render " + vq + " --size 40x30 --dry-run --decode-cache " + cache);
+    EXPECT_EQ(r.status, 0) << r.out;
+    return r.out;
+  };
+  if (node::cpuPacketLanes() > 1) {
+    // 8 pages of 35^3 16-bit voxels; 100K holds one.
+    EXPECT_NE(dryRun("1G").find("decoded pages: up to 669.9 KiB per rank"), std::string::npos)
+        << dryRun("1G");
+    EXPECT_NE(dryRun("100K").find("decoded pages: up to 83.7 KiB per rank"), std::string::npos)
+        << dryRun("100K");
+  }
+  EXPECT_EQ(dryRun("off").find("decoded pages"), std::string::npos);
+  EXPECT_EQ(dryRun("0").find("decoded pages"), std::string::npos);
+  for (const std::string cache : {"off", "1G", "100K"})
+    ASSERT_EQ(runVoxwall("render " + vq + " --size 40x30 --shading --decode-cache " + cache +
+                         " --out " + dir.path(cache))
+                  .status,
+              0);
+  const auto off = voxwall::readImage(dir.path("off") + "/frame_00000.png");
+  for (const std::string cache : {"1G", "100K"})
+    EXPECT_LE(voxwall::compareImages(voxwall::readImage(dir.path(cache) + "/frame_00000.png"), off)
+                  .maxAbs,
+              1)
+        << cache;
+}

@@ -66,15 +66,22 @@ std::vector<Case> everyView(const test::TempDir& dir) {
   return cases;
 }
 
-Image render(const Case& c, const RenderSettings& s, bool packets, const Rect& tile) {
+Image render(const Case& c, const RenderSettings& s, bool packets, const Rect& tile,
+             std::uint64_t decodeCacheBytes = kDefaultDecodeCacheBytes,
+             DecodeCacheUse* use = nullptr) {
   Orbit o;
   o.azimuthDeg = 35, o.elevationDeg = 25;
   const Camera camera = orbitCamera(o, boundingRadius(c.volume.info()));
   const auto plan = planFrame(c.volume, camera, 96, 72, c.tf, s);
   Image out;
-  makeCpuBackend(2, packets)->render(c.volume, plan, tile, out);
+  const auto backend = makeCpuBackend(2, packets, decodeCacheBytes);
+  backend->render(c.volume, plan, tile, out);
+  if (use) *use = cpuDecodeCacheUse(*backend);
   return out;
 }
+
+// The codecs whose full-resolution voxels the packets sample from decoded pages.
+bool paged(const Case& c) { return !c.name.starts_with("raw"); }
 
 }  // namespace
 
@@ -129,4 +136,75 @@ TEST(Packets, SixSampleGradientsAndSvmmTraversalMatch) {
                              c.name + (nearest ? " nearest" : "") + " level of detail");
     }
   }
+}
+
+// Compressed volumes (vq, svmm, ksvd, tvq) are sampled by the packets from decoded pages: the same
+// picture as the bricks decoded per ray, with room for every page, for one page only (the other
+// rays keep decoding bricks) and with none.
+TEST(Packets, DecodedPagesGiveTheSamePictureWhateverTheirRoom) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "this CPU has no SIMD target the build compiled";
+  test::TempDir dir;
+  int pagedCases = 0;
+  for (const auto& c : everyView(dir)) {
+    for (bool shading : {false, true}) {
+      RenderSettings s;
+      s.shading = shading;
+      const Image scalar = render(c, s, false, {0, 0, 96, 72});
+      DecodeCacheUse all, one, none;
+      const Image roomy = render(c, s, true, {0, 0, 96, 72}, kDefaultDecodeCacheBytes, &all);
+      const std::string label = c.name + (shading ? " shaded" : "");
+      test::expectImagesNear(scalar, roomy, 1, 60.0, label + ", every page");
+      if (!paged(c)) {
+        EXPECT_EQ(all.bytes, 0u) << label;
+        continue;
+      }
+      ++pagedCases;
+      // A 45^3 or 37^3 volume is eight pages of 32^3; the rays reach every one.
+      EXPECT_EQ(all.allPagesBytes, all.bytes) << label;
+      EXPECT_GT(all.bytes, 0u) << label;
+      const std::uint64_t page = all.bytes / 8;
+      ASSERT_EQ(page * 8, all.bytes) << label;
+      test::expectImagesNear(scalar, render(c, s, true, {0, 0, 96, 72}, page, &one), 1, 60.0,
+                             label + ", one page");
+      EXPECT_EQ(one.bytes, page) << label;
+      EXPECT_EQ(one.capacityBytes, page) << label;
+      test::expectImagesNear(scalar, render(c, s, true, {0, 0, 96, 72}, 0, &none), 1, 60.0,
+                             label + ", no pages");
+      EXPECT_EQ(none.bytes, 0u) << label;
+    }
+  }
+  EXPECT_EQ(pagedCases, 2 * 6) << "vq, svmm, three ksvd, tvq";
+}
+
+// Levels of detail on ksvd and svmm: lanes whose footprint picks a coarser level leave the pages
+// for the view's own levels, in the same packet as lanes still on the full-resolution pages. Small
+// screens make wide footprints: at 32 x 24 the near side of the volume samples level 0, the far
+// side 1.
+TEST(Packets, DecodedPagesWithLevelsOfDetail) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "this CPU has no SIMD target the build compiled";
+  test::TempDir dir;
+  int cases = 0;
+  for (const auto& c : everyView(dir)) {
+    if (!c.volume.traversal()) continue;
+    ++cases;
+    for (int height : {12, 24, 36}) {
+      RenderSettings s;
+      s.levelOfDetail = true, s.shading = true;
+      Orbit o;
+      o.azimuthDeg = 35, o.elevationDeg = 25;
+      const Camera camera = orbitCamera(o, boundingRadius(c.volume.info()));
+      const int width = height * 4 / 3;
+      const auto plan = planFrame(c.volume, camera, width, height, c.tf, s);
+      Image scalar, packets;
+      makeCpuBackend(1, false)->render(c.volume, plan, {0, 0, width, height}, scalar);
+      const auto backend = makeCpuBackend(1, true);
+      backend->render(c.volume, plan, {0, 0, width, height}, packets);
+      const std::string label = c.name + " level of detail at " + std::to_string(height);
+      test::expectImagesNear(scalar, packets, 1, 60.0, label);
+      if (height == 36) {
+        EXPECT_GT(cpuDecodeCacheUse(*backend).bytes, 0u) << label;
+      }
+    }
+  }
+  EXPECT_EQ(cases, 4) << "svmm, three ksvd";
 }

@@ -1,5 +1,6 @@
 // SVMM encoder, validating reader and decoder. The format is documented in svmm_codec.hpp.
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -410,6 +411,8 @@ CompressedVolume encodeRgba(const RgbaVolume& volume, const Params& params, Prog
 }
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
+  static std::atomic<std::uint64_t> nextCacheId{1};
+  cacheId_ = nextCacheId.fetch_add(1);
   const std::string& src = sections.source;
   ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
   auto fail = [&](const std::string& what) { r.fail(what); };
@@ -529,6 +532,8 @@ kernels::SvmmView Layout::view(const std::byte* base) const {
   v.blockCompressed = (flags_ & kBlockCompressed) && levels_ > 1;
   v.bias = bias_;
   v.dimX = info_.dims.x, v.dimY = info_.dims.y, v.dimZ = info_.dims.z;
+  v.maxX = float(v.dimX - 1), v.maxY = float(v.dimY - 1), v.maxZ = float(v.dimZ - 1);
+  v.cacheId = cacheId_;
   v.rootX = root_.x, v.rootY = root_.y, v.rootZ = root_.z;
   const int top = levels_ - 1;
   for (int L = 0; L < levels_; ++L) {

@@ -59,6 +59,7 @@ struct Setup {
   std::unique_ptr<node::Backend> backend;
   std::string input;
   std::uint64_t needBytes = 0;
+  std::uint64_t pageBytes = 0;       // of needBytes: this rank's decoded pages at most
   std::vector<std::string> tfNotes;  // said by rank 0 once setup succeeded
 };
 
@@ -89,7 +90,7 @@ std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Commu
                    comm.rank(), threads, share);
   }
   if (o.backend == "cuda") return node::makeBackend(node::BackendKind::Cuda, threads);
-  return node::makeCpuBackend(threads, o.simd == "on");
+  return node::makeCpuBackend(threads, o.simd == "on", decodeCacheBytes(o));
 }
 
 // Everything a rank does before the job; throws what is wrong on this rank.
@@ -107,13 +108,19 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
     throw std::invalid_argument(
         "--sampling nearest and --lod need a volume with mip levels (compress it with --codec " +
         codec::RegisteredCodecs::traversalCodecNames() + ")");
-  s.needBytes =
-      estimateRankBytes(s.job, comm.rank(), comm.size(), s.volume->storedBytes(), baseBytes);
+  // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache.
+  const std::uint64_t pages = o.backend == "cpu" && o.simd == "on"
+                                  ? node::cpuDecodeCacheNeed(*s.volume, decodeCacheBytes(o))
+                                  : 0;
+  s.pageBytes = pages;
+  s.needBytes = estimateRankBytes(s.job, comm.rank(), comm.size(), s.volume->storedBytes() + pages,
+                                  baseBytes);
   if (!o.memoryBudget.empty()) {
     const auto budget = parseBytes(o.memoryBudget, "--memory-budget");
     if (s.needBytes > budget)
       throw std::runtime_error("needs " + humanBytes(double(s.needBytes)) + " (volume " +
                                humanBytes(double(s.volume->storedBytes())) +
+                               (pages ? ", decoded pages " + humanBytes(double(pages)) : "") +
                                " plus frame buffers), over the --memory-budget of " +
                                humanBytes(double(budget)));
   }
@@ -188,6 +195,9 @@ void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup
   const bool dynamic = s.job.balance == master::Balance::Dynamic;
   std::printf("dry run: %d rank(s), %s cut%s\n", comm.size(), dynamic ? "dynamic" : "static",
               dynamic ? " (first frame shown; re-cut from measured costs after it)" : "");
+  if (s.pageBytes > 0)
+    std::printf("decoded pages: up to %s per rank (--decode-cache %s), counted below\n",
+                humanBytes(double(s.pageBytes)).c_str(), o.decodeCache.c_str());
   for (int r = 0; r < comm.size(); ++r) {
     const std::string list = rectList(rects[std::size_t(r)]);
     std::printf("rank %d on %s: needs %s; tiles:%s\n", r, ranks.hosts[std::size_t(r)].c_str(),

@@ -43,6 +43,15 @@ std::uint64_t parseBytes(const std::string& text, const std::string& option) {
   return std::uint64_t(value * scale);
 }
 
+std::uint64_t decodeCacheBytes(const RenderOptions& o) {
+  if (o.decodeCache == "off" || o.decodeCache == "0") return 0;
+  try {
+    return parseBytes(o.decodeCache, "--decode-cache");
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument("--decode-cache: expected a size such as 512M or 2G, or off");
+  }
+}
+
 // Memory a rank needs: the mapped volume, its frame buffers (the whole screen for a dynamic cut,
 // which may give one rank nearly everything), and on rank 0 the cost grids of every rank's report
 // and, when frames are written (--out), the assembled frame, the pixels of the reports and the
@@ -234,6 +243,7 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
     throw std::invalid_argument("--gradients: expected cell or samples");
   render.cellGradients = o.gradients == "cell";
   if (o.simd != "on" && o.simd != "off") throw std::invalid_argument("--simd: expected on or off");
+  (void)decodeCacheBytes(o);  // a wrong size is refused with the other settings
   render.emptySpaceSkipping = !o.noSkip;
   if (o.sampling != "trilinear" && o.sampling != "nearest")
     throw std::invalid_argument("--sampling: expected trilinear or nearest");
@@ -427,6 +437,12 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--simd", o.simd,
                  "CPU backend: on traces SIMD packets of rays (AVX2 or AVX-512, whichever the CPU "
                  "has), off one ray at a time (the same picture, slower; for comparison)")
+      ->capture_default_str();
+  cmd.add_option("--decode-cache", o.decodeCache,
+                 "CPU backend with --simd on: memory per rank for decoded pages of a vq, ksvd or "
+                 "tvq volume, decoded as rays first reach them, so frames after the first render "
+                 "at about the speed of raw data; rays past a full cache decode bricks as they "
+                 "go (the same picture). off: no pages")
       ->capture_default_str();
 }
 

@@ -31,7 +31,8 @@ struct RenderOptions {
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
   std::string sampling = "trilinear", gradients = "cell";
-  std::string simd = "on";  // --simd: the CPU backend's ray packets
+  std::string simd = "on";         // --simd: the CPU backend's ray packets
+  std::string decodeCache = "1G";  // --decode-cache: decoded pages of a brick-coded volume
   bool lod = false;
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
   std::map<std::string, std::string> codecFlags;
@@ -63,7 +64,10 @@ codec::CodecOptionValues codecRenderOptions(const RenderOptions& o);
 std::optional<glm::dvec3> parseBackground(const std::string& text);
 // "512M", "2G", "1.5GiB", "4096" as bytes; throws std::invalid_argument naming `option`.
 std::uint64_t parseBytes(const std::string& text, const std::string& option);
-// Memory a rank needs for this job (docs/distributed.md).
+// --decode-cache as bytes (0: off).
+std::uint64_t decodeCacheBytes(const RenderOptions& o);
+// Memory a rank needs for this job (docs/distributed.md): `volumeBytes` is what the rank holds of
+// the volume (the compressed file and, on a CPU rank, its decoded pages at most).
 std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,
                                 std::uint64_t volumeBytes, std::uint64_t baseBytes);
 // "WxH+X+Y", and a list of them each after a space.

@@ -138,6 +138,7 @@ class Layout {
   std::uint64_t blockBytesOf(int L) const;
 
   VolumeInfo info_;
+  std::uint64_t cacheId_ = 0;  // unique per opened layout: keys the CPU's decoded pages
   std::span<const std::byte> data_;
   int format_ = 1, levels_ = 1, quality_ = 100, rootWidth_ = 32, bias_ = 0;
   bool stepped_ = false;

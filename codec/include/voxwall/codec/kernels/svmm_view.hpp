@@ -15,6 +15,10 @@
 #include <cuda_runtime.h>
 #endif
 
+namespace voxwall::codec {
+class DecodedPages;  // decoded_pages.hpp (host only)
+}
+
 namespace voxwall::codec::kernels {
 
 inline constexpr int kSvmmMaxLevels = 16;
@@ -92,6 +96,11 @@ struct SvmmView {
   int bias = 0;                  // stored = value + bias (int16 data)
   int dimX = 1, dimY = 1, dimZ = 1;
   int rootX = 1, rootY = 1, rootZ = 1;  // the root grid (padded to even when levels > 1)
+  float maxX = 0, maxY = 0, maxZ = 0;   // dim - 1, for clamping positions
+  // Unique per loaded volume, and the CPU backend's decoded pages of its full-resolution voxels,
+  // which its SIMD packets sample (null elsewhere: the view's own methods never read them).
+  std::uint64_t cacheId = 0;
+  DecodedPages* pages = nullptr;
 
   VOXWALL_HD_INLINE int baseBytes() const { return svmmBaseBytes(format); }
   VOXWALL_HD_INLINE std::uint32_t load(const std::uint8_t* p, int bytes) const {
@@ -340,6 +349,12 @@ struct SvmmView {
     return lookup(clampIndex(x, dimX), clampIndex(y, dimY), clampIndex(z, dimZ), 0, c, stop);
   }
   VOXWALL_HD_INLINE float voxel(int x, int y, int z) const { return scalar(fetch(x, y, z)); }
+  // The same through a ray's cache of blocks (neighbouring voxels share their lookups).
+  VOXWALL_HD_INLINE float voxel(int x, int y, int z, RayCache& rc) const {
+    int stop;
+    return scalar(
+        lookup(clampIndex(x, dimX), clampIndex(y, dimY), clampIndex(z, dimZ), 0, rc, stop));
+  }
 
   // The level whose voxels are at most `footprint` voxels wide (0 when footprint < 2).
   VOXWALL_HD_INLINE int lodLevel(float footprint) const {
