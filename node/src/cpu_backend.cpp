@@ -74,7 +74,8 @@ class CpuBackend final : public Backend {
   // while the volume stays (renderTile runs on one thread at a time; its workers fill pages).
   template <class Level>
   void attachPages(Level& level) {
-    if (!packets_ || decodeCacheBytes_ == 0) return;
+    // (A budget under one page holds none: no pages.)
+    if (!packets_ || codec::DecodedPages::bytesFor(level, decodeCacheBytes_) == 0) return;
     if (!pages_ || !pages_->holds(level))
       pages_ = codec::DecodedPages::make(level, decodeCacheBytes_);
     level.pages = pages_.get();

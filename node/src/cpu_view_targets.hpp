@@ -235,11 +235,13 @@ struct HwyLanes {
       slot = hn::Load(DI(), s);
     }
     const M paged = butNot(m, lessI(slot, splatI(0)));
+    cache.paged = paged;
+    if (!any(paged)) return hn::Zero(D());  // (other lanes gather from the first page)
     const I low = splatI(P::kSide - 1), one = splatI(1);
     const I o = selectI(paged, slot, splatI(0)) + (hn::And(ix, low) + one) +
                 (hn::And(iy, low) + one) * splatI(P::kRow) +
                 (hn::And(iz, low) + one) * splatI(P::kSlice);
-    cache.pageAt = o, cache.paged = paged;
+    cache.pageAt = o;
     const auto* pool = static_cast<const typename codec::PageFormat<Level>::Stored*>(pages.pool());
     F* c = cache.c;
     for (int i = 0; i < 8; ++i)
@@ -269,6 +271,40 @@ struct HwyLanes {
             codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
             codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
   }
+  // The six-sample gradient (kernels::sampleGradient without the cell hook) of the lanes
+  // pageSample served, from the same page: a sample one voxel away along an axis, with its
+  // position clamped as the views clamp it, reads a cell whose corners lie in the page's apron.
+  template <class Level, class Cache>
+  static HWY_INLINE kernels::Lanes3<F> pageSixSamples(const Level& v, Cache& cache,
+                                                      const kernels::RayFrame& f,
+                                                      const kernels::Lanes3<F>& p) {
+    using P = codec::DecodedPages;
+    const I low = splatI(P::kSide - 1), one = splatI(1);
+    // The sample's page: its slot and first voxel, from the sample's cell.
+    const I ix = trunc(clampTo(p.x, v.maxX)), iy = trunc(clampTo(p.y, v.maxY)),
+            iz = trunc(clampTo(p.z, v.maxZ));
+    const I lx = hn::And(ix, low), ly = hn::And(iy, low), lz = hn::And(iz, low);
+    const I slot =
+        cache.pageAt - (lx + one) - (ly + one) * splatI(P::kRow) - (lz + one) * splatI(P::kSlice);
+    const I bx = ix - lx, by = iy - ly, bz = iz - lz;
+    const auto* pool =
+        static_cast<const typename codec::PageFormat<Level>::Stored*>(v.pages->pool());
+    auto at = [&](F qx, F qy, F qz) {
+      qx = clampTo(qx, v.maxX), qy = clampTo(qy, v.maxY), qz = clampTo(qz, v.maxZ);
+      const I jx = trunc(qx), jy = trunc(qy), jz = trunc(qz);
+      const I o = slot + (jx - bx + one) + (jy - by + one) * splatI(P::kRow) +
+                  (jz - bz + one) * splatI(P::kSlice);
+      F c[8];
+      for (int i = 0; i < 8; ++i)
+        c[i] = pageValue(
+            v, gather(pool, o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice)));
+      return codec::kernels::blendCorners(c, qx - toFloat(jx), qy - toFloat(jy), qz - toFloat(jz));
+    };
+    const F d = splat(1.0f);
+    return {(at(p.x + d, p.y, p.z) - at(p.x - d, p.y, p.z)) * splat(0.5f * f.invSpacing.x),
+            (at(p.x, p.y + d, p.z) - at(p.x, p.y - d, p.z)) * splat(0.5f * f.invSpacing.y),
+            (at(p.x, p.y, p.z + d) - at(p.x, p.y, p.z - d)) * splat(0.5f * f.invSpacing.z)};
+  }
   // The lanes of m whose sample reads the paged level: all for a brick view; for a view with
   // levels (ksvd, svmm) those whose footprint picks the full-resolution level, with trilinear
   // sampling (the views' sample()).
@@ -285,18 +321,6 @@ struct HwyLanes {
     } else {
       (void)view, (void)cache;
       return m;
-    }
-  }
-  // A lane sampled from pages left its view cache as it was: before the view's own hooks run
-  // on it, tell a view with levels that the lane is on level 0 (and svmm that its cell is gone).
-  template <class View>
-  static HWY_INLINE void leavePages(const View& view, typename View::RayCache& rc) {
-    if constexpr (kKsvd<View>) {
-      view.enter(0, rc);
-    } else if constexpr (std::is_same_v<View, codec::kernels::SvmmView>) {
-      rc.il = 0, rc.ix = rc.iy = rc.iz = -1;
-    } else {
-      (void)view, (void)rc;
     }
   }
   // Both inside [0, dim - 1] on every axis (else the view's gradient takes six samples).
@@ -349,25 +373,28 @@ struct HwyLanes {
         if (!any(m)) return vectors;
       }
     }
-    M paged = hn::FirstN(D(), 0);
     if constexpr (kPaged<View>) {
+      // Lanes sampled from pages take their gradient from the same page: the cell gradient
+      // inside the grid, else (the outer half voxel, --gradients samples) the six samples.
       const auto& level = pagedLevel(view);
-      paged = both(m, cache.paged);
-      if (f.cellGradients && level.pages) {
-        const M lanes = both(paged, insideGrid(level, p));
-        if (any(lanes)) {
-          vectors = pageGradient(level, cache, f, p);
-          m = butNot(m, lanes);
-          if (!any(m)) return vectors;
+      const M paged = both(m, cache.paged);
+      if (level.pages && any(paged)) {
+        const M cell = f.cellGradients ? both(paged, insideGrid(level, p)) : hn::FirstN(D(), 0);
+        const M six = butNot(paged, cell);
+        if (any(cell)) vectors = pageGradient(level, cache, f, p);
+        if (any(six)) {
+          const kernels::Lanes3<F> g = pageSixSamples(level, cache, f, p);
+          vectors = {select(six, g.x, vectors.x), select(six, g.y, vectors.y),
+                     select(six, g.z, vectors.z)};
         }
+        m = butNot(m, paged);
+        if (!any(m)) return vectors;
       }
     }
     HWY_ALIGN float x[kLanes], y[kLanes], z[kLanes], gx[kLanes], gy[kLanes], gz[kLanes];
     hn::Store(p.x, D(), x), hn::Store(p.y, D(), y), hn::Store(p.z, D(), z);
     hn::Store(vectors.x, D(), gx), hn::Store(vectors.y, D(), gy), hn::Store(vectors.z, D(), gz);
-    const std::uint64_t pagedBits = bits(paged);
     forLanes(m, [&](std::size_t i) {
-      if (pagedBits >> i & 1) leavePages(view, cache.lane[i]);
       const glm::vec3 g =
           kernels::sampleGradient(view, cache.lane[i], f, glm::vec3(x[i], y[i], z[i]));
       gx[i] = g.x, gy[i] = g.y, gz[i] = g.z;

@@ -140,7 +140,7 @@ TEST(Packets, SixSampleGradientsAndSvmmTraversalMatch) {
 
 // Compressed volumes (vq, svmm, ksvd, tvq) are sampled by the packets from decoded pages: the same
 // picture as the bricks decoded per ray, with room for every page, for one page only (the other
-// rays keep decoding bricks) and with none.
+// rays keep decoding bricks), with none and with a budget under one page.
 TEST(Packets, DecodedPagesGiveTheSamePictureWhateverTheirRoom) {
   if (cpuPacketLanes() <= 1) GTEST_SKIP() << "this CPU has no SIMD target the build compiled";
   test::TempDir dir;
@@ -171,6 +171,11 @@ TEST(Packets, DecodedPagesGiveTheSamePictureWhateverTheirRoom) {
       test::expectImagesNear(scalar, render(c, s, true, {0, 0, 96, 72}, 0, &none), 1, 60.0,
                              label + ", no pages");
       EXPECT_EQ(none.bytes, 0u) << label;
+      // A budget under one page holds none.
+      DecodeCacheUse tiny;
+      test::expectImagesNear(scalar, render(c, s, true, {0, 0, 96, 72}, page - 1, &tiny), 1, 60.0,
+                             label + ", less than a page");
+      EXPECT_EQ(tiny.capacityBytes, 0u) << label;
     }
   }
   EXPECT_EQ(pagedCases, 2 * 6) << "vq, svmm, three ksvd, tvq";
