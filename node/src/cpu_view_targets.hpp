@@ -170,6 +170,17 @@ struct HwyLanes {
     c[6] = gather(v.bricks, o + dz + dy), c[7] = gather(v.bricks, o + dz + dy + dx);
     return codec::kernels::blendCorners(c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
+  // The cell gradient from a cell's corners c and its 24 neighbours at(dx, dy, dz), at the
+  // sample's offsets t in the cell, in world units (kernels::sampleGradient's scale).
+  template <class At>
+  static HWY_INLINE kernels::Lanes3<F> cellGradient(const F* c, const At& at,
+                                                    const kernels::RayFrame& f, F tx, F ty, F tz) {
+    F d[24];
+    codec::kernels::cornerDifferences(c, at, d);
+    return {codec::kernels::blendCorners(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
+            codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
+            codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
+  }
   // RawView's cell gradient (cornerDifferences over the 24 voxels around the cell, clamped to
   // the volume) on vectors, right after rawSample at the same positions.
   template <class T, class Cache>
@@ -195,12 +206,7 @@ struct HwyLanes {
     auto at = [&](int dx, int dy, int dz) {
       return gather(v.bricks, ox[dx + 1] + oy[dy + 1] + oz[dz + 1]);
     };
-    F d[24];
-    codec::kernels::cornerDifferences(cache.c, at, d);
-    const F tx = x - toFloat(ix), ty = y - toFloat(iy), tz = z - toFloat(iz);
-    return {codec::kernels::blendCorners(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
-            codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
-            codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
+    return cellGradient(cache.c, at, f, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
 
   // A brick-coded level sampled from its decoded pages where m, on vectors: one gather in the
@@ -264,12 +270,7 @@ struct HwyLanes {
     auto at = [&](int dx, int dy, int dz) {
       return pageValue(v, gather(pool, o + splatI(dx + dy * P::kRow + dz * P::kSlice)));
     };
-    F d[24];
-    codec::kernels::cornerDifferences(cache.c, at, d);
-    const F tx = x - toFloat(ix), ty = y - toFloat(iy), tz = z - toFloat(iz);
-    return {codec::kernels::blendCorners(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
-            codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
-            codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
+    return cellGradient(cache.c, at, f, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
   // The six-sample gradient (kernels::sampleGradient without the cell hook) of the lanes
   // pageSample served, from the same page: a sample one voxel away along an axis, with its
