@@ -332,7 +332,8 @@ struct HwyLanes {
                 both(p.y <= splat(v.maxY), p.z <= splat(v.maxZ)));
   }
 
-  // The view's hooks where m: on vectors for RawView, else per lane (each ray its own cache).
+  // The view's hooks where m: on vectors for RawView and for lanes on decoded pages, else per
+  // lane (each ray its own cache).
   template <class View>
   static HWY_INLINE F sample(const View& view, Caches<View>& cache, const kernels::Lanes3<F>& p,
                              M m) {
