@@ -220,6 +220,15 @@ struct HwyLanes {
     else
       return stored;
   }
+  // The eight corners of the cells at pool offsets o (corner i: bit 0 x + 1, bit 1 y + 1,
+  // bit 2 z + 1), as the floats the view samples.
+  template <class Level, class Stored>
+  static HWY_INLINE void pageCorners(const Level& v, const Stored* pool, I o, F* c) {
+    using P = codec::DecodedPages;
+    for (int i = 0; i < 8; ++i)
+      c[i] = pageValue(
+          v, gather(pool, o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice)));
+  }
   template <class Level, class Cache>
   static HWY_INLINE F pageSample(const Level& v, Cache& cache, const kernels::Lanes3<F>& p, M m) {
     using P = codec::DecodedPages;
@@ -249,11 +258,8 @@ struct HwyLanes {
                 (hn::And(iz, low) + one) * splatI(P::kSlice);
     cache.pageAt = o;
     const auto* pool = static_cast<const typename codec::PageFormat<Level>::Stored*>(pages.pool());
-    F* c = cache.c;
-    for (int i = 0; i < 8; ++i)
-      c[i] = pageValue(
-          v, gather(pool, o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice)));
-    return codec::kernels::blendCorners(c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+    pageCorners(v, pool, o, cache.c);
+    return codec::kernels::blendCorners(cache.c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
   // The cell gradient of the lanes pageSample served, from the same page (its apron holds the
   // cell's 24 neighbours, clamped at the volume's faces as the view clamps them).
@@ -296,9 +302,7 @@ struct HwyLanes {
       const I o = slot + (jx - bx + one) + (jy - by + one) * splatI(P::kRow) +
                   (jz - bz + one) * splatI(P::kSlice);
       F c[8];
-      for (int i = 0; i < 8; ++i)
-        c[i] = pageValue(
-            v, gather(pool, o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice)));
+      pageCorners(v, pool, o, c);
       return codec::kernels::blendCorners(c, qx - toFloat(jx), qy - toFloat(jy), qz - toFloat(jz));
     };
     const F d = splat(1.0f);

@@ -438,11 +438,12 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                  "CPU backend: on traces SIMD packets of rays (AVX2 or AVX-512, whichever the CPU "
                  "has), off one ray at a time (the same picture, slower; for comparison)")
       ->capture_default_str();
-  cmd.add_option("--decode-cache", o.decodeCache,
-                 "CPU backend with --simd on: memory per rank for decoded pages of a vq, ksvd or "
-                 "tvq volume, decoded as rays first reach them, so frames after the first render "
-                 "at about the speed of raw data; rays past a full cache decode bricks as they "
-                 "go (the same picture). off: no pages")
+  cmd.add_option(
+         "--decode-cache", o.decodeCache,
+         "CPU backend with --simd on: memory per rank for decoded pages of a vq, svmm, ksvd or "
+         "tvq volume, decoded as rays first reach them, so frames after the first render "
+         "at about the speed of raw data; rays past a full cache decode bricks as they "
+         "go (the same picture). off: no pages")
       ->capture_default_str();
 }
 

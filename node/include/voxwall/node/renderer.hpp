@@ -86,20 +86,20 @@ std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0);
 // packets: trace SIMD packets of neighbouring rays where the CPU has an instruction set the build
 // compiled them for (AVX2, AVX-512); false, or no such set: one ray at a time (the same per-ray
 // code, as CUDA runs it). Both give the same picture to rounding.
-// decodeCacheBytes: with packets, a brick-coded volume (vq, ksvd, tvq) is sampled from pages of
-// decoded voxels (codec/decoded_pages.hpp), decoded as rays first reach them, in at most this
+// decodeCacheBytes: with packets, a compressed volume (vq, svmm, ksvd, tvq) is sampled from pages
+// of decoded voxels (codec/decoded_pages.hpp), decoded as rays first reach them, in at most this
 // many bytes; 0 decodes bricks per ray, as without packets.
 inline constexpr std::uint64_t kDefaultDecodeCacheBytes = std::uint64_t(1) << 30;
 std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
                                         std::uint64_t decodeCacheBytes = kDefaultDecodeCacheBytes);
-// The decoded pages a CPU backend made for the last brick-coded volume it rendered: bytes held
-// and the bytes every page of the volume would take (0, 0: none).
+// The decoded pages a CPU backend made for the last compressed volume it rendered: bytes decoded,
+// the bytes every page of the volume would take, and the pool's capacity (all 0: none).
 struct DecodeCacheUse {
   std::uint64_t bytes = 0, allPagesBytes = 0, capacityBytes = 0;
 };
 DecodeCacheUse cpuDecodeCacheUse(const Backend& backend);
 // The most a CPU backend with packets holds in decoded pages for `volume` with this budget: every
-// page of the volume, capped by the budget (0 for a volume that is not brick-coded).
+// page of the volume, capped by the budget (0 for raw volumes, which need none).
 std::uint64_t cpuDecodeCacheNeed(const RenderVolume& volume, std::uint64_t decodeCacheBytes);
 // Rays per packet of the CPU backend on this CPU (1: none of the build's SIMD targets runs here).
 std::size_t cpuPacketLanes();
