@@ -71,6 +71,9 @@ same_frames() {
 # Starts a sink on a free loopback port (PORT=... when given); sets sink_pid and sink_port.
 start_sink() {
   local out=$1 frames=$2 port=${3:-0}
+  # Cleared here, not by the child's redirection: a restart on the same log must not let
+  # wait_port read the previous sink's "listening" line before the child truncates the file.
+  rm -f "$out.log"
   "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen "127.0.0.1:$port" --out "$out" \
     --frames "$frames" --no-stdin > "$out.log" 2>&1 &
   sink_pid=$!
