@@ -4,15 +4,16 @@
 // running it supports. No include guard, by design.
 //
 // On a SIMD target a packet of neighbouring rays (4x4 pixels with 16 lanes, 4x2 with 8) runs the
-// per-ray code of raycastLanes (kernels/raycast.hpp) through HwyLanes: a lane per ray, a mask
-// for the rays still going. The view's own sample, gradient and traversal hooks run per lane
-// (each ray keeps its view cache); ray setup, skipping, the transfer function, shading and
-// compositing run on whole vectors.
+// per-ray code of LaneKernels::raycastLanes (kernels/raycast_lanes.inl, compiled here for each
+// target) through HwyLanes: a lane per ray, a mask for the rays still going. The view's own sample,
+// gradient and traversal hooks run per lane (each ray keeps its view cache); ray setup, skipping,
+// the transfer function, shading and compositing run on whole vectors.
 #include <hwy/highway.h>
 
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
 #include <type_traits>
 #include <voxwall/codec/decoded_pages.hpp>
 #include <voxwall/node/kernels/raycast.hpp>
@@ -31,12 +32,19 @@ namespace hn = hwy::HWY_NAMESPACE;
 #endif
 
 #if VOXWALL_PACKETS
+// The code over lanes and over corner values, compiled again for this target (raycast_lanes.inl
+// says why): LaneKernels (the ray march) and Corners (the trilinear blend and differences).
+using kernels::Lanes3, kernels::Lanes4, kernels::RayFrame, kernels::SkipGrid, kernels::TransferLut;
+#include <voxwall/codec/kernels/corners.inl>
+#include <voxwall/node/kernels/raycast_lanes.inl>
+
 template <class V>
 inline constexpr bool kRaw = false;
 template <class T>
 inline constexpr bool kRaw<codec::kernels::RawView<T>> = true;
 
-// raycastLanes' lane policy (see kernels::ScalarLanes) over Highway vectors of floats and int32.
+// LaneKernels::raycastLanes' lane policy (see kernels::ScalarLanes) over Highway vectors of floats
+// and int32.
 struct HwyLanes {
   using D = hn::ScalableTag<float>;
   using DI = hn::RebindToSigned<D>;
@@ -168,7 +176,7 @@ struct HwyLanes {
     c[2] = gather(v.bricks, o + dy), c[3] = gather(v.bricks, o + dy + dx);
     c[4] = gather(v.bricks, o + dz), c[5] = gather(v.bricks, o + dz + dx);
     c[6] = gather(v.bricks, o + dz + dy), c[7] = gather(v.bricks, o + dz + dy + dx);
-    return codec::kernels::blendCorners(c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+    return Corners::blend(c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
   // The cell gradient from a cell's corners c and its 24 neighbours at(dx, dy, dz), at the
   // sample's offsets t in the cell, in world units (kernels::sampleGradient's scale).
@@ -176,10 +184,10 @@ struct HwyLanes {
   static HWY_INLINE kernels::Lanes3<F> cellGradient(const F* c, const At& at,
                                                     const kernels::RayFrame& f, F tx, F ty, F tz) {
     F d[24];
-    codec::kernels::cornerDifferences(c, at, d);
-    return {codec::kernels::blendCorners(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
-            codec::kernels::blendCorners(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
-            codec::kernels::blendCorners(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
+    Corners::differences(c, at, d);
+    return {Corners::blend(d, tx, ty, tz) * splat(0.5f * f.invSpacing.x),
+            Corners::blend(d + 8, tx, ty, tz) * splat(0.5f * f.invSpacing.y),
+            Corners::blend(d + 16, tx, ty, tz) * splat(0.5f * f.invSpacing.z)};
   }
   // RawView's cell gradient (cornerDifferences over the 24 voxels around the cell, clamped to
   // the volume) on vectors, right after rawSample at the same positions.
@@ -259,7 +267,7 @@ struct HwyLanes {
     cache.pageAt = o;
     const auto* pool = static_cast<const typename codec::PageFormat<Level>::Stored*>(pages.pool());
     pageCorners(v, pool, o, cache.c);
-    return codec::kernels::blendCorners(cache.c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+    return Corners::blend(cache.c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
   // The cell gradient of the lanes pageSample served, from the same page (its apron holds the
   // cell's 24 neighbours, clamped at the volume's faces as the view clamps them).
@@ -303,7 +311,7 @@ struct HwyLanes {
                   (jz - bz + one) * splatI(P::kSlice);
       F c[8];
       pageCorners(v, pool, o, c);
-      return codec::kernels::blendCorners(c, qx - toFloat(jx), qy - toFloat(jy), qz - toFloat(jz));
+      return Corners::blend(c, qx - toFloat(jx), qy - toFloat(jy), qz - toFloat(jz));
     };
     const F d = splat(1.0f);
     return {(at(p.x + d, p.y, p.z) - at(p.x - d, p.y, p.z)) * splat(0.5f * f.invSpacing.x),
@@ -456,9 +464,9 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
         const L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
         kernels::Lanes4<L::F> acc;
         L::I count;
-        kernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
-                                 lx + hn::Set(di, job.tile.x), ly + hn::Set(di, job.tile.y), valid,
-                                 acc, count);
+        LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
+                                     lx + hn::Set(di, job.tile.x), ly + hn::Set(di, job.tile.y),
+                                     valid, acc, count);
         hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
         hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(count, di, n);
         L::forLanes(valid, [&](std::size_t i) {
@@ -520,6 +528,36 @@ std::string packetTarget() {
   const std::int64_t best = std::int64_t(hwy::SupportedTargets()) & std::int64_t(HWY_TARGETS);
   return hwy::TargetName(best & -best);
 }
+// Highway's bits of the build's targets this CPU runs, best (lowest bit) first.
+static std::vector<std::int64_t> packetTargetBits() {
+  std::vector<std::int64_t> out;
+  for (std::int64_t t = std::int64_t(hwy::SupportedTargets()) & std::int64_t(HWY_TARGETS); t != 0;
+       t &= t - 1)
+    out.push_back(t & -t);
+  return out;
+}
+
+}  // namespace voxwall::node::cpu
+
+// (Here, not in cpu_backend.cpp: Highway's headers need this file's HWY_DISABLED_TARGETS.)
+namespace voxwall::node {
+
+std::vector<std::string> cpuPacketTargets() {
+  std::vector<std::string> names;
+  for (const auto bit : cpu::packetTargetBits()) names.push_back(hwy::TargetName(bit));
+  return names;
+}
+
+void restrictCpuPacketTarget(const std::string& name) {
+  if (name.empty()) return hwy::SetSupportedTargetsForTest(0);
+  for (const auto bit : cpu::packetTargetBits())
+    if (name == hwy::TargetName(bit)) return hwy::SetSupportedTargetsForTest(bit);
+  throw std::invalid_argument("no SIMD target '" + name + "' in this build on this CPU");
+}
+
+}  // namespace voxwall::node
+
+namespace voxwall::node::cpu {
 #endif
 
 }  // namespace voxwall::node::cpu

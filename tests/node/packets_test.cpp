@@ -117,6 +117,45 @@ TEST(Packets, SameImageAsOneRayAtATimeForEveryView) {
         }
 }
 
+// Every SIMD target the build compiled and this CPU runs (a portable build has AVX2 and AVX-512
+// on x86; a -march=native build the machine's own) gives the picture of one ray at a time: the
+// per-ray code is compiled for each target, and each target's packets are its own.
+TEST(Packets, EverySimdTargetGivesTheSamePicture) {
+  const auto targets = cpuPacketTargets();
+  ASSERT_FALSE(targets.empty());
+  EXPECT_THROW(restrictCpuPacketTarget("no such target"), std::invalid_argument);
+  test::TempDir dir;
+  const auto cases = everyView(dir);
+  RenderSettings s;
+  s.shading = true;
+  const Rect tile{13, 7, 61, 47};
+  std::vector<Image> scalar;
+  for (const auto& c : cases) scalar.push_back(render(c, s, false, tile));
+  std::size_t lastLanes = 0;
+  int simd = 0;
+  for (const auto& target : targets) {
+    restrictCpuPacketTarget(target);
+    const std::size_t lanes = cpuPacketLanes();
+    const auto name = makeCpuBackend(1, true)->name();
+    if (lanes > 1) {
+      ++simd;
+      EXPECT_NE(name.find(target + " packets of " + std::to_string(lanes)), std::string::npos)
+          << name;
+      // Best first: each next target has narrower vectors (x86: AVX-512 16 lanes, AVX2 8).
+      if (lastLanes > 0) EXPECT_LT(lanes, lastLanes) << target;
+      lastLanes = lanes;
+    } else {
+      EXPECT_NE(name.find("one ray at a time"), std::string::npos) << target << ": " << name;
+    }
+    for (std::size_t i = 0; i < cases.size(); ++i)
+      test::expectImagesNear(scalar[i], render(cases[i], s, true, tile), 1, 60.0,
+                             cases[i].name + " on " + target);
+  }
+  restrictCpuPacketTarget("");
+  EXPECT_EQ(cpuPacketTargets(), targets);
+  std::printf("SIMD targets: %d with packets of %zu targets in all\n", simd, targets.size());
+}
+
 // The six-sample gradients and svmm's nearest sampling and levels of detail take the views'
 // per-lane hooks: the same picture too.
 TEST(Packets, SixSampleGradientsAndSvmmTraversalMatch) {

@@ -103,6 +103,13 @@ DecodeCacheUse cpuDecodeCacheUse(const Backend& backend);
 std::uint64_t cpuDecodeCacheNeed(const RenderVolume& volume, std::uint64_t decodeCacheBytes);
 // Rays per packet of the CPU backend on this CPU (1: none of the build's SIMD targets runs here).
 std::size_t cpuPacketLanes();
+// The SIMD targets the build compiled the packets for that this CPU runs, best first, by
+// Highway's names ("AVX3", "AVX2", then the baseline, which traces one ray at a time). The CPU
+// backend runs the best unless restricted to one of them: restrictCpuPacketTarget(name), for
+// the whole process, until called with "" (tests and benchmarks). Throws std::invalid_argument
+// for a name not in the list.
+std::vector<std::string> cpuPacketTargets();
+void restrictCpuPacketTarget(const std::string& name);
 std::unique_ptr<Backend> makeCudaBackend();
 // Whether the CUDA backend can run here; otherwise `reason` says why (not built, no device...).
 bool cudaAvailable(std::string* reason = nullptr);

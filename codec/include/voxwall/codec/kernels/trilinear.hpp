@@ -22,46 +22,16 @@ VOXWALL_HD_INLINE int ceilToInt(float x) {
   return i + int(x > float(i));
 }
 
-// The trilinear blend of a cell's eight corner values at fractions (tx, ty, tz) in [0, 1]: corner
-// i sits at (+x if bit 0, +y if bit 1, +z if bit 2). Every view blends through this one function
-// (V: float, or a SIMD vector of the CPU's ray packets).
+#include <voxwall/codec/kernels/corners.inl>  // Corners: blend and differences over any value type
+
+// The views' names for them (with floats; the CPU's packets use their own copy of Corners).
 template <class V>
 VOXWALL_HD_INLINE V blendCorners(const V* c, V tx, V ty, V tz) {
-  const V c00 = c[0] + tx * (c[1] - c[0]), c10 = c[2] + tx * (c[3] - c[2]);
-  const V c01 = c[4] + tx * (c[5] - c[4]), c11 = c[6] + tx * (c[7] - c[6]);
-  const V c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
-  return c0 + tz * (c1 - c0);
-}
-
-// The central differences v(i + 1) - v(i - 1) along x, y and z at the eight corners of a voxel
-// cell: d[8 a + i] for axis a and corner i (numbered as in blendCorners). They come from the
-// corners' own values c[8] and 24 more voxels read through at(ox, oy, oz): the voxel at offset
-// (ox, oy, oz) from the cell's lower corner, each offset in {-1, 0, 1, 2}, clamped to the volume
-// the way the view clamps its corners.
-//
-// Blending d[8 a ..] with a sample's fractions gives exactly (up to rounding) the difference of
-// the trilinear samples one voxel before and after it along axis a, wherever the sample lies in
-// [0, dim - 1] (see outsideGrid): each shifted sample blends the corners' neighbours with the
-// same weights. So a
-// view gets the gradient the raycaster used to take six samples (48 voxel reads) for from 24
-// reads per cell, reused by every sample in the cell.
-// One of them: axis A, corner I, with constant offsets so every read is a fixed address.
-template <int A, int I, class V, class At>
-VOXWALL_HD_INLINE V cornerDifference(const V* c, const At& at) {
-  constexpr int bit = 1 << A, x = I & 1, y = (I >> 1) & 1, z = I >> 2;
-  if constexpr ((I & bit) != 0)  // the upper corner: two voxels past the lower one, minus it
-    return at(A == 0 ? 2 : x, A == 1 ? 2 : y, A == 2 ? 2 : z) - c[I ^ bit];
-  else  // the lower corner: the upper one minus the voxel before
-    return c[I | bit] - at(A == 0 ? -1 : x, A == 1 ? -1 : y, A == 2 ? -1 : z);
-}
-template <class V, class At, int... K>
-VOXWALL_HD_INLINE void cornerDifferences(const V* c, const At& at, V* d,
-                                         std::integer_sequence<int, K...>) {
-  ((d[K] = cornerDifference<K / 8, K % 8>(c, at)), ...);
+  return Corners::blend(c, tx, ty, tz);
 }
 template <class V, class At>
 VOXWALL_HD_INLINE void cornerDifferences(const V* c, const At& at, V* d) {
-  cornerDifferences(c, at, d, std::make_integer_sequence<int, 24>());
+  Corners::differences(c, at, d);
 }
 
 // Is the position outside [0, hi] on some axis (the volume's outer half voxel, where a view
