@@ -108,6 +108,8 @@ std::vector<std::vector<voxwall::Rect>> byRank(const std::vector<std::vector<vox
 }
 
 // Renders `rects`, streams them to the sink (if any) and makes this rank's report for `task`.
+// A rank whose pixels nobody gathers renders, encodes and sends a band at a time (bands()), so it
+// holds one band's pixels however much of the screen the balancer gives it.
 net::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
                             const node::TransferFunction& tf, const node::RenderSettings& render,
                             const JobSettings& job, net::TileStreamer* streamer,
@@ -118,36 +120,41 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
   report.rank = rank;
   report.pixels = !job.outDir.empty();
   if (!rects.empty()) {
-    const auto start = Clock::now();
     // The transfer function is the same for the whole job: its part of the plan is made once.
     lastPlan = node::planFrame(volume, task.camera, task.screenWidth, task.screenHeight, tf, render,
                                lastPlan ? &*lastPlan : nullptr);
     const auto& plan = *lastPlan;
     report.costs = node::CostGrid(task.screenWidth, task.screenHeight, task.cellPixels);
-    std::vector<voxwall::Image> images(rects.size());
-    for (std::size_t i = 0; i < rects.size(); ++i)
-      report.samples += backend.render(volume, plan, rects[i], images[i], &report.costs).samples;
-    report.renderSeconds = since(start);
+    const auto before = streamer ? streamer->bytesSent() : 0;
+    bool sending = false;
     if (streamer) {
-      const auto encodeStart = Clock::now();
-      std::vector<net::EncodedTile> encoded;
-      for (std::size_t i = 0; i < rects.size(); ++i) {
-        auto parts =
-            net::encodeTiles(images[i], rects[i], job.stream->background, job.stream->codec);
-        std::move(parts.begin(), parts.end(), std::back_inserter(encoded));
-      }
-      report.encodeSeconds = since(encodeStart);
-      const auto before = streamer->bytesSent();
       streamer->setJob(task.jobId);
-      report.streamed =
-          streamer->sendFrame(task.frame, encoded, task.decidedUnixMicros, task.step,
-                              std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)));
+      sending = streamer->beginFrame(task.frame);
+    }
+    for (const auto& rect : rects) {
+      const auto parts = report.pixels ? std::vector<voxwall::Rect>{rect} : bands(rect, job);
+      voxwall::Image image;  // with pixels, the whole rectangle (one part)
+      for (const auto& part : parts) {
+        const auto start = Clock::now();
+        report.samples += backend.render(volume, plan, part, image, &report.costs).samples;
+        report.renderSeconds += since(start);
+        if (sending) {
+          const auto encodeStart = Clock::now();
+          const auto encoded =
+              net::encodeTiles(image, part, job.stream->background, job.stream->codec);
+          report.encodeSeconds += since(encodeStart);
+          sending = streamer->sendTiles(encoded, task.decidedUnixMicros, task.step,
+                                        std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)));
+        }
+      }
+      report.tiles.push_back({rect, report.pixels ? std::move(image) : voxwall::Image()});
+    }
+    if (streamer) {
+      report.streamed = sending && streamer->endFrame();
       report.streamError = streamer->lastError();
       report.streamRefused = !streamer->refused().empty();
       report.streamedBytes = streamer->bytesSent() - before;
     }
-    for (std::size_t i = 0; i < rects.size(); ++i)
-      report.tiles.push_back({rects[i], report.pixels ? std::move(images[i]) : voxwall::Image()});
   }
   std::tie(report.residentBytes, report.peakResidentBytes) = processMemory();
   return report;
@@ -218,6 +225,18 @@ std::pair<std::uint64_t, std::uint64_t> processMemory() {
     value("VmHWM:", peak);
   }
   return {rss, peak};
+}
+
+int bandRows(const JobSettings& job) {
+  return job.stream ? job.stream->codec.segmentPixels : net::TileCodecSettings{}.segmentPixels;
+}
+
+std::vector<voxwall::Rect> bands(const voxwall::Rect& rect, const JobSettings& job) {
+  const int rows = std::max(1, bandRows(job));
+  std::vector<voxwall::Rect> out;
+  for (int y = 0; y < rect.height; y += rows)
+    out.push_back({rect.x, rect.y + y, rect.width, std::min(rows, rect.height - y)});
+  return out;
 }
 
 std::vector<std::vector<voxwall::Rect>> firstFrameRects(const JobSettings& job, int ranks) {

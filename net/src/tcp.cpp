@@ -143,6 +143,7 @@ TileStreamer::TileStreamer(std::string host, std::uint16_t port, Hello hello, in
 void TileStreamer::setJob(std::uint64_t jobId) {
   if (hello_.jobId == jobId) return;
   hello_.jobId = jobId;
+  sending_ = false;
   connection_.reset();
 }
 
@@ -166,30 +167,61 @@ bool TileStreamer::ensureConnected() {
   }
 }
 
-bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
-                             std::uint64_t decidedUnixMicros, int step,
-                             std::uint32_t renderMicros) {
+bool TileStreamer::beginFrame(std::uint64_t frame) {
+  sending_ = false;
   hello_.nextFrame = frame;
   if (!ensureConnected()) {
     if (lastError_.empty()) lastError_ = "waiting to reconnect";
     return false;
   }
   lastError_.clear();
+  sending_ = true;
+  frame_ = frame;
+  tilesSent_ = 0;
+  return true;
+}
+
+bool TileStreamer::sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_t decidedUnixMicros,
+                             int step, std::uint32_t renderMicros) {
+  if (!sending_) return false;
   try {
     for (const auto& t : tiles) {
       const auto bytes = encodeMessage(
-          frame, TileMessage{t.rect, t.codec, decidedUnixMicros, t.bytes, step, renderMicros});
+          frame_, TileMessage{t.rect, t.codec, decidedUnixMicros, t.bytes, step, renderMicros});
       connection_->send(bytes);
       bytesSent_ += bytes.size();
+      ++tilesSent_;
     }
-    connection_->send(encodeMessage(frame, FrameEnd{hello_.rank, std::uint32_t(tiles.size())}));
     return true;
   } catch (const NetError& e) {
-    lastError_ = e.what();
-    connection_.reset();
-    nextAttempt_ = Clock::now() + backoff_;
+    lost(e);
     return false;
   }
+}
+
+bool TileStreamer::endFrame() {
+  if (!sending_) return false;
+  try {
+    connection_->send(encodeMessage(frame_, FrameEnd{hello_.rank, tilesSent_}));
+    sending_ = false;
+    return true;
+  } catch (const NetError& e) {
+    lost(e);
+    return false;
+  }
+}
+
+void TileStreamer::lost(const NetError& e) {
+  lastError_ = e.what();
+  sending_ = false;
+  connection_.reset();
+  nextAttempt_ = Clock::now() + backoff_;
+}
+
+bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
+                             std::uint64_t decidedUnixMicros, int step,
+                             std::uint32_t renderMicros) {
+  return beginFrame(frame) && sendTiles(tiles, decidedUnixMicros, step, renderMicros) && endFrame();
 }
 
 ControlChannel::ControlChannel(std::string host, std::uint16_t port, Hello hello)

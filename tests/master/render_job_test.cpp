@@ -200,3 +200,26 @@ TEST(RenderJob, FirstFrameRectsForADryRun) {
   EXPECT_TRUE(master::firstFrameRects(job, 3)[0].empty());
   EXPECT_THROW(master::firstFrameRects(job, 1), std::invalid_argument);
 }
+
+// A rank that keeps no pixels renders a rectangle in bands of the tile codec's segment rows:
+// they tile the rectangle exactly, top to bottom.
+TEST(RenderJob, BandsTileTheRectangleInSegmentRows) {
+  auto job = testJob("", 1);
+  const voxwall::Rect rect{3, 5, 40, 50};
+  EXPECT_EQ(master::bandRows(job), net::TileCodecSettings{}.segmentPixels);
+  EXPECT_EQ(master::bands(rect, job), std::vector<voxwall::Rect>{rect});  // shorter than a band
+  master::StreamSettings stream;
+  stream.codec.segmentPixels = 16;
+  job.stream = stream;
+  const auto parts = master::bands(rect, job);
+  ASSERT_EQ(parts.size(), 4u);
+  int y = rect.y;
+  for (const auto& p : parts) {
+    EXPECT_EQ(p.x, rect.x);
+    EXPECT_EQ(p.width, rect.width);
+    EXPECT_EQ(p.y, y);
+    EXPECT_EQ(p.height, std::min(16, rect.y + rect.height - y));
+    y += p.height;
+  }
+  EXPECT_EQ(y, rect.y + rect.height);
+}

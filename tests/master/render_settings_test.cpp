@@ -174,6 +174,30 @@ TEST(RenderSettings, RankZeroNeedsMoreMemoryForTheFrame) {
   EXPECT_GT(estimateRankBytes(jobSettings(o), 0, 2, 1 << 20, 0) - oneStreaming, 8 * screen);
 }
 
+// A streaming rank holds one band of pixels, not what the balancer may give it: on a wall far
+// taller than a band, its need is the band's (8 bytes a pixel: picture and encoded tiles), while
+// a rank whose frames are written holds the whole screen under a dynamic cut.
+TEST(RenderSettings, AStreamingRankNeedsOneBandOfPixels) {
+  master::JobSettings job;
+  job.width = 5760, job.height = 4320;
+  master::StreamSettings stream;
+  job.stream = stream;
+  const std::uint64_t volume = 1 << 20;
+  const auto band = std::uint64_t(job.width) * std::uint64_t(master::bandRows(job)) * 8;
+  const auto screen = std::uint64_t(job.width) * std::uint64_t(job.height) * 8;
+  for (int rank = 0; rank < 6; ++rank) {
+    const auto need = estimateRankBytes(job, rank, 6, volume, 0);
+    EXPECT_GE(need, volume + band) << "rank " << rank;
+    EXPECT_LT(need, volume + band + (8u << 20)) << "rank " << rank;
+  }
+  job.balance = master::Balance::Static;  // strips of 720 rows: shorter than a band
+  EXPECT_LT(estimateRankBytes(job, 1, 6, volume, 0), volume + job.width * 720 * 8 + (8u << 20));
+  job.balance = master::Balance::Dynamic;
+  job.stream.reset();
+  job.outDir = "frames";
+  EXPECT_GT(estimateRankBytes(job, 1, 6, volume, 0), volume + screen);
+}
+
 // A codec's render flags (tvq's --progressive) change the picture: the resume manifest records
 // them, so --resume does not mix frames of two progressive levels.
 TEST(RenderSettings, ManifestRecordsTheCodecRenderFlags) {

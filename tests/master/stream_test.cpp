@@ -2,6 +2,7 @@
 // send their tiles; the sink assembles and writes per-display images.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <thread>
 #include <voxwall/codec/generators.hpp>
@@ -128,6 +129,47 @@ TEST(Stream, FourRanksLosslessEqualCropsOfTheSingleRankRender) {
   EXPECT_EQ(checkShownFrames(dir.path("wall"), job, 0), stats.framesPresented);
   // The newest frame is always shown.
   EXPECT_TRUE(fs::exists(displayFile(dir.path("wall"), 2, "r1c1")));
+}
+
+// The CPU backend, noting the tallest rectangle it was asked to render.
+class TallestTile : public node::Backend {
+ public:
+  std::string name() const override { return "cpu (tallest tile noted)"; }
+  int tallest() const { return tallest_.load(); }
+
+ protected:
+  node::TileStats renderTile(const node::RenderVolume& v, const node::FramePlan& plan,
+                             const voxwall::Rect& tile, voxwall::Image& out,
+                             node::CostGrid* costs) override {
+    for (int t = tallest_.load();
+         tile.height > t && !tallest_.compare_exchange_weak(t, tile.height);)
+      ;
+    return cpu_->render(v, plan, tile, out, costs);
+  }
+
+ private:
+  std::unique_ptr<node::Backend> cpu_ = node::makeCpuBackend(1);
+  std::atomic<int> tallest_{0};
+};
+
+// A rank streaming to the sink keeps one band of its pixels at a time: it renders, encodes and
+// sends its rectangles in rows of the codec's segment size, and the wall shows the same frames.
+TEST(Stream, RanksRenderAndSendInBandsOfSegmentRows) {
+  test::TempDir dir;
+  auto sink = startSink(dir.path("wall"));
+  const auto job = streamJob(sink->port(), net::TileCodec::Deflate, 2);
+  TallestTile backend;
+  const auto errors = test::runRanks(2, [&](master::Communicator& comm) {
+    master::runRenderJob(comm, backend, volume(), tf(), {}, job);
+  });
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  ASSERT_TRUE(waitSettled(*sink, 2));
+  sink->stop();
+  // Two ranks cut a 77-row screen: each has more rows than a 16-row segment.
+  EXPECT_EQ(backend.tallest(), job.stream->codec.segmentPixels);
+  EXPECT_EQ(checkShownFrames(dir.path("wall"), job, 0), sink->sink().stats().framesPresented);
+  EXPECT_GE(sink->sink().stats().framesPresented, 1);
 }
 
 TEST(Stream, JpegTilesKeep40Decibels) {

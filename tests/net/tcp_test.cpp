@@ -77,4 +77,9 @@ TEST(Connection, NoSinkListeningIsAClearError) {
   net::TileStreamer streamer("127.0.0.1", port, net::Hello{});
   EXPECT_FALSE(streamer.sendFrame(0, {}, 0));
   EXPECT_NE(streamer.lastError().find("127.0.0.1"), std::string::npos) << streamer.lastError();
+  // A frame sent in parts: no connection, so the frame is skipped, part after part.
+  EXPECT_FALSE(streamer.beginFrame(1));
+  EXPECT_FALSE(streamer.sendTiles({net::EncodedTile{{0, 0, 1, 1}, net::TileCodec::Raw, {}}}, 0));
+  EXPECT_FALSE(streamer.endFrame());
+  EXPECT_EQ(streamer.bytesSent(), 0u);
 }

@@ -52,19 +52,32 @@ std::uint64_t decodeCacheBytes(const RenderOptions& o) {
   }
 }
 
-// Memory a rank needs: the mapped volume, its frame buffers (the whole screen for a dynamic cut,
-// which may give one rank nearly everything), and on rank 0 the cost grids of every rank's report
-// and, when frames are written (--out), the assembled frame, the pixels of the reports and the
-// writer's float copy. A job that only streams to a sink gathers no pixels on rank 0.
+// Memory a rank needs: the mapped volume, its pixels (8 bytes each: the RGBA8 picture and its
+// encoded copy, a report to rank 0 or tiles to the sink), its cost grid, and on rank 0 the cost
+// grids of every rank's report and, when frames are written (--out), the assembled frame, the
+// pixels of the reports and the writer's float copy. Written frames: a rank holds all its pixels,
+// which under a dynamic cut may be nearly the whole screen. Otherwise (streaming to a sink) a
+// rank holds one band of a rectangle at a time (master::bands), and rank 0 gathers no pixels.
 std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,
                                 std::uint64_t volumeBytes, std::uint64_t baseBytes) {
   const auto rects = master::firstFrameRects(job, ranks);
-  std::uint64_t pixels = 0;
-  if (job.balance == master::Balance::Dynamic && !rects[std::size_t(rank)].empty())
-    pixels = std::uint64_t(job.width) * std::uint64_t(job.height);
-  else
-    for (const auto& r : rects[std::size_t(rank)]) pixels += std::uint64_t(r.area());
+  const auto& mine = rects[std::size_t(rank)];
   const std::uint64_t screen = std::uint64_t(job.width) * std::uint64_t(job.height);
+  const bool dynamic = job.balance == master::Balance::Dynamic;
+  std::uint64_t pixels = 0;
+  if (!job.outDir.empty()) {
+    if (dynamic && !mine.empty())
+      pixels = screen;
+    else
+      for (const auto& r : mine) pixels += std::uint64_t(r.area());
+  } else {
+    const auto rows = std::uint64_t(master::bandRows(job));
+    if (dynamic && !mine.empty())
+      pixels = std::min(screen, std::uint64_t(job.width) * rows);
+    else
+      for (const auto& r : mine)
+        pixels = std::max(pixels, std::min(std::uint64_t(r.area()), std::uint64_t(r.width) * rows));
+  }
   const std::uint64_t cells =
       std::uint64_t((job.width + job.balancer.cellPixels - 1) / job.balancer.cellPixels) *
       std::uint64_t((job.height + job.balancer.cellPixels - 1) / job.balancer.cellPixels);
@@ -461,7 +474,8 @@ void addOutputOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
       ->capture_default_str();
   cmd.add_flag("--no-write", o.noWrite, "Render without writing frames (for timing)");
   cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
-  cmd.add_flag("-v,--verbose", o.verbose, "Print every rank's rectangles every frame");
+  cmd.add_flag("-v,--verbose", o.verbose,
+               "Print every rank's rectangles and the samples taken every frame");
 }
 
 }  // namespace

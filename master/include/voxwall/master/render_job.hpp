@@ -98,6 +98,13 @@ struct JobSummary {
   std::vector<std::string> sinkNotes;  // the sink's notes that arrived after the last frame
 };
 
+// A rank whose pixels nobody gathers (no frames written: streaming to a sink, or a benchmark)
+// renders, encodes and sends `rect` in these bands, one after the other, and keeps one band's
+// pixels at a time: rows of bandRows(job) (the tile codec's segment size, so the encoded tiles
+// are those of the whole rectangle), top to bottom.
+int bandRows(const JobSettings& job);
+std::vector<voxwall::Rect> bands(const voxwall::Rect& rect, const JobSettings& job);
+
 // The rectangles of every rank in the first frame (what --dry-run shows). Throws
 // std::invalid_argument when the screen cannot be cut for this many ranks.
 std::vector<std::vector<voxwall::Rect>> firstFrameRects(const JobSettings& job, int ranks);

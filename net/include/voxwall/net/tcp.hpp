@@ -51,9 +51,19 @@ class TileStreamer {
   TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000);
   // The render job the frames belong to (Hello.jobId); a change reconnects.
   void setJob(std::uint64_t jobId);
-  // Returns whether the whole frame (tiles and FrameEnd) went out. A (re)connection announces
-  // `frame` as the next one in its Hello. `step` > 1: the tiles are of an interactive frame's
-  // reduced screen (wire.hpp); `renderMicros`: this rank's render time for the frame.
+  // A frame sent in parts, each as soon as it is rendered: beginFrame, sendTiles per part,
+  // endFrame. beginFrame (re)connects if needed, announcing `frame` as the next one in its Hello;
+  // it returns false when there is no connection, and then the frame is skipped. A send that
+  // fails skips the rest of the frame the same way: later sendTiles and endFrame return false.
+  bool beginFrame(std::uint64_t frame);
+  // `step` > 1: the tiles are of an interactive frame's reduced screen (wire.hpp);
+  // `renderMicros`: how long this rank has rendered the frame so far (with the last part, its
+  // render time for the frame: the sink keeps the value of a rank's last tile).
+  bool sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_t decidedUnixMicros,
+                 int step = 1, std::uint32_t renderMicros = 0);
+  // Sends FrameEnd with the count of tiles sent; returns whether the whole frame went out.
+  bool endFrame();
+  // The whole frame at once: beginFrame, sendTiles, endFrame.
   bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                  std::uint64_t decidedUnixMicros, int step = 1, std::uint32_t renderMicros = 0);
   // Why the last frame did not go out (empty when it did).
@@ -64,6 +74,8 @@ class TileStreamer {
 
  private:
   bool ensureConnected();
+  // A send failed: the connection goes, the frame is skipped, the next attempt waits.
+  void lost(const NetError& e);
   std::string host_;
   std::uint16_t port_;
   Hello hello_;
@@ -73,6 +85,9 @@ class TileStreamer {
   std::chrono::milliseconds backoff_{100};
   std::string lastError_, refused_;
   std::uint64_t bytesSent_ = 0;
+  bool sending_ = false;  // between a beginFrame that connected and endFrame or a failed send
+  std::uint64_t frame_ = 0;
+  std::uint32_t tilesSent_ = 0;
 };
 
 // Rank 0's connection for camera commands from the wall: a background thread keeps it open

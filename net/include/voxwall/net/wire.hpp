@@ -19,7 +19,8 @@
 //            screen itself at step 1, or the reduced screen of an interactive frame,
 //            ceil(width / step) x ceil(height / step), whose pixel (x, y) stands for the step x
 //            step block of virtual-screen pixels at (x * step, y * step) (clipped at the edge).
-//            renderMicros: how long the sending rank took to render all its tiles of the frame.
+//            renderMicros: how long the sending rank had rendered the frame when it sent the
+//            tile (a rank sends bands as it renders them: its last tile carries the whole time).
 //   FrameEnd i32 rank, u32 tiles this rank sent for the frame
 //   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
 //   Bye      str reason
@@ -88,7 +89,7 @@ struct TileMessage {
   std::uint64_t decidedUnixMicros = 0;  // when rank 0 decided the frame's camera
   std::vector<std::byte> bytes;
   int step = 1;                    // 1: full resolution; n: an interactive frame, 1/n per side
-  std::uint32_t renderMicros = 0;  // the sending rank's render time for the whole frame
+  std::uint32_t renderMicros = 0;  // the sending rank's render time so far (last tile: all)
 };
 // The virtual-screen rectangle that `rect` of a frame rendered at `step` stands for, clipped to
 // the screenWidth x screenHeight virtual screen (empty when it lies outside).
