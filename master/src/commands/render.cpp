@@ -233,9 +233,11 @@ class Report {
                 double(f.samples) / f.renderSeconds / 1e6, sinkText(f).c_str(),
                 f.path.empty() ? "" : " -> ", f.path.c_str());
     for (const auto& note : f.sinkNotes) std::printf("  %s\n", note.c_str());
-    if (o_.verbose)
+    if (o_.verbose) {
       for (std::size_t i = 0; i < f.ranks.size(); ++i)
         std::printf("  rank %d:%s\n", f.ranks[i], rectList(f.rects[i]).c_str());
+      std::printf("  %llu samples\n", (unsigned long long)f.samples);
+    }
     std::fflush(stdout);
   }
 
