@@ -135,6 +135,7 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
       const auto parts = report.pixels ? std::vector<voxwall::Rect>{rect} : bands(rect, job);
       voxwall::Image image;  // with pixels, the whole rectangle (one part)
       for (const auto& part : parts) {
+        image = voxwall::Image();  // the last band goes before the backend makes the next
         const auto start = Clock::now();
         report.samples += backend.render(volume, plan, part, image, &report.costs).samples;
         report.renderSeconds += since(start);

@@ -113,8 +113,12 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
                                   ? node::cpuDecodeCacheNeed(*s.volume, decodeCacheBytes(o))
                                   : 0;
   s.pageBytes = pages;
-  s.needBytes = estimateRankBytes(s.job, comm.rank(), comm.size(), s.volume->storedBytes() + pages,
-                                  baseBytes);
+  // Loading may have peaked higher than the job will run (a codec holds the file's bytes and the
+  // volume it builds from them at once): this rank's measured peak so far counts too.
+  const auto loadPeakBytes = master::processMemory().second;
+  s.needBytes =
+      std::max(loadPeakBytes, estimateRankBytes(s.job, comm.rank(), comm.size(),
+                                                s.volume->storedBytes() + pages, baseBytes));
   if (!o.memoryBudget.empty()) {
     const auto budget = parseBytes(o.memoryBudget, "--memory-budget");
     if (s.needBytes > budget)
