@@ -549,7 +549,8 @@ std::vector<std::string> cpuPacketTargets() {
 }
 
 void restrictCpuPacketTarget(const std::string& name) {
-  if (name.empty()) return hwy::SetSupportedTargetsForTest(0);
+  hwy::SetSupportedTargetsForTest(0);  // list every target, not those of a restriction before
+  if (name.empty()) return;
   for (const auto bit : cpu::packetTargetBits())
     if (name == hwy::TargetName(bit)) return hwy::SetSupportedTargetsForTest(bit);
   throw std::invalid_argument("no SIMD target '" + name + "' in this build on this CPU");
