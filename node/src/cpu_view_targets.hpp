@@ -521,14 +521,19 @@ std::uint64_t renderBlocks(const View& view, const TileJob& job) {
 template std::uint64_t renderBlocks(
     const std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>& view, const TileJob& job);
 
+}  // namespace voxwall::node::cpu
+
+// The targets, once for the process (in view 0's file; not in cpu_backend.cpp, because Highway's
+// headers need this file's HWY_DISABLED_TARGETS).
 #if VOXWALL_VIEW_INDEX == 0
+namespace voxwall::node {
+namespace cpu {
+
 HWY_EXPORT(targetLanes);
 std::size_t packetLanes() { return HWY_DYNAMIC_DISPATCH(targetLanes)(); }
-std::string packetTarget() {
-  const std::int64_t best = std::int64_t(hwy::SupportedTargets()) & std::int64_t(HWY_TARGETS);
-  return hwy::TargetName(best & -best);
-}
-// Highway's bits of the build's targets this CPU runs, best (lowest bit) first.
+
+// Highway's bits of the build's targets this CPU runs, best (lowest bit) first; never empty (the
+// baseline target always runs).
 static std::vector<std::int64_t> packetTargetBits() {
   std::vector<std::int64_t> out;
   for (std::int64_t t = std::int64_t(hwy::SupportedTargets()) & std::int64_t(HWY_TARGETS); t != 0;
@@ -537,10 +542,9 @@ static std::vector<std::int64_t> packetTargetBits() {
   return out;
 }
 
-}  // namespace voxwall::node::cpu
+std::string packetTarget() { return hwy::TargetName(packetTargetBits().front()); }
 
-// (Here, not in cpu_backend.cpp: Highway's headers need this file's HWY_DISABLED_TARGETS.)
-namespace voxwall::node {
+}  // namespace cpu
 
 std::vector<std::string> cpuPacketTargets() {
   std::vector<std::string> names;
@@ -557,9 +561,5 @@ void restrictCpuPacketTarget(const std::string& name) {
 }
 
 }  // namespace voxwall::node
-
-namespace voxwall::node::cpu {
-#endif
-
-}  // namespace voxwall::node::cpu
+#endif  // VOXWALL_VIEW_INDEX == 0
 #endif  // HWY_ONCE
