@@ -8,7 +8,7 @@ set -euo pipefail
 
 purpose=${1:-test}
 main=(
-  build-essential cmake ninja-build pkg-config git procps
+  build-essential cmake ninja-build pkg-config git procps ccache
   libopenmpi-dev openmpi-bin
   libglm-dev libeigen3-dev
   libturbojpeg0-dev
