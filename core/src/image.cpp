@@ -1,6 +1,7 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -57,6 +58,26 @@ std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
   OIIO::Filesystem::IOVecOutput memory(encoded);
   if (!out->set_ioproxy(&memory) || !out->open(path, spec) ||
       !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) || !out->close())
+    throw FormatError(path, "cannot encode image: " + out->geterror());
+  std::vector<std::byte> bytes(encoded.size());
+  std::memcpy(bytes.data(), encoded.data(), encoded.size());
+  return bytes;
+}
+
+std::vector<std::byte> encodeOpaqueImage(const Image& image, const std::string& path,
+                                         const ImageEncoding& encoding) {
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) throw FormatError(path, "cannot write images of this type: " + OIIO::geterror());
+  if (!out->supports("ioproxy"))
+    throw FormatError(path, "cannot write " + std::string(out->format_name()) + " images safely");
+  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+  spec.attribute("png:compressionLevel", std::clamp(encoding.pngLevel, 0, 9));
+  spec.attribute("Compression", "jpeg:" + std::to_string(std::clamp(encoding.jpegQuality, 1, 100)));
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput memory(encoded);
+  // RGB from RGBA in place: 4 bytes between pixels, the alpha byte skipped.
+  if (!out->set_ioproxy(&memory) || !out->open(path, spec) ||
+      !out->write_image(OIIO::TypeDesc::UINT8, image.pixels.data(), 4) || !out->close())
     throw FormatError(path, "cannot encode image: " + out->geterror());
   std::vector<std::byte> bytes(encoded.size());
   std::memcpy(bytes.data(), encoded.data(), encoded.size());

@@ -142,7 +142,8 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
         if (sending) {
           const auto encodeStart = Clock::now();
           const auto encoded =
-              net::encodeTiles(image, part, job.stream->background, job.stream->codec);
+              net::encodeTiles(image, part, job.stream->background, job.stream->codec,
+                               streamer->displayCut(), task.step);
           report.encodeSeconds += since(encodeStart);
           sending = streamer->sendTiles(encoded, task.decidedUnixMicros, task.step,
                                         std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)));

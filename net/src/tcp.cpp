@@ -154,6 +154,7 @@ bool TileStreamer::ensureConnected() {
   if (now < nextAttempt_) return false;
   try {
     connection_ = Connection::open(host_, port_, hello_, connectTimeoutMs_);
+    cut_ = connection_->welcome().cut();
     backoff_ = std::chrono::milliseconds(100);
     return true;
   } catch (const SinkRefused& e) {

@@ -10,6 +10,7 @@
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/net/tile_codec.hpp>
+#include <voxwall/net/wire.hpp>
 
 namespace voxwall::net {
 namespace {
@@ -163,75 +164,200 @@ const char* tileCodecName(TileCodec codec) {
   return "unknown";
 }
 
+namespace {
+
+// The cut positions of [begin, end) along one axis: its ends, every display edge inside it (at
+// step > 1 divided by the step, rounded down), then pieces of at most `most`.
+std::vector<int> cutPositions(int begin, int end, int most, const std::vector<int>& edges) {
+  std::vector<int> at{begin, end};
+  for (const int e : edges)
+    if (e > begin && e < end) at.push_back(e);
+  std::sort(at.begin(), at.end());
+  at.erase(std::unique(at.begin(), at.end()), at.end());
+  std::vector<int> out;
+  for (std::size_t i = 0; i + 1 < at.size(); ++i)
+    for (int p = at[i]; p < at[i + 1]; p += most) out.push_back(p);
+  out.push_back(end);
+  return out;
+}
+
+bool intersects(const voxwall::Rect& a, const voxwall::Rect& b) {
+  return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
+}
+
+}  // namespace
+
+std::vector<voxwall::Rect> segmentRects(const voxwall::Rect& rect, int segmentPixels,
+                                        const DisplayCut& cut, int step) {
+  if (segmentPixels < 8) throw std::invalid_argument("segments must be at least 8 pixels");
+  if (step < 1) throw std::invalid_argument("segmentRects: step must be at least 1");
+  std::vector<int> xEdges, yEdges;
+  for (const auto& d : cut.displays) {
+    xEdges.push_back(d.x / step), xEdges.push_back((d.x + d.width) / step);
+    yEdges.push_back(d.y / step), yEdges.push_back((d.y + d.height) / step);
+  }
+  const auto xs = cutPositions(rect.x, rect.x + rect.width, segmentPixels, xEdges);
+  const auto ys = cutPositions(rect.y, rect.y + rect.height, segmentPixels, yEdges);
+  const bool all = cut.bezels || cut.displays.empty();
+  std::vector<voxwall::Rect> out;
+  for (std::size_t j = 0; j + 1 < ys.size(); ++j)
+    for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+      const voxwall::Rect part{xs[i], ys[j], xs[i + 1] - xs[i], ys[j + 1] - ys[j]};
+      if (all) {
+        out.push_back(part);
+        continue;
+      }
+      const auto shown = fullScreenRect(part, step, cut.screenWidth, cut.screenHeight);
+      if (std::any_of(cut.displays.begin(), cut.displays.end(),
+                      [&](const voxwall::Rect& d) { return intersects(shown, d); }))
+        out.push_back(part);
+    }
+  return out;
+}
+
 std::vector<EncodedTile> encodeTiles(const voxwall::Image& image, const voxwall::Rect& rect,
-                                     const glm::dvec3& background, const TileCodecSettings& s) {
+                                     const glm::dvec3& background, const TileCodecSettings& s,
+                                     const DisplayCut& cut, int step) {
   if (image.width != rect.width || image.height != rect.height)
     throw std::invalid_argument("encodeTiles: image and rectangle differ in size");
   if (s.jpegQuality < 1 || s.jpegQuality > 100)
     throw std::invalid_argument("JPEG quality must be in [1, 100]");
-  if (s.segmentPixels < 8) throw std::invalid_argument("segments must be at least 8 pixels");
-  std::vector<voxwall::Rect> parts;  // in tile coordinates
-  for (int y = 0; y < rect.height; y += s.segmentPixels)
-    for (int x = 0; x < rect.width; x += s.segmentPixels)
-      parts.push_back({x, y, std::min(s.segmentPixels, rect.width - x),
-                       std::min(s.segmentPixels, rect.height - y)});
+  const auto parts = segmentRects(rect, s.segmentPixels, cut, step);
   std::vector<EncodedTile> out(parts.size());
   voxwall::parallelFor(parts.size(), s.threads, [&](std::size_t i) {
     const voxwall::Rect& p = parts[i];
-    out[i].rect = {rect.x + p.x, rect.y + p.y, p.width, p.height};
+    out[i].rect = p;
     out[i].codec = s.codec;
-    out[i].bytes = encodeSegment(image, p, background, s);
+    out[i].bytes =
+        encodeSegment(image, {p.x - rect.x, p.y - rect.y, p.width, p.height}, background, s);
   });
   return out;
 }
 
-voxwall::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
-                          const std::string& source) {
+namespace {
+
+void checkTileSize(int width, int height, const std::string& source) {
   if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
     throw FormatError(source, "tile size " + std::to_string(width) + "x" + std::to_string(height));
+}
+
+// Each thread's TurboJPEG decompressor, kept: tjInitDecompress allocates.
+tjhandle threadDecompressor() {
+  thread_local TjHandle handle(tjInitDecompress());
+  if (!handle) throw NetError("tjInitDecompress failed");
+  return handle.get();
+}
+
+void checkJpegHeader(tjhandle tj, std::span<const std::byte> bytes, int width, int height,
+                     const std::string& source) {
+  int w = 0, h = 0, subsamp = 0, colorspace = 0;
+  if (tjDecompressHeader3(tj, reinterpret_cast<const unsigned char*>(bytes.data()),
+                          (unsigned long)bytes.size(), &w, &h, &subsamp, &colorspace) != 0)
+    throw FormatError(source, std::string("corrupt JPEG tile: ") + tjGetErrorStr2(tj));
+  if (w != width || h != height)
+    throw FormatError(source, "JPEG tile is " + std::to_string(w) + "x" + std::to_string(h) +
+                                  ", the message says " + std::to_string(width) + "x" +
+                                  std::to_string(height));
+}
+
+// Inflates a deflate tile, handing each piece of output to `take`; checks that it is one whole
+// zlib stream of exactly `expected` bytes with nothing after it.
+template <typename Take>
+void inflateTile(std::span<const std::byte> bytes, std::size_t expected, const std::string& source,
+                 Take take) {
+  z_stream z{};
+  if (inflateInit(&z) != Z_OK) throw NetError("inflateInit failed");
+  std::unique_ptr<z_stream, int (*)(z_stream*)> guard(&z, inflateEnd);
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<std::byte*>(bytes.data()));
+  z.avail_in = uInt(bytes.size());
+  unsigned char chunk[1 << 16];
+  std::size_t produced = 0;
+  int rc = Z_OK;
+  while (rc == Z_OK) {
+    z.next_out = chunk;
+    z.avail_out = sizeof chunk;
+    rc = inflate(&z, Z_NO_FLUSH);
+    const std::size_t n = sizeof chunk - z.avail_out;
+    if (produced + n > expected) break;
+    take(chunk, produced, n);
+    produced += n;
+  }  // Z_BUF_ERROR: the stream ended early (every call has fresh room for output)
+  if (rc != Z_STREAM_END || produced != expected || z.avail_in != 0)
+    throw FormatError(source, "corrupt deflate tile");
+}
+
+}  // namespace
+
+voxwall::Image decodeTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
+                          const std::string& source) {
+  return decodeTileScaled(bytes, codec, width, height, 1, source);
+}
+
+voxwall::Image decodeTileScaled(std::span<const std::byte> bytes, TileCodec codec, int width,
+                                int height, int denominator, const std::string& source) {
+  checkTileSize(width, height, source);
+  if (denominator != 1 &&
+      (codec != TileCodec::Jpeg || (denominator != 2 && denominator != 4 && denominator != 8)))
+    throw std::invalid_argument("decodeTileScaled: only JPEG tiles scale, by 1/2, 1/4 or 1/8");
   const std::size_t pixels = std::size_t(width) * std::size_t(height);
-  voxwall::Image image(width, height);
-  auto fromRgb = [&](const unsigned char* rgb) {
-    for (std::size_t i = 0; i < pixels; ++i)
-      image.pixels[i] = std::uint32_t(rgb[3 * i]) | std::uint32_t(rgb[3 * i + 1]) << 8 |
-                        std::uint32_t(rgb[3 * i + 2]) << 16 | 0xff000000u;
+  auto fromRgb = [](const unsigned char* rgb, std::uint32_t* out, std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i)
+      out[i] = std::uint32_t(rgb[3 * i]) | std::uint32_t(rgb[3 * i + 1]) << 8 |
+               std::uint32_t(rgb[3 * i + 2]) << 16 | 0xff000000u;
   };
   switch (codec) {
-    case TileCodec::Raw:
+    case TileCodec::Raw: {
       if (bytes.size() != pixels * 3)
         throw FormatError(source, "raw tile of " + std::to_string(bytes.size()) + " bytes for " +
                                       std::to_string(pixels) + " pixels");
-      fromRgb(reinterpret_cast<const unsigned char*>(bytes.data()));
+      voxwall::Image image(width, height);
+      fromRgb(reinterpret_cast<const unsigned char*>(bytes.data()), image.pixels.data(), pixels);
       return image;
+    }
     case TileCodec::Deflate: {
       std::vector<unsigned char> rgb(pixels * 3);
-      uLongf size = uLongf(rgb.size());
-      if (uncompress(rgb.data(), &size, reinterpret_cast<const Bytef*>(bytes.data()),
-                     uLong(bytes.size())) != Z_OK ||
-          size != rgb.size())
-        throw FormatError(source, "corrupt deflate tile");
-      fromRgb(rgb.data());
+      inflateTile(bytes, rgb.size(), source,
+                  [&](const unsigned char* chunk, std::size_t at, std::size_t n) {
+                    std::memcpy(rgb.data() + at, chunk, n);
+                  });
+      voxwall::Image image(width, height);
+      fromRgb(rgb.data(), image.pixels.data(), pixels);
       return image;
     }
     case TileCodec::Jpeg: {
-      TjHandle tj(tjInitDecompress());
-      if (!tj) throw NetError("tjInitDecompress failed");
-      int w = 0, h = 0, subsamp = 0, colorspace = 0;
-      auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
-      if (tjDecompressHeader3(tj.get(), data, (unsigned long)bytes.size(), &w, &h, &subsamp,
-                              &colorspace) != 0)
-        throw FormatError(source, std::string("corrupt JPEG tile: ") + tjGetErrorStr2(tj.get()));
-      if (w != width || h != height)
-        throw FormatError(source, "JPEG tile is " + std::to_string(w) + "x" + std::to_string(h) +
-                                      ", the message says " + std::to_string(width) + "x" +
-                                      std::to_string(height));
-      if (tjDecompress2(tj.get(), data, (unsigned long)bytes.size(),
-                        reinterpret_cast<unsigned char*>(image.pixels.data()), width, 0, height,
-                        TJPF_RGBA, TJFLAG_FASTDCT | TJFLAG_STOPONWARNING) != 0)
-        throw FormatError(source, std::string("corrupt JPEG tile: ") + tjGetErrorStr2(tj.get()));
+      const tjhandle tj = threadDecompressor();
+      checkJpegHeader(tj, bytes, width, height, source);
+      const int w = (width + denominator - 1) / denominator;
+      const int h = (height + denominator - 1) / denominator;
+      voxwall::Image image(w, h);
+      if (tjDecompress2(tj, reinterpret_cast<const unsigned char*>(bytes.data()),
+                        (unsigned long)bytes.size(),
+                        reinterpret_cast<unsigned char*>(image.pixels.data()), w, 0, h, TJPF_RGBA,
+                        TJFLAG_FASTDCT | TJFLAG_STOPONWARNING) != 0)
+        throw FormatError(source, std::string("corrupt JPEG tile: ") + tjGetErrorStr2(tj));
       for (auto& p : image.pixels) p |= 0xff000000u;
       return image;
     }
+  }
+  throw FormatError(source, "unknown tile codec " + std::to_string(int(codec)));
+}
+
+void checkTile(std::span<const std::byte> bytes, TileCodec codec, int width, int height,
+               const std::string& source) {
+  checkTileSize(width, height, source);
+  const std::size_t rgbBytes = std::size_t(width) * std::size_t(height) * 3;
+  switch (codec) {
+    case TileCodec::Raw:
+      if (bytes.size() != rgbBytes)
+        throw FormatError(source, "raw tile of " + std::to_string(bytes.size()) + " bytes for " +
+                                      std::to_string(rgbBytes / 3) + " pixels");
+      return;
+    case TileCodec::Deflate:
+      inflateTile(bytes, rgbBytes, source, [](const unsigned char*, std::size_t, std::size_t) {});
+      return;
+    case TileCodec::Jpeg:
+      checkJpegHeader(threadDecompressor(), bytes, width, height, source);
+      return;
   }
   throw FormatError(source, "unknown tile codec " + std::to_string(int(codec)));
 }

@@ -70,6 +70,14 @@ std::vector<std::byte> encodeMessage(const Welcome& m) {
   ByteWriter w(p);
   putString(w, m.wallId);
   w.put(std::int32_t(m.screenWidth)), w.put(std::int32_t(m.screenHeight));
+  if (m.displays.size() > kMaxWelcomeDisplays)
+    throw std::invalid_argument("Welcome: more displays than the protocol allows");
+  w.put(std::uint8_t(m.bezels ? 1 : 0));
+  w.put(std::uint16_t(m.displays.size()));
+  for (const auto& d : m.displays) {
+    w.put(std::int32_t(d.x)), w.put(std::int32_t(d.y));
+    w.put(std::int32_t(d.width)), w.put(std::int32_t(d.height));
+  }
   return frameMessage(MessageType::Welcome, 0, p);
 }
 
@@ -180,6 +188,18 @@ Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& sou
   m.screenWidth = r.get<std::int32_t>(), m.screenHeight = r.get<std::int32_t>();
   if (m.screenWidth <= 0 || m.screenHeight <= 0 || m.screenWidth > 65536 || m.screenHeight > 65536)
     r.fail("screen size");
+  const auto flags = r.get<std::uint8_t>();
+  if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
+  m.bezels = flags & 1;
+  const auto count = r.get<std::uint16_t>();
+  if (count > kMaxWelcomeDisplays)
+    r.fail(std::to_string(count) + " displays (limit " + std::to_string(kMaxWelcomeDisplays) + ")");
+  m.displays.resize(count);
+  for (auto& d : m.displays) {
+    d.x = r.get<std::int32_t>(), d.y = r.get<std::int32_t>();
+    d.width = r.get<std::int32_t>(), d.height = r.get<std::int32_t>();
+    if (!d.fitsIn(m.screenWidth, m.screenHeight)) r.fail("a display off the screen");
+  }
   expectEnd(r);
   return m;
 }

@@ -23,7 +23,8 @@ int main(int argc, char** argv) {
   for (auto& p : image.pixels) p = 0xff336699u;
   std::vector<std::vector<std::byte>> seeds = {
       net::encodeMessage(net::Hello{net::Role::Renderer, 1, 4, "ci-2x2", "token"}),
-      net::encodeMessage(net::Welcome{"ci-2x2", 196, 132}),
+      net::encodeMessage(
+          net::Welcome{"ci-2x2", 196, 132, {{0, 0, 96, 64}, {100, 0, 96, 64}}, false}),
       net::encodeMessage(3, net::FrameEnd{1, 4}),
       net::encodeMessage(net::Control{net::ControlCommand::Rotate, 10, -5}),
       net::encodeMessage(net::Bye{"done"}),

@@ -84,11 +84,12 @@ std::string displayFile(const std::string& dir, int frame, const std::string& di
   return (fs::path(dir) / name).string();
 }
 
-// Waits until the sink has settled `frames` frames: presented, or skipped because it fell behind
-// (a live wall shows the newest complete frame; tests check every frame that was shown).
+// Waits until the sink has settled `frames` frames (presented or dropped) and its file writer has
+// written (or skipped, when it fell behind) every presented one: tests check every frame written.
 bool waitSettled(test::SinkRunner& sink, int frames) {
   return sink.waitFor([frames](const walls::SinkStats& s) {
-    return s.framesPresented + s.framesStale + s.framesDropped >= frames;
+    return s.framesPresented + s.framesDropped >= frames &&
+           s.framesWritten + s.framesNotWritten == s.framesPresented;
   });
 }
 

@@ -32,7 +32,7 @@ class EchoHandler : public net::PeerHandler {
     if (type == net::MessageType::Hello) {
       const auto hello = net::decodeHello(payload, peer.name());
       peer.markGreeted(hello, peer.name() + " (echo)");
-      peer.send(net::encodeMessage(net::Welcome{hello.wallId, 64, 32}));
+      peer.send(net::encodeMessage(net::Welcome{hello.wallId, 64, 32, {}, true}));
       return true;
     }
     if (type == net::MessageType::Control) {

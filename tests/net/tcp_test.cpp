@@ -28,7 +28,7 @@ class FrozenSink {
     port_ = ntohs(addr.sin_port);
     thread_ = std::thread([this] {
       peer_ = ::accept(listener_, nullptr, nullptr);
-      const auto welcome = net::encodeMessage(net::Welcome{"frozen", 64, 64});
+      const auto welcome = net::encodeMessage(net::Welcome{"frozen", 64, 64, {}, true});
       (void)!::send(peer_, welcome.data(), welcome.size(), MSG_NOSIGNAL);
     });
   }

@@ -3,6 +3,7 @@
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/net/tile_codec.hpp>
+#include <voxwall/net/wire.hpp>
 #include <voxwall/node/renderer.hpp>
 
 using namespace voxwall;
@@ -95,4 +96,117 @@ TEST(TileCodec, CorruptOrMismatchedTilesAreRefused) {
   EXPECT_THROW(net::decodeTile(garbage, net::TileCodec::Deflate, 64, 48, "t"), FormatError);
   EXPECT_THROW(net::decodeTile(garbage, net::TileCodec::Raw, 64, 48, "t"), FormatError);
   EXPECT_THROW(net::decodeTile(garbage, net::TileCodec::Raw, 0, 48, "t"), FormatError);
+}
+
+namespace {
+
+bool inside(const voxwall::Rect& a, const voxwall::Rect& b) {
+  return a.x >= b.x && a.y >= b.y && a.x + a.width <= b.x + b.width &&
+         a.y + a.height <= b.y + b.height;
+}
+bool disjoint(const voxwall::Rect& a, const voxwall::Rect& b) {
+  return a.x >= b.x + b.width || b.x >= a.x + a.width || a.y >= b.y + b.height ||
+         b.y >= a.y + a.height;
+}
+
+// Two 100x60 displays side by side with a 6-pixel gap, a 206x60 screen.
+net::DisplayCut twoDisplays(bool bezels) {
+  return {206, 60, {{0, 0, 100, 60}, {106, 0, 100, 60}}, bezels};
+}
+
+}  // namespace
+
+TEST(TileCodec, SegmentsAreCutAtDisplayEdgesAndTileTheRectangle) {
+  const voxwall::Rect rect{50, 10, 156, 50};
+  const auto parts = net::segmentRects(rect, 32, twoDisplays(true));
+  long long area = 0;
+  for (const auto& p : parts) {
+    area += p.area();
+    EXPECT_LE(p.width, 32);
+    EXPECT_LE(p.height, 32);
+    EXPECT_TRUE(inside(p, rect));
+    for (const auto& d : twoDisplays(true).displays)
+      EXPECT_TRUE(inside(p, d) || disjoint(p, d))
+          << p.width << "x" << p.height << "+" << p.x << "+" << p.y;
+  }
+  EXPECT_EQ(area, rect.area());  // with bezels wanted, nothing is left out
+}
+
+TEST(TileCodec, BezelOnlySegmentsAreLeftOutUnlessWanted) {
+  const voxwall::Rect rect{0, 0, 206, 60};
+  const auto all = net::segmentRects(rect, 1024, twoDisplays(true));
+  const auto some = net::segmentRects(rect, 1024, twoDisplays(false));
+  ASSERT_EQ(all.size(), 3u);  // left display, the gap, right display
+  ASSERT_EQ(some.size(), 2u);
+  EXPECT_EQ(some[0], (voxwall::Rect{0, 0, 100, 60}));
+  EXPECT_EQ(some[1], (voxwall::Rect{106, 0, 100, 60}));
+  // No displays known (an empty Welcome): one segment per 1024 pixels, as before.
+  EXPECT_EQ(net::segmentRects(rect, 1024).size(), 1u);
+}
+
+TEST(TileCodec, ReducedFramesAreCutAtTheReducedEdgesAndCoverEveryDisplayPixel) {
+  const auto cut = twoDisplays(false);
+  for (int step : {2, 3, 4, 16}) {
+    const int w = net::reducedSide(206, step), h = net::reducedSide(60, step);
+    const auto parts = net::segmentRects({0, 0, w, h}, 1024, cut, step);
+    // Every display pixel is in some segment's virtual-screen rectangle.
+    std::vector<int> covered(206 * 60, 0);
+    for (const auto& p : parts) {
+      const auto r = net::fullScreenRect(p, step, 206, 60);
+      for (int y = r.y; y < r.y + r.height; ++y)
+        for (int x = r.x; x < r.x + r.width; ++x) covered[std::size_t(y * 206 + x)] = 1;
+    }
+    for (const auto& d : cut.displays)
+      for (int y = d.y; y < d.y + d.height; ++y)
+        for (int x = d.x; x < d.x + d.width; ++x)
+          ASSERT_TRUE(covered[std::size_t(y * 206 + x)]) << "step " << step << " " << x << "," << y;
+  }
+}
+
+TEST(TileCodec, TheSinksCheapCheckFindsWhatDisagreesWithTheRectangle) {
+  const auto image = renderedImage(64, 48);
+  for (auto codec : {net::TileCodec::Jpeg, net::TileCodec::Raw, net::TileCodec::Deflate}) {
+    net::TileCodecSettings s;
+    s.codec = codec;
+    const auto bytes = net::encodeTiles(image, {0, 0, 64, 48}, {0, 0, 0}, s)[0].bytes;
+    const char* name = net::tileCodecName(codec);
+    EXPECT_NO_THROW(net::checkTile(bytes, codec, 64, 48, "t")) << name;
+    EXPECT_THROW(net::checkTile(bytes, codec, 64, 40, "t"), FormatError) << name;
+    auto cut = bytes;
+    cut.resize(bytes.size() / 2);
+    auto longer = bytes;
+    longer.push_back(std::byte{0});
+    if (codec == net::TileCodec::Jpeg) {  // raw bytes cannot tell 48x64 from 64x48; a header can
+      EXPECT_THROW(net::checkTile(bytes, codec, 48, 64, "t"), FormatError) << name;
+    }
+    if (codec != net::TileCodec::Jpeg) {  // a JPEG's header survives a cut or longer body
+      EXPECT_THROW(net::checkTile(cut, codec, 64, 48, "t"), FormatError) << name;
+      EXPECT_THROW(net::checkTile(longer, codec, 64, 48, "t"), FormatError) << name;
+    }
+  }
+  try {
+    const auto jpeg = net::encodeTiles(image, {0, 0, 64, 48}, {0, 0, 0}, {})[0].bytes;
+    net::checkTile(jpeg, net::TileCodec::Jpeg, 64, 40, "rank 1");
+    FAIL() << "a JPEG of another size passed";
+  } catch (const FormatError& e) {
+    EXPECT_STREQ(e.what(), "rank 1: JPEG tile is 64x48, the message says 64x40");
+  }
+}
+
+TEST(TileCodec, JpegTilesDecodeScaledDownInTheDecoder) {
+  voxwall::Image flat(100, 60);
+  for (auto& p : flat.pixels) p = 0xff3070b0u;
+  const auto jpeg = net::encodeTiles(flat, {0, 0, 100, 60}, {0, 0, 0}, {})[0].bytes;
+  for (int d : {1, 2, 4, 8}) {
+    const auto small = net::decodeTileScaled(jpeg, net::TileCodec::Jpeg, 100, 60, d, "t");
+    EXPECT_EQ(small.width, (100 + d - 1) / d);
+    EXPECT_EQ(small.height, (60 + d - 1) / d);
+    const std::uint32_t p = small.at(small.width / 2, small.height / 2);
+    EXPECT_NEAR(int(p & 255), 0xb0, 3);
+    EXPECT_NEAR(int((p >> 16) & 255), 0x30, 3);
+  }
+  EXPECT_THROW(net::decodeTileScaled(jpeg, net::TileCodec::Jpeg, 100, 60, 3, "t"),
+               std::invalid_argument);
+  EXPECT_THROW(net::decodeTileScaled(jpeg, net::TileCodec::Raw, 100, 60, 2, "t"),
+               std::invalid_argument);
 }

@@ -48,7 +48,7 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
   sent.jobId = 0x0123456789abcdefull;
   sent.nextFrame = 77;
   append(net::encodeMessage(sent));
-  append(net::encodeMessage(net::Welcome{"bigeye", 5772, 4338}));
+  append(net::encodeMessage(net::Welcome{"bigeye", 5772, 4338, {{0, 0, 1920, 1080}}, false}));
   append(sampleTile());
   append(net::encodeMessage(42, net::FrameEnd{2, 7}));
   append(net::encodeMessage(net::Control{net::ControlCommand::Pan, 0.5, -0.25}));
@@ -88,6 +88,40 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
   std::vector<std::byte> p(note.begin() + net::kHeaderBytes, note.end());
   p[0] = std::byte{9};  // unknown status
   EXPECT_THROW(net::decodeFrameNote(p, "t"), FormatError);
+}
+
+TEST(Wire, AWelcomeCarriesTheDisplaysAndWhetherBezelsAreWanted) {
+  net::Welcome w{"bigeye", 5772, 4338, {{0, 0, 1920, 1080}, {1926, 0, 1920, 1080}}, false};
+  const auto bytes = net::encodeMessage(w);
+  net::MessageReader reader("t");
+  reader.feed(bytes);
+  const auto m = reader.next();
+  ASSERT_TRUE(m.has_value());
+  const auto back = net::decodeWelcome(m->payload, "t");
+  EXPECT_EQ(back.displays, w.displays);
+  EXPECT_FALSE(back.bezels);
+  const auto cut = back.cut();
+  EXPECT_EQ(cut.screenWidth, 5772);
+  EXPECT_EQ(cut.displays.size(), 2u);
+  // A display off the screen, unknown flags, a count past the limit, or a list cut short.
+  auto payload = m->payload;
+  auto withInt = [&](std::size_t at, std::int32_t v) {
+    auto p = payload;
+    std::memcpy(p.data() + at, &v, 4);
+    return p;
+  };
+  const std::size_t first = 2 + 6 + 4 + 4 + 1 + 2;  // wall id, screen, flags, count
+  EXPECT_THROW(net::decodeWelcome(withInt(first, 5000), "t"), FormatError);  // x + 1920 > 5772
+  auto flags = payload;
+  flags[2 + 6 + 8] = std::byte{6};
+  EXPECT_THROW(net::decodeWelcome(flags, "t"), FormatError);
+  auto count = payload;
+  const std::uint16_t many = 2000;
+  std::memcpy(count.data() + 2 + 6 + 8 + 1, &many, 2);
+  EXPECT_THROW(net::decodeWelcome(count, "t"), FormatError);
+  auto cutShort = payload;
+  cutShort.resize(payload.size() - 4);
+  EXPECT_THROW(net::decodeWelcome(cutShort, "t"), FormatError);
 }
 
 TEST(Wire, TruncatedStreamsWaitForMoreAndNeverYieldHalfAMessage) {

@@ -106,8 +106,9 @@ TEST(Sink, PresentsAFrameOnlyWhenEveryDisplayPixelHasArrived) {
     const auto tile = solidTile(rect, color);
     c->send(net::encodeMessage(2, net::TileMessage{rect, tile.codec, 0, tile.bytes}));
   }
-  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
-      << sink.log();
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
+    return s.framesPresented == 1 && s.framesWritten == 1;  // written off the presentation path
+  })) << sink.log();
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesDropped == 1; }));
   EXPECT_FALSE(std::filesystem::exists(dir.path("out/frame_00001_r0c0.png")));
   const auto l = voxwall::readImage(dir.path("out/frame_00002_r0c0.png"));
@@ -286,7 +287,7 @@ TEST(FrameAssembler, OverlappingDisplaysCompleteAndShareTheirPixels) {
   EXPECT_TRUE(events.empty());
 
   test::TempDir dir;
-  walls::writeFrameFiles(dir.root().string(), 0, wall, frame->image, false);
+  walls::writeFrameFiles(dir.root().string(), wall, *frame, {});
   const auto left = voxwall::readImage(dir.path("frame_00000_s0-0.png"));
   const auto right = voxwall::readImage(dir.path("frame_00000_s1-0.png"));
   ASSERT_EQ(left.width, 40);

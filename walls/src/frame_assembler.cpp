@@ -21,19 +21,42 @@ FrameAssembler::FrameAssembler(const Wall& wall, AssemblerLimits limits, Events 
   if (limits_.frameWindow == 0) limits_.frameWindow = 1;
   const std::size_t pixels = std::size_t(wall.width) * std::size_t(wall.height);
   coverageBytes_ = (pixels + 63) / 64 * 8;
+  // One frame of raw RGBA pixels must fit, whatever the tiles' codec.
   const std::uint64_t frameBytes = std::uint64_t(pixels) * 4 + coverageBytes_;
   if (limits_.pendingBytes < frameBytes)
     throw std::invalid_argument("memory for open frames (--pending-mib) is " +
                                 std::to_string(limits_.pendingBytes >> 20) +
                                 " MiB, less than one frame of this wall (" +
                                 std::to_string((frameBytes + (1 << 20) - 1) >> 20) + " MiB)");
-  displayMask_.assign(pixels, 0);
-  for (const auto& d : wall.displays)
-    for (int y = d.rect.y; y < d.rect.y + d.rect.height; ++y)
-      std::fill_n(displayMask_.begin() + std::ptrdiff_t(std::size_t(y) * std::size_t(wall.width) +
-                                                        std::size_t(d.rect.x)),
-                  d.rect.width, std::uint8_t(1));
-  displayPixels_ = wall.displayPixels();
+  needed_.assign(coverageBytes_ / 8, 0);
+  if (limits_.wholeScreen) {
+    for (std::size_t i = 0; i < pixels; ++i) needed_[i / 64] |= 1ull << (i % 64);
+    neededPixels_ = (long long)pixels;
+  } else {
+    for (const auto& d : wall.displays)
+      for (int y = d.rect.y; y < d.rect.y + d.rect.height; ++y) {
+        const std::size_t row = std::size_t(y) * std::size_t(wall.width) + std::size_t(d.rect.x);
+        for (std::size_t i = row; i < row + std::size_t(d.rect.width); ++i)
+          needed_[i / 64] |= 1ull << (i % 64);
+      }
+    neededPixels_ = wall.displayPixels();
+  }
+}
+
+void FrameAssembler::cover(Open& f, const voxwall::Rect& r) const {
+  // Word by word: a bigeye frame is 25 Mpx, a bit at a time would cost tens of milliseconds.
+  for (int y = 0; y < r.height; ++y) {
+    const std::size_t begin = std::size_t(r.y + y) * std::size_t(wall_.width) + std::size_t(r.x);
+    const std::size_t end = begin + std::size_t(r.width);
+    for (std::size_t w = begin / 64; w <= (end - 1) / 64; ++w) {
+      std::uint64_t bits = ~0ull;
+      if (w == begin / 64) bits &= ~0ull << (begin % 64);
+      if (w == (end - 1) / 64 && end % 64) bits &= ~0ull >> (64 - end % 64);
+      const std::uint64_t fresh = bits & ~f.covered[w];
+      f.covered[w] |= bits;
+      f.coveredPixels += std::popcount(fresh & needed_[w]);
+    }
+  }
 }
 
 void FrameAssembler::report(std::uint64_t frame, net::FrameStatus status, const std::string& why) {
@@ -45,12 +68,14 @@ void FrameAssembler::report(std::uint64_t frame, net::FrameStatus status, const 
 void FrameAssembler::drop(std::uint64_t frame, const std::string& why) {
   const auto it = open_.find(frame);
   if (it == open_.end()) return;
-  const long long covered = it->second.coveredDisplayPixels;
+  const long long covered = it->second.coveredPixels;
   heldBytes_ -= it->second.heldBytes;
   open_.erase(it);
   char share[64];
-  std::snprintf(share, sizeof share, " (%.1f%% of display pixels arrived)",
-                100.0 * double(covered) / double(std::max<long long>(1, displayPixels_)));
+  std::snprintf(share, sizeof share,
+                limits_.wholeScreen ? " (%.1f%% of screen pixels arrived)"
+                                    : " (%.1f%% of display pixels arrived)",
+                100.0 * double(covered) / double(std::max<long long>(1, neededPixels_)));
   report(frame, net::FrameStatus::Dropped, why + share);
 }
 
@@ -79,9 +104,8 @@ std::optional<std::string> FrameAssembler::outsideWindow(std::uint64_t frame) co
   return std::nullopt;
 }
 
-std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
-                                                      const net::TileMessage& tile, int rank,
-                                                      const std::string& peer) {
+std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame, net::TileMessage tile,
+                                                      int rank, const std::string& peer) {
   const auto& sent = tile.rect;
   const int step = tile.step;
   if (step < 1 || step > net::kMaxStep)
@@ -110,9 +134,12 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
       return std::nullopt;
     }
   }
-  // Make room before decoding: what a tile costs is known from its rectangle.
-  const std::uint64_t need =
-      std::uint64_t(sent.area()) * 4 + (it == open_.end() ? coverageBytes_ : 0);
+  // Check before touching the frame: a tile whose header disagrees with its rectangle must not
+  // mark any pixel as arrived.
+  net::checkTile(tile.bytes, tile.codec, sent.width, sent.height, peer);
+  // Make room first: what a tile costs is its bytes.
+  const std::uint64_t tileBytes = tile.bytes.size() + sizeof(Segment);
+  const std::uint64_t need = tileBytes + (it == open_.end() ? coverageBytes_ : 0);
   while (heldBytes_ + need > limits_.pendingBytes) {
     auto victim = open_.begin();
     if (victim != open_.end() && victim->first == frame) ++victim;
@@ -125,8 +152,6 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
   if (it == open_.end())
     while (int(open_.size()) >= limits_.pendingFrames)
       drop(open_.begin()->first, "too many frames open");
-  // Decode before touching the frame: a corrupt tile must not mark any pixel as arrived.
-  voxwall::Image image = net::decodeTile(tile.bytes, tile.codec, sent.width, sent.height, peer);
   it = open_.find(frame);
   if (it == open_.end()) {
     it = open_.emplace(frame, Open{}).first;
@@ -137,48 +162,24 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame,
     heldBytes_ += coverageBytes_;
   }
   Open& f = it->second;
-  for (int y = 0; y < r.height; ++y) {
-    const std::size_t row = std::size_t(r.y + y) * std::size_t(wall_.width) + std::size_t(r.x);
-    for (std::size_t i = row; i < row + std::size_t(r.width); ++i) {
-      std::uint64_t& word = f.covered[i / 64];
-      const std::uint64_t bit = 1ull << (i % 64);
-      if (word & bit) continue;
-      word |= bit;
-      f.coveredDisplayPixels += displayMask_[i];
-    }
-  }
-  const std::uint64_t tileBytes = std::uint64_t(sent.area()) * 4;
+  cover(f, r);
   f.heldBytes += tileBytes;
   heldBytes_ += tileBytes;
-  f.tiles.emplace_back(r, std::move(image));
   auto& info = f.info;
-  info.placements.push_back({r, rank});
+  info.bytes += tile.bytes.size();
+  info.segments.push_back({sent, r, tile.codec,
+                           std::make_shared<const std::vector<std::byte>>(std::move(tile.bytes)),
+                           rank});
   info.rankRenderMicros[rank] = tile.renderMicros;
   info.decidedUnixMicros = info.decidedUnixMicros
                                ? std::min(info.decidedUnixMicros, tile.decidedUnixMicros)
                                : tile.decidedUnixMicros;
-  info.bytes += tile.bytes.size();
   ++info.tiles;
-  if (f.coveredDisplayPixels < displayPixels_) return std::nullopt;
+  if (f.coveredPixels < neededPixels_) return std::nullopt;
 
   // Complete: older frames can never be shown now, and frames far ahead are bogus.
   while (open_.begin()->first != frame) drop(open_.begin()->first, "a newer frame completed");
   AssembledFrame done = std::move(f.info);
-  done.image = voxwall::Image(wall_.width, wall_.height);
-  for (const auto& [rect, pixels] : f.tiles) {
-    if (done.step == 1) {
-      done.image.paste(pixels, rect);
-      continue;
-    }
-    // Upsample: every pixel of the block repeats its reduced pixel (the rectangle starts on a
-    // block boundary; blocks at the screen's right and bottom edges are clipped).
-    const int s = done.step, x0 = rect.x / s, y0 = rect.y / s;
-    for (int y = 0; y < rect.height; ++y) {
-      const int sy = (rect.y + y) / s - y0;
-      for (int x = 0; x < rect.width; ++x)
-        done.image.at(rect.x + x, rect.y + y) = pixels.at((rect.x + x) / s - x0, sy);
-    }
-  }
   heldBytes_ -= f.heldBytes;
   open_.erase(open_.begin());
   lastComplete_ = frame;

@@ -7,7 +7,9 @@
 #include <set>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/walls/frame_files.hpp>
+#include <voxwall/walls/frame_pixels.hpp>
 
 namespace voxwall::walls {
 namespace fs = std::filesystem;
@@ -39,13 +41,39 @@ std::string frameMarkerPath(const std::string& dir, std::uint64_t frame) {
   return (fs::path(dir) / (frameStem(frame) + ".done")).string();
 }
 
-void writeFrameFiles(const std::string& dir, std::uint64_t frame, const Wall& wall,
-                     const voxwall::Image& screen, bool mosaic) {
-  const std::string stem = frameStem(frame);
-  std::vector<std::pair<std::string, voxwall::Image>> pictures;
+const char* frameFileExtension(FrameFormat format) {
+  return format == FrameFormat::Jpeg ? ".jpg" : ".png";
+}
+
+void writeFrameFiles(const std::string& dir, const Wall& wall, const AssembledFrame& frame,
+                     const FrameFileSettings& settings) {
+  const std::string stem = frameStem(frame.frame);
+  struct Picture {
+    std::string path;
+    voxwall::Rect region;
+    std::vector<std::byte> bytes;
+  };
+  std::vector<Picture> pictures;
+  // The mosaic first: it is the biggest job, and the others fill the threads around it.
+  if (settings.mosaic)
+    pictures.push_back(
+        {(fs::path(dir) / (stem + "_mosaic.png")).string(), {0, 0, wall.width, wall.height}, {}});
   for (const auto& d : wall.displays)
-    pictures.emplace_back((fs::path(dir) / (stem + "_" + d.name + ".png")).string(),
-                          screen.crop(d.rect));
+    pictures.push_back(
+        {(fs::path(dir) / (stem + "_" + d.name + frameFileExtension(settings.format))).string(),
+         d.rect,
+         {}});
+  const std::uint32_t fill = backgroundPixel(wall.background);
+  voxwall::parallelFor(pictures.size(), settings.threads, [&](std::size_t i) {
+    auto& p = pictures[i];
+    voxwall::Image pixels;
+    try {
+      pixels = decodeRegion(frame, p.region, 1, fill, 1);
+    } catch (const FormatError& e) {
+      throw UndecodableFrame("", e.what());
+    }
+    p.bytes = voxwall::encodeOpaqueImage(pixels, p.path, settings.encoding);
+  });
   std::vector<std::pair<std::string, std::string>> written;  // temporary, final
   nlohmann::json files = nlohmann::json::object();
   auto undo = [&] {
@@ -53,22 +81,93 @@ void writeFrameFiles(const std::string& dir, std::uint64_t frame, const Wall& wa
     for (const auto& [tmp, path] : written) fs::remove(tmp, ignored), fs::remove(path, ignored);
   };
   try {
-    auto add = [&](const std::string& path, const voxwall::Image& image) {
-      const auto bytes = voxwall::encodeImage(image, path);
-      written.emplace_back(voxwall::writeTemporary(path, bytes), path);
-      const auto digest = voxwall::digestOf(bytes);
-      files[fs::path(path).filename().string()] = {{"bytes", digest.bytes},
-                                                   {"xxh64", voxwall::hex64(digest.xxh64)}};
-    };
-    for (const auto& [path, image] : pictures) add(path, image);
-    if (mosaic) add((fs::path(dir) / (stem + "_mosaic.png")).string(), screen);
+    for (const auto& p : pictures) {
+      written.emplace_back(voxwall::writeTemporary(p.path, p.bytes), p.path);
+      const auto digest = voxwall::digestOf(p.bytes);
+      files[fs::path(p.path).filename().string()] = {{"bytes", digest.bytes},
+                                                     {"xxh64", voxwall::hex64(digest.xxh64)}};
+    }
     for (const auto& [tmp, path] : written) voxwall::commitTemporary(tmp, path);
     const std::string marker =
-        nlohmann::json{{"frame", frame}, {"wall", wall.id}, {"files", files}}.dump(2) + "\n";
-    voxwall::writeFileAtomically(frameMarkerPath(dir, frame), std::as_bytes(std::span(marker)));
+        nlohmann::json{{"frame", frame.frame}, {"wall", wall.id}, {"files", files}}.dump(2) + "\n";
+    voxwall::writeFileAtomically(frameMarkerPath(dir, frame.frame),
+                                 std::as_bytes(std::span(marker)));
   } catch (...) {
     undo();
     throw;
+  }
+}
+
+FrameFileWriter::FrameFileWriter(std::string dir, Wall wall, FrameFileSettings settings, int queue,
+                                 Events events)
+    : dir_(std::move(dir)),
+      wall_(std::move(wall)),
+      settings_(settings),
+      queue_(std::size_t(std::max(1, queue))),
+      events_(std::move(events)) {
+  thread_ = std::thread([this] { run(); });
+}
+
+FrameFileWriter::~FrameFileWriter() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  changed_.notify_all();
+  thread_.join();
+}
+
+void FrameFileWriter::push(std::uint64_t job, std::shared_ptr<const AssembledFrame> frame) {
+  std::optional<std::pair<std::uint64_t, std::shared_ptr<const AssembledFrame>>> pushedOut;
+  {
+    std::lock_guard lock(mutex_);
+    if (failed_) return;
+    if (waiting_.size() >= queue_) {
+      pushedOut = std::move(waiting_.front());
+      waiting_.pop_front();
+    }
+    waiting_.emplace_back(job, std::move(frame));
+  }
+  changed_.notify_all();
+  if (pushedOut && events_)
+    events_(pushedOut->first, pushedOut->second->frame, Outcome::Skipped,
+            "not written: the file writer fell behind");
+}
+
+void FrameFileWriter::drain() {
+  std::unique_lock lock(mutex_);
+  changed_.wait(lock, [&] { return failed_ || (waiting_.empty() && !busy_); });
+}
+
+void FrameFileWriter::run() {
+  for (;;) {
+    std::pair<std::uint64_t, std::shared_ptr<const AssembledFrame>> next;
+    {
+      std::unique_lock lock(mutex_);
+      changed_.wait(lock, [&] { return stop_ || !waiting_.empty(); });
+      if (waiting_.empty() || failed_) return;  // stopping, with everything written
+      next = std::move(waiting_.front());
+      waiting_.pop_front();
+      busy_ = true;
+    }
+    Outcome outcome = Outcome::Written;
+    std::string why;
+    try {
+      writeFrameFiles(dir_, wall_, *next.second, settings_);
+    } catch (const UndecodableFrame& e) {
+      outcome = Outcome::Skipped;
+      why = std::string("not written: ") + e.what();
+    } catch (const std::exception& e) {
+      outcome = Outcome::Failed;
+      why = e.what();
+    }
+    {
+      std::lock_guard lock(mutex_);
+      busy_ = false;
+      if (outcome == Outcome::Failed) failed_ = true, waiting_.clear();
+    }
+    changed_.notify_all();
+    if (events_) events_(next.first, next.second->frame, outcome, why);
   }
 }
 
@@ -105,7 +204,7 @@ int removeIncompleteFrames(const std::string& dir) {
         doomed.push_back(entry.path());
     } else if (next == '.' && name.ends_with(".done"))
       marked.insert(*frame);
-    else if (next == '_' && name.ends_with(".png"))
+    else if (next == '_' && (name.ends_with(".png") || name.ends_with(".jpg")))
       pictures.emplace_back(*frame, entry.path());
   }
   for (const auto& [frame, path] : pictures)

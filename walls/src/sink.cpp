@@ -1,20 +1,16 @@
-// The sink's transport and presenter: a net::Server on one Asio thread feeds each peer's checked
-// messages to the SinkCore; a presenter thread writes complete frames. Per frame: collecting ->
-// complete (every display pixel covered) -> presented, or dropped (a newer frame completed
-// first, too many frames were open, the memory limit) or refused (outside the frame window);
-// every outcome is logged and told to rank 0.
+// The sink's transport and router: a net::Server on one Asio thread feeds each peer's checked
+// messages to the SinkCore. Per frame: collecting -> complete (every display pixel covered) ->
+// presented: its segments go to the displays' pages and the overview (web_view.hpp) and, with
+// --out, to the file writer's queue (frame_files.hpp), all without waiting; or dropped (a newer
+// frame completed first, too many frames were open, the memory limit) or refused (outside the
+// frame window). Every outcome is logged and told to rank 0.
 #include <cerrno>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
-#include <deque>
 #include <filesystem>
-#include <mutex>
 #include <optional>
-#include <set>
 #include <sstream>
-#include <thread>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/net/asio.hpp>
 #include <voxwall/net/server.hpp>
@@ -26,40 +22,25 @@
 
 namespace voxwall::walls {
 
-namespace {
-
-struct CompleteFrame {
-  std::uint64_t job = 0;
-  AssembledFrame data;
-};
-
-}  // namespace
-
 struct Sink::Impl : net::PeerHandler {
   SinkSettings settings;
   SinkLog log;
   asio::io_context io;
   std::unique_ptr<SinkCore> core;
   std::unique_ptr<net::Server> server;
-  std::unique_ptr<WebView> web;  // the browser view, when asked for
-
-  // Presenter: the newest complete frame waits here; a newer one replaces it (stale).
-  std::mutex presentMutex;
-  std::condition_variable presentReady;
-  std::optional<CompleteFrame> toPresent;
-  bool presenterStop = false;
-  std::thread presenter;
-  std::string writeError;  // the first frame that could not be written ends the sink
+  std::unique_ptr<WebView> web;             // the pages, when asked for
+  std::unique_ptr<FrameFileWriter> writer;  // --out
+  std::string writeError;                   // the first frame that could not be written ends it
   double latencySumMs = 0;
 
   void say(const std::string& line) {
     if (log) log(line);
   }
 
-  // After maxFrames frames were settled (presented, skipped or dropped), the sink stops.
+  // After maxFrames frames were settled (presented or dropped), the sink stops.
   void stopIfDone() {
     const auto s = core->stats();
-    const int settled = s.framesPresented + s.framesStale + s.framesDropped;
+    const int settled = s.framesPresented + s.framesDropped;
     if (settings.maxFrames > 0 && settled >= settings.maxFrames)
       asio::post(io, [this] { io.stop(); });
   }
@@ -86,83 +67,51 @@ struct Sink::Impl : net::PeerHandler {
     say("sink: refused a peer: " + why);
   }
 
-  // On the io thread: a complete frame goes to the presenter (replacing one it has not taken).
-  void onComplete(std::uint64_t job, AssembledFrame&& frame) {
-    std::lock_guard lock(presentMutex);
-    if (toPresent) {
-      const auto skipped = toPresent->data.frame;
-      say("frame " + std::to_string(skipped) + " skipped: the sink fell behind");
-      core->updateStats([](SinkStats& s) { ++s.framesStale; });
-      core->frameSettled(toPresent->job, skipped,
-                         {net::FrameStatus::Dropped, "skipped: the sink fell behind"});
-      stopIfDone();
-    }
-    toPresent = CompleteFrame{job, std::move(frame)};
-    presentReady.notify_one();
+  // On the io thread: a complete frame is presented at once. Nothing here decodes or writes.
+  void onComplete(std::uint64_t job, AssembledFrame&& data) {
+    const auto frame = std::make_shared<const AssembledFrame>(std::move(data));
+    const double latencyMs = frame->decidedUnixMicros
+                                 ? double(net::unixMicrosNow() - frame->decidedUnixMicros) / 1e3
+                                 : 0.0;
+    core->updateStats([&](SinkStats& s) {
+      const int presented = ++s.framesPresented;
+      latencySumMs += latencyMs;
+      s.meanLatencyMs = latencySumMs / presented;
+    });
+    char line[256];
+    const std::string interactive =
+        frame->step > 1 ? ", interactive 1/" + std::to_string(frame->step) : "";
+    std::snprintf(line, sizeof line,
+                  "frame %llu presented: %zu display(s), %d tiles from %zu rank(s), %.1f KiB, "
+                  "latency %.1f ms%s",
+                  (unsigned long long)frame->frame, settings.wall.displays.size(), frame->tiles,
+                  frame->rankRenderMicros.size(), double(frame->bytes) / 1024, latencyMs,
+                  interactive.c_str());
+    say(line);
+    core->frameSettled(job, frame->frame, {net::FrameStatus::Presented, ""});
+    if (web) web->present({frame, latencyMs, core->stats()});
+    if (writer) writer->push(job, frame);
+    stopIfDone();
   }
 
-  void present() {
-    for (;;) {
-      CompleteFrame frame;
-      {
-        std::unique_lock lock(presentMutex);
-        presentReady.wait(lock, [&] { return presenterStop || toPresent; });
-        if (!toPresent) return;
-        frame = std::move(*toPresent);
-        toPresent.reset();
-      }
-      const auto& wall = settings.wall;
-      const auto number = frame.data.frame;
-      if (!settings.outDir.empty()) {
-        try {
-          writeFrameFiles(settings.outDir, number, wall, frame.data.image, settings.mosaic);
-        } catch (const std::exception& e) {
-          // A full disk loses every later frame too: stop, and say so.
-          say("frame " + std::to_string(number) + " not presented: " + e.what());
-          asio::post(io, [this, job = frame.job, number, why = std::string(e.what())] {
-            core->frameSettled(job, number, {net::FrameStatus::Dropped, "not written: " + why});
-            if (writeError.empty()) writeError = why;
-            io.stop();
-          });
-          return;
-        }
-      }
-      const double latencyMs =
-          frame.data.decidedUnixMicros
-              ? double(net::unixMicrosNow() - frame.data.decidedUnixMicros) / 1e3
-              : 0.0;
-      core->updateStats([&](SinkStats& s) {
-        const int presented = ++s.framesPresented;
-        latencySumMs += latencyMs;
-        s.meanLatencyMs = latencySumMs / presented;
+  // The file writer's word on a frame (on its thread, or on the io thread for a skip).
+  void onWritten(std::uint64_t job, std::uint64_t frame, FrameFileWriter::Outcome outcome,
+                 const std::string& why) {
+    using Outcome = FrameFileWriter::Outcome;
+    core->updateStats([&](SinkStats& s) {
+      if (outcome == Outcome::Written) ++s.framesWritten;
+      if (outcome == Outcome::Skipped) ++s.framesNotWritten;
+    });
+    if (outcome == Outcome::Written) return;
+    say("frame " + std::to_string(frame) + " " +
+        (outcome == Outcome::Failed ? "not written: " + why : why));
+    if (outcome == Outcome::Failed)
+      // A full disk loses every later frame too: stop, and say so.
+      asio::post(io, [this, job, frame, why] {
+        core->frameSettled(job, frame, {net::FrameStatus::Dropped, "not written: " + why});
+        if (writeError.empty()) writeError = why;
+        io.stop();
       });
-      char line[256];
-      const std::string interactive =
-          frame.data.step > 1 ? ", interactive 1/" + std::to_string(frame.data.step) : "";
-      std::snprintf(line, sizeof line,
-                    "frame %llu presented: %zu display(s), %d tiles from %zu rank(s), %.1f KiB, "
-                    "latency %.1f ms%s",
-                    (unsigned long long)number, wall.displays.size(), frame.data.tiles,
-                    frame.data.rankRenderMicros.size(), double(frame.data.bytes) / 1024, latencyMs,
-                    interactive.c_str());
-      say(line);
-      if (web)
-        web->present({std::make_shared<const AssembledFrame>(std::move(frame.data)), latencyMs,
-                      core->stats()});
-      asio::post(io, [this, job = frame.job, number] {
-        core->frameSettled(job, number, {net::FrameStatus::Presented, ""});
-      });
-      stopIfDone();
-    }
-  }
-
-  void stopPresenter() {
-    {
-      std::lock_guard lock(presentMutex);
-      presenterStop = true;
-    }
-    presentReady.notify_all();
-    if (presenter.joinable()) presenter.join();
   }
 };
 
@@ -187,6 +136,13 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
     if (const int removed = removeIncompleteFrames(s.settings.outDir))
       s.say("sink: removed " + std::to_string(removed) + " file(s) of incomplete frames from " +
             s.settings.outDir);
+    FrameFileSettings files;
+    files.mosaic = s.settings.mosaic;
+    files.format = s.settings.outFormat;
+    s.writer = std::make_unique<FrameFileWriter>(
+        s.settings.outDir, s.settings.wall, files, s.settings.writeQueue,
+        [this](std::uint64_t job, std::uint64_t frame, FrameFileWriter::Outcome outcome,
+               const std::string& why) { impl_->onWritten(job, frame, outcome, why); });
   }
   if (!s.settings.httpHost.empty()) {
     WebViewSettings web;
@@ -195,15 +151,24 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
     web.token = s.settings.token;
     web.origins = s.settings.httpOrigins;
     web.maxViewers = s.settings.maxViewers;
+    web.maxDisplayPages = s.settings.maxDisplayPages;
+    web.swapTimeoutMs = s.settings.swapTimeoutMs;
     s.web = std::make_unique<WebView>(
-        s.settings.wall, web, [this](const net::Control& c) { sendControl(c); }, s.log);
+        s.settings.wall, web, [this](const net::Control& c) { sendControl(c); }, s.log,
+        [this](const WebView::SwapStats& swap) {
+          impl_->core->updateStats([&](SinkStats& st) {
+            st.displayPages = swap.pages;
+            st.displayPagesInBarrier = swap.inBarrier;
+            st.framesSwapped = swap.framesSwapped;
+            st.lastSwapSpreadMs = swap.lastSpreadMs;
+          });
+        });
   }
-  s.presenter = std::thread([this] { impl_->present(); });
 }
 
 Sink::~Sink() {
-  impl_->stopPresenter();
   if (impl_->web) impl_->web->stop();
+  impl_->writer.reset();  // finishes the frames queued
 }
 
 std::uint16_t Sink::port() const { return impl_->server->port(); }
@@ -215,10 +180,10 @@ void Sink::run() {
   impl_->io.run();
   // Stop listening and hang up on every peer, so the port is free for a new sink at once.
   impl_->server->close();
-  // Finish the frame being written before returning.
-  impl_->stopPresenter();
+  // Write the frames presented so far before returning.
+  if (impl_->writer) impl_->writer->drain();
   if (impl_->web) impl_->web->stop();
-  // Handlers the presenter posted last (its frame notes, a write error) still run here.
+  // Handlers the writer posted last (a write error) still run here.
   impl_->io.restart();
   impl_->io.poll();
   if (!impl_->writeError.empty()) throw FormatError("", impl_->writeError);

@@ -26,10 +26,10 @@ SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
     : settings_(settings),
       log_(std::move(log)),
       present_(std::move(present)),
-      assembler_(
-          settings.wall,
-          AssemblerLimits{settings.pendingFrames, settings.pendingBytes, settings.frameWindow},
-          [this](const FrameEvent& e) { onEvent(e); }) {}
+      assembler_(settings.wall,
+                 AssemblerLimits{settings.pendingFrames, settings.pendingBytes,
+                                 settings.frameWindow, settings.mosaic},
+                 [this](const FrameEvent& e) { onEvent(e); }) {}
 
 void SinkCore::attach(net::Peer& peer) { peers_.insert(&peer); }
 
@@ -140,7 +140,11 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   } else {
     updateStats([](SinkStats& s) { ++s.renderersConnected; });
   }
-  peer.send(net::encodeMessage(net::Welcome{wall.id, wall.width, wall.height}));
+  // Ranks cut their segments at the display edges and send bezel-only ones when the sink writes
+  // the whole screen (--mosaic).
+  net::Welcome welcome{wall.id, wall.width, wall.height, {}, settings_.mosaic};
+  for (const auto& d : wall.displays) welcome.displays.push_back(d.rect);
+  peer.send(net::encodeMessage(welcome));
   return true;
 }
 
@@ -163,8 +167,8 @@ bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t fram
     case MessageType::Tile: {
       if (peer.hello().role != net::Role::Renderer)
         throw FormatError(peer.name(), "a controller sent a tile");
-      const auto tile = net::decodeTileMessage(payload, peer.name());
-      if (auto done = assembler_.addTile(frame, tile, peer.hello().rank, peer.name()))
+      auto tile = net::decodeTileMessage(payload, peer.name());
+      if (auto done = assembler_.addTile(frame, std::move(tile), peer.hello().rank, peer.name()))
         present_(*job_, std::move(*done));
       return true;
     }

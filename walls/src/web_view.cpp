@@ -1,5 +1,7 @@
 // The browser view of the wall (web_view.hpp): Boost.Beast over Boost.Asio, on a thread and an
-// io_context of its own. This file must not include the standalone Asio the tile server uses.
+// io_context of its own, with the displays' swap barrier; the overview's pictures are decoded and
+// encoded on a thread of their own. This file must not include the standalone Asio the tile
+// server uses.
 // First: Boost 1.74's Asio uses std::exchange without including <utility>.
 // clang-format off
 #include <utility>
@@ -9,16 +11,21 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <charconv>
 #include <chrono>
+#include <condition_variable>
 #include <cstring>
 #include <deque>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <thread>
-#include <voxwall/net/tile_codec.hpp>
 #include <voxwall/walls/sink_core.hpp>
+#include <voxwall/walls/swap_barrier.hpp>
 #include <voxwall/walls/web_view.hpp>
+
+#include "web_messages.hpp"
 
 namespace voxwall::walls {
 
@@ -30,62 +37,27 @@ namespace websocket = beast::websocket;
 namespace bnet = boost::asio;
 using tcp = bnet::ip::tcp;
 using Clock = std::chrono::steady_clock;
+using Page = SwapBarrier::Page;
 
 constexpr std::size_t kMaxRequestHeader = 8192;
 constexpr auto kRequestTimeout = std::chrono::seconds(10);
 constexpr std::size_t kMaxQueuedText = 32;  // a viewer with more unsent notes is closed
 constexpr std::size_t kMaxRequests = 256;   // HTTP requests being read or answered at once
+constexpr std::size_t kSkewsKept = 16;      // swapped frames whose show times are collected
 
-std::string peerName(const tcp::socket& socket) {
+std::string peerAddress(const tcp::socket& socket) {
   boost::system::error_code ec;
   const auto ep = socket.remote_endpoint(ec);
-  if (ec) return "viewer";
-  return "viewer " + ep.address().to_string() + ":" + std::to_string(ep.port());
+  if (ec) return "?";
+  return ep.address().to_string() + ":" + std::to_string(ep.port());
 }
 
-// A whole-factor box filter: the frame scaled down to at most maxWidth pixels across.
-voxwall::Image scaleDown(const voxwall::Image& in, int maxWidth) {
-  const int k = std::max(1, (in.width + maxWidth - 1) / maxWidth);
-  if (k == 1) return in;
-  const int w = std::max(1, in.width / k), h = std::max(1, in.height / k);
-  voxwall::Image out(w, h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      std::uint32_t sum[4] = {0, 0, 0, 0};
-      for (int j = 0; j < k; ++j)
-        for (int i = 0; i < k; ++i) {
-          const std::uint32_t p = in.at(x * k + i, y * k + j);
-          for (int c = 0; c < 4; ++c) sum[c] += (p >> (8 * c)) & 0xff;
-        }
-      std::uint32_t q = 0;
-      for (int c = 0; c < 4; ++c)
-        q |= ((sum[c] + std::uint32_t(k * k) / 2) / std::uint32_t(k * k)) << (8 * c);
-      out.at(x, y) = q;
-    }
-  return out;
-}
-
-// A rank's tiles arrive in JPEG segments (at most 1024 pixels a side): joins the segments of one
-// rank that share an edge whole, so the overlay shows the rectangles the balancer cut.
-std::vector<TilePlacement> mergePlacements(std::vector<TilePlacement> tiles) {
-  for (bool merged = true; merged;) {
-    merged = false;
-    for (std::size_t i = 0; i < tiles.size() && !merged; ++i)
-      for (std::size_t j = i + 1; j < tiles.size() && !merged; ++j) {
-        auto &a = tiles[i].rect, &b = tiles[j].rect;
-        if (tiles[i].rank != tiles[j].rank) continue;
-        if (a.x == b.x && a.width == b.width && (a.y + a.height == b.y || b.y + b.height == a.y)) {
-          a = {a.x, std::min(a.y, b.y), a.width, a.height + b.height};
-          merged = true;
-        } else if (a.y == b.y && a.height == b.height &&
-                   (a.x + a.width == b.x || b.x + b.width == a.x)) {
-          a = {std::min(a.x, b.x), a.y, a.width + b.width, a.height};
-          merged = true;
-        }
-        if (merged) tiles.erase(tiles.begin() + std::ptrdiff_t(j));
-      }
-  }
-  return tiles;
+// "ready 12" -> 12; "shown 12 1733150000123.456" -> 12 and the time. Whole message, or nothing.
+std::optional<std::uint64_t> parseUnsigned(std::string_view text) {
+  std::uint64_t value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || text.empty()) return std::nullopt;
+  return value;
 }
 
 }  // namespace
@@ -98,19 +70,45 @@ struct WebView::Impl {
   WebViewSettings settings;
   Control control;
   SinkLog log;
+  SwapReport swapReport;
   bnet::io_context io;
   tcp::acceptor acceptor{io};
   std::thread thread;
   std::string wallJson;
   std::map<WsSession*, std::weak_ptr<WsSession>> sessions;      // the io thread's
   std::map<HttpSession*, std::weak_ptr<HttpSession>> requests;  // likewise
-  std::atomic<int> viewerCount{0};
-  std::mutex pendingMutex;
-  std::optional<ViewerFrame> pending;
-  bool encodePosted = false;
+  std::atomic<int> viewerCount{0}, pageCount{0};
   bool stopped = false;
   bool loopback = true;  // served on a loopback address (hostAllowed)
   std::shared_ptr<bnet::steady_timer> stopTimer;
+
+  // The displays' pages and their barrier (the io thread's).
+  struct Held {
+    ViewerFrame frame;
+    std::vector<std::shared_ptr<const std::string>> messages;  // per display, made when needed
+  };
+  struct Skew {
+    std::uint64_t seq = 0, frame = 0;
+    std::set<Page> pages;  // shown together; each reports its time once
+    std::vector<double> unixMs;
+  };
+  SwapBarrier barrier;
+  std::map<Page, std::weak_ptr<WsSession>> pages;
+  Page nextPage = 1;
+  std::uint64_t lastSeq = 0;
+  std::map<std::uint64_t, Held> frames;  // by seq: what the barrier may still send
+  bnet::steady_timer barrierTimer{io};
+  std::deque<Skew> skews;
+  SwapStats swapStats;
+
+  // The overview's pictures: the newest frame waits for the overview thread.
+  std::mutex overviewMutex;
+  std::condition_variable overviewReady;
+  std::optional<ViewerFrame> overviewPending;
+  bool overviewStop = false;
+  std::thread overviewThread;
+
+  explicit Impl(int swapTimeoutMs) : barrier(std::chrono::milliseconds(swapTimeoutMs)) {}
 
   void say(const std::string& line) {
     if (log) log(line);
@@ -139,16 +137,41 @@ struct WebView::Impl {
     }
     return false;
   }
+  // What the browser asked for, to build links with: "http://HOST:PORT".
+  std::string base(const std::string& host) const {
+    if (!host.empty()) return "http://" + host;
+    boost::system::error_code ec;
+    const auto ep = acceptor.local_endpoint(ec);
+    return "http://" + ep.address().to_string() + ":" + std::to_string(ep.port());
+  }
   void accept();
-  void encode();
   void closeAll();
+
+  // The barrier (io thread).
+  void route(ViewerFrame frame);
+  void pageJoined(const std::shared_ptr<WsSession>& session);
+  void pageLeft(Page page);
+  void pageReady(Page page, std::uint64_t seq);
+  void pageShown(Page page, std::uint64_t seq, double unixMs);
+  void apply(SwapBarrier::Actions actions);
+  std::shared_ptr<const std::string> frameFor(std::uint64_t seq, int display);
+  void armBarrierTimer();
+  void reportSwap();
+  std::string pageName(Page page) const;
+
+  // The overview thread.
+  void overviewLoop();
 };
 
-// One WebSocket viewer. Writes go out one at a time: queued notes first, then the newest frame.
+// One WebSocket: an overview viewer (display < 0) or a display's page. Writes go out one at a
+// time: queued notes first, then the frame waiting (the newest for a viewer; for a page the one
+// the barrier gave it, one in flight).
 struct WsSession : std::enable_shared_from_this<WsSession> {
   websocket::stream<beast::tcp_stream> ws;
   WebView::Impl* view;
   std::string name;
+  int display = -1;
+  Page page = 0;  // a display page's place with the barrier, once authenticated
   beast::flat_buffer in;
   bool authed = false, open = false, writing = false, closing = false, counted = true;
   std::deque<std::string> notes;
@@ -157,13 +180,21 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   double tokens = 0;
   Clock::time_point refilled = Clock::now();
 
-  // Counted among the viewers from here (a handshake in progress takes a place too, so
-  // --max-viewers bounds what handshakes can hold), until gone().
-  WsSession(tcp::socket socket, WebView::Impl* v) : ws(std::move(socket)), view(v) {
-    name = peerName(beast::get_lowest_layer(ws).socket());
+  // Counted among the viewers (or pages) from here (a handshake in progress takes a place too,
+  // so the caps bound what handshakes can hold), until gone().
+  WsSession(tcp::socket socket, WebView::Impl* v, int displayIndex)
+      : ws(std::move(socket)), view(v), display(displayIndex) {
+    const auto address = peerAddress(beast::get_lowest_layer(ws).socket());
+    name = display >= 0 ? "display page " + view->wall.displays[std::size_t(display)].name + " (" +
+                              address + ")"
+                        : "viewer " + address;
     authed = view->settings.token.empty();
-    tokens = 2 * view->settings.commandsPerSecond;
-    ++view->viewerCount;
+    tokens = 2 * rate();
+    ++count();
+  }
+  std::atomic<int>& count() { return display >= 0 ? view->pageCount : view->viewerCount; }
+  double rate() const {
+    return display >= 0 ? view->settings.pageMessagesPerSecond : view->settings.commandsPerSecond;
   }
 
   void start(http::request<http::empty_body> request) {
@@ -176,11 +207,20 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
     ws.read_message_max(kMaxViewerMessage);
     ws.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
       if (ec) return self->gone("handshake: " + ec.message());
+      auto& v = *self->view;
       self->open = true;
-      self->view->sessions[self.get()] = self;
-      self->view->say("sink: " + self->name + " connected (" +
-                      std::to_string(self->view->viewerCount.load()) + " watching)");
-      self->note(self->view->wallJson);
+      v.sessions[self.get()] = self;
+      if (self->display >= 0) {
+        v.say("sink: " + self->name + " connected (" + std::to_string(v.pageCount.load()) +
+              " display page(s))");
+        self->note(web::displayJson(v.wall, v.wall.displays[std::size_t(self->display)],
+                                    !v.settings.token.empty(), v.settings.swapTimeoutMs));
+        if (self->authed) v.pageJoined(self);
+      } else {
+        v.say("sink: " + self->name + " connected (" + std::to_string(v.viewerCount.load()) +
+              " watching)");
+        self->note(v.wallJson);
+      }
       self->read();
     });
   }
@@ -188,14 +228,15 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   void gone(const std::string& why) {
     if (counted) {
       counted = false;
-      const int n = --view->viewerCount;
+      const int n = --count();
       if (open)
         view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
-                  std::to_string(n) + " watching");
+                  std::to_string(n) + (display >= 0 ? " display page(s)" : " watching"));
     }
     if (open) {
       open = false;
       view->sessions.erase(this);
+      if (page) view->pageLeft(std::exchange(page, 0));
     }
     beast::get_lowest_layer(ws).close();
   }
@@ -205,6 +246,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
     if (closing) return;
     closing = true;
     view->say("sink: " + name + " closed: " + reason);
+    if (page) view->pageLeft(std::exchange(page, 0));
     beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(5));
     ws.async_close(websocket::close_reason(code, reason.substr(0, 120)),
                    [self = shared_from_this()](beast::error_code) { self->gone(""); });
@@ -228,6 +270,17 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
     });
   }
 
+  // Takes one token of the rate limit; false when there is none.
+  bool withinRate() {
+    const double r = rate();
+    const auto now = Clock::now();
+    tokens = std::min(2 * r, tokens + r * std::chrono::duration<double>(now - refilled).count());
+    refilled = now;
+    if (tokens < 1) return false;
+    tokens -= 1;
+    return true;
+  }
+
   // One message from the page; false when the connection is being closed.
   bool take(const std::string& text) {
     const auto& token = view->settings.token;
@@ -236,14 +289,20 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
         refuse(websocket::close_code::policy_error, "wrong token");
         return false;
       }
+      const bool first = !authed;
       authed = true;
       note(R"({"type":"auth","ok":true})");
+      if (first && display >= 0) view->pageJoined(shared_from_this());
       return true;
     }
     if (!authed) {
       refuse(websocket::close_code::policy_error, "a command before the token");
       return false;
     }
+    return display >= 0 ? takePageMessage(text) : takeCommand(text);
+  }
+
+  bool takeCommand(const std::string& text) {
     net::Control c;
     try {
       c = parseControlLine(text);
@@ -251,19 +310,43 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
       refuse(websocket::close_code::policy_error, e.what());
       return false;
     }
-    const double rate = view->settings.commandsPerSecond;
-    const auto now = Clock::now();
-    tokens =
-        std::min(2 * rate, tokens + rate * std::chrono::duration<double>(now - refilled).count());
-    refilled = now;
-    if (tokens < 1) {
+    if (!withinRate()) {
       note(nlohmann::json{{"type", "error"}, {"message", "too many commands: this one dropped"}}
                .dump());
       return true;
     }
-    tokens -= 1;
     if (view->control) view->control(c);
     return true;
+  }
+
+  // "ready SEQ" | "shown SEQ UNIXMS" from a display page.
+  bool takePageMessage(const std::string& text) {
+    if (!withinRate()) {
+      refuse(websocket::close_code::policy_error, "too many messages");
+      return false;
+    }
+    const std::string_view t(text);
+    if (t.starts_with("ready ")) {
+      if (const auto seq = parseUnsigned(t.substr(6))) {
+        if (page) view->pageReady(page, *seq);
+        return true;
+      }
+    } else if (t.starts_with("shown ")) {
+      const auto space = t.find(' ', 6);
+      const auto seq =
+          space == std::string_view::npos ? std::nullopt : parseUnsigned(t.substr(6, space - 6));
+      double unixMs = 0;
+      const auto rest = space == std::string_view::npos ? std::string_view() : t.substr(space + 1);
+      const auto [end, ec] = std::from_chars(rest.data(), rest.data() + rest.size(), unixMs);
+      if (seq && ec == std::errc() && end == rest.data() + rest.size() && !rest.empty() &&
+          std::isfinite(unixMs)) {
+        if (page) view->pageShown(page, *seq, unixMs);
+        return true;
+      }
+    }
+    refuse(websocket::close_code::policy_error,
+           "not a display page's message: '" + text.substr(0, 40) + "'");
+    return false;
   }
 
   void note(std::string text) {
@@ -277,7 +360,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   }
   // The newest frame replaces one that has not started going out.
   void offer(std::shared_ptr<const std::string> bytes) {
-    if (!open || closing || !authed) return;
+    if (!open || closing || !authed || !bytes) return;
     frame = std::move(bytes);
     write();
   }
@@ -306,7 +389,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   }
 };
 
-// A plain HTTP request: the page, 404 or 405; or the WebSocket upgrade.
+// A plain HTTP request: a page, the display list, 404 or 405; or a WebSocket upgrade.
 struct HttpSession : std::enable_shared_from_this<HttpSession> {
   beast::tcp_stream stream;
   WebView::Impl* view;
@@ -353,6 +436,32 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
         [self = shared_from_this(), res](beast::error_code, std::size_t) { self->close(); });
   }
 
+  void upgrade(http::request<http::empty_body> req, const std::string& target,
+               const std::string& host) {
+    const std::string origin(req[http::field::origin]);
+    int display = -1;
+    if (target != "/ws") {
+      const auto d = web::displayOfPath(view->wall, target, "/ws/display/");
+      if (!d) return reply(http::status::not_found, "no such WebSocket\n", "text/plain");
+      display = int(*d);
+    }
+    if (!view->originAllowed(origin, host)) {
+      view->say("sink: refused a viewer from Origin '" + origin.substr(0, 100) + "'");
+      return reply(http::status::forbidden, "this Origin may not watch the wall\n", "text/plain");
+    }
+    if (display < 0 && view->viewerCount >= view->settings.maxViewers) {
+      view->say("sink: refused a viewer: " + std::to_string(view->settings.maxViewers) +
+                " already watching");
+      return reply(http::status::service_unavailable, "too many viewers\n", "text/plain");
+    }
+    if (display >= 0 && view->pageCount >= view->settings.maxDisplayPages) {
+      view->say("sink: refused a display page: " + std::to_string(view->settings.maxDisplayPages) +
+                " already open");
+      return reply(http::status::service_unavailable, "too many display pages\n", "text/plain");
+    }
+    std::make_shared<WsSession>(stream.release_socket(), view, display)->start(std::move(req));
+  }
+
   void serve(http::request<http::empty_body> req) {
     const std::string target(req.target());
     const std::string host(req[http::field::host]);
@@ -360,27 +469,25 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
       view->say("sink: refused a request for Host '" + host.substr(0, 100) + "'");
       return reply(http::status::forbidden, "this Host is not served here\n", "text/plain");
     }
-    if (websocket::is_upgrade(req)) {
-      const std::string origin(req[http::field::origin]);
-      if (target != "/ws")
-        return reply(http::status::not_found, "no such WebSocket\n", "text/plain");
-      if (!view->originAllowed(origin, host)) {
-        view->say("sink: refused a viewer from Origin '" + origin.substr(0, 100) + "'");
-        return reply(http::status::forbidden, "this Origin may not watch the wall\n", "text/plain");
-      }
-      if (view->viewerCount >= view->settings.maxViewers) {
-        view->say("sink: refused a viewer: " + std::to_string(view->settings.maxViewers) +
-                  " already watching");
-        return reply(http::status::service_unavailable, "too many viewers\n", "text/plain");
-      }
-      std::make_shared<WsSession>(stream.release_socket(), view)->start(std::move(req));
-      return;
-    }
+    if (websocket::is_upgrade(req)) return upgrade(std::move(req), target, host);
     const bool head = req.method() == http::verb::head;
     if (req.method() != http::verb::get && !head)
       return reply(http::status::method_not_allowed, "only GET\n", "text/plain");
+    const bool token = !view->settings.token.empty();
     if (target == "/" || target == "/index.html")
       return reply(http::status::ok, webPage(), "text/html; charset=utf-8", head);
+    if (target == "/displays")
+      return reply(http::status::ok, web::displaysHtml(view->wall, view->base(host), token),
+                   "text/html; charset=utf-8", head);
+    if (target == "/displays.json")
+      return reply(http::status::ok, web::displaysJson(view->wall, view->base(host)),
+                   "application/json", head);
+    if (web::displayOfPath(view->wall, target, "/display/"))
+      return reply(http::status::ok, displayPage(), "text/html; charset=utf-8", head);
+    if (target.starts_with("/display/"))
+      return reply(http::status::not_found,
+                   "this wall has no such display: its displays are listed at /displays\n",
+                   "text/plain", head);
     return reply(http::status::not_found, "not found\n", "text/plain", head);
   }
 };
@@ -409,92 +516,167 @@ void WebView::Impl::accept() {
   });
 }
 
-void WebView::Impl::encode() {
-  std::optional<ViewerFrame> f;
-  {
-    std::lock_guard lock(pendingMutex);
-    encodePosted = false;
-    f.swap(pending);
+// A presented frame: the barrier offers it to the displays' pages.
+void WebView::Impl::route(ViewerFrame frame) {
+  if (stopped) return;
+  const auto seq = ++lastSeq;
+  frames[seq] =
+      Held{std::move(frame), std::vector<std::shared_ptr<const std::string>>(wall.displays.size())};
+  apply(barrier.offer(seq, Clock::now()));
+}
+
+void WebView::Impl::pageJoined(const std::shared_ptr<WsSession>& session) {
+  if (stopped || session->page) return;
+  session->page = nextPage++;
+  pages[session->page] = session;
+  apply(barrier.add(session->page, Clock::now()));
+}
+
+void WebView::Impl::pageLeft(Page page) {
+  pages.erase(page);
+  apply(barrier.remove(page, Clock::now()));
+}
+
+void WebView::Impl::pageReady(Page page, std::uint64_t seq) {
+  apply(barrier.ready(page, seq, Clock::now()));
+}
+
+void WebView::Impl::pageShown(Page page, std::uint64_t seq, double unixMs) {
+  for (auto& s : skews) {
+    if (s.seq != seq || !s.pages.erase(page)) continue;
+    s.unixMs.push_back(unixMs);
+    if (!s.pages.empty()) return;
+    const auto [lo, hi] = std::minmax_element(s.unixMs.begin(), s.unixMs.end());
+    swapStats.lastSpreadMs = *hi - *lo;
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "frame %llu shown together on %zu display page(s), spread %.1f ms",
+                  (unsigned long long)s.frame, s.unixMs.size(), swapStats.lastSpreadMs);
+    say(line);
+    reportSwap();
+    return;
   }
-  if (!f || !f->frame || stopped) return;
-  const AssembledFrame& frame = *f->frame;
-  bool anyone = false;
-  for (const auto& [p, weak] : sessions)
-    if (const auto s = weak.lock(); s && s->authed) anyone = true;
-  if (!anyone) return;
-  const voxwall::Image small = scaleDown(frame.image, settings.maxWidth);
-  net::TileCodecSettings codec;
-  codec.codec = net::TileCodec::Jpeg;
-  codec.jpegQuality = settings.jpegQuality;
-  codec.segmentPixels = std::max(small.width, small.height);
-  codec.threads = 1;
-  const auto parts =
-      net::encodeTiles(small, {0, 0, small.width, small.height}, wall.background, codec);
-  if (parts.size() != 1) return;
-  nlohmann::json meta = {{"type", "frame"},
-                         {"frame", frame.frame},
-                         {"step", frame.step},
-                         {"width", small.width},
-                         {"height", small.height},
-                         {"latency_ms", f->latencyMs},
-                         {"bytes", frame.bytes},
-                         {"presented", f->stats.framesPresented},
-                         {"dropped", f->stats.framesDropped + f->stats.framesStale},
-                         {"ranks_connected", f->stats.renderersConnected}};
-  auto& tiles = meta["tiles"] = nlohmann::json::array();
-  for (const auto& t : mergePlacements(frame.placements))
-    tiles.push_back({{"rank", t.rank},
-                     {"x", t.rect.x},
-                     {"y", t.rect.y},
-                     {"w", t.rect.width},
-                     {"h", t.rect.height}});
-  auto& ranks = meta["ranks"] = nlohmann::json::object();
-  for (const auto& [rank, micros] : frame.rankRenderMicros)
-    ranks[std::to_string(rank)] = double(micros) / 1e3;
-  const std::string json = meta.dump();
-  auto message = std::make_shared<std::string>();
-  const auto n = std::uint32_t(json.size());
-  const char length[4] = {char(n & 0xff), char((n >> 8) & 0xff), char((n >> 16) & 0xff),
-                          char((n >> 24) & 0xff)};
-  message->append(length, 4);
-  message->append(json);
-  message->append(reinterpret_cast<const char*>(parts[0].bytes.data()), parts[0].bytes.size());
-  for (const auto& [p, weak] : sessions)
-    if (const auto s = weak.lock()) s->offer(message);
+}
+
+std::string WebView::Impl::pageName(Page page) const {
+  const auto it = pages.find(page);
+  if (it != pages.end())
+    if (const auto s = it->second.lock()) return s->name;
+  return "a display page";
+}
+
+std::shared_ptr<const std::string> WebView::Impl::frameFor(std::uint64_t seq, int display) {
+  const auto it = frames.find(seq);
+  if (it == frames.end() || display < 0) return nullptr;
+  auto& message = it->second.messages[std::size_t(display)];
+  if (!message)
+    message = web::displayFrameMessage(*it->second.frame.frame, wall.displays[std::size_t(display)],
+                                       seq, it->second.frame.latencyMs);
+  return message;
+}
+
+// Shows go out before the next frame's segments: a page must never see frame N + 1 before it was
+// told to show N.
+void WebView::Impl::apply(SwapBarrier::Actions a) {
+  for (const Page page : a.left)
+    say("sink: " + pageName(page) + " left the swap barrier: not ready within " +
+        std::to_string(settings.swapTimeoutMs) + " ms (it rejoins when it keeps up)");
+  for (const Page page : a.joined) say("sink: " + pageName(page) + " is in the swap barrier");
+  const std::string showNote = R"({"type":"show","seq":)";
+  for (const auto& [page, seq] : a.show)
+    if (const auto s = pages.count(page) ? pages[page].lock() : nullptr)
+      s->note(showNote + std::to_string(seq) + "}");
+  for (auto& [seq, shown] : a.swapped) {
+    ++swapStats.framesSwapped;
+    if (shown.empty()) continue;
+    const auto held = frames.find(seq);
+    skews.push_back({seq,
+                     held != frames.end() ? held->second.frame.frame->frame : 0,
+                     std::set<Page>(shown.begin(), shown.end()),
+                     {}});
+    if (skews.size() > kSkewsKept) skews.pop_front();
+  }
+  for (const auto& [page, seq] : a.send)
+    if (const auto s = pages.count(page) ? pages[page].lock() : nullptr)
+      s->offer(frameFor(seq, s->display));
+  const auto inUse = barrier.framesInUse();
+  std::erase_if(frames, [&](const auto& f) {
+    return std::find(inUse.begin(), inUse.end(), f.first) == inUse.end();
+  });
+  armBarrierTimer();
+  reportSwap();
+}
+
+void WebView::Impl::armBarrierTimer() {
+  const auto deadline = barrier.deadline();
+  if (!deadline) return;
+  if (barrierTimer.expiry() == *deadline) return;  // already waiting for it
+  barrierTimer.expires_at(*deadline);
+  barrierTimer.async_wait([this](beast::error_code ec) {
+    if (ec || stopped) return;  // rearmed or cancelled
+    apply(barrier.expire(Clock::now()));
+  });
+}
+
+void WebView::Impl::reportSwap() {
+  swapStats.pages = int(barrier.pages());
+  swapStats.inBarrier = int(barrier.members());
+  if (swapReport) swapReport(swapStats);
+}
+
+void WebView::Impl::overviewLoop() {
+  for (;;) {
+    ViewerFrame next;
+    {
+      std::unique_lock lock(overviewMutex);
+      overviewReady.wait(lock, [&] { return overviewStop || overviewPending; });
+      if (overviewStop) return;
+      next = std::move(*overviewPending);
+      overviewPending.reset();
+    }
+    if (viewerCount == 0) continue;
+    std::shared_ptr<const std::string> message;
+    try {
+      message = web::overviewFrameMessage(next, wall, settings.maxWidth, settings.jpegQuality);
+    } catch (const std::exception& e) {
+      say(std::string("sink: the overview page misses frame ") + std::to_string(next.frame->frame) +
+          ": " + e.what());
+      continue;
+    }
+    bnet::post(io, [this, message] {
+      for (const auto& [p, weak] : sessions)
+        if (const auto s = weak.lock(); s && s->display < 0) s->offer(message);
+    });
+  }
 }
 
 void WebView::Impl::closeAll() {
   stopped = true;
   boost::system::error_code ec;
   acceptor.close(ec);
+  barrierTimer.cancel();
   for (const auto& [p, weak] : sessions)
     if (const auto s = weak.lock()) beast::get_lowest_layer(s->ws).close();
   for (const auto& [p, weak] : requests)
     if (const auto s = weak.lock()) s->stream.close();
 }
 
-WebView::WebView(const Wall& wall, WebViewSettings settings, Control control, SinkLog log)
-    : impl_(std::make_unique<Impl>()) {
+WebView::WebView(const Wall& wall, WebViewSettings settings, Control control, SinkLog log,
+                 SwapReport swapReport)
+    : impl_(std::make_unique<Impl>(std::max(1, settings.swapTimeoutMs))) {
   auto& s = *impl_;
   s.wall = wall;
   s.settings = std::move(settings);
   s.control = std::move(control);
   s.log = std::move(log);
+  s.swapReport = std::move(swapReport);
   if (s.settings.maxViewers < 1) throw std::invalid_argument("at least one viewer");
+  if (s.settings.maxDisplayPages == 0)
+    s.settings.maxDisplayPages = 2 * int(wall.displays.size()) + 8;
+  if (s.settings.maxDisplayPages < 1) throw std::invalid_argument("at least one display page");
+  if (s.settings.swapTimeoutMs < 1) throw std::invalid_argument("a positive swap timeout");
   if (s.settings.maxWidth < 16) throw std::invalid_argument("viewer frames of at least 16 pixels");
-  nlohmann::json w = {{"type", "wall"},
-                      {"id", wall.id},
-                      {"width", wall.width},
-                      {"height", wall.height},
-                      {"token", !s.settings.token.empty()}};
-  auto& displays = w["displays"] = nlohmann::json::array();
-  for (const auto& d : wall.displays)
-    displays.push_back({{"name", d.name},
-                        {"x", d.rect.x},
-                        {"y", d.rect.y},
-                        {"w", d.rect.width},
-                        {"h", d.rect.height}});
-  s.wallJson = w.dump();
+  s.wallJson = web::wallJson(wall, !s.settings.token.empty());
   try {
     const auto address = bnet::ip::make_address(s.settings.host);
     const tcp::endpoint endpoint(address, s.settings.port);
@@ -518,6 +700,7 @@ std::uint16_t WebView::port() const {
 
 void WebView::start() {
   impl_->accept();
+  impl_->overviewThread = std::thread([impl = impl_.get()] { impl->overviewLoop(); });
   impl_->thread = std::thread([impl = impl_.get()] {
     for (;;) {
       try {
@@ -532,10 +715,18 @@ void WebView::start() {
 }
 
 void WebView::stop() {
-  if (!impl_->thread.joinable()) return;
+  auto* impl = impl_.get();
+  if (impl->overviewThread.joinable()) {
+    {
+      std::lock_guard lock(impl->overviewMutex);
+      impl->overviewStop = true;
+    }
+    impl->overviewReady.notify_all();
+    impl->overviewThread.join();
+  }
+  if (!impl->thread.joinable()) return;
   // Closing every socket completes what waits on them; a moment later the thread ends (what is
   // left, e.g. a WebSocket's idle timer, is destroyed with the io_context).
-  auto* impl = impl_.get();
   bnet::post(impl->io, [impl] {
     impl->closeAll();
     auto timer = std::make_shared<bnet::steady_timer>(impl->io, std::chrono::milliseconds(50));
@@ -548,12 +739,14 @@ void WebView::stop() {
 
 void WebView::present(ViewerFrame frame) {
   auto& s = *impl_;
-  if (s.viewerCount == 0) return;
-  std::lock_guard lock(s.pendingMutex);
-  s.pending = std::move(frame);
-  if (s.encodePosted) return;
-  s.encodePosted = true;
-  bnet::post(s.io, [impl = impl_.get()] { impl->encode(); });
+  if (s.viewerCount > 0) {
+    std::lock_guard lock(s.overviewMutex);
+    s.overviewPending = frame;
+  }
+  s.overviewReady.notify_one();
+  bnet::post(s.io, [impl = impl_.get(), frame = std::move(frame)]() mutable {
+    impl->route(std::move(frame));
+  });
 }
 
 }  // namespace voxwall::walls

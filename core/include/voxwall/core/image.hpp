@@ -40,6 +40,17 @@ std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
 // FormatError("<path>: ...") naming the reason.
 FileDigest writeImage(const Image& image, const std::string& path,
                       const std::optional<glm::dvec3>& background = std::nullopt);
+// How encodeOpaqueImage compresses: PNG's zlib level (0-9; 1 is several times faster than the
+// default 6 for frames of a volume, with files about a third larger) and JPEG's quality.
+struct ImageEncoding {
+  int pngLevel = 1;
+  int jpegQuality = 95;
+};
+// Encodes an opaque image (every alpha 255: decoded wall frames) as 8-bit RGB, in memory, in the
+// format of `path`'s extension (PNG or JPEG), straight from the RGBA bytes: no float copy, no
+// un-premultiplying. Throws FormatError.
+std::vector<std::byte> encodeOpaqueImage(const Image& image, const std::string& path,
+                                         const ImageEncoding& encoding = {});
 // Reads an 8-bit RGBA (or RGB) image written by writeImage back into premultiplied form.
 Image readImage(const std::string& path);
 

@@ -63,6 +63,9 @@ class TileStreamer {
                  int step = 1, std::uint32_t renderMicros = 0);
   // Sends FrameEnd with the count of tiles sent; returns whether the whole frame went out.
   bool endFrame();
+  // Where to cut this frame's segments and which to send, as the sink said in its Welcome
+  // (valid after a beginFrame that returned true; the default cut otherwise).
+  const DisplayCut& displayCut() const { return cut_; }
   // The whole frame at once: beginFrame, sendTiles, endFrame.
   bool sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,
                  std::uint64_t decidedUnixMicros, int step = 1, std::uint32_t renderMicros = 0);
@@ -84,6 +87,7 @@ class TileStreamer {
   std::chrono::steady_clock::time_point nextAttempt_{};
   std::chrono::milliseconds backoff_{100};
   std::string lastError_, refused_;
+  DisplayCut cut_;
   std::uint64_t bytesSent_ = 0;
   bool sending_ = false;  // between a beginFrame that connected and endFrame or a failed send
   std::uint64_t frame_ = 0;

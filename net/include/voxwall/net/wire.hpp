@@ -13,7 +13,10 @@
 // Payloads (str = u16 length <= kMaxString, then bytes):
 //   Hello    u8 role (1 renderer, 2 controller), i32 rank, i32 rankCount, u64 jobId,
 //            u64 nextFrame, str wallId, str token         (at most kMaxHelloPayload bytes)
-//   Welcome  str wallId, i32 screenWidth, i32 screenHeight          (sink -> peer, after Hello)
+//   Welcome  str wallId, i32 screenWidth, i32 screenHeight, u8 flags (bit 0: send segments that
+//            lie on no display), u16 display count (<= kMaxWelcomeDisplays), then per display
+//            i32 x, y, width, height (virtual-screen pixels, on the screen)
+//                                                        (sink -> peer, after Hello)
 //   Tile     i32 x, y, width, height, u8 codec, u8 step (1..kMaxStep), u64 decidedUnixMicros,
 //            u32 renderMicros, bytes. The rectangle is in pixels of the frame's screen: the virtual
 //            screen itself at step 1, or the reduced screen of an interactive frame,
@@ -21,6 +24,9 @@
 //            step block of virtual-screen pixels at (x * step, y * step) (clipped at the edge).
 //            renderMicros: how long the sending rank had rendered the frame when it sent the
 //            tile (a rank sends bands as it renders them: its last tile carries the whole time).
+//            Renderers cut their segments at the Welcome's display edges (tile_codec.hpp,
+//            DisplayCut), so a segment lies on the displays it touches or wholly in a bezel gap,
+//            and send bezel-only segments only when the Welcome asks for them.
 //   FrameEnd i32 rank, u32 tiles this rank sent for the frame
 //   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
 //   Bye      str reason
@@ -35,7 +41,8 @@
 // old job's open frames are dropped and a later Hello of the old job is refused) whose frame
 // window starts at the Hello's nextFrame (the frame the peer sends next).
 // Version history: 1 first release; 2 adds Hello.jobId and FrameNote; 3 adds Tile.step and
-// Tile.renderMicros (interactive frames, the load overlay).
+// Tile.renderMicros (interactive frames, the load overlay); 4 adds the displays and the bezel flag
+// to Welcome (segments cut at display edges, so the sink routes them without decoding).
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
 
@@ -50,7 +57,7 @@
 namespace voxwall::net {
 
 inline constexpr std::uint32_t kWireMagic = 0x50575756;
-inline constexpr std::uint16_t kWireVersion = 3;
+inline constexpr std::uint16_t kWireVersion = 4;
 inline constexpr std::size_t kHeaderBytes = 32;
 inline constexpr std::uint32_t kMaxPayload = 64u << 20;
 inline constexpr std::size_t kMaxString = 256;
@@ -59,6 +66,8 @@ inline constexpr std::size_t kMaxString = 256;
 inline constexpr std::uint32_t kMaxHelloPayload = 1024;
 // The coarsest interactive frame: one pixel for kMaxStep x kMaxStep virtual-screen pixels.
 inline constexpr int kMaxStep = 16;
+// The most displays a Welcome lists (a wall file allows no more).
+inline constexpr std::size_t kMaxWelcomeDisplays = 1024;
 
 enum class MessageType : std::uint16_t {
   Hello = 1,
@@ -82,6 +91,12 @@ struct Hello {
 struct Welcome {
   std::string wallId;
   int screenWidth = 0, screenHeight = 0;
+  // Where renderers cut their segments: every display's rectangle (empty: none known, cut only
+  // every segmentPixels); whether they also send segments no display shows.
+  std::vector<voxwall::Rect> displays;
+  bool bezels = true;
+  // What a renderer does with this Welcome (tile_codec.hpp).
+  DisplayCut cut() const { return {screenWidth, screenHeight, displays, bezels}; }
 };
 struct TileMessage {
   voxwall::Rect rect;  // in pixels of the frame's screen (reduced when step > 1)

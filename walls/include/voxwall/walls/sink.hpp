@@ -1,9 +1,12 @@
 // The data sink of a display wall: accepts the rendering ranks and rank 0's control connection
-// (net/wire.hpp), collects the tiles of each frame and presents a frame only when every pixel of
-// every display has arrived (never a torn or partial frame). It drops stale frames when it falls
-// behind (always keeping the newest complete one), drops and reports frames it cannot complete,
-// survives peers that join late, drop, or send garbage, writes per-display images (and
-// optionally a mosaic, all or nothing: frame_files.hpp) and forwards camera commands to rank 0.
+// (net/wire.hpp), collects the segments of each frame and presents a frame only when every pixel
+// of every display has arrived (never a torn or partial frame). It is a router, not a decoder:
+// a presented frame's segments go as they arrived to the displays' pages (web_view.hpp, which
+// switch frames together through a swap barrier); pixels are decoded only for files and the
+// overview page. It drops and reports frames it cannot complete, survives peers that join late,
+// drop, or send garbage, writes per-display images off the presentation path (and optionally a
+// mosaic, all or nothing: frame_files.hpp; a writer that falls behind skips frames, never the
+// wall) and forwards camera commands to rank 0.
 // Hostile peers: the protocol logic (sink_core.hpp) bounds what any peer can make it hold;
 // here, connections are capped (maxPeers), peers without a Hello are dropped after
 // helloTimeoutMs, and running out of file descriptors pauses accepting instead of ending it.
@@ -15,6 +18,7 @@
 #include <string>
 #include <vector>
 #include <voxwall/net/wire.hpp>
+#include <voxwall/walls/frame_files.hpp>
 #include <voxwall/walls/wall.hpp>
 
 namespace voxwall::walls {
@@ -25,9 +29,11 @@ struct SinkSettings {
   std::uint16_t listenPort = 0;          // 0: any free port (see Sink::port)
   std::string token;                     // empty: no token required
   std::string outDir;                    // empty: frames are assembled and counted, not written
-  bool mosaic = false;                   // also write the whole virtual screen
-  int maxFrames = 0;  // stop after this many frames were presented, skipped or dropped (0: never)
-  int pendingFrames = 4;                // incomplete frames held at once; the oldest is dropped
+  bool mosaic = false;  // also write the whole virtual screen (the ranks then send bezels too)
+  FrameFormat outFormat = FrameFormat::Png;  // the displays' files
+  int writeQueue = 8;     // presented frames waiting to be written; beyond, the oldest is skipped
+  int maxFrames = 0;      // stop after this many frames were presented or dropped (0: never)
+  int pendingFrames = 4;  // incomplete frames held at once; the oldest is dropped
   std::uint64_t pendingBytes = 0;       // bytes held for incomplete frames; 0: 2 frames + 64 MiB
   std::uint64_t frameWindow = 1 << 16;  // frame ids accepted past the last complete one
   int maxPeers = 256;                   // connections at once; more are refused
@@ -36,16 +42,25 @@ struct SinkSettings {
   std::string httpHost;
   std::uint16_t httpPort = 0;            // 0: any free port (see Sink::httpPort)
   std::vector<std::string> httpOrigins;  // other Origins whose pages may watch and steer
-  int maxViewers = 64;
+  int maxViewers = 64;                   // overview pages at once
+  int maxDisplayPages = 0;               // display pages at once; 0: 2 per display, plus 8
+  int swapTimeoutMs = 500;               // a display page not ready by then leaves the swap barrier
 };
 
 struct SinkStats {
-  int framesPresented = 0, framesDropped = 0, framesStale = 0, framesRefused = 0;
+  int framesPresented = 0, framesDropped = 0, framesRefused = 0;
+  int framesNotWritten = 0;  // presented, but skipped by the file writer (it fell behind)
+  int framesWritten = 0;
   int peersAccepted = 0, peersRefused = 0, peersDropped = 0;
   bool controllerConnected = false;  // rank 0's control connection is up
   int renderersConnected = 0;        // rendering ranks greeted and connected now
   std::uint64_t bytesReceived = 0;
   double meanLatencyMs = 0;  // camera decided on rank 0 -> frame presented (same clock: one host)
+  // The displays' pages (web_view.hpp): connected, in the swap barrier, frames they switched to
+  // together, and the spread of the times they showed the last such frame.
+  int displayPages = 0, displayPagesInBarrier = 0;
+  int framesSwapped = 0;
+  double lastSwapSpreadMs = 0;
 };
 
 // One line per event (frame presented or dropped, peer refused or dropped).
@@ -61,9 +76,9 @@ class Sink {
   std::uint16_t port() const;
   // The browser view's port (0 without one).
   std::uint16_t httpPort() const;
-  // Serves until maxFrames frames were settled or stop() was called. Thread: any one thread.
-  // Throws FormatError when a frame cannot be written (full disk): the sink stops then, since
-  // every later frame would be lost too.
+  // Serves until maxFrames frames were settled (and the frames waiting to be written are
+  // written) or stop() was called. Thread: any one thread. Throws FormatError when a frame cannot
+  // be written (full disk): the sink stops then, since every later frame would be lost too.
   void run();
   // Thread-safe.
   void stop();

@@ -1,14 +1,18 @@
-// The wall in a browser: `voxwall sink --http HOST:PORT` serves one page (embedded in the binary)
-// and a WebSocket that pushes the presented frames, scaled down, with what the load balancer did
-// (which rank rendered which rectangle, and how long it took) and the sink's numbers; the page
-// sends camera commands back, which travel the same Control path as commands typed on stdin.
+// The wall in browsers: `voxwall sink --http HOST:PORT` serves the overview page (the whole wall
+// scaled down, the load balancer's rectangles, camera control) and one page per display of the
+// wall, which a kiosk browser on that display's host opens full screen: that display's pixels at
+// native resolution, switching frames together with every other display (swap_barrier.hpp).
 //
 // HTTP (Boost.Beast, on its own thread and io_context: tile intake never waits for a viewer):
-//   GET /          the page (text/html); GET /ws  the WebSocket; anything else 404 (no request is
-//   ever mapped to a file), other methods 405. Requests: headers at most 8 KiB, no body, read
-//   within 10 s (slow clients are cut off).
-// WebSocket (text, JSON from the sink; text commands from the page, at most kMaxViewerMessage
-// bytes each):
+//   GET /                  the overview page (text/html)
+//   GET /display/<name>    the page of one display (404 for a name the wall does not have)
+//   GET /displays          the displays, each with a launch line for a kiosk browser (text/html)
+//   GET /displays.json     the same as JSON
+//   GET /ws                the overview's WebSocket; GET /ws/display/<name> a display page's
+//   Anything else 404 (no request is ever mapped to a file), other methods 405. Requests: headers
+//   at most 8 KiB, no body, read within 10 s (slow clients are cut off).
+// Overview WebSocket (text JSON from the sink; text commands from the page, at most
+// kMaxViewerMessage bytes each):
 //   sink -> page  {"type":"wall", "id", "width", "height", "displays":[{"name","x","y","w","h"}],
 //                  "token": whether one is required}                          (on connect)
 //                 {"type":"auth", "ok": true}                     (after a right token)
@@ -17,19 +21,36 @@
 //                  "step", "width", "height" (of the JPEG), "tiles":[{"rank","x","y","w","h"}]
 //                  (what each rank rendered, in virtual-screen pixels: its tiles' segments
 //                  joined), "ranks":{"R": render ms}, "latency_ms", "bytes", "presented" (the
-//                  sink's count so far), "dropped" (skipped or dropped so far),
-//                  "ranks_connected"}, then the JPEG.
+//                  sink's count so far), "dropped" (dropped so far), "ranks_connected"}, then the
+//                  JPEG (the frame decoded at 1/k, k the smallest whole factor that fits
+//                  maxWidth, on a thread of its own, only while someone watches).
 //   page -> sink  "auth TOKEN" | "rotate DAZ DEL" | "zoom FACTOR" | "pan DX DY" | "reset"
-// Security: with a token, a viewer gets no frame and no command is taken before "auth" with the
-// right one (a wrong one closes the connection). A WebSocket whose Origin is not this server's
-// own (http://<the Host it was asked as>) or one of `origins` is refused (403): another site's
-// page in the operator's browser cannot steer the wall. Served on loopback, a request whose Host
-// is not a loopback name (or the host of one of `origins`) is refused too (403; DNS rebinding).
-// At most 256 HTTP requests are read or answered at once. Anything else (binary from the page, an
-// unknown or malformed command, a message over the limit) closes the connection. Commands are
-// rate-limited per viewer. A viewer that does not keep up gets the newest frame when it is ready
-// (frames in between are dropped for it; the page counts them from "presented"); one that stops
-// reading holds one frame of memory, not more, and is closed by the WebSocket's idle timeout.
+// Display page WebSocket:
+//   sink -> page  {"type":"display", "name", "wall", "x", "y", "w", "h" (its rectangle on the
+//                  virtual screen), "token", "swap_timeout_ms", "background":"#rrggbb"} (on
+//                  connect)
+//                 {"type":"auth", "ok": true}
+//                 binary: u32 n, n bytes of JSON {"type":"frame", "frame", "seq" (the sink's
+//                  count of presented frames: frame ids restart with each job), "step",
+//                  "latency_ms", "segments":[{"x","y","w","h" (pixels of the frame's screen,
+//                  reduced at step > 1), "codec":"jpeg"|"raw"|"deflate", "bytes"}]}, then each
+//                  segment's bytes as the rank sent them, in that order: every segment that touches
+//                  the display
+//                  {"type":"show", "frame"}         show that frame on the next display refresh
+//   page -> sink  "auth TOKEN" | "ready FRAME" (decoded, can show it) | "shown FRAME UNIXMS" (when
+//                  it showed it: milliseconds since 1970 with a fraction, the page's clock)
+// The sink reports the spread of the "shown" times of every frame the pages switched to together.
+// Security: with a token, a viewer or page gets nothing and no command is taken before "auth"
+// with the right one (a wrong one closes the connection). A WebSocket whose Origin is not this
+// server's own (http://<the Host it was asked as>) or one of `origins` is refused (403): another
+// site's page in the operator's browser cannot steer the wall. Served on loopback, a request
+// whose Host is not a loopback name (or the host of one of `origins`) is refused too (403; DNS
+// rebinding). At most 256 HTTP requests are read or answered at once. Anything else (binary from
+// a page, an unknown or malformed message, one over the limit) closes the connection. Messages
+// are rate-limited per connection. An overview viewer that does not keep up gets the newest frame
+// when it is ready (frames in between are dropped for it); a display page has one frame in flight
+// (swap_barrier.hpp). A connection that stops reading holds one frame of memory, not more, and
+// is closed by the WebSocket's idle timeout.
 #pragma once
 
 #include <cstdint>
@@ -52,10 +73,13 @@ struct WebViewSettings {
   std::uint16_t port = 0;            // 0: any free port (see WebView::port)
   std::string token;                 // empty: none
   std::vector<std::string> origins;  // other allowed Origins, e.g. "http://localhost:8080"
-  int maxViewers = 64;               // WebSocket viewers at once; more are refused
-  int maxWidth = 1920;               // frames are scaled down by whole factors to fit
+  int maxViewers = 64;               // overview WebSockets at once; more are refused
+  int maxDisplayPages = 0;           // display pages at once; 0: 2 per display, plus 8
+  int swapTimeoutMs = 500;           // a display page not ready by then leaves the barrier
+  int maxWidth = 1920;               // overview frames are scaled down by whole factors to fit
   int jpegQuality = 80;
-  double commandsPerSecond = 60;  // per viewer (a burst of twice that is allowed)
+  double commandsPerSecond = 60;       // per viewer (a burst of twice that is allowed)
+  double pageMessagesPerSecond = 600;  // per display page (two a frame; a burst of twice that)
 };
 
 // One presented frame as the viewers see it: the assembler's frame (handed over, not copied),
@@ -69,16 +93,24 @@ struct ViewerFrame {
 class WebView {
  public:
   using Control = std::function<void(const net::Control&)>;
+  // The displays' pages as the swap barrier sees them, after every change (on the web thread).
+  struct SwapStats {
+    int pages = 0, inBarrier = 0, framesSwapped = 0;
+    double lastSpreadMs = 0;  // of the last frame every page that showed it reported
+  };
+  using SwapReport = std::function<void(const SwapStats&)>;
   // Binds and listens (throws net::NetError when it cannot); serves once start() was called.
   // `control` gets every command a viewer sent (on the web thread).
-  WebView(const Wall& wall, WebViewSettings settings, Control control, SinkLog log = {});
+  WebView(const Wall& wall, WebViewSettings settings, Control control, SinkLog log = {},
+          SwapReport swapReport = {});
   ~WebView();
   std::uint16_t port() const;
   void start();
   // Closes every connection and ends the web thread.
   void stop();
-  // The newest presented frame; returns at once (the web thread scales and encodes it, and only
-  // when someone watches). Thread-safe.
+  // A presented frame; returns at once. Its segments go to the displays' pages (web thread); the
+  // overview's picture is decoded and encoded on a thread of its own, only while someone watches,
+  // newest first. Thread-safe.
   void present(ViewerFrame frame);
 
   struct Impl;  // web_view.cpp's (its connections reach it)
@@ -87,7 +119,9 @@ class WebView {
   std::unique_ptr<Impl> impl_;
 };
 
-// The page the server sends (HTML with its script and style inside).
+// The pages the server sends (HTML with their script and style inside): the overview and the
+// display page.
 const std::string& webPage();
+const std::string& displayPage();
 
 }  // namespace voxwall::walls

@@ -1,0 +1,121 @@
+#include "sink_settings.hpp"
+
+#include <voxwall/net/tcp.hpp>
+#include <voxwall/walls/wall.hpp>
+
+namespace voxwall::cli {
+
+namespace {
+
+int inRange(int value, int lo, int hi, const char* option) {
+  if (value < lo || value > hi)
+    throw std::invalid_argument(std::string(option) + " must be in [" + std::to_string(lo) + ", " +
+                                std::to_string(hi) + "]");
+  return value;
+}
+
+}  // namespace
+
+void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
+  cmd.add_option("--wall", o.wall, "Wall file (walls/*.json, or a Tide configuration)")->required();
+  cmd.add_option("--surface", o.surface,
+                 "Which surface of a Tide configuration with several to show (0: the first; "
+                 "the sink lists them when it starts)")
+      ->capture_default_str();
+  cmd.add_option("--listen", o.listen,
+                 "Address and port to listen on (loopback by default; 0.0.0.0:PORT for all)")
+      ->capture_default_str();
+  cmd.add_option("--out", o.out,
+                 "Write every presented frame as DIR/frame_NNNNN_<display>.png (or .jpg), on a "
+                 "thread of its own: a writer that falls behind skips frames, never the wall");
+  cmd.add_option("--out-format", o.outFormat,
+                 "The displays' files: png (lossless, zlib level 1) or jpg (quality 95, several "
+                 "times faster)")
+      ->capture_default_str();
+  cmd.add_option("--write-queue", o.writeQueue,
+                 "Presented frames waiting to be written; when it is full the oldest is skipped")
+      ->capture_default_str();
+  cmd.add_flag("--mosaic", o.mosaic,
+               "Also write the whole virtual screen, bezels included (the ranks then send the "
+               "bezels' pixels too, and a frame is complete when the whole screen arrived)");
+  cmd.add_option("--token", o.token,
+                 "Refuse peers and pages that do not present this token (it travels in clear "
+                 "text: tunnel the ports through SSH or keep them on a private network)");
+  cmd.add_option("--frames", o.frames,
+                 "Exit after this many frames were presented or dropped (incomplete), once the "
+                 "presented ones are written; 0: run until interrupted")
+      ->capture_default_str();
+  cmd.add_option("--pending", o.pending,
+                 "Incomplete frames held at once before the oldest is dropped")
+      ->capture_default_str();
+  cmd.add_option("--pending-mib", o.pendingMiB,
+                 "Memory for tiles of incomplete frames; when it is full the oldest frame is "
+                 "dropped (default 0: room for two frames of raw pixels of this wall plus 64 MiB)")
+      ->capture_default_str();
+  cmd.add_option("--max-peers", o.maxPeers,
+                 "Connections at once (ranks, rank 0's control, not yet greeted); more are "
+                 "refused")
+      ->capture_default_str();
+  cmd.add_option("--hello-timeout-ms", o.helloTimeoutMs,
+                 "Drop a peer that has not said Hello by then")
+      ->capture_default_str();
+  cmd.add_option("--http", o.http,
+                 "Serve the wall's pages at HOST:PORT (e.g. 127.0.0.1:8080): / the overview (the "
+                 "live wall, the load balancer's rectangles, camera control by mouse and touch), "
+                 "/display/<name> one display at native resolution for a kiosk browser, "
+                 "/displays the list with launch lines. Loopback is the safe choice: reach it "
+                 "through an SSH tunnel (ssh -L 8080:127.0.0.1:8080 wallhost). With --token the "
+                 "pages ask for it");
+  cmd.add_option("--http-origin", o.httpOrigins,
+                 "Another Origin whose pages may use the pages' WebSockets (e.g. "
+                 "http://localhost:8080 when tunnelled under another name); repeatable");
+  cmd.add_option("--max-viewers", o.maxViewers, "Overview pages at once; more are refused")
+      ->capture_default_str();
+  cmd.add_option("--max-display-pages", o.maxDisplayPages,
+                 "Display pages at once; more are refused (0: two per display, plus 8)")
+      ->capture_default_str();
+  cmd.add_option("--swap-timeout", o.swapTimeoutMs,
+                 "Milliseconds a display page may take to be ready for a frame before it leaves "
+                 "the swap barrier (it rejoins when it keeps up); the wall never waits longer")
+      ->capture_default_str();
+  cmd.add_flag("--no-stdin", o.noStdin, "Do not read camera commands from stdin");
+  cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
+}
+
+walls::SinkSettings sinkSettings(const SinkOptions& o) {
+  walls::SinkSettings s;
+  s.wall = walls::selectSurface(walls::loadWalls(o.wall), o.surface, o.wall);
+  std::tie(s.listenHost, s.listenPort) = net::parseEndpoint(o.listen, "--listen");
+  s.outDir = o.out;
+  if (o.outFormat == "png")
+    s.outFormat = walls::FrameFormat::Png;
+  else if (o.outFormat == "jpg" || o.outFormat == "jpeg")
+    s.outFormat = walls::FrameFormat::Jpeg;
+  else
+    throw std::invalid_argument("--out-format '" + o.outFormat + "': expected png or jpg");
+  s.writeQueue = inRange(o.writeQueue, 1, 1024, "--write-queue");
+  s.mosaic = o.mosaic;
+  s.token = o.token;
+  s.maxFrames = inRange(o.frames, 0, 1 << 30, "--frames");
+  s.pendingFrames = inRange(o.pending, 1, 64, "--pending");
+  s.maxPeers = inRange(o.maxPeers, 1, 65536, "--max-peers");
+  s.helloTimeoutMs = inRange(o.helloTimeoutMs, 1, 600000, "--hello-timeout-ms");
+  if (o.pendingMiB > (1u << 20)) throw std::invalid_argument("--pending-mib is over 1 TiB");
+  s.pendingBytes = o.pendingMiB << 20;
+  if (!o.http.empty()) {
+    std::tie(s.httpHost, s.httpPort) = net::parseEndpoint(o.http, "--http");
+    for (const auto& origin : o.httpOrigins)
+      if (origin.rfind("http://", 0) != 0 && origin.rfind("https://", 0) != 0)
+        throw std::invalid_argument("--http-origin '" + origin +
+                                    "': expected http://HOST[:PORT] or https://HOST[:PORT]");
+    s.httpOrigins = o.httpOrigins;
+  } else if (!o.httpOrigins.empty()) {
+    throw std::invalid_argument("--http-origin goes with --http");
+  }
+  s.maxViewers = inRange(o.maxViewers, 1, 4096, "--max-viewers");
+  s.maxDisplayPages = inRange(o.maxDisplayPages, 0, 4096, "--max-display-pages");
+  s.swapTimeoutMs = inRange(o.swapTimeoutMs, 1, 60000, "--swap-timeout");
+  return s;
+}
+
+}  // namespace voxwall::cli
