@@ -5,7 +5,7 @@
 // time; it prints one line of key=value results.
 //
 //   voxwall_bench_wall_replay --wall WALL.json --frame FRAME.png --sink HOST:PORT
-//       [--http PORT] [--pages N|all] [--ranks R] [--frames F] [--quality Q]
+//       [--http PORT] [--pages N|all] [--ranks R] [--frames F] [--quality Q] [--rate FPS]
 //
 // The stream is what R ranks send for a frame: the screen in R strips, each rendered in bands of
 // 1024 rows, cut into JPEG segments at the display edges the sink's Welcome lists and every 1024
@@ -16,6 +16,7 @@
 #include <utility>
 // clang-format on
 #include <atomic>
+#include <barrier>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/websocket.hpp>
@@ -44,13 +45,14 @@ namespace {
 struct Options {
   std::string wall, frame, sink;
   int httpPort = 0, pages = -1, ranks = 2, frames = 300, quality = 90;
+  double rate = 0;  // frames per second to send at; 0: as fast as the sink takes them
 };
 
 [[noreturn]] void usage(const char* why) {
   std::fprintf(stderr,
                "wall_replay: %s\nusage: voxwall_bench_wall_replay --wall WALL.json --frame "
                "FRAME.png --sink HOST:PORT [--http PORT] [--pages N|all] [--ranks R] [--frames F] "
-               "[--quality Q]\n",
+               "[--quality Q] [--rate FPS]\n",
                why);
   std::exit(2);
 }
@@ -77,6 +79,8 @@ Options parse(int argc, char** argv) {
       o.frames = std::atoi(v.c_str());
     else if (a == "--quality")
       o.quality = std::atoi(v.c_str());
+    else if (a == "--rate")
+      o.rate = std::atof(v.c_str());
     else
       usage(("unknown option " + a).c_str());
   }
@@ -97,6 +101,7 @@ struct FakePage {
       boost::asio::io_context io;
       websocket::stream<tcp::socket> ws(io);
       ws.next_layer().connect({boost::asio::ip::make_address("127.0.0.1"), port});
+      ws.next_layer().set_option(tcp::no_delay(true));  // as browsers do
       ws.handshake("127.0.0.1:" + std::to_string(port), "/ws/display/" + display);
       connected = true;
       beast::flat_buffer in;
@@ -200,7 +205,12 @@ int main(int argc, char** argv) {
     std::atomic<bool> stop{false};
     std::thread notes([&] {
       while (!stop) {
-        const auto m = controller->receive(50);
+        std::optional<net::Message> m;
+        try {
+          m = controller->receive(50);
+        } catch (const std::exception&) {
+          return;  // the sink closed: it has settled every frame it will
+        }
         if (!m || m->type != net::MessageType::FrameNote) continue;
         const auto note = net::decodeFrameNote(m->payload, "sink");
         if (note.status == net::FrameStatus::Presented)
@@ -210,19 +220,38 @@ int main(int argc, char** argv) {
       }
     });
     const auto start = Clock::now();
+    // The ranks send in parallel and move to the next frame together, as rank 0's frame loop
+    // makes them (a frame task for everyone once every report is in).
+    std::barrier nextFrame(o.ranks);
+    std::atomic<bool> lost{false};
     std::vector<std::thread> senders;
     for (int r = 0; r < o.ranks; ++r)
       senders.emplace_back([&, r] {
+        auto& c = *ranks[std::size_t(r)];
+        const auto& mine = tiles[std::size_t(r)];
         for (int f = 0; f < o.frames; ++f) {
+          if (o.rate > 0)  // the frame's time in a stream of o.rate frames per second
+            std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(
+                                                      std::chrono::duration<double>(f / o.rate)));
           const auto decided = net::unixMicrosNow();
-          for (const auto& t : tiles[std::size_t(r)])
-            ranks[std::size_t(r)]->send(net::encodeMessage(
-                std::uint64_t(f), net::TileMessage{t.rect, t.codec, decided, t.bytes, 1, 1000}));
-          ranks[std::size_t(r)]->send(net::encodeMessage(
-              std::uint64_t(f), net::FrameEnd{r, std::uint32_t(tiles[std::size_t(r)].size())}));
+          try {
+            if (!lost) {
+              for (const auto& t : mine)
+                c.send(net::encodeMessage(
+                    std::uint64_t(f),
+                    net::TileMessage{t.rect, t.codec, decided, t.bytes, 1, 1000}));
+              c.send(net::encodeMessage(std::uint64_t(f),
+                                        net::FrameEnd{r, std::uint32_t(mine.size())}));
+            }
+          } catch (const std::exception& e) {
+            if (!lost.exchange(true))
+              std::fprintf(stderr, "wall_replay: rank %d: %s\n", r, e.what());
+          }
+          nextFrame.arrive_and_wait();
         }
       });
     for (auto& s : senders) s.join();
+    if (lost) return 1;
     // The sink's word on every frame, at most 30 s more.
     const auto waitUntil = Clock::now() + std::chrono::seconds(30);
     while (presented + dropped < o.frames && Clock::now() < waitUntil)

@@ -509,6 +509,10 @@ void WebView::Impl::accept() {
       self->accept();
       return;
     }
+    // Small messages go out at once: the swap barrier's "show" must not wait for Nagle's
+    // algorithm to gather more (40 ms per round on Linux, with delayed acknowledgements).
+    boost::system::error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);
     auto session = std::make_shared<HttpSession>(std::move(socket), self);
     self->requests[session.get()] = session;
     session->start();

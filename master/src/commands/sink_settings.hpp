@@ -14,7 +14,7 @@ namespace voxwall::cli {
 struct SinkOptions {
   std::string wall, listen = "127.0.0.1:7400", out, outFormat = "png", token, http;
   std::vector<std::string> httpOrigins;
-  int surface = 0, frames = 0, pending = 4, maxPeers = 256, helloTimeoutMs = 5000;
+  int surface = 0, frames = 0, pending = 16, maxPeers = 256, helloTimeoutMs = 5000;
   int maxViewers = 64, maxDisplayPages = 0, swapTimeoutMs = 500, writeQueue = 8;
   std::uint64_t pendingMiB = 0;
   bool mosaic = false, quiet = false, noStdin = false;

@@ -40,8 +40,8 @@ std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
 // FormatError("<path>: ...") naming the reason.
 FileDigest writeImage(const Image& image, const std::string& path,
                       const std::optional<glm::dvec3>& background = std::nullopt);
-// How encodeOpaqueImage compresses: PNG's zlib level (0-9; 1 is several times faster than the
-// default 6 for frames of a volume, with files about a third larger) and JPEG's quality.
+// How encodeOpaqueImage compresses: PNG's zlib level (0-9; 1 by default: the sink's files must
+// keep up with the wall) and JPEG's quality.
 struct ImageEncoding {
   int pngLevel = 1;
   int jpegQuality = 95;

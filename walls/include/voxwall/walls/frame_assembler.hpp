@@ -60,7 +60,7 @@ struct FrameEvent {
 };
 
 struct AssemblerLimits {
-  int pendingFrames = 4;           // open frames at once; the oldest is dropped
+  int pendingFrames = 16;          // open frames at once; the oldest is dropped
   std::uint64_t pendingBytes = 0;  // bytes held for open frames; 0: defaultPendingBytes(wall)
   std::uint64_t frameWindow = kDefaultFrameWindow;
   // Every virtual-screen pixel must arrive, bezels too (the sink writes the whole screen and

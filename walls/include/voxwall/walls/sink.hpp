@@ -31,9 +31,11 @@ struct SinkSettings {
   std::string outDir;                    // empty: frames are assembled and counted, not written
   bool mosaic = false;  // also write the whole virtual screen (the ranks then send bezels too)
   FrameFormat outFormat = FrameFormat::Png;  // the displays' files
-  int writeQueue = 8;     // presented frames waiting to be written; beyond, the oldest is skipped
-  int maxFrames = 0;      // stop after this many frames were presented or dropped (0: never)
-  int pendingFrames = 4;  // incomplete frames held at once; the oldest is dropped
+  int writeQueue = 8;  // presented frames waiting to be written; beyond, the oldest is skipped
+  int maxFrames = 0;   // stop after this many frames were presented or dropped (0: never)
+  // Incomplete frames held at once; the oldest is dropped. Ranks a few frames apart in the
+  // kernel's socket buffers are normal at full speed (a bigeye frame is about 1 MB of JPEG).
+  int pendingFrames = 16;
   std::uint64_t pendingBytes = 0;       // bytes held for incomplete frames; 0: 2 frames + 64 MiB
   std::uint64_t frameWindow = 1 << 16;  // frame ids accepted past the last complete one
   int maxPeers = 256;                   // connections at once; more are refused
