@@ -14,3 +14,6 @@ echo "== What shading costs per codec: unshaded, six-sample gradients, cell grad
 /usr/bin/python3 bench/shading_bench.py --voxwall "$build/master/voxwall"
 echo "== Steering the bigeye wall: frames while dragging (interactive 1/4) against full frames"
 /usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading
+echo "== The wall's frame rate at the sink: a bigeye stream to 12 display pages, files, chromium pages"
+/usr/bin/python3 bench/wall_fps.py --voxwall "$build/master/voxwall" \
+  --replay "$build/bench/voxwall_bench_wall_replay" --chromium 4 --chromium-rate 3

@@ -133,7 +133,7 @@ def chromium_skew(args, work):
     chromium = shutil.which("chromium")
     if not chromium:
         fail("--chromium needs Debian's chromium")
-    sink = Sink(args, work, ["--http", "127.0.0.1:0"], 100000)
+    sink = Sink(args, work, ["--http", "127.0.0.1:0", "--swap-lead", str(args.swap_lead)], 100000)
     listing = json.load(urllib.request.urlopen(f"http://127.0.0.1:{sink.http}/displays.json"))
     names = [d["name"] for d in listing["displays"]][:args.chromium]
     browsers = []
@@ -150,10 +150,10 @@ def chromium_skew(args, work):
     try:
         wait_for("the chromium pages to connect", lambda: sink.text().count(
             "display page r") >= len(names), 60)
-        # Frames at the rate the pages take them: the replay waits for nothing, the sink's
-        # barrier paces the pages, newest frame first.
+        # A stream at --chromium-rate: the barrier paces the pages, newest frame first.
         cmd = [args.replay, "--wall", args.wall, "--frame", args.frame,
-               "--sink", f"127.0.0.1:{sink.port}", "--frames", "100000", "--ranks", "2"]
+               "--sink", f"127.0.0.1:{sink.port}", "--frames", "100000", "--ranks", "2",
+               "--rate", str(args.chromium_rate)]
         feeder = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(args.chromium_seconds)
         feeder.kill()
@@ -168,12 +168,14 @@ def chromium_skew(args, work):
         r"shown together on (\d+) display page\(s\), spread ([0-9.]+) ms", sink.text())]
     full = [s for n, s in spreads if n == len(names)]
     if len(full) < 5:
-        fail(f"only {len(full)} frames were shown together on all {len(names)} chromium pages "
-             f"(log: {sink.log})")
+        tail = "".join(sink.text().splitlines(True)[-15:])
+        fail(f"only {len(full)} frames were shown together on all {len(names)} chromium pages; "
+             f"the sink's log ends:\n{tail}")
     full.sort()
     p95 = full[min(len(full) - 1, int(round(0.95 * (len(full) - 1))))]
     return {"pages": len(names), "frames": len(full), "median": statistics.median(full),
-            "p95": p95, "max": full[-1], "per_s": len(full) / args.chromium_seconds}
+            "p95": p95, "max": full[-1], "per_s": len(full) / args.chromium_seconds,
+            "rate": args.chromium_rate, "lead": args.swap_lead}
 
 
 def main():
@@ -186,6 +188,12 @@ def main():
     ap.add_argument("--out-frames", type=int, default=40)
     ap.add_argument("--chromium", type=int, default=0, help="headless chromium pages (0: none)")
     ap.add_argument("--chromium-seconds", type=float, default=30)
+    ap.add_argument("--chromium-rate", type=float, default=10,
+                    help="frames per second streamed to the chromium pages")
+    ap.add_argument("--swap-lead", type=int, default=25,
+                    help="the sink's --swap-lead for the chromium run")
+    ap.add_argument("--skip-sink-runs", action="store_true",
+                    help="only the chromium run (with --chromium)")
     args = ap.parse_args()
     for tool in (args.voxwall, args.replay):
         if not os.access(tool, os.X_OK):
@@ -204,25 +212,26 @@ def main():
               f"{os.path.basename(args.wall)}; 2 ranks replayed at full speed")
         print()
         http = ["--http", "127.0.0.1:0"]
-        runs = [sink_run(args, work, "no output, nobody watching", []),
+        runs = [] if args.skip_sink_runs else [sink_run(args, work, "no output, nobody watching", []),
                 sink_run(args, work, "12 display pages, stream at full speed", http, pages=12),
                 sink_run(args, work, "12 display pages, a 30 frames/s stream", http, pages=12,
                          rate=30),
                 sink_run(args, work, "12 display pages, a 60 frames/s stream", http, pages=12,
                          rate=60)]
         out = os.path.join(work, "out")
-        for label, extra in (("--out (PNG)", []), ("--out --out-format jpg", ["--out-format", "jpg"]),
+        for label, extra in () if args.skip_sink_runs else (("--out (PNG)", []), ("--out --out-format jpg", ["--out-format", "jpg"]),
                              ("--out --mosaic (PNG)", ["--mosaic"])):
             shutil.rmtree(out, ignore_errors=True)
             runs.append(sink_run(args, work, label, extra, frames=args.out_frames, out=out))
-        first = runs[0]
-        print(f"The stream: {first['frame_bytes'] / 1024:.0f} KiB a frame in "
-              f"{first['segments']:.0f} segments.")
-        print()
-        print("| sink | frames presented | presented/s | switched together on all pages/s | "
-              "frames written/s | sink CPU per frame | sink cores busy | bytes per display per "
-              "frame |")
-        print("|---|---|---|---|---|---|---|---|")
+        if runs:
+            first = runs[0]
+            print(f"The stream: {first['frame_bytes'] / 1024:.0f} KiB a frame in "
+                  f"{first['segments']:.0f} segments.")
+            print()
+            print("| sink | frames presented | presented/s | switched together on all pages/s | "
+                  "frames written/s | sink CPU per frame | sink cores busy | bytes per display "
+                  "per frame |")
+            print("|---|---|---|---|---|---|---|---|")
         for r in runs:
             cells = [r["label"], f"{r['presented']} of {r['frames']}",
                      f"{r['presented_per_s']:.1f}",
@@ -235,10 +244,12 @@ def main():
         if args.chromium:
             s = chromium_skew(args, work)
             print()
-            print(f"Headless chromium display pages ({s['pages']}, one process each, "
-                  f"{args.chromium_seconds:.0f} s): {s['frames']} frames shown together on all "
-                  f"pages ({s['per_s']:.1f}/s); show-time spread median {s['median']:.1f} ms, "
-                  f"p95 {s['p95']:.1f} ms, max {s['max']:.1f} ms.")
+            print(f"Headless chromium display pages ({s['pages']}, one process each, a "
+                  f"{s['rate']:.0f} frames/s stream for {args.chromium_seconds:.0f} s, "
+                  f"--swap-lead {s['lead']}): "
+                  f"{s['frames']} frames shown together on all pages ({s['per_s']:.1f}/s); "
+                  f"show-time spread median {s['median']:.1f} ms, p95 {s['p95']:.1f} ms, "
+                  f"max {s['max']:.1f} ms.")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

@@ -2,13 +2,14 @@
 // (after a first byte that picks the wall and limits) is a byte stream of wire messages from a
 // sequence of peers. Each message goes through the same steps as on a socket: header check,
 // the payload limit before Hello, payload check, SinkCore::handle (handshake, token, jobs,
-// tiles into the FrameAssembler). A peer that breaks the protocol is dropped and the next bytes
-// come from a new peer. Anything but a clean return is a bug; so is an open frame holding more
-// than the memory limit.
+// tiles into the FrameAssembler), and every presented frame decoded as the file writer would. A
+// peer that breaks the protocol is dropped and the next bytes come from a new peer. Anything but a
+// clean return is a bug; so is an open frame holding more than the memory limit.
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/walls/frame_pixels.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
 using namespace voxwall;
@@ -44,8 +45,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   settings.pendingBytes = data[0] & 0x80 ? 64 * 1024 : 0;
   int presented = 0;
   walls::SinkCore core(settings, {}, [&](std::uint64_t, walls::AssembledFrame&& f) {
-    if (f.image.width != settings.wall.width || f.image.height != settings.wall.height)
-      std::abort();
+    // A presented frame's segments lie on the screen; decoding them (as the file writer and the
+    // overview do) gives a whole screen or a FormatError (a corrupt body behind a good header).
+    for (const auto& s : f.segments)
+      if (!s.screen.fitsIn(settings.wall.width, settings.wall.height)) std::abort();
+    try {
+      const auto image =
+          walls::decodeRegion(f, {0, 0, settings.wall.width, settings.wall.height}, 1, 0, 1);
+      if (image.width != settings.wall.width || image.height != settings.wall.height) std::abort();
+    } catch (const FormatError&) {
+    }
     ++presented;
   });
   auto peer = std::make_unique<FuzzPeer>();

@@ -16,88 +16,19 @@ Exits 0 when every check passed; one line saying what failed and 1 otherwise.
 """
 import argparse
 import base64
-import math
 import os
 import re
 import shlex
-import signal
-import struct
 import subprocess
 import sys
 import tempfile
 import time
-import zlib
 
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.actions.action_builder import ActionBuilder
 from selenium.webdriver.common.by import By
 
-
-class Failure(Exception):
-    pass
-
-
-def read_png(data):
-    """8-bit RGB or RGBA, non-interlaced PNG bytes -> (width, height, rows of RGB bytes)."""
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        raise Failure("not a PNG")
-    pos, idat, width = 8, b"", None
-    while pos < len(data):
-        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + length]
-        pos += 12 + length
-        if kind == b"IHDR":
-            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
-            if depth != 8 or colour not in (2, 6) or interlace:
-                raise Failure(f"PNG kind not handled (depth {depth}, colour {colour})")
-            channels = 3 if colour == 2 else 4
-        elif kind == b"IDAT":
-            idat += body
-    raw = zlib.decompress(idat)
-    stride = width * channels
-    rows, prev = [], bytearray(stride)
-    for y in range(height):
-        f = raw[y * (stride + 1)]
-        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            a = line[i - channels] if i >= channels else 0
-            b = prev[i]
-            c = prev[i - channels] if i >= channels else 0
-            if f == 1:
-                line[i] = (line[i] + a) & 255
-            elif f == 2:
-                line[i] = (line[i] + b) & 255
-            elif f == 3:
-                line[i] = (line[i] + (a + b) // 2) & 255
-            elif f == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(bytes(line))
-        prev = line
-    rgb = [bytes(r[i] for i in range(len(r)) if i % channels < 3) for r in rows]
-    return width, height, rgb
-
-
-def psnr(a, b):
-    """PSNR in dB of two lists of RGB rows of equal size."""
-    se = n = 0
-    for ra, rb in zip(a, b):
-        se += sum((x - y) ** 2 for x, y in zip(ra, rb))
-        n += len(ra)
-    return math.inf if se == 0 else 10 * math.log10(255 * 255 * n / se)
-
-
-def wait(what, condition, seconds):
-    deadline = time.time() + seconds
-    while time.time() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise Failure(f"timed out after {seconds} s waiting for {what}")
+from webtest import Failure, Processes, chromium, psnr, read_png, wait
 
 
 def page_frame(driver):
@@ -155,14 +86,8 @@ def main():
         args.volume = os.path.abspath(args.volume)
 
     work = tempfile.mkdtemp(prefix="voxwall-web.")
-    procs = []
+    procs = Processes(work)
     driver = None
-
-    def start(cmd, log):
-        p = subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT, cwd=work,
-                             start_new_session=True)
-        procs.append(p)
-        return p
 
     try:
         volume = args.volume
@@ -173,8 +98,8 @@ def main():
         wall = os.path.join(args.walls, args.wall + ".json")
         wall_dir = os.path.join(work, "wall")
         sink_log = os.path.join(work, "sink.log")
-        sink = start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
-                      "127.0.0.1:0", "--out", wall_dir, "--mosaic", "--no-stdin"], sink_log)
+        procs.start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
+                     "127.0.0.1:0", "--out", wall_dir, "--mosaic", "--no-stdin"], "sink.log")
 
         def sink_ports():
             text = open(sink_log).read()
@@ -183,21 +108,12 @@ def main():
             return (tiles.group(1), page.group(1)) if tiles and page else None
 
         tile_port, url = wait("the sink to listen", sink_ports, 30)
-        render_log = os.path.join(work, "render.log")
-        start([args.mpiexec, *shlex.split(args.preflags), "-np", "2", args.voxwall, "render",
-               volume, "--wall", wall, "--sink", "127.0.0.1:" + tile_port, "--frames", "100000",
-               "--path", "still", "--threads", "1", "--settle", "1", "-q"], render_log)
+        procs.start([args.mpiexec, *shlex.split(args.preflags), "-np", "2", args.voxwall,
+                     "render", volume, "--wall", wall, "--sink", "127.0.0.1:" + tile_port,
+                     "--frames", "100000", "--path", "still", "--threads", "1", "--settle", "1",
+                     "-q"], "render.log")
 
-        options = webdriver.ChromeOptions()
-        options.binary_location = "/usr/bin/chromium"
-        for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                     "--no-first-run", "--disable-background-networking",
-                     "--disable-component-update", "--disable-sync",
-                     "--disable-dev-shm-usage", f"--window-size={args.window}",
-                     f"--user-data-dir={os.path.join(work, 'chromium')}"):
-            options.add_argument(flag)
-        driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
-        driver.set_script_timeout(30)
+        driver = chromium(work, "wall", args.window)
         driver.get(url)
         state = lambda key: driver.execute_script(f"return window.voxwall.{key};")
         wait("frames on the page", lambda: (state("frames") or 0) >= 3, 120)
@@ -284,17 +200,8 @@ def main():
     finally:
         if driver:
             driver.quit()
-        for p in reversed(procs):
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-                p.wait(timeout=10)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
-                try:
-                    os.killpg(p.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
+        procs.stop_all()
         subprocess.run(["rm", "-rf", work])
-
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -153,6 +153,7 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
     web.maxViewers = s.settings.maxViewers;
     web.maxDisplayPages = s.settings.maxDisplayPages;
     web.swapTimeoutMs = s.settings.swapTimeoutMs;
+    web.swapLeadMs = s.settings.swapLeadMs;
     s.web = std::make_unique<WebView>(
         s.settings.wall, web, [this](const net::Control& c) { sendControl(c); }, s.log,
         [this](const WebView::SwapStats& swap) {

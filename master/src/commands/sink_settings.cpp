@@ -78,6 +78,12 @@ void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
                  "Milliseconds a display page may take to be ready for a frame before it leaves "
                  "the swap barrier (it rejoins when it keeps up); the wall never waits longer")
       ->capture_default_str();
+  cmd.add_option("--swap-lead", o.swapLeadMs,
+                 "Display pages are told to show a frame this many milliseconds ahead, on the "
+                 "display refresh nearest that moment, so that they switch on the same refresh "
+                 "(display hosts' clocks must agree, e.g. through NTP; a page whose clock is off "
+                 "by over a second shows at once)")
+      ->capture_default_str();
   cmd.add_flag("--no-stdin", o.noStdin, "Do not read camera commands from stdin");
   cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
 }
@@ -115,6 +121,7 @@ walls::SinkSettings sinkSettings(const SinkOptions& o) {
   s.maxViewers = inRange(o.maxViewers, 1, 4096, "--max-viewers");
   s.maxDisplayPages = inRange(o.maxDisplayPages, 0, 4096, "--max-display-pages");
   s.swapTimeoutMs = inRange(o.swapTimeoutMs, 1, 60000, "--swap-timeout");
+  s.swapLeadMs = inRange(o.swapLeadMs, 0, 1000, "--swap-lead");
   return s;
 }
 

@@ -27,18 +27,20 @@
 //   page -> sink  "auth TOKEN" | "rotate DAZ DEL" | "zoom FACTOR" | "pan DX DY" | "reset"
 // Display page WebSocket:
 //   sink -> page  {"type":"display", "name", "wall", "x", "y", "w", "h" (its rectangle on the
-//                  virtual screen), "token", "swap_timeout_ms", "background":"#rrggbb"} (on
-//                  connect)
+//                  virtual screen), "token", "swap_timeout_ms", "background":"#rrggbb"}
+//                  (on connect)
 //                 {"type":"auth", "ok": true}
 //                 binary: u32 n, n bytes of JSON {"type":"frame", "frame", "seq" (the sink's
 //                  count of presented frames: frame ids restart with each job), "step",
 //                  "latency_ms", "segments":[{"x","y","w","h" (pixels of the frame's screen,
 //                  reduced at step > 1), "codec":"jpeg"|"raw"|"deflate", "bytes"}]}, then each
-//                  segment's bytes as the rank sent them, in that order: every segment that touches
-//                  the display
-//                  {"type":"show", "frame"}         show that frame on the next display refresh
-//   page -> sink  "auth TOKEN" | "ready FRAME" (decoded, can show it) | "shown FRAME UNIXMS" (when
-//                  it showed it: milliseconds since 1970 with a fraction, the page's clock)
+//                  segment's bytes as the rank sent them, in that order: every segment that
+//                  touches the display
+//                 {"type":"show", "seq", "at"}  show that frame on the display refresh nearest
+//                  "at" (Unix milliseconds on the sink's clock, which pages on other hosts share
+//                  through NTP; a page whose clock is over a second off shows it at once)
+//   page -> sink  "auth TOKEN" | "ready SEQ" (decoded, can show it) | "shown SEQ UNIXMS" (when it
+//                  showed it: milliseconds since 1970 with a fraction, the page's clock)
 // The sink reports the spread of the "shown" times of every frame the pages switched to together.
 // Security: with a token, a viewer or page gets nothing and no command is taken before "auth"
 // with the right one (a wrong one closes the connection). A WebSocket whose Origin is not this
@@ -76,6 +78,9 @@ struct WebViewSettings {
   int maxViewers = 64;               // overview WebSockets at once; more are refused
   int maxDisplayPages = 0;           // display pages at once; 0: 2 per display, plus 8
   int swapTimeoutMs = 500;           // a display page not ready by then leaves the barrier
+  // Pages are told to show a frame at "now + swapLeadMs" (Unix time): every page draws it on the
+  // display refresh nearest that moment, whatever moment the message reached it.
+  int swapLeadMs = 25;
   int maxWidth = 1920;               // overview frames are scaled down by whole factors to fit
   int jpegQuality = 80;
   double commandsPerSecond = 60;       // per viewer (a burst of twice that is allowed)

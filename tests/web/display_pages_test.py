@@ -1,0 +1,195 @@
+#!/usr/bin/env python3
+"""The displays' pages in real browsers: a `voxwall sink --http` on the ci-2x2 wall fed by a
+2-rank render on loopback, and one headless chromium per display (as one kiosk browser per
+display host would be), each on /display/<name>.
+
+It checks that
+  - each page shows exactly its display of the frame the sink presented: the page's picture at
+    the display's resolution equals the sink's own file of that display and frame (exactly with
+    deflate tiles; >= 35 dB with JPEG tiles, from a second render job);
+  - the pages switch together: between the first and the last frame all of them showed, each
+    showed the same frames, the same frame id at each swap;
+  - a page closed mid-run does not stop the other three from switching frames, and the sink
+    names it; reopened, it shows frames again and is back in the barrier.
+
+Usage: display_pages_test.py --voxwall BIN --mpiexec MPIEXEC [--preflags "..."] --walls DIR
+Exits 0 when every check passed; one line saying what failed and 1 otherwise.
+"""
+import argparse
+import base64
+import os
+import re
+import shlex
+import subprocess
+import sys
+import tempfile
+
+from webtest import Failure, Processes, chromium, psnr, read_png, wait
+
+
+def page_picture(driver):
+    """The page's front frame at the display's resolution: its metadata and RGB rows."""
+    got = driver.execute_script("return window.voxwall.pixels();")
+    if not got:
+        return None
+    rgba = base64.b64decode(got["rgba"])
+    w = got["width"]
+    rows = [bytes(b for i, b in enumerate(rgba[y * 4 * w:(y + 1) * 4 * w]) if i % 4 < 3)
+            for y in range(got["height"])]
+    return got, rows
+
+
+def history(driver):
+    return driver.execute_script("return window.voxwall.history;") or []
+
+
+def check_pictures(pages, wall_dir, exact, what):
+    """Each page's picture against the sink's file of its display for the same frame."""
+    results = []
+    for name, driver in pages.items():
+        got = wait(f"a frame on page {name}", lambda: page_picture(driver), 60)
+        meta, rows = got
+        path = os.path.join(wall_dir, "frame_%05d_%s.png" % (meta["frame"], name))
+        wait(f"the sink's file {os.path.basename(path)}", lambda: os.path.exists(path), 30)
+        w, h, ref = read_png(open(path, "rb").read())
+        if (w, h) != (meta["width"], meta["height"]):
+            raise Failure(f"{what}: page {name} shows {meta['width']}x{meta['height']}, the "
+                          f"display is {w}x{h}")
+        value = psnr(rows, ref)
+        if exact and value != float("inf"):
+            raise Failure(f"{what}: page {name}'s frame {meta['frame']} differs from the sink's "
+                          f"file ({value:.1f} dB; deflate tiles must be exact)")
+        if not exact and value < 35:
+            raise Failure(f"{what}: page {name}'s frame {meta['frame']} is {value:.1f} dB from "
+                          "the sink's file (at least 35 expected)")
+        results.append(value)
+    return results
+
+
+def check_together(pages, names, after=-1):
+    """The pages `names` switched together: between the first and the last frame they all
+    showed after swap `after`, each showed the same frames (the same frame id at each swap) and
+    none showed one the others did not (the swap timeout is long here, so no page in the barrier
+    leaves it)."""
+    shown = {n: [(h["seq"], h["frame"]) for h in history(pages[n]) if h["seq"] > after]
+             for n in names}
+    common = set.intersection(*(set(s) for s in shown.values()))
+    if len(common) < 3:
+        raise Failure(f"only {len(common)} frames were shown on all of {names}")
+    first, last = min(common), max(common)
+    spans = {n: [x for x in shown[n] if first <= x <= last] for n in names}
+    for n in names[1:]:
+        if spans[n] != spans[names[0]]:
+            raise Failure(f"pages {names[0]} and {n} did not switch together: "
+                          f"{spans[names[0]][:8]} against {spans[n][:8]} (seq, frame)")
+    return len(common)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--voxwall", required=True)
+    ap.add_argument("--mpiexec", required=True)
+    ap.add_argument("--preflags", default="")
+    ap.add_argument("--walls", required=True)
+    args = ap.parse_args()
+    args.voxwall, args.walls = os.path.abspath(args.voxwall), os.path.abspath(args.walls)
+
+    work = tempfile.mkdtemp(prefix="voxwall-displays.")
+    procs = Processes(work)
+    pages = {}
+    try:
+        volume = os.path.join(work, "vol.vwz")
+        subprocess.run([args.voxwall, "compress", "generated:shepp-logan:64", "-o", volume, "-q"],
+                       check=True, timeout=120, stdout=subprocess.DEVNULL)
+        wall = os.path.join(args.walls, "ci-2x2.json")
+        wall_dir = os.path.join(work, "wall")
+        # A long swap timeout: a browser stalled by a busy machine must not leave the barrier
+        # here (leaving and rejoining is the unit tests' business); a closed page leaves at once.
+        procs.start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
+                     "127.0.0.1:0", "--out", wall_dir, "--swap-timeout", "5000", "--no-stdin"],
+                    "sink.log")
+
+        def sink_ports():
+            text = procs.log("sink.log")
+            tiles = re.search(r"listening on 127\.0\.0\.1:(\d+)", text)
+            page = re.search(r"wall page at (http://127\.0\.0\.1:\d+)/", text)
+            return (tiles.group(1), page.group(1)) if tiles and page else None
+
+        tile_port, base = wait("the sink to listen", sink_ports, 30)
+
+        def render(codec, log):
+            return procs.start([args.mpiexec, *shlex.split(args.preflags), "-np", "2",
+                                args.voxwall, "render", volume, "--wall", wall, "--sink",
+                                "127.0.0.1:" + tile_port, "--frames", "100000", "--orbit-deg",
+                                "3", "--threads", "1", "--tile-codec", codec, "-q"], log)
+
+        names = ["r0c0", "r0c1", "r1c0", "r1c1"]
+
+        def open_page(name):
+            driver = chromium(work, name, "320,240")
+            driver.get(f"{base}/display/{name}")
+            pages[name] = driver
+            return driver
+
+        for name in names:
+            open_page(name)
+        job = render("deflate", "render-deflate.log")
+        for name in names:
+            wait(f"frames on page {name}", lambda: len(history(pages[name])) >= 5, 120)
+        exact = check_pictures(pages, wall_dir, True, "deflate tiles")
+        together = check_together(pages, names)
+
+        # One page goes; the other three keep switching frames without it.
+        gone = names[3]
+        pages.pop(gone).quit()
+        wait("the sink to see the page go", lambda: re.search(
+            rf"display page {gone} .* left", procs.log("sink.log")), 30)
+        rest = names[:3]
+        marks = {n: history(pages[n])[-1]["seq"] for n in rest}
+        for n in rest:
+            wait(f"page {n} to switch frames without {gone}",
+                 lambda: history(pages[n])[-1]["seq"] >= marks[n] + 3, 60)
+        check_together(pages, rest)
+
+        # Reopened, it shows frames again and is back in the barrier: from then on it switches
+        # with the others (before, it is shown frames alone as it catches up).
+        open_page(gone)
+        wait(f"page {gone} back in the barrier", lambda: len(re.findall(
+            rf"display page {gone} .* is in the swap barrier", procs.log("sink.log"))) >= 2, 60)
+        back = max(h["seq"] for n in names for h in history(pages[n]))
+        for n in names:
+            wait(f"page {n} to switch frames with {gone} back",
+                 lambda: history(pages[n])[-1]["seq"] >= back + 3, 60)
+        rejoined = check_together(pages, names, back)
+
+        # JPEG tiles from a second job: the same pages, close to the sink's pictures.
+        procs.stop(job)
+        render("jpeg", "render-jpeg.log")
+        wait("the JPEG job on the wall", lambda: "took the wall" in procs.log("sink.log"), 60)
+        mark = {n: history(pages[n])[-1]["seq"] for n in names}
+        for n in names:
+            wait(f"JPEG frames on page {n}", lambda: history(pages[n])[-1]["seq"] >= mark[n] + 3,
+                 120)
+        jpeg = check_pictures(pages, wall_dir, False, "JPEG tiles")
+        print(f"display pages: 4 pages equal the sink's files with deflate tiles "
+              f"({len(exact)} exact), {together} frames shown together on all four; three went "
+              f"on without the fourth, which rejoined ({rejoined} frames together); JPEG tiles "
+              f"{min(jpeg):.1f}-{max(jpeg):.1f} dB against the sink's files")
+        return 0
+    except (Failure, subprocess.SubprocessError) as e:
+        print(f"FAIL: {e}", file=sys.stderr)
+        for log in ("sink.log", "render-deflate.log", "render-jpeg.log"):
+            text = procs.log(log)
+            if text:
+                print(f"--- {log} (last lines)", file=sys.stderr)
+                print("".join(text.splitlines(True)[-15:]), file=sys.stderr)
+        return 1
+    finally:
+        for driver in pages.values():
+            driver.quit()
+        procs.stop_all()
+        subprocess.run(["rm", "-rf", work])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

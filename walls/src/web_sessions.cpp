@@ -1,0 +1,359 @@
+// The web view's connections (web_view_impl.hpp): HTTP requests (the pages, the display list,
+// 404 and 405, WebSocket upgrades) and WebSockets (overview viewers and display pages).
+// First: Boost 1.74's Asio uses std::exchange without including <utility>.
+// clang-format off
+#include <utility>
+// clang-format on
+#include "web_messages.hpp"
+#include "web_view_impl.hpp"
+
+namespace voxwall::walls {
+
+using namespace web;
+
+namespace {
+
+std::string peerAddress(const tcp::socket& socket) {
+  boost::system::error_code ec;
+  const auto ep = socket.remote_endpoint(ec);
+  if (ec) return "?";
+  return ep.address().to_string() + ":" + std::to_string(ep.port());
+}
+
+// "ready 12" -> 12: the whole text a number, or nothing.
+std::optional<std::uint64_t> parseUnsigned(std::string_view text) {
+  std::uint64_t value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || text.empty()) return std::nullopt;
+  return value;
+}
+
+}  // namespace
+
+WsSession::WsSession(tcp::socket socket, WebView::Impl* v, int displayIndex)
+    : ws(std::move(socket)), view(v), display(displayIndex) {
+  const auto address = peerAddress(beast::get_lowest_layer(ws).socket());
+  name = display >= 0 ? "display page " + view->wall.displays[std::size_t(display)].name + " (" +
+                            address + ")"
+                      : "viewer " + address;
+  authed = view->settings.token.empty();
+  tokens = 2 * rate();
+  ++count();
+}
+
+double WsSession::rate() const {
+  return display >= 0 ? view->settings.pageMessagesPerSecond : view->settings.commandsPerSecond;
+}
+
+void WsSession::start(http::request<http::empty_body> request) {
+  websocket::stream_base::timeout t;
+  t.handshake_timeout = std::chrono::seconds(10);
+  t.idle_timeout = std::chrono::seconds(30);
+  t.keep_alive_pings = true;
+  beast::get_lowest_layer(ws).expires_never();
+  ws.set_option(t);
+  ws.read_message_max(kMaxViewerMessage);
+  ws.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
+    if (ec) return self->gone("handshake: " + ec.message());
+    auto& v = *self->view;
+    self->open = true;
+    v.sessions[self.get()] = self;
+    if (self->display >= 0) {
+      v.say("sink: " + self->name + " connected (" + std::to_string(v.pageCount.load()) +
+            " display page(s))");
+      self->note(web::displayJson(v.wall, v.wall.displays[std::size_t(self->display)],
+                                  !v.settings.token.empty(), v.settings.swapTimeoutMs));
+      if (self->authed) v.pageJoined(self);
+    } else {
+      v.say("sink: " + self->name + " connected (" + std::to_string(v.viewerCount.load()) +
+            " watching)");
+      self->note(v.wallJson);
+    }
+    self->read();
+  });
+}
+
+void WsSession::gone(const std::string& why) {
+  if (counted) {
+    counted = false;
+    const int n = --count();
+    if (open)
+      view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
+                std::to_string(n) + (display >= 0 ? " display page(s)" : " watching"));
+  }
+  if (open) {
+    open = false;
+    view->sessions.erase(this);
+    if (page) view->pageLeft(std::exchange(page, 0));
+  }
+  beast::get_lowest_layer(ws).close();
+}
+
+void WsSession::refuse(websocket::close_code code, const std::string& reason) {
+  if (closing) return;
+  closing = true;
+  view->say("sink: " + name + " closed: " + reason);
+  if (page) view->pageLeft(std::exchange(page, 0));
+  beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(5));
+  ws.async_close(websocket::close_reason(code, reason.substr(0, 120)),
+                 [self = shared_from_this()](beast::error_code) { self->gone(""); });
+}
+
+void WsSession::read() {
+  ws.async_read(in, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    if (ec) {
+      if (ec == websocket::error::closed) return self->gone("");
+      if (ec == websocket::error::message_too_big)
+        return self->refuse(websocket::close_code::too_big,
+                            "message over " + std::to_string(kMaxViewerMessage) + " bytes");
+      return self->gone(ec.message());
+    }
+    if (!self->ws.got_text())
+      return self->refuse(websocket::close_code::unknown_data, "binary messages are not taken");
+    const std::string text = beast::buffers_to_string(self->in.data());
+    self->in.consume(self->in.size());
+    if (!self->take(text)) return;
+    self->read();
+  });
+}
+
+bool WsSession::withinRate() {
+  const double r = rate();
+  const auto now = Clock::now();
+  tokens = std::min(2 * r, tokens + r * std::chrono::duration<double>(now - refilled).count());
+  refilled = now;
+  if (tokens < 1) return false;
+  tokens -= 1;
+  return true;
+}
+
+bool WsSession::take(const std::string& text) {
+  const auto& token = view->settings.token;
+  if (text.rfind("auth ", 0) == 0) {
+    if (!token.empty() && !sameSecret(text.substr(5), token)) {
+      refuse(websocket::close_code::policy_error, "wrong token");
+      return false;
+    }
+    const bool first = !authed;
+    authed = true;
+    note(R"({"type":"auth","ok":true})");
+    if (first && display >= 0) view->pageJoined(shared_from_this());
+    return true;
+  }
+  if (!authed) {
+    refuse(websocket::close_code::policy_error, "a command before the token");
+    return false;
+  }
+  return display >= 0 ? takePageMessage(text) : takeCommand(text);
+}
+
+bool WsSession::takeCommand(const std::string& text) {
+  net::Control c;
+  try {
+    c = parseControlLine(text);
+  } catch (const std::invalid_argument& e) {
+    refuse(websocket::close_code::policy_error, e.what());
+    return false;
+  }
+  if (!withinRate()) {
+    note(nlohmann::json{{"type", "error"}, {"message", "too many commands: this one dropped"}}
+             .dump());
+    return true;
+  }
+  if (view->control) view->control(c);
+  return true;
+}
+
+bool WsSession::takePageMessage(const std::string& text) {
+  if (!withinRate()) {
+    refuse(websocket::close_code::policy_error, "too many messages");
+    return false;
+  }
+  const std::string_view t(text);
+  if (t.starts_with("ready ")) {
+    if (const auto seq = parseUnsigned(t.substr(6))) {
+      if (page) view->pageReady(page, *seq);
+      return true;
+    }
+  } else if (t.starts_with("shown ")) {
+    const auto space = t.find(' ', 6);
+    const auto seq =
+        space == std::string_view::npos ? std::nullopt : parseUnsigned(t.substr(6, space - 6));
+    double unixMs = 0;
+    const auto rest = space == std::string_view::npos ? std::string_view() : t.substr(space + 1);
+    const auto [end, ec] = std::from_chars(rest.data(), rest.data() + rest.size(), unixMs);
+    if (seq && ec == std::errc() && end == rest.data() + rest.size() && !rest.empty() &&
+        std::isfinite(unixMs)) {
+      if (page) view->pageShown(page, *seq, unixMs);
+      return true;
+    }
+  }
+  refuse(websocket::close_code::policy_error,
+         "not a display page's message: '" + text.substr(0, 40) + "'");
+  return false;
+}
+
+void WsSession::note(std::string text) {
+  if (!open || closing) return;
+  if (notes.size() >= kMaxQueuedText) {
+    refuse(websocket::close_code::policy_error, "not reading");
+    return;
+  }
+  notes.push_back(std::move(text));
+  write();
+}
+
+void WsSession::offer(std::shared_ptr<const std::string> bytes) {
+  if (!open || closing || !authed || !bytes) return;
+  frame = std::move(bytes);
+  write();
+}
+
+void WsSession::write() {
+  if (writing || closing) return;
+  auto done = [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    self->writing = false;
+    self->writingFrame.reset();
+    if (ec) return self->gone(ec.message());
+    self->write();
+  };
+  if (!notes.empty()) {
+    writing = true;
+    writingNote = std::move(notes.front());
+    notes.pop_front();
+    ws.text(true);
+    ws.async_write(bnet::buffer(writingNote), done);
+  } else if (frame) {
+    writing = true;
+    writingFrame = std::move(frame);
+    frame.reset();
+    ws.binary(true);
+    ws.async_write(bnet::buffer(*writingFrame), done);
+  }
+}
+
+HttpSession::HttpSession(tcp::socket socket, WebView::Impl* v)
+    : stream(std::move(socket)), view(v) {}
+
+void HttpSession::start() {
+  parser.emplace();
+  parser->header_limit(kMaxRequestHeader);
+  parser->body_limit(0);
+  stream.expires_after(kRequestTimeout);
+  http::async_read(stream, buffer, *parser,
+                   [self = shared_from_this()](beast::error_code ec, std::size_t) {
+                     if (ec) return self->close();
+                     self->serve(self->parser->release());
+                   });
+}
+
+void HttpSession::close() {
+  boost::system::error_code ec;
+  stream.socket().shutdown(tcp::socket::shutdown_both, ec);
+  stream.close();
+}
+
+void HttpSession::reply(http::status status, std::string body, const char* type, bool head) {
+  auto res = std::make_shared<http::response<http::string_body>>(status, 11);
+  res->set(http::field::server, "voxwall");
+  res->set(http::field::content_type, type);
+  res->set(http::field::cache_control, "no-store");
+  res->set("X-Content-Type-Options", "nosniff");
+  res->set("X-Frame-Options", "DENY");
+  res->set("Content-Security-Policy",
+           "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
+           "img-src blob: data:; connect-src 'self'; base-uri 'none'; form-action 'none'");
+  res->keep_alive(false);
+  const auto size = body.size();
+  if (!head) res->body() = std::move(body);
+  res->content_length(size);
+  stream.expires_after(kRequestTimeout);
+  http::async_write(stream, *res, [self = shared_from_this(), res](beast::error_code, std::size_t) {
+    self->close();
+  });
+}
+
+void HttpSession::upgrade(http::request<http::empty_body> req, const std::string& target,
+                          const std::string& host) {
+  const std::string origin(req[http::field::origin]);
+  int display = -1;
+  if (target != "/ws") {
+    const auto d = web::displayOfPath(view->wall, target, "/ws/display/");
+    if (!d) return reply(http::status::not_found, "no such WebSocket\n", "text/plain");
+    display = int(*d);
+  }
+  if (!view->originAllowed(origin, host)) {
+    view->say("sink: refused a viewer from Origin '" + origin.substr(0, 100) + "'");
+    return reply(http::status::forbidden, "this Origin may not watch the wall\n", "text/plain");
+  }
+  if (display < 0 && view->viewerCount >= view->settings.maxViewers) {
+    view->say("sink: refused a viewer: " + std::to_string(view->settings.maxViewers) +
+              " already watching");
+    return reply(http::status::service_unavailable, "too many viewers\n", "text/plain");
+  }
+  if (display >= 0 && view->pageCount >= view->settings.maxDisplayPages) {
+    view->say("sink: refused a display page: " + std::to_string(view->settings.maxDisplayPages) +
+              " already open");
+    return reply(http::status::service_unavailable, "too many display pages\n", "text/plain");
+  }
+  std::make_shared<WsSession>(stream.release_socket(), view, display)->start(std::move(req));
+}
+
+void HttpSession::serve(http::request<http::empty_body> req) {
+  const std::string target(req.target());
+  const std::string host(req[http::field::host]);
+  if (!view->hostAllowed(host)) {
+    view->say("sink: refused a request for Host '" + host.substr(0, 100) + "'");
+    return reply(http::status::forbidden, "this Host is not served here\n", "text/plain");
+  }
+  if (websocket::is_upgrade(req)) return upgrade(std::move(req), target, host);
+  const bool head = req.method() == http::verb::head;
+  if (req.method() != http::verb::get && !head)
+    return reply(http::status::method_not_allowed, "only GET\n", "text/plain");
+  const bool token = !view->settings.token.empty();
+  if (target == "/" || target == "/index.html")
+    return reply(http::status::ok, webPage(), "text/html; charset=utf-8", head);
+  if (target == "/displays")
+    return reply(http::status::ok, web::displaysHtml(view->wall, view->base(host), token),
+                 "text/html; charset=utf-8", head);
+  if (target == "/displays.json")
+    return reply(http::status::ok, web::displaysJson(view->wall, view->base(host)),
+                 "application/json", head);
+  if (web::displayOfPath(view->wall, target, "/display/"))
+    return reply(http::status::ok, displayPage(), "text/html; charset=utf-8", head);
+  if (target.starts_with("/display/"))
+    return reply(http::status::not_found,
+                 "this wall has no such display: its displays are listed at /displays\n",
+                 "text/plain", head);
+  return reply(http::status::not_found, "not found\n", "text/plain", head);
+}
+
+void WebView::Impl::accept() {
+  acceptor.async_accept([self = this](beast::error_code ec, tcp::socket socket) {
+    if (self->stopped) return;
+    if (ec) {
+      // Out of descriptors and the like: wait a moment instead of spinning or giving up.
+      self->say("sink: web: accept failed: " + ec.message());
+      auto timer = std::make_shared<bnet::steady_timer>(self->io, std::chrono::milliseconds(100));
+      timer->async_wait([self, timer](beast::error_code) { self->accept(); });
+      return;
+    }
+    std::erase_if(self->requests, [](const auto& r) { return r.second.expired(); });
+    if (self->requests.size() >= kMaxRequests) {  // requests in flight; each ends within 10 s
+      boost::system::error_code ignored;
+      socket.close(ignored);
+      self->accept();
+      return;
+    }
+    // Small messages go out at once: the swap barrier's "show" must not wait for Nagle's
+    // algorithm to gather more (40 ms per round on Linux, with delayed acknowledgements).
+    boost::system::error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);
+    auto session = std::make_shared<HttpSession>(std::move(socket), self);
+    self->requests[session.get()] = session;
+    session->start();
+    self->accept();
+  });
+}
+
+}  // namespace voxwall::walls
