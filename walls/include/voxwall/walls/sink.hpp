@@ -46,8 +46,8 @@ struct SinkSettings {
   std::vector<std::string> httpOrigins;  // other Origins whose pages may watch and steer
   int maxViewers = 64;                   // overview pages at once
   int maxDisplayPages = 0;               // display pages at once; 0: 2 per display, plus 8
-  int swapTimeoutMs = 500;  // a display page not ready by then leaves the swap barrier
-  int swapLeadMs = 25;      // pages show a frame on the refresh nearest "now + this"
+  int swapTimeoutMs = 500;               // a display page not ready by then leaves the swap barrier
+  int swapLeadMs = 25;                   // pages show a frame on the refresh nearest "now + this"
 };
 
 struct SinkStats {

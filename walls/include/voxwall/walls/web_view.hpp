@@ -81,7 +81,7 @@ struct WebViewSettings {
   // Pages are told to show a frame at "now + swapLeadMs" (Unix time): every page draws it on the
   // display refresh nearest that moment, whatever moment the message reached it.
   int swapLeadMs = 25;
-  int maxWidth = 1920;               // overview frames are scaled down by whole factors to fit
+  int maxWidth = 1920;  // overview frames are scaled down by whole factors to fit
   int jpegQuality = 80;
   double commandsPerSecond = 60;       // per viewer (a burst of twice that is allowed)
   double pageMessagesPerSecond = 600;  // per display page (two a frame; a burst of twice that)
