@@ -11,11 +11,14 @@ class SingleRankCommunicator final : public Communicator {
   std::string hostName() const override { return "localhost"; }
   int ranksOnHost() const override { return 1; }
   void broadcast(std::vector<std::byte>&, int) override {}
-  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int) override {
+  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int,
+                                             const std::function<void()>&) override {
     std::vector<std::vector<std::byte>> all;
     all.push_back(std::move(bytes));
     return all;
   }
+  void signalAbandon(std::uint32_t) override {}
+  bool abandoned(std::uint32_t) override { return false; }
   [[noreturn]] void abort(int exitCode) override { std::exit(exitCode); }
 };
 

@@ -5,7 +5,9 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <deque>
 #include <limits>
+#include <optional>
 #include <string>
 #include <thread>
 #include <voxwall/master/mpi_communicator.hpp>
@@ -15,6 +17,7 @@ namespace {
 
 constexpr int kTagBroadcast = 101;
 constexpr int kTagGather = 102;
+constexpr int kTagAbandon = 103;
 
 std::string mpiErrorString(int code) {
   char text[MPI_MAX_ERROR_STRING];
@@ -99,7 +102,8 @@ class MpiCommunicator final : public Communicator {
                     "the master (rank 0) sent nothing for " + seconds(timeoutMs));
   }
 
-  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int timeoutMs) override {
+  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int timeoutMs,
+                                             const std::function<void()>& whileWaiting) override {
     std::vector<std::vector<std::byte>> all;
     if (rank_ != 0) {
       MPI_Request request;
@@ -130,6 +134,7 @@ class MpiCommunicator final : public Communicator {
         progress = true;
       }
       if (missing == 0 || progress) continue;
+      if (whileWaiting) whileWaiting();
       if (poll.expired()) {
         std::string who;
         for (int r = 1; r < size_; ++r)
@@ -141,6 +146,35 @@ class MpiCommunicator final : public Communicator {
       poll.pause();
     }
     return all;
+  }
+
+  void signalAbandon(std::uint32_t frame) override {
+    if (rank_ != 0) return;
+    // The frame number stays where MPI can read it until the send completes (a deque keeps
+    // addresses); the requests complete on their own (a few bytes each).
+    abandonSent_.push_back(frame);
+    for (int r = 1; r < size_; ++r) {
+      MPI_Request request;
+      check(MPI_Isend(&abandonSent_.back(), 1, MPI_UINT32_T, r, kTagAbandon, MPI_COMM_WORLD,
+                      &request),
+            "MPI_Isend", rank_);
+      check(MPI_Request_free(&request), "MPI_Request_free", rank_);
+    }
+  }
+
+  bool abandoned(std::uint32_t frame) override {
+    if (rank_ == 0) return false;
+    for (;;) {
+      int flag = 0;
+      MPI_Status status;
+      check(MPI_Iprobe(0, kTagAbandon, MPI_COMM_WORLD, &flag, &status), "MPI_Iprobe", rank_);
+      if (!flag) break;
+      std::uint32_t got = 0;
+      check(MPI_Recv(&got, 1, MPI_UINT32_T, 0, kTagAbandon, MPI_COMM_WORLD, MPI_STATUS_IGNORE),
+            "MPI_Recv", rank_);
+      lastAbandoned_ = got;
+    }
+    return lastAbandoned_ && *lastAbandoned_ == frame;
   }
 
   [[noreturn]] void abort(int exitCode) override {
@@ -196,6 +230,8 @@ class MpiCommunicator final : public Communicator {
 
   int rank_ = 0, size_ = 1, onHost_ = 1;
   std::string host_;
+  std::deque<std::uint32_t> abandonSent_;       // rank 0: the frames it abandoned
+  std::optional<std::uint32_t> lastAbandoned_;  // other ranks: the newest frame rank 0 abandoned
 };
 
 }  // namespace

@@ -107,14 +107,40 @@ std::vector<std::vector<voxwall::Rect>> byRank(const std::vector<std::vector<vox
   return out;
 }
 
+// Asked every few milliseconds, on the thread that makes the collectives (MPI is initialized
+// MPI_THREAD_FUNNELED), while a rank renders a frame that may be abandoned: whether it is.
+using AbandonWatch = std::function<bool()>;
+
+// Renders `part` on the backend's threads while this thread asks `watch`; once it says the frame
+// is abandoned, `stop` is set and the backend leaves the part unfinished.
+node::TileStats renderWatched(node::Backend& backend, const node::RenderVolume& volume,
+                              const node::FramePlan& plan, const voxwall::Rect& part,
+                              voxwall::Image& image, node::CostGrid* costs,
+                              const AbandonWatch& watch, std::atomic<bool>& stop) {
+  if (!watch) return backend.render(volume, plan, part, image, costs);
+  if (watch()) {
+    stop = true;
+    node::TileStats stopped;
+    stopped.stopped = true;
+    return stopped;
+  }
+  auto done = std::async(std::launch::async,
+                         [&] { return backend.render(volume, plan, part, image, costs, &stop); });
+  while (done.wait_for(std::chrono::milliseconds(2)) != std::future_status::ready)
+    if (!stop && watch()) stop = true;
+  return done.get();
+}
+
 // Renders `rects`, streams them to the sink (if any) and makes this rank's report for `task`.
 // A rank whose pixels nobody gathers renders, encodes and sends a band at a time (bands()), so it
-// holds one band's pixels however much of the screen the balancer gives it.
+// holds one band's pixels however much of the screen the balancer gives it. With a `watch`, the
+// frame may be abandoned: the rest is not rendered, and the sink is told.
 net::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
                             const node::TransferFunction& tf, const node::RenderSettings& render,
                             const JobSettings& job, net::TileStreamer* streamer,
                             std::optional<node::FramePlan>& lastPlan, const net::FrameTask& task,
-                            const std::vector<voxwall::Rect>& rects) {
+                            const std::vector<voxwall::Rect>& rects,
+                            const AbandonWatch& watch = {}) {
   net::RankReport report;
   report.frame = task.frame;
   report.rank = rank;
@@ -131,14 +157,27 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
       streamer->setJob(task.jobId);
       sending = streamer->beginFrame(task.frame);
     }
+    std::atomic<bool> stop{false};
     for (const auto& rect : rects) {
       const auto parts = report.pixels ? std::vector<voxwall::Rect>{rect} : bands(rect, job);
       voxwall::Image image;  // with pixels, the whole rectangle (one part)
       for (const auto& part : parts) {
+        // Abandoned while parts are left: they are not rendered. (Once every part is done, the
+        // word comes too late: the tiles are whole, and the frame is not abandoned here.)
+        if (stop) {
+          report.abandoned = true;
+          break;
+        }
         image = voxwall::Image();  // the last band goes before the backend makes the next
         const auto start = Clock::now();
-        report.samples += backend.render(volume, plan, part, image, &report.costs).samples;
+        const auto stats =
+            renderWatched(backend, volume, plan, part, image, &report.costs, watch, stop);
+        report.samples += stats.samples;
         report.renderSeconds += since(start);
+        if (stats.stopped) {
+          report.abandoned = true;
+          break;
+        }
         if (sending) {
           const auto encodeStart = Clock::now();
           const auto encoded =
@@ -146,13 +185,14 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
                                streamer->displayCut(), task.step);
           report.encodeSeconds += since(encodeStart);
           sending = streamer->sendTiles(encoded, task.decidedUnixMicros, task.step,
-                                        std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)));
+                                        std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)),
+                                        task.phase);
         }
       }
       report.tiles.push_back({rect, report.pixels ? std::move(image) : voxwall::Image()});
     }
     if (streamer) {
-      report.streamed = sending && streamer->endFrame();
+      report.streamed = sending && streamer->endFrame(report.abandoned);
       report.streamError = streamer->lastError();
       report.streamRefused = !streamer->refused().empty();
       report.streamedBytes = streamer->bytesSent() - before;
@@ -173,6 +213,16 @@ std::unique_ptr<net::TileStreamer> makeStreamer(const JobSettings& job, int rank
 
 }  // namespace
 
+SteeringSettings steeringSettings(const JobSettings& job) {
+  SteeringSettings s;
+  s.interactive = job.stream.has_value() && job.outDir.empty();
+  s.interactiveStep = job.interactiveStep;
+  s.refine = job.refine;
+  s.settleSeconds = job.settleSeconds;
+  s.frameBudgetMs = job.frameBudgetMs;
+  return s;
+}
+
 node::Orbit CameraOffset::apply(node::Orbit orbit) const {
   orbit.azimuthDeg += azimuthDeg;
   orbit.elevationDeg = std::clamp(orbit.elevationDeg + elevationDeg, -89.0, 89.0);
@@ -190,6 +240,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   JobSummary summary;
   int timeoutMs = job.watchdogMs;
   const auto streamer = makeStreamer(job, comm.rank(), comm.size());
+  const auto steering = steeringSettings(job);
   std::optional<node::FramePlan> plan;
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
@@ -203,8 +254,12 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
                             " ranks in a job of " + std::to_string(comm.size()));
     timeoutMs = int(std::clamp<std::uint32_t>(task.watchdogMs, 1000, 86400000));
     const auto& mine = task.rects[std::size_t(comm.rank())];
-    const auto report = renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(),
-                                    plan, task, task.stop ? std::vector<voxwall::Rect>{} : mine);
+    AbandonWatch watch;
+    if (!task.stop && abandonable(steering, task.phase))
+      watch = [&comm, frame = task.frame] { return comm.abandoned(frame); };
+    const auto report =
+        renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(), plan, task,
+                    task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(net::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -361,6 +416,7 @@ class MasterLoop {
         jobId_(newJobId()),
         writer_(job.outDir, manifest_),
         streamer_(makeStreamer(job, 0, comm.size())),
+        steering_(steeringSettings(job)),
         timeoutMs_(job.watchdogMs) {
     if (job.balance == Balance::Dynamic)
       balancer_.emplace(job.width, job.height, slots_, job.balancer);
@@ -381,16 +437,30 @@ class MasterLoop {
     FrameSummary s;
     s.frame = f;
     readWall(f, s);
-    s.step = step(s.controls);
+    const FrameChoice choice = steering_.next(s.controls, frameStart);
+    s.step = choice.step, s.phase = choice.phase;
     s.rects = cut(s.step);
-    net::FrameTask t = task(f, s.rects, s.step);
+    net::FrameTask t = task(f, s.rects, choice);
     auto taskBytes = net::encode(t);
     comm_.broadcast(taskBytes, timeoutMs_);
+    // A command from the wall abandons a refining or full frame: every rank hears it at once.
+    AbandonWatch watch;
+    bool signalled = false;
+    if (steering_.abandonable(choice) && control_)
+      watch = [this, &signalled, &t] {
+        if (!signalled && control_->pending() > 0) {
+          comm_.signalAbandon(t.frame);
+          signalled = true;
+        }
+        return signalled;
+      };
     auto own = renderRects(0, backend_, volume_, tf_, render_, job_, streamer_.get(), plan_, t,
-                           t.rects[0]);
+                           t.rects[0], watch);
     const auto gatherStart = Clock::now();
-    // Rank 0 keeps its own report as it is; only the others' travel.
-    auto reportBytes = comm_.gather({}, timeoutMs_);
+    // Rank 0 keeps its own report as it is; only the others' travel. It goes on watching while
+    // the others render.
+    auto reportBytes =
+        comm_.gather({}, timeoutMs_, watch ? std::function<void()>([&] { watch(); }) : nullptr);
     s.gatherSeconds = since(gatherStart);
     const auto assembleStart = Clock::now();
     voxwall::Image image =
@@ -405,7 +475,12 @@ class MasterLoop {
       grids[std::size_t(i)] = std::move(report.costs);
     }
     s.imbalance = imbalance(s.rankSeconds);
-    if (balancer_ && s.step == 1) {  // an interactive frame's costs are of another screen
+    // Abandoned when a rank left its part unfinished (one that finished before the word came
+    // sent whole tiles, so the sink hears it from here too); when all had finished, it is whole.
+    if (s.abandoned && streamer_) streamer_->abandon(t.frame);
+    // The balancer learns from whole full-resolution frames only: a reduced frame's costs are of
+    // another screen, an abandoned frame's are partial.
+    if (balancer_ && s.step == 1 && !s.abandoned) {
       balancer_->update(grids, s.rankSeconds);
       s.recuts = balancer_->recuts();
     }
@@ -415,6 +490,7 @@ class MasterLoop {
       s.writeWaitSeconds = writer_.push(std::move(image), s.path, job_.background);
     }
     s.frameSeconds = since(frameStart);
+    steering_.finished(choice, s.frameSeconds, s.abandoned);
     slowestFrame_ = std::max(slowestFrame_, s.frameSeconds);
     timeoutMs_ = std::max(job_.watchdogMs, int(std::min(4e3 * slowestFrame_, 3.6e6)));
     return s;
@@ -473,15 +549,6 @@ class MasterLoop {
     }
   }
 
-  // The resolution of this frame: reduced while the wall's camera commands keep coming.
-  int step(int controls) {
-    const bool interactive = job_.stream && job_.outDir.empty() && job_.interactiveStep > 1;
-    if (!interactive) return 1;
-    if (controls > 0) lastCommand_ = Clock::now();
-    if (!lastCommand_ || since(*lastCommand_) >= job_.settleSeconds) return 1;
-    return job_.interactiveStep;
-  }
-
   // Each rendering slot's rectangles this frame: at step > 1, the full-screen cut mapped onto the
   // reduced screen (edge by edge, so the rectangles still tile it; one narrower than a step may
   // vanish).
@@ -507,7 +574,8 @@ class MasterLoop {
   }
 
   net::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects,
-                      int step) const {
+                      const FrameChoice& choice) const {
+    const int step = choice.step;
     net::FrameTask t;
     t.frame = std::uint32_t(f);
     t.decidedUnixMicros = net::unixMicrosNow();
@@ -515,6 +583,7 @@ class MasterLoop {
     t.camera =
         node::orbitCamera(offset_.apply(job_.path.at(f)), node::boundingRadius(volume_.info()));
     t.step = step;
+    t.phase = choice.phase;
     t.screenWidth = net::reducedSide(job_.width, step);
     t.screenHeight = net::reducedSide(job_.height, step);
     t.cellPixels = job_.balancer.cellPixels;
@@ -544,6 +613,7 @@ class MasterLoop {
     if (report.streamRefused)
       throw net::SinkRefused("rank " + std::to_string(r) + ": " + report.streamError);
     s.streamedRanks += report.streamed;
+    s.abandoned = s.abandoned || report.abandoned;
     if (!report.streamed && s.streamError.empty() && job_.stream && !report.tiles.empty())
       s.streamError = "rank " + std::to_string(r) + ": " + report.streamError;
     s.encodeSeconds = std::max(s.encodeSeconds, report.encodeSeconds);
@@ -572,7 +642,7 @@ class MasterLoop {
   std::optional<node::FramePlan> plan_;
   std::unique_ptr<net::ControlChannel> control_;
   CameraOffset offset_;
-  std::optional<Clock::time_point> lastCommand_;  // the last camera command from the wall
+  Steering steering_;  // each frame's step, and which frames a command abandons
   double slowestFrame_ = 0;
   int timeoutMs_;
 };

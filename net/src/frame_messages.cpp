@@ -41,7 +41,10 @@ std::vector<std::byte> encode(const FrameTask& t) {
   std::vector<std::byte> out;
   ByteWriter w(out);
   w.put(kFrameTaskMagic), w.put(kFrameMessageVersion);
-  w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>(t.stop ? 1u : 0u);
+  const std::uint32_t phase = t.phase == FramePhase::Interactive ? 2u
+                              : t.phase == FramePhase::Refining  ? 4u
+                                                                 : 0u;
+  w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>((t.stop ? 1u : 0u) | phase);
   w.put<std::uint64_t>(t.decidedUnixMicros);
   w.put<std::uint64_t>(t.jobId);
   for (const glm::dvec3& v : {t.camera.eye, t.camera.center, t.camera.up})
@@ -65,8 +68,11 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   FrameTask t;
   t.frame = r.get<std::uint32_t>();
   const auto flags = r.get<std::uint32_t>();
-  if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
+  if (flags > 5 || (flags & 6) == 6) r.fail("unknown flags " + std::to_string(flags));
   t.stop = flags & 1;
+  t.phase = flags & 2   ? FramePhase::Interactive
+            : flags & 4 ? FramePhase::Refining
+                        : FramePhase::Full;
   t.decidedUnixMicros = r.get<std::uint64_t>();
   t.jobId = r.get<std::uint64_t>();
   for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
@@ -114,7 +120,7 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put(rep.renderSeconds), w.put<std::uint64_t>(rep.samples);
   w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
   w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u) |
-                       (rep.streamRefused ? 4u : 0u));
+                       (rep.streamRefused ? 4u : 0u) | (rep.abandoned ? 8u : 0u));
   w.put(rep.encodeSeconds), w.put<std::uint64_t>(rep.streamedBytes);
   const std::string error = rep.streamError.substr(0, kMaxStreamError);
   w.put<std::uint16_t>(std::uint16_t(error.size()));
@@ -165,8 +171,9 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.samples = r.get<std::uint64_t>();
   rep.residentBytes = r.get<std::uint64_t>(), rep.peakResidentBytes = r.get<std::uint64_t>();
   const auto flags = r.get<std::uint32_t>();
-  if (flags > 7) r.fail("unknown flags " + std::to_string(flags));
+  if (flags > 15) r.fail("unknown flags " + std::to_string(flags));
   rep.pixels = flags & 1, rep.streamed = flags & 2, rep.streamRefused = flags & 4;
+  rep.abandoned = flags & 8;
   rep.encodeSeconds = r.get<double>();
   rep.streamedBytes = r.get<std::uint64_t>();
   const auto errorBytes = r.get<std::uint16_t>();

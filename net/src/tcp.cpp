@@ -183,12 +183,12 @@ bool TileStreamer::beginFrame(std::uint64_t frame) {
 }
 
 bool TileStreamer::sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_t decidedUnixMicros,
-                             int step, std::uint32_t renderMicros) {
+                             int step, std::uint32_t renderMicros, FramePhase phase) {
   if (!sending_) return false;
   try {
     for (const auto& t : tiles) {
-      const auto bytes = encodeMessage(
-          frame_, TileMessage{t.rect, t.codec, decidedUnixMicros, t.bytes, step, renderMicros});
+      const auto bytes = encodeMessage(frame_, TileMessage{t.rect, t.codec, decidedUnixMicros,
+                                                           t.bytes, step, renderMicros, phase});
       connection_->send(bytes);
       bytesSent_ += bytes.size();
       ++tilesSent_;
@@ -200,11 +200,22 @@ bool TileStreamer::sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_
   }
 }
 
-bool TileStreamer::endFrame() {
+bool TileStreamer::endFrame(bool abandoned) {
   if (!sending_) return false;
   try {
-    connection_->send(encodeMessage(frame_, FrameEnd{hello_.rank, tilesSent_}));
+    connection_->send(encodeMessage(frame_, FrameEnd{hello_.rank, tilesSent_, abandoned}));
     sending_ = false;
+    return true;
+  } catch (const NetError& e) {
+    lost(e);
+    return false;
+  }
+}
+
+bool TileStreamer::abandon(std::uint64_t frame) {
+  if (!connection_ || sending_) return false;
+  try {
+    connection_->send(encodeMessage(frame, FrameEnd{hello_.rank, 0, true}));
     return true;
   } catch (const NetError& e) {
     lost(e);
@@ -257,6 +268,11 @@ void ControlChannel::setNextFrame(std::uint64_t frame) {
 std::string ControlChannel::refused() const {
   std::lock_guard lock(mutex_);
   return refused_;
+}
+
+std::size_t ControlChannel::pending() const {
+  std::lock_guard lock(mutex_);
+  return queue_.size();
 }
 
 std::vector<Control> ControlChannel::drain() {

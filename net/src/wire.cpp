@@ -83,12 +83,13 @@ std::vector<std::byte> encodeMessage(const Welcome& m) {
 
 std::vector<std::byte> encodeMessage(std::uint64_t frame, const TileMessage& m) {
   std::vector<std::byte> p;
-  p.reserve(34 + m.bytes.size());
+  p.reserve(35 + m.bytes.size());
   ByteWriter w(p);
   w.put(std::int32_t(m.rect.x)), w.put(std::int32_t(m.rect.y));
   w.put(std::int32_t(m.rect.width)), w.put(std::int32_t(m.rect.height));
   w.put(std::uint8_t(m.codec));
   w.put(std::uint8_t(m.step));
+  w.put(std::uint8_t(m.phase));
   w.put(m.decidedUnixMicros);
   w.put(m.renderMicros);
   w.putBytes(m.bytes);
@@ -99,6 +100,7 @@ std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameEnd& m) {
   std::vector<std::byte> p;
   ByteWriter w(p);
   w.put(std::int32_t(m.rank)), w.put(m.tiles);
+  w.put(std::uint8_t(m.abandoned ? 1 : 0));
   return frameMessage(MessageType::FrameEnd, frame, p);
 }
 
@@ -229,6 +231,9 @@ TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::str
   m.step = r.get<std::uint8_t>();
   if (m.step < 1 || m.step > kMaxStep)
     r.fail("step " + std::to_string(m.step) + " (1.." + std::to_string(kMaxStep) + ")");
+  const auto phase = r.get<std::uint8_t>();
+  if (phase > 2) r.fail("unknown frame phase " + std::to_string(phase));
+  m.phase = FramePhase(phase);
   m.decidedUnixMicros = r.get<std::uint64_t>();
   m.renderMicros = r.get<std::uint32_t>();
   const auto rest = r.getBytes(r.remaining());
@@ -242,6 +247,9 @@ FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& s
   m.rank = r.get<std::int32_t>();
   m.tiles = r.get<std::uint32_t>();
   if (m.rank < 0) r.fail("negative rank");
+  const auto flags = r.get<std::uint8_t>();
+  if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
+  m.abandoned = flags & 1;
   expectEnd(r);
   return m;
 }
@@ -272,7 +280,7 @@ FrameNote decodeFrameNote(std::span<const std::byte> payload, const std::string&
   ByteReader r(payload, source, "FrameNote");
   FrameNote m;
   const auto status = r.get<std::uint8_t>();
-  if (status < 1 || status > 3) r.fail("unknown frame status " + std::to_string(status));
+  if (status < 1 || status > 4) r.fail("unknown frame status " + std::to_string(status));
   m.status = FrameStatus(status);
   m.reason = getString(r);
   expectEnd(r);
@@ -280,10 +288,28 @@ FrameNote decodeFrameNote(std::span<const std::byte> payload, const std::string&
 }
 
 std::string describe(std::uint64_t frame, const FrameNote& note) {
-  static const char* const kWords[] = {"", "presented", "dropped", "refused"};
+  static const char* const kWords[] = {"", "presented", "dropped", "refused", "superseded"};
   std::string line = "frame " + std::to_string(frame) + " " + kWords[int(note.status)];
   if (!note.reason.empty()) line += ": " + note.reason;
   return line;
+}
+
+const char* phaseName(FramePhase phase) {
+  switch (phase) {
+    case FramePhase::Full:
+      return "full";
+    case FramePhase::Interactive:
+      return "interactive";
+    case FramePhase::Refining:
+      return "refining";
+  }
+  return "unknown";
+}
+
+std::string stepLabel(int step, FramePhase phase) {
+  if (step <= 1) return "";
+  return std::string(phase == FramePhase::Refining ? "refining" : "interactive") + " 1/" +
+         std::to_string(step);
 }
 
 void MessageReader::feed(std::span<const std::byte> bytes) {

@@ -33,7 +33,7 @@ class CpuBackend final : public Backend {
   }
 
   TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
-                       Image& out, CostGrid* costs) override {
+                       Image& out, CostGrid* costs, const std::atomic<bool>* stop) override {
     if (tile.width <= 0 || tile.height <= 0) throw std::invalid_argument("empty tile");
     const auto start = std::chrono::steady_clock::now();
     out = Image(tile.width, tile.height);
@@ -41,8 +41,8 @@ class CpuBackend final : public Backend {
     const int by = (tile.height + kBlockPixels - 1) / kBlockPixels;
     // Each block's time, written by the one thread that renders it; spread into `costs` after.
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
-    const cpu::TileJob job{plan,    tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
-                           packets_};
+    const cpu::TileJob job{plan,     tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
+                           packets_, stop};
     const std::uint64_t samples = std::visit(
         [&](auto view) {
           if constexpr (cpu::kPaged<decltype(view)>) attachPages(cpu::pagedLevel(view));
@@ -59,6 +59,7 @@ class CpuBackend final : public Backend {
       }
     TileStats stats;
     stats.samples = samples;
+    stats.stopped = stop && stop->load();
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
   }

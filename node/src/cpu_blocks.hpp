@@ -40,8 +40,9 @@ struct TileJob {
   const Rect& tile;
   Image& out;
   int blocksX, blocksY, threads;
-  std::vector<double>* blockSeconds;  // per block, when the costs are measured (else null)
-  bool packets = true;                // SIMD ray packets where the CPU has them, else one ray
+  std::vector<double>* blockSeconds;        // per block, when the costs are measured (else null)
+  bool packets = true;                      // SIMD ray packets where the CPU has them, else one ray
+  const std::atomic<bool>* stop = nullptr;  // when it turns true, blocks not begun are skipped
 };
 
 // Renders every block of `job` from `view`; returns the samples taken. Defined in

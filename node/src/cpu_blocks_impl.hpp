@@ -18,6 +18,7 @@ std::uint64_t forEachBlock(const TileJob& job, const Trace& trace) {
   const auto& tile = job.tile;
   voxwall::parallelFor(
       std::size_t(job.blocksX) * std::size_t(job.blocksY), job.threads, [&](std::size_t b) {
+        if (job.stop && job.stop->load(std::memory_order_relaxed)) return;
         const auto blockStart = job.blockSeconds ? std::chrono::steady_clock::now()
                                                  : std::chrono::steady_clock::time_point{};
         const int x0 = int(b % std::size_t(job.blocksX)) * kBlockPixels;

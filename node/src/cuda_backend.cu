@@ -150,9 +150,16 @@ class CudaBackend final : public Backend {
   }
   std::string name() const override { return name_; }
 
+  // A kernel runs to its end: `stop` is checked before it is launched.
   TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
-                       Image& out, CostGrid* costs) override {
+                       Image& out, CostGrid* costs, const std::atomic<bool>* stop) override {
     if (tile.width <= 0 || tile.height <= 0) throw std::invalid_argument("empty tile");
+    if (stop && stop->load()) {
+      out = Image(tile.width, tile.height);
+      TileStats stopped;
+      stopped.stopped = true;
+      return stopped;
+    }
     const auto start = std::chrono::steady_clock::now();
     const codec::RenderPayload& payload = volume.payload();
     const auto bytes = payload.bytes();

@@ -147,10 +147,10 @@ class SlowBackend final : public node::Backend {
 
  protected:
   node::TileStats renderTile(const node::RenderVolume& v, const node::FramePlan& p,
-                             const voxwall::Rect& t, voxwall::Image& out,
-                             node::CostGrid* c) override {
+                             const voxwall::Rect& t, voxwall::Image& out, node::CostGrid* c,
+                             const std::atomic<bool>* stop) override {
     std::this_thread::sleep_for(std::chrono::milliseconds(ms_));
-    return inner_->render(v, p, t, out, c);
+    return inner_->render(v, p, t, out, c, stop);
   }
 
  private:

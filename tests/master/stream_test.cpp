@@ -57,23 +57,29 @@ master::JobSettings streamJob(std::uint16_t port, net::TileCodec codec, int fram
 }
 
 void runJob(int ranks, const master::JobSettings& job,
-            const std::function<void(const master::FrameSummary&)>& onFrame = {}) {
+            const std::function<void(const master::FrameSummary&)>& onFrame = {},
+            const std::function<std::unique_ptr<node::Backend>()>& makeBackend = {}) {
   const auto errors = test::runRanks(ranks, [&](master::Communicator& comm) {
-    auto backend = node::makeCpuBackend(1);
+    auto backend = makeBackend ? makeBackend() : node::makeCpuBackend(1);
     master::runRenderJob(comm, *backend, volume(), tf(), {}, job, onFrame);
   });
   for (const auto& e : errors)
     if (e) std::rethrow_exception(e);
 }
 
-// The single-rank reference frame over black, as the sink shows it.
+// The single-rank reference frame over black, as the sink shows it: at `step` > 1 rendered on
+// the reduced screen and upsampled (every pixel repeats the reduced pixel of its block).
 voxwall::Image reference(const master::JobSettings& job, int frame,
-                         const master::CameraOffset& offset = {}) {
+                         const master::CameraOffset& offset = {}, int step = 1) {
   const auto camera =
       node::orbitCamera(offset.apply(job.path.at(frame)), node::boundingRadius(volume().info()));
-  const auto plan = node::planFrame(volume(), camera, job.width, job.height, tf(), {});
-  voxwall::Image image;
-  node::makeCpuBackend(1)->render(volume(), plan, {0, 0, job.width, job.height}, image);
+  const int w = net::reducedSide(job.width, step), h = net::reducedSide(job.height, step);
+  const auto plan = node::planFrame(volume(), camera, w, h, tf(), {});
+  voxwall::Image reduced;
+  node::makeCpuBackend(1)->render(volume(), plan, {0, 0, w, h}, reduced);
+  voxwall::Image image(job.width, job.height);
+  for (int y = 0; y < job.height; ++y)
+    for (int x = 0; x < job.width; ++x) image.at(x, y) = reduced.at(x / step, y / step);
   for (auto& p : image.pixels) p |= 0xff000000u;
   return image;
 }
@@ -88,7 +94,7 @@ std::string displayFile(const std::string& dir, int frame, const std::string& di
 // written (or skipped, when it fell behind) every presented one: tests check every frame written.
 bool waitSettled(test::SinkRunner& sink, int frames) {
   return sink.waitFor([frames](const walls::SinkStats& s) {
-    return s.framesPresented + s.framesDropped >= frames &&
+    return s.framesPresented + s.framesDropped + s.framesSuperseded >= frames &&
            s.framesWritten + s.framesNotWritten == s.framesPresented;
   });
 }
@@ -140,12 +146,12 @@ class TallestTile : public node::Backend {
 
  protected:
   node::TileStats renderTile(const node::RenderVolume& v, const node::FramePlan& plan,
-                             const voxwall::Rect& tile, voxwall::Image& out,
-                             node::CostGrid* costs) override {
+                             const voxwall::Rect& tile, voxwall::Image& out, node::CostGrid* costs,
+                             const std::atomic<bool>* stop) override {
     for (int t = tallest_.load();
          tile.height > t && !tallest_.compare_exchange_weak(t, tile.height);)
       ;
-    return cpu_->render(v, plan, tile, out, costs);
+    return cpu_->render(v, plan, tile, out, costs, stop);
   }
 
  private:
@@ -278,4 +284,178 @@ TEST(Stream, SteeredFramesAreInteractiveUntilTheCameraSettles) {
     // The interactive frame is whole: every display's picture was written.
     EXPECT_TRUE(fs::exists(displayFile(dir.path("wall"), 1, d.name))) << d.name;
   }
+}
+
+namespace {
+
+// The CPU backend, except that while `stall` is set a full-resolution tile does not finish
+// until the render is told to stop (a full frame far slower than the test): counts the tiles
+// that were stopped.
+class StallingBackend final : public node::Backend {
+ public:
+  StallingBackend(std::atomic<bool>& stall, std::atomic<int>& stalling, std::atomic<int>& stopped)
+      : stall_(stall), stalling_(stalling), stopped_(stopped) {}
+  std::string name() const override { return "stalling"; }
+
+ protected:
+  node::TileStats renderTile(const node::RenderVolume& v, const node::FramePlan& plan,
+                             const voxwall::Rect& tile, voxwall::Image& out, node::CostGrid* costs,
+                             const std::atomic<bool>* stop) override {
+    if (stall_ && stop && plan.ray.screen.x == wall().width) {
+      ++stalling_;
+      // Until the frame is abandoned; the deadline only keeps a broken test from hanging.
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+      while (!stop->load() && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::yield();
+      --stalling_;
+    }
+    const auto stats = cpu_->render(v, plan, tile, out, costs, stop);
+    if (stats.stopped) ++stopped_;
+    return stats;
+  }
+
+ private:
+  std::unique_ptr<node::Backend> cpu_ = node::makeCpuBackend(1);
+  std::atomic<bool>& stall_;
+  std::atomic<int>& stalling_;
+  std::atomic<int>& stopped_;
+};
+
+// Sends `control` once every rank renders a stalled tile (or after 20 s: then the test fails on
+// what follows).
+void sendWhenStalled(test::SinkRunner& sink, std::atomic<int>& stalling, int ranks,
+                     const net::Control& control) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (stalling < ranks && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+  sink.sink().sendControl(control);
+}
+
+}  // namespace
+
+// A command that arrives while a full frame renders abandons it on every rank: the sink drops it
+// as superseded, and the next frame is a steered one with the new camera, equal to a batch render
+// of that camera at that step.
+TEST(Stream, ACommandDuringAFullFrameAbandonsItAndTheNextFrameHasTheNewCamera) {
+  test::TempDir dir;
+  auto sink = startSink(dir.path("wall"));
+  auto job = streamJob(sink->port(), net::TileCodec::Deflate, 4);
+  job.path = master::CameraPath::orbit({}, 0);
+  job.settleSeconds = 3600;  // stay steered: frames 2 and 3 are interactive
+  std::atomic<bool> stall{false};
+  std::atomic<int> stalling{0}, stopped{0};
+  std::vector<master::FrameSummary> frames;
+  std::thread commander;
+  runJob(
+      2, job,
+      [&](const master::FrameSummary& f) {
+        frames.push_back(f);
+        if (f.frame == 0) {  // frame 1 stalls until the command abandons it
+          stall = true;
+          commander = std::thread([&] {
+            sendWhenStalled(*sink, stalling, 2, {net::ControlCommand::Rotate, 40, 0});
+          });
+        }
+        if (f.frame == 1) stall = false;
+      },
+      [&] { return std::make_unique<StallingBackend>(stall, stalling, stopped); });
+  commander.join();
+  ASSERT_TRUE(waitSettled(*sink, 4)) << sink->log();
+  sink->stop();
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_FALSE(frames[0].abandoned);
+  EXPECT_TRUE(frames[1].abandoned);
+  EXPECT_EQ(frames[1].step, 1);
+  EXPECT_GE(stopped.load(), 2);  // both ranks left their tiles unfinished
+  EXPECT_EQ(frames[2].step, 4);
+  EXPECT_EQ(frames[2].phase, net::FramePhase::Interactive);
+  EXPECT_FALSE(frames[2].abandoned);
+  const auto stats = sink->sink().stats();
+  EXPECT_EQ(stats.framesSuperseded, 1);
+  EXPECT_NE(sink->log().find("frame 1 superseded: the render job abandoned it"), std::string::npos)
+      << sink->log();
+  EXPECT_FALSE(fs::exists(displayFile(dir.path("wall"), 1, "r0c0")));
+  master::CameraOffset turned;
+  turned.azimuthDeg = 40;
+  const auto after = reference(job, 2, turned, 4);
+  for (const auto& d : wall().displays)
+    EXPECT_EQ(voxwall::readImage(displayFile(dir.path("wall"), 2, d.name)).pixels,
+              after.crop(d.rect).pixels)
+        << d.name;
+}
+
+// Once the camera settled the picture refines: steps 4, 2 and 1 in order, each shown; the full
+// frame equals a batch render of the moved camera exactly. A batch job (it writes frames) takes
+// the same command without reducing, refining or abandoning anything.
+TEST(Stream, RefinementShowsStepsInOrderAndEndsAtTheBatchFrame) {
+  test::TempDir dir;
+  auto sink = startSink(dir.path("wall"));
+  auto job = streamJob(sink->port(), net::TileCodec::Deflate, 5);
+  job.path = master::CameraPath::orbit({}, 0);
+  job.settleSeconds = 0;  // settled as soon as the command was taken: refine at once
+  // Frame 1 stalls until the command abandons it, so frame 2 is the first to take it.
+  std::atomic<bool> stall{false};
+  std::atomic<int> stalling{0}, stopped{0};
+  std::vector<master::FrameSummary> frames;
+  std::thread commander;
+  runJob(
+      2, job,
+      [&](const master::FrameSummary& f) {
+        frames.push_back(f);
+        if (f.frame == 0) {
+          stall = true;
+          commander = std::thread([&] {
+            sendWhenStalled(*sink, stalling, 2, {net::ControlCommand::Rotate, 40, 0});
+          });
+        }
+        if (f.frame == 1) stall = false;
+      },
+      [&] { return std::make_unique<StallingBackend>(stall, stalling, stopped); });
+  commander.join();
+  ASSERT_TRUE(waitSettled(*sink, 5)) << sink->log();
+  sink->stop();
+  ASSERT_EQ(frames.size(), 5u);
+  ASSERT_TRUE(frames[1].abandoned);
+  EXPECT_EQ(frames[2].step, 4);
+  EXPECT_EQ(frames[2].phase, net::FramePhase::Refining);
+  EXPECT_EQ(frames[3].step, 2);
+  EXPECT_EQ(frames[3].phase, net::FramePhase::Refining);
+  EXPECT_EQ(frames[4].step, 1);
+  EXPECT_EQ(frames[4].phase, net::FramePhase::Full);
+  EXPECT_NE(sink->log().find("frame 2 presented"), std::string::npos) << sink->log();
+  EXPECT_NE(sink->log().find("refining 1/4"), std::string::npos) << sink->log();
+  EXPECT_NE(sink->log().find("refining 1/2"), std::string::npos) << sink->log();
+  master::CameraOffset turned;
+  turned.azimuthDeg = 40;
+  const auto full = reference(job, 4, turned);
+  for (const auto& d : wall().displays)
+    EXPECT_EQ(voxwall::readImage(displayFile(dir.path("wall"), 4, d.name)).pixels,
+              full.crop(d.rect).pixels)
+        << d.name;
+}
+
+TEST(Stream, BatchJobsNeverAbandonOrRefine) {
+  test::TempDir dir;
+  auto sink = startSink(dir.path("wall"));
+  auto job = streamJob(sink->port(), net::TileCodec::Deflate, 3);
+  job.outDir = dir.path("frames");  // a batch job: it writes its frames
+  job.path = master::CameraPath::orbit({}, 0);
+  std::atomic<bool> stall{false};
+  std::atomic<int> stalling{0}, stopped{0};
+  std::vector<master::FrameSummary> frames;
+  runJob(
+      2, job,
+      [&](const master::FrameSummary& f) {
+        frames.push_back(f);
+        if (f.frame == 0) sink->sink().sendControl({net::ControlCommand::Rotate, 40, 0});
+      },
+      [&] { return std::make_unique<StallingBackend>(stall, stalling, stopped); });
+  ASSERT_EQ(frames.size(), 3u);
+  for (const auto& f : frames) {
+    EXPECT_FALSE(f.abandoned) << f.frame;
+    EXPECT_EQ(f.step, 1) << f.frame;
+    EXPECT_EQ(f.phase, net::FramePhase::Full) << f.frame;
+  }
+  EXPECT_EQ(stopped.load(), 0);
+  ASSERT_TRUE(waitSettled(*sink, 3)) << sink->log();
+  EXPECT_EQ(sink->sink().stats().framesSuperseded, 0);
 }

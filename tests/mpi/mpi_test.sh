@@ -26,7 +26,12 @@
 #                     render to it: every frame is presented and right, the sink keeps running
 #   interactive N     a camera command typed at the sink: the next frames are interactive (1/4
 #                     per side, upsampled, whole on every display), then, once the camera has
-#                     settled, a full frame equal (>= 40 dB) to a batch render of that camera
+#                     settled and the picture refined, a full frame equal (>= 40 dB) to a batch
+#                     render of that camera
+#   abandon-burst N   200 camera commands in 2 s while N ranks render full frames (no reduced
+#                     ones: every frame is one a command abandons): frames in flight are
+#                     abandoned (reported as superseded), no rank hangs, every frame's fate is
+#                     said, and the job ends on a full frame
 # Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
 # scenarios; ctest sets both.
 set -uo pipefail
@@ -169,7 +174,7 @@ case $scenario in
     for _ in $(seq 1200); do
       reduced=$(sed -n 's/^frame \([0-9]*\) presented.*interactive 1\/4.*/\1/p' wall.log | head -1)
       if [ -n "$reduced" ]; then
-        settled=$(awk -v r="$reduced" '/presented/ && !/interactive/ {
+        settled=$(awk -v r="$reduced" '/presented/ && !/ 1\// {
                     n = $2 + 0; if (n > r) { print n; exit } }' wall.log)
         [ -n "$settled" ] && [ -f "wall/frame_$(printf %05d "$settled").done" ] && break
       fi
@@ -195,6 +200,43 @@ case $scenario in
         > /dev/null || fail "interactive frame $reduced display $d is not the batch render's picture"
     done
     echo "interactive frame $reduced, then full frame $settled equal to the batch render"
+    ;;
+  abandon-burst)
+    n=$1 frames=200
+    mkfifo commands
+    "$voxwall" sink --wall "$VOXWALL_WALLS/ci-2x2.json" --listen 127.0.0.1:0 \
+      < commands > wall.log 2>&1 &
+    sink_pid=$!
+    exec 3> commands  # the sink's stdin, held open
+    wait_port wall.log
+    run "$n" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
+      --frames "$frames" --path still --threads 1 --shading --interactive-step 1 \
+      > render.log 2>&1 &
+    render_pid=$!
+    # Waits on the sink's log itself (tail -f), with a deadline.
+    timeout 30 grep -m1 -q "presented" <(tail -f wall.log) ||
+      { cat wall.log render.log; fail "the sink showed nothing"; }
+    # 200 commands over about 2 s, at the pace of a drag (the pause paces the input; nothing
+    # waits on it), straight into the frames in flight.
+    for _ in $(seq 200); do echo "rotate 1 0" >&3; sleep 0.01; done
+    wait "$render_pid"
+    status=$?
+    exec 3>&-
+    kill -TERM "$sink_pid" 2>/dev/null
+    wait "$sink_pid" 2>/dev/null
+    [ "$status" -eq 0 ] || { tail -20 render.log; fail "the render exited $status"; }
+    summary=$(grep "frame(s) presented" wall.log) || { tail wall.log; fail "no sink summary"; }
+    presented=$(echo "$summary" | sed -n 's/^sink: \([0-9]*\) frame(s) presented.*/\1/p')
+    dropped=$(echo "$summary" | sed -n 's/.*, \([0-9]*\) dropped incomplete.*/\1/p')
+    superseded=$(grep -c "^frame [0-9]* superseded" wall.log)
+    [ $((presented + dropped + superseded)) -eq "$frames" ] ||
+      { echo "$summary"; fail "$presented presented, $dropped dropped, $superseded superseded: not $frames"; }
+    abandoned=$(grep -c "abandoned: the camera moved" render.log)
+    [ "$abandoned" -eq "$superseded" ] ||
+      fail "rank 0 abandoned $abandoned frame(s), the sink superseded $superseded"
+    last=$(grep "presented" wall.log | grep -v "frame(s) presented" | tail -1)
+    echo "$last" | grep -q " 1/" && fail "the job did not end on a full frame: $last"
+    echo "$presented presented, $superseded abandoned and superseded, $dropped dropped; $last"
     ;;
   full-disk)
     frames=(render vol.vwz --size 240x160 --frames 12 --orbit-deg 30 --threads 1)

@@ -19,6 +19,7 @@ net::FrameTask sampleTask() {
   t.cellPixels = 16;
   t.jobId = 0xfeedf00d12345678ull;
   t.step = 2;
+  t.phase = net::FramePhase::Refining;
   t.rects = {{{0, 0, 32, 48}}, {{32, 0, 32, 20}, {32, 20, 32, 28}}, {}};
   return t;
 }
@@ -41,6 +42,7 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   r.streamed = false;
   r.streamRefused = true;
   r.streamError = "sink 127.0.0.1:7400: refused: wrong token";
+  r.abandoned = true;
   return r;
 }
 
@@ -69,7 +71,14 @@ TEST(FrameTask, RoundTrips) {
   EXPECT_EQ(back.jobId, 0xfeedf00d12345678ull);
   EXPECT_EQ(back.cellPixels, 16);
   EXPECT_EQ(back.step, 2);
+  EXPECT_EQ(back.phase, net::FramePhase::Refining);
   EXPECT_EQ(back.rects, t.rects);
+  auto steered = t;
+  steered.phase = net::FramePhase::Interactive;
+  EXPECT_EQ(net::decodeFrameTask(net::encode(steered), "test").phase, net::FramePhase::Interactive);
+  auto bytes = net::encode(t);
+  poke<std::uint32_t>(bytes, 12, 6u);  // interactive and refining at once
+  expectRejected(bytes, nullptr);
 }
 
 TEST(FrameTask, RejectsAStepOutOfRange) {
@@ -165,6 +174,7 @@ TEST(RankReport, RoundTrips) {
   EXPECT_FALSE(back.streamed);
   EXPECT_TRUE(back.streamRefused);
   EXPECT_EQ(back.streamError, r.streamError);
+  EXPECT_TRUE(back.abandoned);
   EXPECT_NEAR(back.costs.total(), 0.25, 1e-12);
 }
 

@@ -34,6 +34,7 @@ std::vector<std::byte> sampleTile() {
   t.bytes = {std::byte{1}, std::byte{2}, std::byte{3}};
   t.step = 4;
   t.renderMicros = 2500;
+  t.phase = net::FramePhase::Refining;
   return net::encodeMessage(42, t);
 }
 
@@ -50,7 +51,7 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
   append(net::encodeMessage(sent));
   append(net::encodeMessage(net::Welcome{"bigeye", 5772, 4338, {{0, 0, 1920, 1080}}, false}));
   append(sampleTile());
-  append(net::encodeMessage(42, net::FrameEnd{2, 7}));
+  append(net::encodeMessage(42, net::FrameEnd{2, 7, true}));
   append(net::encodeMessage(net::Control{net::ControlCommand::Pan, 0.5, -0.25}));
   append(net::encodeMessage(net::Bye{"done"}));
   append(net::encodeMessage(43, net::FrameNote{net::FrameStatus::Refused, "out of the window"}));
@@ -74,7 +75,9 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
     EXPECT_EQ(tile.bytes.size(), 3u);
     EXPECT_EQ(tile.step, 4);
     EXPECT_EQ(tile.renderMicros, 2500u);
+    EXPECT_EQ(tile.phase, net::FramePhase::Refining);
     EXPECT_EQ(net::decodeFrameEnd(m[3].payload, "t").tiles, 7u);
+    EXPECT_TRUE(net::decodeFrameEnd(m[3].payload, "t").abandoned);
     const auto control = net::decodeControl(m[4].payload, "t");
     EXPECT_EQ(control.command, net::ControlCommand::Pan);
     EXPECT_EQ(control.b, -0.25);
@@ -88,6 +91,17 @@ TEST(Wire, EveryMessageRoundTripsInAnyChunking) {
   std::vector<std::byte> p(note.begin() + net::kHeaderBytes, note.end());
   p[0] = std::byte{9};  // unknown status
   EXPECT_THROW(net::decodeFrameNote(p, "t"), FormatError);
+  EXPECT_EQ(net::describe(12, {net::FrameStatus::Superseded, "the camera moved"}),
+            "frame 12 superseded: the camera moved");
+  // A FrameEnd with unknown flags, a tile of an unknown phase.
+  auto end = net::encodeMessage(1, net::FrameEnd{0, 1, false});
+  std::vector<std::byte> e(end.begin() + net::kHeaderBytes, end.end());
+  e.back() = std::byte{2};
+  EXPECT_THROW(net::decodeFrameEnd(e, "t"), FormatError);
+  auto tile = sampleTile();
+  std::vector<std::byte> t(tile.begin() + net::kHeaderBytes, tile.end());
+  t[4 * 4 + 2] = std::byte{3};  // after the rectangle, the codec and the step
+  EXPECT_THROW(net::decodeTileMessage(t, "t"), FormatError);
 }
 
 TEST(Wire, AWelcomeCarriesTheDisplaysAndWhetherBezelsAreWanted) {

@@ -7,6 +7,7 @@
 #include <exception>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <voxwall/master/communicator.hpp>
 
@@ -15,7 +16,10 @@ namespace voxwall::test {
 class FakeWorld {
  public:
   explicit FakeWorld(int size)
-      : size_(size), inbox_(std::size_t(size)), gathered_(std::size_t(size)) {}
+      : size_(size),
+        inbox_(std::size_t(size)),
+        gathered_(std::size_t(size)),
+        abandons_(std::size_t(size)) {}
   int size() const { return size_; }
 
  private:
@@ -25,6 +29,7 @@ class FakeWorld {
   std::condition_variable changed_;
   std::vector<std::deque<std::vector<std::byte>>> inbox_;     // broadcasts, per receiver
   std::vector<std::deque<std::vector<std::byte>>> gathered_;  // at rank 0, per sender
+  std::vector<std::deque<std::uint32_t>> abandons_;  // frames rank 0 abandoned, per receiver
 };
 
 class FakeCommunicator final : public master::Communicator {
@@ -50,7 +55,8 @@ class FakeCommunicator final : public master::Communicator {
     box.pop_front();
   }
 
-  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int timeoutMs) override {
+  std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes, int timeoutMs,
+                                             const std::function<void()>& whileWaiting) override {
     std::unique_lock lock(world_.mutex_);
     if (rank_ != 0) {
       world_.gathered_[std::size_t(rank_)].push_back(std::move(bytes));
@@ -62,10 +68,18 @@ class FakeCommunicator final : public master::Communicator {
         if (world_.gathered_[std::size_t(r)].empty()) return false;
       return true;
     };
-    if (!world_.changed_.wait_for(lock, std::chrono::milliseconds(timeoutMs), all)) {
+    // With something to do while waiting: wait in short steps, unlocked for it.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeoutMs);
+    while (whileWaiting && !all() && std::chrono::steady_clock::now() < deadline) {
+      world_.changed_.wait_for(lock, std::chrono::milliseconds(2), all);
+      lock.unlock();
+      whileWaiting();
+      lock.lock();
+    }
+    if (!world_.changed_.wait_until(lock, deadline, all)) {
       std::string who;
       for (int r = 1; r < size(); ++r)
-        if (world_.gathered_[std::size_t(r)].empty()) who += " " + std::to_string(r);
+        if (world_.gathered_[std::size_t(r)].empty()) who.append(" ").append(std::to_string(r));
       throw master::MpiError("watchdog: rank(s)" + who + " did not report");
     }
     std::vector<std::vector<std::byte>> out(static_cast<std::size_t>(size()));
@@ -77,11 +91,23 @@ class FakeCommunicator final : public master::Communicator {
     return out;
   }
 
+  void signalAbandon(std::uint32_t frame) override {
+    std::lock_guard lock(world_.mutex_);
+    for (int r = 1; r < size(); ++r) world_.abandons_[std::size_t(r)].push_back(frame);
+  }
+  bool abandoned(std::uint32_t frame) override {
+    std::lock_guard lock(world_.mutex_);
+    auto& box = world_.abandons_[std::size_t(rank_)];
+    for (; !box.empty(); box.pop_front()) lastAbandoned_ = box.front();
+    return lastAbandoned_ && *lastAbandoned_ == frame;
+  }
+
   [[noreturn]] void abort(int) override { std::terminate(); }
 
  private:
   FakeWorld& world_;
   int rank_;
+  std::optional<std::uint32_t> lastAbandoned_;
 };
 
 // Runs `body` on `ranks` threads, one fake rank each; returns each rank's exception (or null).

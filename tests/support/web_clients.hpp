@@ -141,7 +141,9 @@ class Renderer {
       s.codec = net::TileCodec::Raw;
       s.segmentPixels = 4096;
       for (const auto& t : net::encodeTiles(image, rect, {0, 0, 0}, s))
-        c_->send(net::encodeMessage(id, net::TileMessage{t.rect, t.codec, 0, t.bytes, step, 1500}));
+        c_->send(net::encodeMessage(
+            id, net::TileMessage{t.rect, t.codec, 0, t.bytes, step, 1500,
+                                 step > 1 ? net::FramePhase::Interactive : net::FramePhase::Full}));
     }
   }
 

@@ -140,6 +140,42 @@ TEST(Sink, DropsTheOldestWhenTooManyFramesAreOpen) {
   EXPECT_EQ(sink.sink().stats().framesPresented, 0);
 }
 
+// A frame the render job abandoned (the camera moved while it rendered) is dropped as
+// superseded, whichever rank says so first; its late tiles do not bring it back, the next frame
+// is shown, and a controller cannot abandon frames.
+TEST(Sink, AnAbandonedFrameIsDroppedAsSupersededAndStaysDropped) {
+  RunningSink sink(settings());
+  auto left = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 2), 2000);
+  auto right = net::Connection::open("127.0.0.1", sink.port(), renderer(1, 2), 2000);
+  const auto l = solidTile({0, 0, 22, 10}, 0x123456), r = solidTile({22, 0, 22, 10}, 0x654321);
+  left->send(net::encodeMessage(1, net::TileMessage{l.rect, l.codec, 0, l.bytes}));
+  left->send(net::encodeMessage(1, net::FrameEnd{0, 1, false}));
+  right->send(net::encodeMessage(1, net::FrameEnd{1, 0, true}));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesSuperseded == 1; }))
+      << sink.log();
+  EXPECT_NE(sink.log().find("frame 1 superseded: the render job abandoned it"), std::string::npos)
+      << sink.log();
+  right->send(net::encodeMessage(1, net::TileMessage{{22, 0, 22, 10}, r.codec, 0, r.bytes}));
+  for (auto* c : {left.get(), right.get()}) {
+    const auto& t = c == left.get() ? l : r;
+    const voxwall::Rect rect =
+        c == left.get() ? voxwall::Rect{0, 0, 22, 10} : voxwall::Rect{22, 0, 22, 10};
+    c->send(net::encodeMessage(2, net::TileMessage{rect, t.codec, 0, t.bytes}));
+  }
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
+      << sink.log();
+  const auto stats = sink.sink().stats();
+  EXPECT_EQ(stats.framesSuperseded, 1);
+  EXPECT_EQ(stats.framesDropped, 0);
+  EXPECT_EQ(sink.log().find("frame 1 presented"), std::string::npos) << sink.log();
+  net::Hello control = renderer(0, 2);
+  control.role = net::Role::Controller;
+  auto controller = net::Connection::open("127.0.0.1", sink.port(), control, 2000);
+  controller->send(net::encodeMessage(3, net::FrameEnd{0, 0, true}));
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.peersDropped == 1; }));
+  EXPECT_NE(sink.log().find("a controller sent a FrameEnd"), std::string::npos) << sink.log();
+}
+
 TEST(Sink, RefusesWrongTokenVersionAndWall) {
   auto s = settings();
   s.token = "secret";

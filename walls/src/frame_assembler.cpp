@@ -86,6 +86,15 @@ void FrameAssembler::startSequence(std::uint64_t firstFrame, const std::string& 
   reported_.clear();
 }
 
+void FrameAssembler::supersede(std::uint64_t frame, const std::string& why) {
+  if (reported(frame) || outsideWindow(frame)) return;
+  if (const auto it = open_.find(frame); it != open_.end()) {
+    heldBytes_ -= it->second.heldBytes;
+    open_.erase(it);
+  }
+  report(frame, net::FrameStatus::Superseded, why);
+}
+
 std::optional<std::string> FrameAssembler::outsideWindow(std::uint64_t frame) const {
   const std::uint64_t w = limits_.frameWindow;
   if (lastComplete_) {
@@ -159,6 +168,7 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame, net::
     it->second.heldBytes = coverageBytes_;
     it->second.info.frame = frame;
     it->second.info.step = step;
+    it->second.info.phase = tile.phase;
     heldBytes_ += coverageBytes_;
   }
   Open& f = it->second;

@@ -40,7 +40,7 @@ struct Sink::Impl : net::PeerHandler {
   // After maxFrames frames were settled (presented or dropped), the sink stops.
   void stopIfDone() {
     const auto s = core->stats();
-    const int settled = s.framesPresented + s.framesDropped;
+    const int settled = s.framesPresented + s.framesDropped + s.framesSuperseded;
     if (settings.maxFrames > 0 && settled >= settings.maxFrames)
       asio::post(io, [this] { io.stop(); });
   }
@@ -79,8 +79,8 @@ struct Sink::Impl : net::PeerHandler {
       s.meanLatencyMs = latencySumMs / presented;
     });
     char line[256];
-    const std::string interactive =
-        frame->step > 1 ? ", interactive 1/" + std::to_string(frame->step) : "";
+    const std::string label = net::stepLabel(frame->step, frame->phase);
+    const std::string interactive = label.empty() ? label : ", " + label;
     std::snprintf(line, sizeof line,
                   "frame %llu presented: %zu display(s), %d tiles from %zu rank(s), %.1f KiB, "
                   "latency %.1f ms%s",

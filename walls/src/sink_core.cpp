@@ -68,6 +68,7 @@ void SinkCore::onEvent(const FrameEvent& e) {
   updateStats([&](SinkStats& s) {
     if (e.note.status == net::FrameStatus::Dropped) ++s.framesDropped;
     if (e.note.status == net::FrameStatus::Refused) ++s.framesRefused;
+    if (e.note.status == net::FrameStatus::Superseded) ++s.framesSuperseded;
   });
   say(net::describe(e.frame, e.note));
   if (controller_) controller_->send(net::encodeMessage(e.frame, e.note));
@@ -172,9 +173,13 @@ bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t fram
         present_(*job_, std::move(*done));
       return true;
     }
-    case MessageType::FrameEnd:
-      net::decodeFrameEnd(payload, peer.name());
+    case MessageType::FrameEnd: {
+      if (peer.hello().role != net::Role::Renderer)
+        throw FormatError(peer.name(), "a controller sent a FrameEnd");
+      if (net::decodeFrameEnd(payload, peer.name()).abandoned)
+        assembler_.supersede(frame, "the render job abandoned it (the camera moved)");
       return true;
+    }
     case MessageType::Bye:
       peer.hangUp();
       detach(peer);

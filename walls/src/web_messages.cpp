@@ -185,6 +185,9 @@ std::shared_ptr<const std::string> displayFrameMessage(const AssembledFrame& fra
                          {"frame", frame.frame},
                          {"seq", seq},
                          {"step", frame.step},
+                         {"phase", frame.step > 1 && frame.phase != net::FramePhase::Refining
+                                       ? "interactive"
+                                       : net::phaseName(frame.phase)},
                          {"latency_ms", latencyMs}};
   auto& segments = meta["segments"] = nlohmann::json::array();
   std::size_t bytes = 0;
@@ -221,6 +224,9 @@ std::shared_ptr<const std::string> overviewFrameMessage(const ViewerFrame& f, co
   nlohmann::json meta = {{"type", "frame"},
                          {"frame", frame.frame},
                          {"step", frame.step},
+                         {"phase", frame.step > 1 && frame.phase != net::FramePhase::Refining
+                                       ? "interactive"
+                                       : net::phaseName(frame.phase)},
                          {"width", small.width},
                          {"height", small.height},
                          {"latency_ms", f.latencyMs},

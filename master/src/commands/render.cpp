@@ -263,11 +263,13 @@ class Report {
   std::string sinkText(const master::FrameSummary& f) const {
     if (!s_.job.stream) return "";
     char text[512];
-    std::snprintf(text, sizeof text, " -> sink: %d/%zu ranks, %.1f KiB, encode %.1f ms%s%s%s%s",
+    const std::string label = net::stepLabel(f.step, f.phase);
+    const std::string step = label.empty() ? label : ", " + label;
+    std::snprintf(text, sizeof text, " -> sink: %d/%zu ranks, %.1f KiB, encode %.1f ms%s%s%s%s%s",
                   f.streamedRanks, f.ranks.size(), double(f.streamedBytes) / 1024,
-                  f.encodeSeconds * 1e3,
-                  f.step > 1 ? (", interactive 1/" + std::to_string(f.step)).c_str() : "",
+                  f.encodeSeconds * 1e3, step.c_str(),
                   f.controls ? ", camera moved from the wall" : "",
+                  f.abandoned ? ", abandoned: the camera moved while it rendered" : "",
                   f.streamError.empty() ? "" : "; ", f.streamError.c_str());
     return text;
   }

@@ -238,6 +238,10 @@ master::JobSettings jobSettings(const RenderOptions& o) {
     throw std::invalid_argument("--settle must be in [0, 3600] seconds");
   job.interactiveStep = o.interactiveStep;
   job.settleSeconds = o.settle;
+  job.refine = master::parseRefineSteps(o.refine);
+  if (!(o.frameBudgetMs >= 0 && o.frameBudgetMs <= 600000))
+    throw std::invalid_argument("--frame-budget must be in [0, 600000] milliseconds");
+  job.frameBudgetMs = o.frameBudgetMs;
   return job;
 }
 
@@ -341,7 +345,17 @@ void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
                  "sink upsamples); 1: always full resolution. Only when streaming without --out")
       ->capture_default_str();
   cmd.add_option("--settle", o.settle,
-                 "Seconds without a camera command after which full-resolution frames follow")
+                 "Seconds without a camera command after which the picture refines (--refine)")
+      ->capture_default_str();
+  cmd.add_option("--refine", o.refine,
+                 "Once the camera settled, frames at these steps, coarse to full resolution, each "
+                 "shown as it completes (steps no coarser than the last frame shown are "
+                 "skipped); a camera command during a refining or full frame abandons it and "
+                 "steering starts again")
+      ->capture_default_str();
+  cmd.add_option("--frame-budget", o.frameBudgetMs,
+                 "Milliseconds a steered frame should take: the step while steering is picked "
+                 "from the measured cost of recent frames (instead of --interactive-step); 0: off")
       ->capture_default_str();
 }
 

@@ -25,8 +25,10 @@ struct RenderOptions {
   int surface = 0;      // of a multi-surface Tide configuration
   std::string opacity;  // --opacity: the opacity curve of another map
   int jpegQuality = 90;
-  int interactiveStep = 4;  // --interactive-step
-  double settle = 0.5;      // --settle, seconds
+  int interactiveStep = 4;       // --interactive-step
+  std::string refine = "4,2,1";  // --refine
+  double frameBudgetMs = 0;      // --frame-budget
+  double settle = 0.5;           // --settle, seconds
   bool sizeGiven = false, outGiven = false;
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;

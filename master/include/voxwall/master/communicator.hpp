@@ -5,6 +5,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -30,9 +32,18 @@ class Communicator {
   virtual void broadcast(std::vector<std::byte>& bytes, int timeoutMs) = 0;
   // Collective: every rank sends `bytes` to rank 0, which gets all of them (index = rank;
   // its own included); other ranks get an empty list. Throws MpiError naming the ranks that did
-  // not answer within timeoutMs.
-  virtual std::vector<std::vector<std::byte>> gather(std::vector<std::byte> bytes,
-                                                     int timeoutMs) = 0;
+  // not answer within timeoutMs. Rank 0 calls `whileWaiting` (if any) every few milliseconds
+  // while reports are missing, on this thread (it may signalAbandon).
+  virtual std::vector<std::vector<std::byte>> gather(
+      std::vector<std::byte> bytes, int timeoutMs,
+      const std::function<void()>& whileWaiting = {}) = 0;
+  // Rank 0, while frame `frame` renders: tells every other rank at once, without waiting for any,
+  // that the frame is abandoned (the camera moved). Not a collective; the frame's gather still
+  // happens. Call from the thread that makes the collectives.
+  virtual void signalAbandon(std::uint32_t frame) = 0;
+  // Other ranks, while rendering `frame`: whether rank 0 abandoned it. Never blocks; a signal
+  // for an older frame (one that came after that frame was done) is taken and ignored.
+  virtual bool abandoned(std::uint32_t frame) = 0;
   // Ends every rank of the job now (after an error that would strand the others).
   [[noreturn]] virtual void abort(int exitCode) = 0;
 };

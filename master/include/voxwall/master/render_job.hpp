@@ -12,6 +12,7 @@
 #include <voxwall/master/camera_path.hpp>
 #include <voxwall/master/communicator.hpp>
 #include <voxwall/master/load_balancer.hpp>
+#include <voxwall/master/steering.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -59,7 +60,15 @@ struct JobSettings {
   // an output folder never reduces). interactiveStep 1: never.
   int interactiveStep = 4;
   double settleSeconds = 0.5;
+  // Once the camera settled, frames at these steps, coarse to full (master/steering.hpp); a
+  // camera command arriving during a refining or full frame abandons it.
+  std::vector<int> refine = {4, 2, 1};
+  double frameBudgetMs = 0;  // > 0: the interactive step keeps a steered frame near this
 };
+
+// The steering of this job (master/steering.hpp): interactive only when it streams to a sink
+// and writes no frames (a batch job never reduces, refines or abandons a frame).
+SteeringSettings steeringSettings(const JobSettings& job);
 
 struct FrameSummary {
   int frame = 0;
@@ -79,8 +88,10 @@ struct FrameSummary {
   int streamedRanks = 0;     // ranks whose tiles reached the sink
   double encodeSeconds = 0;  // the slowest rank's tile compression
   std::uint64_t streamedBytes = 0;
-  int controls = 0;                    // camera commands from the wall applied to this frame
-  int step = 1;                        // > 1: an interactive frame at 1/step per side
+  int controls = 0;  // camera commands from the wall applied to this frame
+  int step = 1;      // > 1: a reduced frame at 1/step per side
+  net::FramePhase phase = net::FramePhase::Full;  // interactive (steered), refining or full
+  bool abandoned = false;              // the camera moved while it rendered: given up, not shown
   std::vector<std::string> sinkNotes;  // what the sink said about earlier frames (drops, refusals)
 };
 

@@ -10,14 +10,15 @@
 // (no pixels; resident memory) and leaves the loop.
 //
 // Layout (little-endian, serialized field by field):
-//   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop),
+//   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop, bit 1: an
+//               interactive frame, bit 2: a refining frame; neither: a full one),
 //               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
 //               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, i32 step, u32
 //               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
 //               pixels included, bit 1: streamed to the sink, bit 2: the sink refused this
-//               rank for good), f64 encodeSeconds,
+//               rank for good, bit 3: the rank abandoned the frame), f64 encodeSeconds,
 //               u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
 //               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8,
 //               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
@@ -28,6 +29,7 @@
 #include <span>
 #include <vector>
 #include <voxwall/core/image.hpp>
+#include <voxwall/net/wire.hpp>
 #include <voxwall/node/camera.hpp>
 #include <voxwall/node/cost_grid.hpp>
 
@@ -35,8 +37,9 @@ namespace voxwall::net {
 
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
-// 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step.
-inline constexpr std::uint32_t kFrameMessageVersion = 4;
+// 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
+// RankReport.abandoned.
+inline constexpr std::uint32_t kFrameMessageVersion = 5;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -56,6 +59,7 @@ struct FrameTask {
   // 1: a full frame. n > 1: an interactive frame, rendered at 1/n per side: screenWidth and
   // screenHeight (and the rects) are then the reduced screen, ceil(virtual side / n).
   int step = 1;
+  FramePhase phase = FramePhase::Full;            // why it has that step (the sink shows it)
   std::vector<std::vector<voxwall::Rect>> rects;  // per rank (index = rank); may be empty
 };
 
@@ -76,6 +80,9 @@ struct RankReport {
   std::uint64_t streamedBytes = 0;
   std::string streamError;  // why the tiles did not reach the sink (at most kMaxStreamError bytes)
   bool streamRefused = false;  // the sink refused this rank for good (token, wall, job, version)
+  // Rank 0 abandoned the frame while this rank rendered it (the camera moved): its tiles are
+  // not all rendered, and its costs are partial.
+  bool abandoned = false;
   std::vector<RenderedTile> tiles;
   // Over the whole screen; only the cells under `tiles` travel (the rest decode as zero).
   // Empty (cellsX = 0) when not measured.

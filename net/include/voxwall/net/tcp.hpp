@@ -56,13 +56,17 @@ class TileStreamer {
   // it returns false when there is no connection, and then the frame is skipped. A send that
   // fails skips the rest of the frame the same way: later sendTiles and endFrame return false.
   bool beginFrame(std::uint64_t frame);
-  // `step` > 1: the tiles are of an interactive frame's reduced screen (wire.hpp);
-  // `renderMicros`: how long this rank has rendered the frame so far (with the last part, its
-  // render time for the frame: the sink keeps the value of a rank's last tile).
+  // `step` > 1: the tiles are of an interactive frame's reduced screen (wire.hpp), `phase` says
+  // why; `renderMicros`: how long this rank has rendered the frame so far (with the last part,
+  // its render time for the frame: the sink keeps the value of a rank's last tile).
   bool sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_t decidedUnixMicros,
-                 int step = 1, std::uint32_t renderMicros = 0);
-  // Sends FrameEnd with the count of tiles sent; returns whether the whole frame went out.
-  bool endFrame();
+                 int step = 1, std::uint32_t renderMicros = 0, FramePhase phase = FramePhase::Full);
+  // Sends FrameEnd with the count of tiles sent (and whether the job abandoned the frame);
+  // returns whether the whole frame went out.
+  bool endFrame(bool abandoned = false);
+  // Tells the sink that the render job abandoned `frame` (a FrameEnd with the flag and no tiles)
+  // when connected and between frames; false when it could not.
+  bool abandon(std::uint64_t frame);
   // Where to cut this frame's segments and which to send, as the sink said in its Welcome
   // (valid after a beginFrame that returned true; the default cut otherwise).
   const DisplayCut& displayCut() const { return cut_; }
@@ -102,6 +106,7 @@ class ControlChannel {
   ControlChannel(std::string host, std::uint16_t port, Hello hello);
   ~ControlChannel();
   std::vector<Control> drain();  // the commands received since the last call, in order
+  std::size_t pending() const;   // how many drain() would return now
   // What the sink said about frames (dropped or refused ones) since the last call, as lines.
   std::vector<std::string> drainNotes();
   std::string refused() const;            // empty while the sink has not refused the job

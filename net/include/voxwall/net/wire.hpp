@@ -17,20 +17,23 @@
 //            lie on no display), u16 display count (<= kMaxWelcomeDisplays), then per display
 //            i32 x, y, width, height (virtual-screen pixels, on the screen)
 //                                                        (sink -> peer, after Hello)
-//   Tile     i32 x, y, width, height, u8 codec, u8 step (1..kMaxStep), u64 decidedUnixMicros,
-//            u32 renderMicros, bytes. The rectangle is in pixels of the frame's screen: the virtual
-//            screen itself at step 1, or the reduced screen of an interactive frame,
-//            ceil(width / step) x ceil(height / step), whose pixel (x, y) stands for the step x
-//            step block of virtual-screen pixels at (x * step, y * step) (clipped at the edge).
-//            renderMicros: how long the sending rank had rendered the frame when it sent the
-//            tile (a rank sends bands as it renders them: its last tile carries the whole time).
-//            Renderers cut their segments at the Welcome's display edges (tile_codec.hpp,
+//   Tile     i32 x, y, width, height, u8 codec, u8 step (1..kMaxStep), u8 phase (FramePhase),
+//            u64 decidedUnixMicros, u32 renderMicros, bytes. The rectangle is in pixels of the
+//            frame's screen: the virtual screen itself at step 1, or the reduced screen of an
+//            interactive frame, ceil(width / step) x ceil(height / step), whose pixel (x, y) stands
+//            for the step x step block of virtual-screen pixels at (x * step, y * step) (clipped at
+//            the edge). renderMicros: how long the sending rank had rendered the frame when it sent
+//            the tile (a rank sends bands as it renders them: its last tile carries the whole
+//            time). Renderers cut their segments at the Welcome's display edges (tile_codec.hpp,
 //            DisplayCut), so a segment lies on the displays it touches or wholly in a bezel gap,
 //            and send bezel-only segments only when the Welcome asks for them.
-//   FrameEnd i32 rank, u32 tiles this rank sent for the frame
+//   FrameEnd i32 rank, u32 tiles this rank sent for the frame, u8 flags (bit 0: the render job
+//            abandoned the frame: the camera moved while it was rendered; the sink drops it as
+//            superseded)
 //   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
 //   Bye      str reason
-//   FrameNote u8 status (1 presented, 2 dropped, 3 refused), str reason      (sink -> controller;
+//   FrameNote u8 status (1 presented, 2 dropped, 3 refused, 4 superseded), str reason
+//            (sink -> controller;
 //            the header's frame id names the frame)
 // Sequence: peer connects, sends Hello; the sink answers Welcome, or Bye with the reason (wrong
 // version, token or wall) and closes. A renderer then sends, per frame, its Tiles and a
@@ -42,7 +45,8 @@
 // window starts at the Hello's nextFrame (the frame the peer sends next).
 // Version history: 1 first release; 2 adds Hello.jobId and FrameNote; 3 adds Tile.step and
 // Tile.renderMicros (interactive frames, the load overlay); 4 adds the displays and the bezel flag
-// to Welcome (segments cut at display edges, so the sink routes them without decoding).
+// to Welcome (segments cut at display edges, so the sink routes them without decoding),
+// Tile.phase, FrameEnd's flags and the superseded status (abandoned frames, refinement).
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
 
@@ -80,6 +84,16 @@ enum class MessageType : std::uint16_t {
 };
 enum class Role : std::uint8_t { Renderer = 1, Controller = 2 };
 enum class ControlCommand : std::uint8_t { Rotate = 1, Zoom = 2, Pan = 3, Reset = 4 };
+// Why a frame has its step (wire values; never reuse one).
+enum class FramePhase : std::uint8_t {
+  Full = 0,         // full resolution, nothing pending
+  Interactive = 1,  // reduced while the camera is being steered
+  Refining = 2,     // the camera settled: reduced, on the way to full resolution
+};
+const char* phaseName(FramePhase phase);  // "full", "interactive", "refining"
+// How a frame is described in logs and on the pages: "" at step 1, "refining 1/S" for a
+// refining frame, else "interactive 1/S" (a reduced frame is a steered one unless it refines).
+std::string stepLabel(int step, FramePhase phase);
 
 struct Hello {
   Role role = Role::Renderer;
@@ -105,6 +119,7 @@ struct TileMessage {
   std::vector<std::byte> bytes;
   int step = 1;                    // 1: full resolution; n: an interactive frame, 1/n per side
   std::uint32_t renderMicros = 0;  // the sending rank's render time so far (last tile: all)
+  FramePhase phase = FramePhase::Full;
 };
 // The virtual-screen rectangle that `rect` of a frame rendered at `step` stands for, clipped to
 // the screenWidth x screenHeight virtual screen (empty when it lies outside).
@@ -115,6 +130,7 @@ inline int reducedSide(int side, int step) { return (side + step - 1) / step; }
 struct FrameEnd {
   int rank = 0;
   std::uint32_t tiles = 0;
+  bool abandoned = false;  // the job gave the frame up (the camera moved): drop it, superseded
 };
 struct Control {
   ControlCommand command = ControlCommand::Reset;
@@ -123,7 +139,7 @@ struct Control {
 struct Bye {
   std::string reason;
 };
-enum class FrameStatus : std::uint8_t { Presented = 1, Dropped = 2, Refused = 3 };
+enum class FrameStatus : std::uint8_t { Presented = 1, Dropped = 2, Refused = 3, Superseded = 4 };
 struct FrameNote {
   FrameStatus status = FrameStatus::Presented;
   std::string reason;  // empty when presented

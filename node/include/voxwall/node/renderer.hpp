@@ -1,6 +1,7 @@
 // Frame preparation and the rendering backends (CPU threads, CUDA).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -54,6 +55,7 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
 struct TileStats {
   double seconds = 0.0;
   std::uint64_t samples = 0;  // transfer-function samples taken (empty-space skips excluded)
+  bool stopped = false;       // told to stop before every pixel was rendered
 };
 
 enum class BackendKind { Cpu, Cuda };
@@ -71,14 +73,17 @@ class Backend {
   // Renders `tile` of the virtual screen into `out` (resized to the tile). With `costs` (a grid
   // over the whole virtual screen), adds the time spent on each part of the tile to its cells:
   // the CPU backend per 16x16 block (thread-seconds), the CUDA backend spread over the tile.
+  // Once `*stop` turns true (another thread sets it: the camera moved), the tile is left
+  // unfinished as soon as the work in progress ends (the CPU backend: each thread's 16x16 block;
+  // the CUDA backend: the kernel launched) and the stats say `stopped`.
   TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile, Image& out,
-                   CostGrid* costs = nullptr) {
-    return renderTile(volume, plan, tile, out, costs);
+                   CostGrid* costs = nullptr, const std::atomic<bool>* stop = nullptr) {
+    return renderTile(volume, plan, tile, out, costs, stop);
   }
 
  protected:
   virtual TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
-                               Image& out, CostGrid* costs) = 0;
+                               Image& out, CostGrid* costs, const std::atomic<bool>* stop) = 0;
 };
 
 // threads: CPU worker threads (0 = all cores). Cuda throws CudaError when no device is usable.

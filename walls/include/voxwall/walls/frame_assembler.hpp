@@ -50,6 +50,7 @@ struct AssembledFrame {
   // 1: full resolution; n > 1: an interactive frame rendered at 1/n per side and upsampled here
   // (every virtual-screen pixel repeats the reduced pixel whose block it lies in).
   int step = 1;
+  net::FramePhase phase = net::FramePhase::Full;  // why it has that step
   // Every rank that sent tiles of the frame, with its render time for the frame.
   std::map<int, std::uint32_t> rankRenderMicros;
 };
@@ -87,6 +88,10 @@ class FrameAssembler {
   // are ignored (reported once).
   std::optional<AssembledFrame> addTile(std::uint64_t frame, net::TileMessage tile, int rank,
                                         const std::string& peer);
+  // The render job abandoned `frame` (the camera moved while it was rendered): it is dropped as
+  // superseded if open, and its later tiles are ignored. Frames already settled, or outside the
+  // frame window, are left alone.
+  void supersede(std::uint64_t frame, const std::string& why);
 
   std::uint64_t heldBytes() const { return heldBytes_; }
   std::size_t openFrames() const { return open_.size(); }

@@ -32,7 +32,7 @@ struct SinkSettings {
   bool mosaic = false;  // also write the whole virtual screen (the ranks then send bezels too)
   FrameFormat outFormat = FrameFormat::Png;  // the displays' files
   int writeQueue = 8;  // presented frames waiting to be written; beyond, the oldest is skipped
-  int maxFrames = 0;   // stop after this many frames were presented or dropped (0: never)
+  int maxFrames = 0;   // stop after this many frames were presented, dropped or superseded
   // Incomplete frames held at once; the oldest is dropped. Ranks a few frames apart in the
   // kernel's socket buffers are normal at full speed (a bigeye frame is about 1 MB of JPEG).
   int pendingFrames = 16;
@@ -52,6 +52,7 @@ struct SinkSettings {
 
 struct SinkStats {
   int framesPresented = 0, framesDropped = 0, framesRefused = 0;
+  int framesSuperseded = 0;  // abandoned by the render job: the camera moved while they rendered
   int framesNotWritten = 0;  // presented, but skipped by the file writer (it fell behind)
   int framesWritten = 0;
   int peersAccepted = 0, peersRefused = 0, peersDropped = 0;

@@ -1,0 +1,129 @@
+// Each frame's step while a job is steered from the wall, without ranks or a clock: interactive
+// frames while commands come, refinement once the camera settled, which frames a command
+// abandons, the frame budget, and batch jobs that never reduce, refine or abandon.
+#include <gtest/gtest.h>
+
+#include <voxwall/master/steering.hpp>
+
+using namespace voxwall;
+using master::FrameChoice;
+using master::Steering;
+using master::SteeringSettings;
+using namespace std::chrono_literals;
+
+namespace {
+
+SteeringSettings steered(double settleSeconds = 0.5) {
+  SteeringSettings s;
+  s.interactive = true;
+  s.settleSeconds = settleSeconds;
+  return s;
+}
+
+// Frames one after the other, each taking `seconds`; returns their choices.
+std::vector<FrameChoice> frames(Steering& steering, Steering::Clock::time_point& now, int count,
+                                int commandsFirst = 0, double seconds = 0.1) {
+  std::vector<FrameChoice> out;
+  for (int i = 0; i < count; ++i) {
+    out.push_back(steering.next(i == 0 ? commandsFirst : 0, now));
+    now += std::chrono::duration_cast<Steering::Clock::duration>(
+        std::chrono::duration<double>(seconds));
+    steering.finished(out.back(), seconds, false);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Steering, ACommandGivesInteractiveFramesThenThePictureRefinesToFullResolution) {
+  Steering steering(steered());
+  Steering::Clock::time_point now{};
+  // Never steered: full frames, which a command may abandon.
+  const auto before = frames(steering, now, 2);
+  EXPECT_EQ(before[1].step, 1);
+  EXPECT_EQ(before[1].phase, net::FramePhase::Full);
+  EXPECT_TRUE(steering.abandonable(before[1]));
+  // A command: interactive frames at 1/4 until 0.5 s without one; they are never abandoned.
+  const auto steeredFrames = frames(steering, now, 5, 1);
+  for (const auto& f : steeredFrames) {
+    EXPECT_EQ(f.step, 4);
+    EXPECT_EQ(f.phase, net::FramePhase::Interactive);
+    EXPECT_FALSE(steering.abandonable(f));
+  }
+  // Settled: 4 was shown already, so 2, then full resolution, and full frames on.
+  const auto settled = frames(steering, now, 4);
+  EXPECT_EQ(settled[0].step, 2);
+  EXPECT_EQ(settled[0].phase, net::FramePhase::Refining);
+  EXPECT_TRUE(steering.abandonable(settled[0]));
+  EXPECT_EQ(settled[1].step, 1);
+  EXPECT_EQ(settled[1].phase, net::FramePhase::Full);
+  EXPECT_EQ(settled[3].step, 1);
+}
+
+TEST(Steering, WithoutSettlingTimeTheRefinementStartsAtItsCoarsestStep) {
+  Steering steering(steered(0));
+  Steering::Clock::time_point now{};
+  const auto f = frames(steering, now, 4, 1);
+  EXPECT_EQ(f[0].step, 4);
+  EXPECT_EQ(f[0].phase, net::FramePhase::Refining);
+  EXPECT_EQ(f[1].step, 2);
+  EXPECT_EQ(f[2].step, 1);
+  EXPECT_EQ(f[3].step, 1);
+}
+
+TEST(Steering, AnAbandonedFrameIsNotShownSoTheRefinementGoesOnFromWhereItWas) {
+  Steering steering(steered(0));
+  Steering::Clock::time_point now{};
+  const auto coarse = steering.next(1, now);
+  steering.finished(coarse, 0.1, false);
+  const auto two = steering.next(0, now + 100ms);
+  ASSERT_EQ(two.step, 2);
+  steering.finished(two, 0.05, true);  // abandoned: step 2 was never shown
+  // The next command starts the refinement again from the coarse step.
+  EXPECT_EQ(steering.next(1, now + 200ms).step, 4);
+}
+
+TEST(Steering, TheFrameBudgetPicksTheSteeringStepFromMeasuredFrames) {
+  auto settings = steered();
+  settings.frameBudgetMs = 100;
+  Steering steering(settings);
+  Steering::Clock::time_point now{};
+  EXPECT_EQ(steering.steeringStep(), 4);  // nothing measured yet: --interactive-step
+  // A full frame of 1.6 s: 1/4 per side takes 0.1 s.
+  const auto full = steering.next(0, now);
+  steering.finished(full, 1.6, false);
+  EXPECT_EQ(steering.steeringStep(), 4);
+  EXPECT_EQ(steering.next(1, now + 2s).step, 4);
+  // Frames get cheaper (a smaller part of the screen is the volume): a finer step fits.
+  steering.finished({4, net::FramePhase::Interactive}, 0.0125, false);  // full: (1.6 + 0.2) / 2
+  EXPECT_EQ(steering.steeringStep(), 3);                                // 0.9 s / 9 = 0.1 s
+  // A cheap volume: full resolution fits the budget.
+  for (int i = 0; i < 20; ++i) steering.finished({1, net::FramePhase::Full}, 0.02, false);
+  EXPECT_EQ(steering.steeringStep(), 1);
+}
+
+TEST(Steering, BatchJobsAndJobsToldNeverToReduceRenderFullFrames) {
+  Steering batch(SteeringSettings{});
+  Steering::Clock::time_point now{};
+  const auto f = batch.next(3, now);
+  EXPECT_EQ(f.step, 1);
+  EXPECT_EQ(f.phase, net::FramePhase::Full);
+  EXPECT_FALSE(batch.abandonable(f));
+  auto never = steered();
+  never.interactiveStep = 1;
+  Steering full(never);
+  EXPECT_EQ(full.next(1, now).step, 1);
+  EXPECT_EQ(full.next(0, now + 1s).step, 1);
+  EXPECT_TRUE(full.abandonable(full.next(0, now + 2s)));  // still abandoned when the camera moves
+}
+
+TEST(Steering, RefineStepsAreParsedAndChecked) {
+  EXPECT_EQ(master::parseRefineSteps("4,2,1"), (std::vector<int>{4, 2, 1}));
+  EXPECT_EQ(master::parseRefineSteps("1"), (std::vector<int>{1}));
+  EXPECT_EQ(master::parseRefineSteps("16,1"), (std::vector<int>{16, 1}));
+  for (const char* bad : {"", "4,2", "2,4,1", "4,4,1", "0,1", "17,1", "4,,1", "4x,1", "4 ,1"})
+    EXPECT_THROW(master::parseRefineSteps(bad), std::invalid_argument) << bad;
+  auto settings = steered();
+  settings.refine = {4, 2};
+  EXPECT_THROW(Steering{settings}, std::invalid_argument);
+}
