@@ -330,6 +330,34 @@ void sendWhenStalled(test::SinkRunner& sink, std::atomic<int>& stalling, int ran
   sink.sink().sendControl(control);
 }
 
+// Runs `job` on 2 ranks whose frame 1 does not finish until a command, sent once both render it,
+// abandons it (`rotate 40 0`); returns every frame's summary and, in `stopped`, how many tiles
+// were left unfinished.
+std::vector<master::FrameSummary> runWithFrameOneAbandoned(const master::JobSettings& job,
+                                                           test::SinkRunner& sink,
+                                                           int* stopped = nullptr) {
+  std::atomic<bool> stall{false};
+  std::atomic<int> stalling{0}, unfinished{0};
+  std::vector<master::FrameSummary> frames;
+  std::thread commander;
+  runJob(
+      2, job,
+      [&](const master::FrameSummary& f) {
+        frames.push_back(f);
+        if (f.frame == 0) {
+          stall = true;
+          commander = std::thread([&] {
+            sendWhenStalled(sink, stalling, 2, {net::ControlCommand::Rotate, 40, 0});
+          });
+        }
+        if (f.frame == 1) stall = false;
+      },
+      [&] { return std::make_unique<StallingBackend>(stall, stalling, unfinished); });
+  commander.join();
+  if (stopped) *stopped = unfinished;
+  return frames;
+}
+
 }  // namespace
 
 // A command that arrives while a full frame renders abandons it on every rank: the sink drops it
@@ -341,31 +369,15 @@ TEST(Stream, ACommandDuringAFullFrameAbandonsItAndTheNextFrameHasTheNewCamera) {
   auto job = streamJob(sink->port(), net::TileCodec::Deflate, 4);
   job.path = master::CameraPath::orbit({}, 0);
   job.settleSeconds = 3600;  // stay steered: frames 2 and 3 are interactive
-  std::atomic<bool> stall{false};
-  std::atomic<int> stalling{0}, stopped{0};
-  std::vector<master::FrameSummary> frames;
-  std::thread commander;
-  runJob(
-      2, job,
-      [&](const master::FrameSummary& f) {
-        frames.push_back(f);
-        if (f.frame == 0) {  // frame 1 stalls until the command abandons it
-          stall = true;
-          commander = std::thread([&] {
-            sendWhenStalled(*sink, stalling, 2, {net::ControlCommand::Rotate, 40, 0});
-          });
-        }
-        if (f.frame == 1) stall = false;
-      },
-      [&] { return std::make_unique<StallingBackend>(stall, stalling, stopped); });
-  commander.join();
+  int stopped = 0;
+  const auto frames = runWithFrameOneAbandoned(job, *sink, &stopped);
   ASSERT_TRUE(waitSettled(*sink, 4)) << sink->log();
   sink->stop();
   ASSERT_EQ(frames.size(), 4u);
   EXPECT_FALSE(frames[0].abandoned);
   EXPECT_TRUE(frames[1].abandoned);
   EXPECT_EQ(frames[1].step, 1);
-  EXPECT_GE(stopped.load(), 2);  // both ranks left their tiles unfinished
+  EXPECT_GE(stopped, 2);  // both ranks left their tiles unfinished
   EXPECT_EQ(frames[2].step, 4);
   EXPECT_EQ(frames[2].phase, net::FramePhase::Interactive);
   EXPECT_FALSE(frames[2].abandoned);
@@ -393,24 +405,7 @@ TEST(Stream, RefinementShowsStepsInOrderAndEndsAtTheBatchFrame) {
   job.path = master::CameraPath::orbit({}, 0);
   job.settleSeconds = 0;  // settled as soon as the command was taken: refine at once
   // Frame 1 stalls until the command abandons it, so frame 2 is the first to take it.
-  std::atomic<bool> stall{false};
-  std::atomic<int> stalling{0}, stopped{0};
-  std::vector<master::FrameSummary> frames;
-  std::thread commander;
-  runJob(
-      2, job,
-      [&](const master::FrameSummary& f) {
-        frames.push_back(f);
-        if (f.frame == 0) {
-          stall = true;
-          commander = std::thread([&] {
-            sendWhenStalled(*sink, stalling, 2, {net::ControlCommand::Rotate, 40, 0});
-          });
-        }
-        if (f.frame == 1) stall = false;
-      },
-      [&] { return std::make_unique<StallingBackend>(stall, stalling, stopped); });
-  commander.join();
+  const auto frames = runWithFrameOneAbandoned(job, *sink);
   ASSERT_TRUE(waitSettled(*sink, 5)) << sink->log();
   sink->stop();
   ASSERT_EQ(frames.size(), 5u);

@@ -6,6 +6,8 @@
 #include <voxwall/net/wire.hpp>
 #include <voxwall/node/renderer.hpp>
 
+#include "support/rects.hpp"
+
 using namespace voxwall;
 
 namespace {
@@ -100,14 +102,8 @@ TEST(TileCodec, CorruptOrMismatchedTilesAreRefused) {
 
 namespace {
 
-bool inside(const voxwall::Rect& a, const voxwall::Rect& b) {
-  return a.x >= b.x && a.y >= b.y && a.x + a.width <= b.x + b.width &&
-         a.y + a.height <= b.y + b.height;
-}
-bool disjoint(const voxwall::Rect& a, const voxwall::Rect& b) {
-  return a.x >= b.x + b.width || b.x >= a.x + a.width || a.y >= b.y + b.height ||
-         b.y >= a.y + a.height;
-}
+using test::disjoint;
+using test::inside;
 
 // Two 100x60 displays side by side with a 6-pixel gap, a 206x60 screen.
 net::DisplayCut twoDisplays(bool bezels) {

@@ -11,6 +11,7 @@
 #include <voxwall/walls/frame_pixels.hpp>
 #include <voxwall/walls/wall.hpp>
 
+#include "support/rects.hpp"
 #include "support/sink_runner.hpp"
 
 using namespace voxwall;
@@ -23,14 +24,8 @@ net::DisplayCut cutOf(const walls::Wall& wall, bool bezels) {
   return cut;
 }
 
-bool inside(const voxwall::Rect& a, const voxwall::Rect& b) {
-  return a.x >= b.x && a.y >= b.y && a.x + a.width <= b.x + b.width &&
-         a.y + a.height <= b.y + b.height;
-}
-bool disjoint(const voxwall::Rect& a, const voxwall::Rect& b) {
-  return a.x >= b.x + b.width || b.x >= a.x + a.width || a.y >= b.y + b.height ||
-         b.y >= a.y + a.height;
-}
+using test::disjoint;
+using test::inside;
 
 // Checks the cut of `rects` (a rank's share, in bands of 1024 rows as ranks render them):
 // segments never straddle a display edge, and bezel-only ones appear only when wanted.

@@ -177,13 +177,7 @@ def main():
               f"{min(jpeg):.1f}-{max(jpeg):.1f} dB against the sink's files")
         return 0
     except (Failure, subprocess.SubprocessError) as e:
-        print(f"FAIL: {e}", file=sys.stderr)
-        for log in ("sink.log", "render-deflate.log", "render-jpeg.log"):
-            text = procs.log(log)
-            if text:
-                print(f"--- {log} (last lines)", file=sys.stderr)
-                print("".join(text.splitlines(True)[-15:]), file=sys.stderr)
-        return 1
+        return procs.fail(e, ("sink.log", "render-deflate.log", "render-jpeg.log"))
     finally:
         for driver in pages.values():
             driver.quit()

@@ -190,13 +190,7 @@ def main():
               f"after it {moved_db:.1f} dB from the one before (moved); touch: rotate and {zooms[0]}")
         return 0
     except (Failure, subprocess.SubprocessError) as e:
-        print(f"FAIL: {e}", file=sys.stderr)
-        for log in ("sink.log", "render.log"):
-            path = os.path.join(work, log)
-            if os.path.exists(path):
-                print(f"--- {log} (last lines)", file=sys.stderr)
-                print("".join(open(path).readlines()[-15:]), file=sys.stderr)
-        return 1
+        return procs.fail(e, ("sink.log", "render.log"))
     finally:
         if driver:
             driver.quit()

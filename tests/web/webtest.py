@@ -7,6 +7,7 @@ import os
 import signal
 import struct
 import subprocess
+import sys
 import time
 import zlib
 
@@ -123,3 +124,12 @@ class Processes:
     def log(self, name):
         path = os.path.join(self.work, name)
         return open(path).read() if os.path.exists(path) else ""
+
+    def fail(self, error, logs):
+        """Says what failed and how the logs end, on stderr; returns the exit status 1."""
+        print(f"FAIL: {error}", file=sys.stderr)
+        for name in logs:
+            if text := self.log(name):
+                print(f"--- {name} (last lines)", file=sys.stderr)
+                print("".join(text.splitlines(True)[-15:]), file=sys.stderr)
+        return 1

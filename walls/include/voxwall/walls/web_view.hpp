@@ -18,7 +18,8 @@
 //                 {"type":"auth", "ok": true}                     (after a right token)
 //                 {"type":"error", "message"}                     (a command that was not taken)
 //                 binary: u32 n (little-endian), n bytes of JSON {"type":"frame", "frame",
-//                  "step", "width", "height" (of the JPEG), "tiles":[{"rank","x","y","w","h"}]
+//                  "step", "phase" ("full", "interactive" or "refining"), "width", "height" (of
+//                  the JPEG), "tiles":[{"rank","x","y","w","h"}]
 //                  (what each rank rendered, in virtual-screen pixels: its tiles' segments
 //                  joined), "ranks":{"R": render ms}, "latency_ms", "bytes", "presented" (the
 //                  sink's count so far), "dropped" (dropped so far), "ranks_connected"}, then the
@@ -31,7 +32,7 @@
 //                  (on connect)
 //                 {"type":"auth", "ok": true}
 //                 binary: u32 n, n bytes of JSON {"type":"frame", "frame", "seq" (the sink's
-//                  count of presented frames: frame ids restart with each job), "step",
+//                  count of presented frames: frame ids restart with each job), "step", "phase",
 //                  "latency_ms", "segments":[{"x","y","w","h" (pixels of the frame's screen,
 //                  reduced at step > 1), "codec":"jpeg"|"raw"|"deflate", "bytes"}]}, then each
 //                  segment's bytes as the rank sent them, in that order: every segment that
