@@ -166,7 +166,8 @@ std::string displaysHtml(const Wall& wall, const std::string& base, bool token) 
   return "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>voxwall: " +
          htmlEscape(wall.id) +
          " displays</title><style>body{font:14px system-ui,sans-serif;margin:2em;background:#111;"
-         "color:#ddd}td{padding:2px 12px 2px 0}a{color:#8cf}code{color:#fc8}</style></head>"
+         "color:#ddd}td{padding:2px 12px 2px 0;white-space:nowrap}a{color:#8cf}code{color:#fc8}"
+         "</style></head>"
          "<body><h1>" +
          htmlEscape(wall.id) + ": " + std::to_string(wall.displays.size()) +
          " display(s)</h1><p>On each display's host, run its line (one browser per display; "
