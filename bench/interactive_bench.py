@@ -12,12 +12,17 @@ stamped with this script's clock):
       the next full-resolution frame presented after it;
   --drag-seconds S (default 0: off): types a `rotate` every 0.1 s (what a drag in the page
       sends) for S seconds and compares the steered frames' times with the full frames'.
+  --page: the --latency commands are drags of a pointer on the sink's overview page in headless
+      chromium (Debian's chromium, chromedriver and python3-selenium) instead of lines on the
+      sink's stdin; the page also times, in its own clock, its first pointer event to the first
+      refresh that shows an interactive frame.
 
 Works with builds before the frame in flight could be abandoned too (the command then waits for
 it), so the same script measures before and after.
 
 Usage: interactive_bench.py [--voxwall BIN] [--wall walls/bigeye.json] [--volume FILE]
-           [--ranks 2] [--latency 10] [--drag-seconds 20] [--shading] [-- RENDER OPTIONS...]
+           [--ranks 2] [--latency 10] [--drag-seconds 20] [--page] [--shading]
+           [-- RENDER OPTIONS...]
 Prints tables; stops with an error when it cannot parse what it measured.
 """
 import argparse
@@ -63,17 +68,21 @@ class Wall:
 
     def __init__(self, args, extra):
         self.sink = subprocess.Popen([args.voxwall, "sink", "--wall", args.wall, "--listen",
-                                      "127.0.0.1:0"], stdin=subprocess.PIPE,
+                                      "127.0.0.1:0"] +
+                                     (["--http", "127.0.0.1:0"] if args.page else []),
+                                     stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      bufsize=1)
         self.sink_lines = Lines(self.sink.stdout)
-        port = None
+        port, self.page_url = None, None
         deadline = time.monotonic() + 30
-        while port is None and time.monotonic() < deadline:
+        while (port is None or (args.page and not self.page_url)) and time.monotonic() < deadline:
             got = self.sink_lines.get(0.1)
             if got and (m := re.search(r"listening on 127\.0\.0\.1:(\d+)", got[1])):
                 port = m.group(1)
-        if not port:
+            if got and (m := re.search(r"wall page at (http://127\.0\.0\.1:\d+/)", got[1])):
+                self.page_url = m.group(1)
+        if not port or (args.page and not self.page_url):
             self.sink.kill()
             fail("the sink did not start")
         mpirun = ["mpirun", "--oversubscribe", "--bind-to", "none", "-np", str(args.ranks)]
@@ -136,9 +145,81 @@ class Wall:
                 and f in self.presented]
 
 
-def latency(wall, count, rng):
+# Injected into the overview page: its first pointer event of a drag, and the first display
+# refresh after it that shows a steered frame (interactive, or refining when the page skipped the
+# interactive one; a build without phases: a reduced step).
+PAGE_TIMER = """
+const b = window.voxwallBench = {t0: null, t1: null};
+const canvas = document.getElementById("wall");
+const down = () => { if (b.t0 === null) b.t0 = performance.now(); };
+canvas.addEventListener("pointerdown", down, {capture: true, once: true});
+const seen = window.voxwall.frames;
+(function tick() {
+  const m = window.voxwall.meta;
+  if (b.t0 !== null && window.voxwall.frames > seen && m &&
+      (m.phase === "interactive" || m.phase === "refining" || (!m.phase && m.step > 1))) {
+    b.t1 = performance.now();
+    return;
+  }
+  requestAnimationFrame(tick);
+})();
+"""
+
+
+class Page:
+    """The sink's overview page in headless chromium; commands are drags on its canvas."""
+
+    def __init__(self, url, work):
+        try:
+            from selenium import webdriver
+            from selenium.webdriver.chrome.service import Service
+        except ImportError:
+            fail("--page needs python3-selenium, chromium and chromium-driver")
+        options = webdriver.ChromeOptions()
+        options.binary_location = "/usr/bin/chromium"
+        for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                     "--disable-background-networking", "--disable-component-update",
+                     "--disable-background-timer-throttling", "--disable-dev-shm-usage",
+                     "--force-device-scale-factor=1", "--window-size=1100,760",
+                     f"--user-data-dir={os.path.join(work, 'chromium-bench')}"):
+            options.add_argument(flag)
+        self.driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+        self.driver.get(url)
+        deadline = time.monotonic() + 120
+        while not self.driver.execute_script("return window.voxwall && window.voxwall.frames"):
+            if time.monotonic() > deadline:
+                fail("the overview page showed no frame in 120 s")
+            time.sleep(0.2)
+        self.page_ms = []
+
+    def command(self, _text):
+        from selenium.webdriver.common.action_chains import ActionChains
+        from selenium.webdriver.common.by import By
+        self.driver.execute_script(PAGE_TIMER)
+        canvas = self.driver.find_element(By.ID, "wall")
+        sent = time.monotonic()
+        ActionChains(self.driver).move_to_element(canvas).click_and_hold() \
+            .move_by_offset(20, 0).release().perform()
+        return sent
+
+    def took(self):
+        """The page's own time from the pointer to the picture, once it showed it."""
+        got = self.driver.execute_script(
+            "const b = window.voxwallBench; return b.t1 === null ? null : b.t1 - b.t0;")
+        if got is not None:
+            self.page_ms.append(got)
+        return got
+
+    def close(self):
+        self.driver.quit()
+
+
+def latency(wall, count, rng, page=None):
     """Command -> first frame with the new camera presented, and -> full resolution again."""
     first, full, abandoned = [], [], 0
+    # Where the first answer's time goes: the frame in flight (until rank 0 printed it, abandoned
+    # or whole), the new-camera frame's own render, and the rest (tiles to the sink, assembly).
+    parts = {"in flight": [], "render": [], "rest": []}
     for i in range(count):
         # The wall shows a settled full frame: the next one is in flight.
         shown = wall.wait("a settled full frame",
@@ -147,17 +228,25 @@ def latency(wall, count, rng):
         target = time.monotonic() + rng.uniform(0.05, 0.9) * full_s
         while time.monotonic() < target:
             wall.pump(min(0.02, max(0.0, target - time.monotonic())))
-        sent = wall.command(f"rotate {5 + i} 0")
+        sent = (page or wall).command(f"rotate {5 + i} 0")
         moved = wall.wait("the frame that took the command", lambda: next(
             (f for f, v in sorted(wall.frames.items()) if f > shown and v[3]), None), 600)
         took = wall.wait(f"frame {moved} on the wall", lambda: wall.presented.get(moved), 600)
+        if page:
+            wall.wait("the page to show it", page.took, 60)
         settled = wall.wait("full resolution again",
                             lambda: wall.presented[f[0]] if (f := wall.full_frames(moved)) else None,
                             600)
         abandoned += sum(1 for f, v in wall.frames.items() if shown < f < moved and v[4])
+        before = [v[0] for f, v in wall.frames.items() if shown < f < moved and v[0] >= sent]
+        in_flight = (max(before) - sent) if before else 0.0
+        render = wall.frames[moved][1] / 1000
+        parts["in flight"].append(in_flight)
+        parts["render"].append(render)
+        parts["rest"].append(max(0.0, took - sent - in_flight - render))
         first.append(took - sent)
         full.append(settled - sent)
-    return first, full, abandoned
+    return first, full, abandoned, parts
 
 
 def drag(wall, seconds):
@@ -191,6 +280,8 @@ def main():
     ap.add_argument("--latency", type=int, default=10, help="commands to time (0: none)")
     ap.add_argument("--drag-seconds", type=float, default=0)
     ap.add_argument("--shading", action="store_true")
+    ap.add_argument("--page", action="store_true",
+                    help="drag on the overview page in headless chromium instead of typing")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", default=os.path.join(ROOT, "bench-out"))
     ap.add_argument("render", nargs="*", help="more options for `voxwall render` (after --)")
@@ -200,18 +291,30 @@ def main():
     subprocess.run([args.voxwall, "compress", args.volume, "-o", args.vwz, "-q"], check=True,
                    stdout=subprocess.DEVNULL)
     wall = Wall(args, args.render)
+    page = None
     name = (f"{os.path.basename(args.wall)}, {args.ranks} ranks, "
             f"{'shaded' if args.shading else 'unshaded'}"
             f"{', ' + ' '.join(args.render) if args.render else ''}")
     try:
+        if args.page:
+            page = Page(wall.page_url, args.out)
         if args.latency > 0:
-            first, full, abandoned = latency(wall, args.latency, random.Random(args.seed))
-            print(f"# {name}: {len(first)} commands, each at a random moment of a full frame "
+            first, full, abandoned, parts = latency(wall, args.latency, random.Random(args.seed),
+                                                    page)
+            how = "drags on the overview page" if page else "commands"
+            print(f"# {name}: {len(first)} {how}, each at a random moment of a full frame "
                   f"in flight; {abandoned} frame(s) abandoned")
             print("| from the command to | median s | p95 s | max s |")
             print("|---|---|---|---|")
-            for label, values in (("the first frame with the new camera on the wall", first),
-                                  ("full resolution on the wall again", full)):
+            rows = [("the first frame with the new camera on the wall", first),
+                    ("full resolution on the wall again", full)]
+            if page:
+                rows.append(("the page's picture (pointer event to refresh, page clock)",
+                             [ms / 1000 for ms in page.page_ms]))
+            rows += [("  of the first: the frame in flight ends", parts["in flight"]),
+                     ("  of the first: its own render", parts["render"]),
+                     ("  of the first: the rest (tiles, assembly)", parts["rest"])]
+            for label, values in rows:
                 print(f"| {label} | {statistics.median(values):.2f} | "
                       f"{percentile(values, 0.95):.2f} | {max(values):.2f} |")
         if args.drag_seconds > 0:
@@ -227,8 +330,13 @@ def main():
             print(f"| full resolution (mean) | {full_ms:.0f} | {1000 / full_ms:.2f} |")
             print(f"| while dragging (median, first one excluded) | {steered_ms:.0f} | "
                   f"{1000 / steered_ms:.2f} |")
+            p95_ms = percentile(steered[1:], 0.95)
+            print(f"| while dragging (p95, first one excluded) | {p95_ms:.0f} | "
+                  f"{1000 / p95_ms:.2f} |")
             print(f"| ratio | | {full_ms / steered_ms:.1f}x |")
     finally:
+        if page:
+            page.close()
         wall.close()
 
 

@@ -12,8 +12,17 @@ echo "== voxwall vs VTK vtkFixedPointVolumeRayCastMapper"
 xvfb-run -a -s "-screen 0 3000x2000x24" /usr/bin/python3 bench/compare_vtk.py --voxwall "$build/master/voxwall" "$@"
 echo "== What shading costs per codec: unshaded, six-sample gradients, cell gradients"
 /usr/bin/python3 bench/shading_bench.py --voxwall "$build/master/voxwall"
-echo "== Steering the bigeye wall: frames while dragging (interactive 1/4) against full frames"
-/usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading
+echo "== Steering the bigeye wall: a command into the full frame in flight; a drag against full frames"
+/usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading \
+  --latency 10 --drag-seconds 20
+echo "== Steering the desktop wall: the same command, and a drag with --frame-budget 100"
+/usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading \
+  --wall walls/desktop.json --latency 10
+/usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading \
+  --wall walls/desktop.json --latency 0 --drag-seconds 20 -- --frame-budget 100
+echo "== Steering from the overview page in headless chromium: pointer to picture"
+/usr/bin/python3 bench/interactive_bench.py --voxwall "$build/master/voxwall" --shading \
+  --latency 10 --page
 echo "== The wall's frame rate at the sink: a bigeye stream to 12 display pages, files, chromium pages"
 /usr/bin/python3 bench/wall_fps.py --voxwall "$build/master/voxwall" \
   --replay "$build/bench/voxwall_bench_wall_replay" --chromium 4 --chromium-rate 3

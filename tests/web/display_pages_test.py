@@ -16,7 +16,6 @@ Usage: display_pages_test.py --voxwall BIN --mpiexec MPIEXEC [--preflags "..."] 
 Exits 0 when every check passed; one line saying what failed and 1 otherwise.
 """
 import argparse
-import base64
 import os
 import re
 import shlex
@@ -24,7 +23,7 @@ import subprocess
 import sys
 import tempfile
 
-from webtest import Failure, Processes, chromium, psnr, read_png, wait
+from webtest import Failure, Processes, chromium, psnr, read_png, rgba_rows, wait
 
 
 def page_picture(driver):
@@ -32,11 +31,7 @@ def page_picture(driver):
     got = driver.execute_script("return window.voxwall.pixels();")
     if not got:
         return None
-    rgba = base64.b64decode(got["rgba"])
-    w = got["width"]
-    rows = [bytes(b for i, b in enumerate(rgba[y * 4 * w:(y + 1) * 4 * w]) if i % 4 < 3)
-            for y in range(got["height"])]
-    return got, rows
+    return got, rgba_rows(got)
 
 
 def history(driver):

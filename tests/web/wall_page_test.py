@@ -15,7 +15,6 @@ Usage: wall_page_test.py --voxwall BIN --mpiexec MPIEXEC [--preflags "..."] --wa
 Exits 0 when every check passed; one line saying what failed and 1 otherwise.
 """
 import argparse
-import base64
 import os
 import re
 import shlex
@@ -28,7 +27,7 @@ from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.actions.action_builder import ActionBuilder
 from selenium.webdriver.common.by import By
 
-from webtest import Failure, Processes, chromium, psnr, read_png, wait
+from webtest import Failure, Processes, chromium, psnr, read_png, rgba_rows, wait
 
 
 def page_frame(driver):
@@ -47,11 +46,7 @@ def page_frame(driver):
         return {meta: s.meta, width: c.width, height: c.height, rgba: btoa(bin)};""")
     if not got:
         return None
-    rgba = base64.b64decode(got["rgba"])
-    w = got["width"]
-    rows = [bytes(b for i, b in enumerate(rgba[y * 4 * w:(y + 1) * 4 * w]) if i % 4 < 3)
-            for y in range(got["height"])]
-    return got["meta"], rows
+    return got["meta"], rgba_rows(got)
 
 
 def check_against_sink(wall_dir, meta, rows, what):

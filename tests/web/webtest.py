@@ -2,6 +2,7 @@
 and PSNR (plain Python: Debian's python3 with selenium needs nothing else), processes started in
 their own session, and headless chromium through Selenium.
 """
+import base64
 import math
 import os
 import signal
@@ -59,6 +60,14 @@ def read_png(data):
         prev = line
     rgb = [bytes(r[i] for i in range(len(r)) if i % channels < 3) for r in rows]
     return width, height, rgb
+
+
+def rgba_rows(got):
+    """A page's {"rgba": base64 RGBA bytes, "width", "height"} -> rows of RGB bytes."""
+    rgba = base64.b64decode(got["rgba"])
+    w = got["width"]
+    return [bytes(b for i, b in enumerate(rgba[y * 4 * w:(y + 1) * 4 * w]) if i % 4 < 3)
+            for y in range(got["height"])]
 
 
 def psnr(a, b):
