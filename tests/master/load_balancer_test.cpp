@@ -126,7 +126,7 @@ TEST(BisectCut, BalancesASkewedCost) {
   }
 }
 
-// The goal: the volume covers only a corner of the screen. Static strips leave most
+// The balancer's goal: the volume covers only a corner of the screen. Static strips leave most
 // ranks idle; the dynamic balancer is within 1.15 after five frames.
 TEST(LoadBalancer, CornerViewBalancesWithinFiveFrames) {
   const CostGrid truth = truthGrid(1920, 1080, {0, 0, 560, 300});

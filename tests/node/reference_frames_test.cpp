@@ -40,7 +40,7 @@ void checkAgainstReference(const std::string& codec) {
       writeImage(frame, std::string(out) + "/" + name, glm::dvec3(0.0));
       continue;
     }
-    // The bar for "the same picture" is 45 dB; most pixels are identical.
+    // The bar for "the same picture" is 45 dB; most pixels are identical.
     const Image reference = readImage(kDir + name);
     const ImageDiff d = compareImages(reference, frame);
     std::printf("%s: PSNR %.1f dB, max difference %d\n", name.c_str(), d.psnrDb, d.maxAbs);
