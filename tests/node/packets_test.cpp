@@ -142,7 +142,9 @@ TEST(Packets, EverySimdTargetGivesTheSamePicture) {
       EXPECT_NE(name.find(target + " packets of " + std::to_string(lanes)), std::string::npos)
           << name;
       // Best first: each next target has narrower vectors (x86: AVX-512 16 lanes, AVX2 8).
-      if (lastLanes > 0) EXPECT_LT(lanes, lastLanes) << target;
+      if (lastLanes > 0) {
+        EXPECT_LT(lanes, lastLanes) << target;
+      }
       lastLanes = lanes;
     } else {
       EXPECT_NE(name.find("one ray at a time"), std::string::npos) << target << ": " << name;
