@@ -116,12 +116,22 @@ TEST(Sink, PresentsAFrameOnlyWhenEveryDisplayPixelHasArrived) {
   ASSERT_EQ(l.width, 20);
   EXPECT_EQ(l.pixels[0], 0xff00ff00u);
   EXPECT_EQ(r.pixels[0], 0xffff0000u);  // 0xff0000 with red in the lowest byte: blue
-  // Late tiles for a frame already settled are ignored, not presented.
+  // Late tiles for a frame already settled are ignored, not presented. Frame 3 follows them on
+  // the same connection, so once it is presented and written the sink has read them.
   left->send(net::encodeMessage(
       1, net::TileMessage{
              {22, 0, 22, 10}, net::TileCodec::Raw, 0, solidTile({22, 0, 22, 10}, 0xff).bytes}));
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  EXPECT_EQ(sink.sink().stats().framesPresented, 1);
+  for (auto& [c, rect] : {std::pair{left.get(), voxwall::Rect{0, 0, 22, 10}},
+                          std::pair{right.get(), voxwall::Rect{22, 0, 22, 10}}}) {
+    const auto tile = solidTile(rect, 0x808080);
+    c->send(net::encodeMessage(3, net::TileMessage{rect, tile.codec, 0, tile.bytes}));
+  }
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
+    return s.framesPresented >= 2 && s.framesWritten >= 2;
+  })) << sink.log();
+  EXPECT_TRUE(std::filesystem::exists(dir.path("out/frame_00003_r0c0.png"))) << sink.log();
+  EXPECT_FALSE(std::filesystem::exists(dir.path("out/frame_00001_r0c0.png")));
+  EXPECT_EQ(sink.sink().stats().framesPresented, 2);
 }
 
 // Frames that never complete are held up to --pending; then the oldest goes, reported.
