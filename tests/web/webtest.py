@@ -5,6 +5,7 @@ their own session, and headless chromium through Selenium.
 import base64
 import math
 import os
+import re
 import signal
 import struct
 import subprocess
@@ -87,6 +88,21 @@ def wait(what, condition, seconds):
             return value
         time.sleep(0.1)
     raise Failure(f"timed out after {seconds} s waiting for {what}")
+
+
+def sink_file(path, frame, sink_log, seconds=30):
+    """Waits for the sink's file `path` of `frame`. Returns None when the sink's log (read by
+    `sink_log()`) says it did not write that frame: its file writer skips the oldest frame it
+    holds when it falls behind a fast stream, so a test picks a newer frame then."""
+    skipped = re.compile(rf"^frame {frame} not written", re.M)
+
+    def ready():
+        if os.path.exists(path):
+            return path
+        return "skipped" if skipped.search(sink_log()) else None
+
+    got = wait(f"the sink's file {os.path.basename(path)}", ready, seconds)
+    return None if got == "skipped" else got
 
 
 def chromium(work, name, window="1100,760"):
