@@ -28,8 +28,9 @@
 #                     per side, upsampled, whole on every display), then, once the camera has
 #                     settled and the picture refined, a full frame equal (>= 40 dB) to a batch
 #                     render of that camera
-#   abandon-burst N   200 camera commands in 2 s while N ranks render full frames (no reduced
-#                     ones: every frame is one a command abandons): frames in flight are
+#   abandon-burst N   200 camera commands, in bursts of 20 into successive frames, while N
+#                     ranks render full frames (no reduced ones: every frame is one a
+#                     command abandons): frames in flight are
 #                     abandoned (reported as superseded), no rank hangs, every frame's fate is
 #                     said, and the job ends on a full frame
 # Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
@@ -222,9 +223,16 @@ case $scenario in
     # Waits on the sink's log itself (tail -f), with a deadline.
     timeout 30 grep -m1 -q "presented" <(tail -f wall.log) ||
       { cat wall.log render.log; fail "the sink showed nothing"; }
-    # 200 commands over about 2 s, at the pace of a drag (the pause paces the input; nothing
-    # waits on it), straight into the frames in flight.
-    for _ in $(seq 200); do echo "rotate 1 0" >&3; sleep 0.01; done
+    # 200 commands straight into the frames in flight: 10 bursts of 20, each burst once the sink
+    # settled another frame since the last one (waiting on its log, with a deadline), so the
+    # bursts land in successive frames however fast the machine renders.
+    for _ in $(seq 10); do
+      kill -0 "$render_pid" 2>/dev/null || break
+      lines=$(wc -l < wall.log)
+      for _ in $(seq 20); do echo "rotate 1 0" >&3; done
+      timeout 30 grep -m1 -qE "^frame [0-9]+ (presented|superseded)" \
+        <(tail -n +"$((lines + 1))" -f wall.log) || break
+    done
     wait "$render_pid"
     status=$?
     exec 3>&-
