@@ -173,6 +173,10 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
         const auto stats =
             renderWatched(backend, volume, plan, part, image, &report.costs, watch, stop);
         report.samples += stats.samples;
+        report.pages.hits += stats.pageHits, report.pages.missed += stats.pageMissed;
+        report.pages.decoded += stats.pageDecoded;
+        report.pages.evictions += stats.pageEvictions;
+        report.pages.residentBytes = stats.pageResidentBytes;
         report.renderSeconds += since(start);
         if (stats.stopped) {
           report.abandoned = true;
@@ -620,6 +624,7 @@ class MasterLoop {
     s.streamedBytes += report.streamedBytes;
     s.ranks.push_back(r);
     s.rankSeconds.push_back(report.renderSeconds);
+    s.rankPages.push_back(report.pages);
     s.samples += report.samples;
     s.renderSeconds = std::max(s.renderSeconds, report.renderSeconds);
   }

@@ -2,7 +2,7 @@
 // rays (raycastLanes over Highway vectors) or, without packets, each pixel by raycastPixel. Every
 // pixel is independent of the others, so the image is the same for any thread count.
 #include <chrono>
-#include <voxwall/codec/decoded_pages.hpp>
+#include <voxwall/node/page_cache.hpp>
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -41,11 +41,14 @@ class CpuBackend final : public Backend {
     const int by = (tile.height + kBlockPixels - 1) / kBlockPixels;
     // Each block's time, written by the one thread that renders it; spread into `costs` after.
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
-    const cpu::TileJob job{plan,     tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
-                           packets_, stop};
+    cpu::TileJob job{plan,     tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
+                     packets_, stop};
+    const PageCache::Counts before = pages_ ? pages_->counts() : PageCache::Counts{};
+    PageCache* used = nullptr;
     const std::uint64_t samples = std::visit(
         [&](auto view) {
-          if constexpr (cpu::kPaged<decltype(view)>) attachPages(cpu::pagedLevel(view));
+          if constexpr (cpu::kPaged<decltype(view)>)
+            used = job.pages = attachPages(cpu::pagedLevel(view), volume.info().type);
           return cpu::renderBlocks(view, job);
         },
         volume.view());
@@ -60,32 +63,51 @@ class CpuBackend final : public Backend {
     TileStats stats;
     stats.samples = samples;
     stats.stopped = stop && stop->load();
+    if (used) {
+      const PageCache::Counts after = used->counts();
+      const bool same = used == pages_.get() && before.hits <= after.hits;
+      stats.pageHits = after.hits - (same ? before.hits : 0);
+      stats.pageMissed = after.missed - (same ? before.missed : 0);
+      stats.pageDecoded = after.misses + after.scratch - (same ? before.misses + before.scratch : 0);
+      stats.pageEvictions = after.evictions - (same ? before.evictions : 0);
+      stats.pageResidentBytes = std::uint64_t(used->residentPages()) * used->pageBytes();
+    }
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
   }
 
   DecodeCacheUse decodeCacheUse() const {
     if (!pages_) return {};
-    return {std::uint64_t(pages_->decodedPages()) * pages_->pageBytes(), pages_->allPagesBytes(),
-            std::uint64_t(pages_->capacityPages()) * pages_->pageBytes()};
+    DecodeCacheUse use;
+    use.bytes = std::uint64_t(pages_->residentPages()) * pages_->pageBytes();
+    use.allPagesBytes = pages_->allPagesBytes();
+    use.capacityBytes = std::uint64_t(pages_->capacityPages()) * pages_->pageBytes();
+    use.pageBytes = pages_->pageBytes();
+    const PageCache::Counts c = pages_->counts();
+    use.hits = c.hits, use.missed = c.missed, use.misses = c.misses, use.scratch = c.scratch, use.evictions = c.evictions;
+    return use;
   }
 
  private:
-  // Gives a brick-coded level the pages the packets sample: the same ones frame after frame
-  // while the volume stays (renderTile runs on one thread at a time; its workers fill pages).
+  // The pages the packets sample for a brick-coded level: the same ones frame after frame while
+  // the volume stays (renderTile runs on one thread at a time; its workers fill pages).
   template <class Level>
-  void attachPages(Level& level) {
+  PageCache* attachPages(const Level& level, codec::ScalarType type) {
     // (A budget under one page holds none: no pages.)
-    if (!packets_ || codec::DecodedPages::bytesFor(level, decodeCacheBytes_) == 0) return;
-    if (!pages_ || !pages_->holds(level))
-      pages_ = codec::DecodedPages::make(level, decodeCacheBytes_);
-    level.pages = pages_.get();
+    if (!packets_ || PageCache::bytesFor(level, type, decodeCacheBytes_) == 0) return nullptr;
+    if (!pages_ || !pages_->holds(level, type, threads_)) {
+      pages_.reset();  // the old pool goes before the new one is allocated
+      pages_ = PageCache::make(level, type, decodeCacheBytes_, threads_);
+      // int16 data is stored as uint16 values 0 .. 65535 for -32768 .. 32767.
+      if (type == codec::ScalarType::Int16) pages_->setBias(-32768.0f);
+    }
+    return pages_.get();
   }
 
   int threads_;
   bool packets_;
   std::uint64_t decodeCacheBytes_;
-  std::unique_ptr<codec::DecodedPages> pages_;
+  std::unique_ptr<PageCache> pages_;
 };
 
 }  // namespace
@@ -99,7 +121,7 @@ std::uint64_t cpuDecodeCacheNeed(const RenderVolume& volume, std::uint64_t decod
   return std::visit(
       [&](auto view) -> std::uint64_t {
         if constexpr (cpu::kPaged<decltype(view)>) {
-          return codec::DecodedPages::bytesFor(cpu::pagedLevel(view), decodeCacheBytes);
+          return PageCache::bytesFor(cpu::pagedLevel(view), volume.info().type, decodeCacheBytes);
         } else {
           return 0;
         }

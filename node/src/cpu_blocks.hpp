@@ -11,6 +11,7 @@
 #include <type_traits>
 #include <variant>
 #include <vector>
+#include <voxwall/node/page_cache.hpp>
 #include <voxwall/node/renderer.hpp>
 
 namespace voxwall::node::cpu {
@@ -18,7 +19,7 @@ namespace voxwall::node::cpu {
 inline constexpr int kBlockPixels = 16;
 
 // Views whose full-resolution voxels the packets sample from the backend's decoded pages
-// (codec/decoded_pages.hpp) when it has some: the brick views (vq, tvq), ksvd's level 0 and svmm.
+// (node/page_cache.hpp) when it has some: the brick views (vq, tvq), ksvd's level 0 and svmm.
 template <class V>
 inline constexpr bool kKsvd = false;
 template <int S>
@@ -43,6 +44,19 @@ struct TileJob {
   std::vector<double>* blockSeconds;        // per block, when the costs are measured (else null)
   bool packets = true;                      // SIMD ray packets where the CPU has them, else one ray
   const std::atomic<bool>* stop = nullptr;  // when it turns true, blocks not begun are skipped
+  PageCache* pages = nullptr;               // decoded pages of the view's paged level (packets)
+};
+
+// The Reader of the block this thread renders (null: no pages), which the packets' caches take.
+inline thread_local PageCache::Reader* currentReader = nullptr;
+struct ReaderScope {
+  explicit ReaderScope(PageCache::Reader* reader) : previous(currentReader) {
+    currentReader = reader;
+  }
+  ~ReaderScope() { currentReader = previous; }
+  ReaderScope(const ReaderScope&) = delete;
+  ReaderScope& operator=(const ReaderScope&) = delete;
+  PageCache::Reader* previous;
 };
 
 // Renders every block of `job` from `view`; returns the samples taken. Defined in

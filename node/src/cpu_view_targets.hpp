@@ -13,9 +13,9 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <type_traits>
-#include <voxwall/codec/decoded_pages.hpp>
 #include <voxwall/node/kernels/raycast.hpp>
 
 #include "cpu_blocks_impl.hpp"
@@ -60,6 +60,9 @@ struct HwyLanes {
     F c[8];    // the corners of the last sample of a view sampled on vectors (raw, pages)
     I pageAt;  // decoded pages: the pool offset of the last sample's cell, where `paged`
     M paged;
+    // The block's hold on the backend's decoded pages (null: none), and each lane's last page.
+    PageCache::Reader* reader = currentReader;
+    I lastPage = hn::Set(DI(), -1);
   };
 
   static HWY_INLINE F splat(float v) { return hn::Set(D(), v); }
@@ -218,55 +221,71 @@ struct HwyLanes {
   }
 
   // A brick-coded level sampled from its decoded pages where m, on vectors: one gather in the
-  // page table, the pages a lane misses decoded at once (fill), then the eight corners gathered
-  // from the page as from a raw brick. Sets cache.paged to the lanes served (a lane whose page
-  // found the pool full is not) and cache.pageAt, cache.c for the gradient.
-  template <class Level>
-  static HWY_INLINE F pageValue(const Level& v, F stored) {
-    if constexpr (codec::PageFormat<Level>::kValues)
-      return stored + splat(codec::PageFormat<Level>::bias(v));
+  // page table, the pages a lane misses decoded at once (Reader::fill), then the eight corners
+  // gathered from the page as from a raw brick. Sets cache.paged to m and cache.pageAt, cache.c
+  // for the gradient.
+  //
+  // The pool as an array of its stored type: fn(const Stored*).
+  template <class Fn>
+  static HWY_INLINE auto withPool(const PageCache& pages, const Fn& fn) {
+    switch (pages.format()) {
+      case PageFormat::UInt8: return fn(static_cast<const std::uint8_t*>(pages.pool()));
+      case PageFormat::UInt16: return fn(static_cast<const std::uint16_t*>(pages.pool()));
+      default: return fn(static_cast<const float*>(pages.pool()));
+    }
+  }
+  // A stored value as the voxel: the bias of 16-bit pages (int16 data) added.
+  template <class Stored>
+  static HWY_INLINE F pageValue(const PageCache& pages, const Stored* pool, I o) {
+    if constexpr (std::is_same_v<Stored, std::uint16_t>)
+      return gather(pool, o) + splat(pages.bias());
     else
-      return stored;
+      return gather(pool, o);
   }
   // The eight corners of the cells at pool offsets o (corner i: bit 0 x + 1, bit 1 y + 1,
   // bit 2 z + 1), as the floats the view samples.
-  template <class Level, class Stored>
-  static HWY_INLINE void pageCorners(const Level& v, const Stored* pool, I o, F* c) {
-    using P = codec::DecodedPages;
+  template <class Stored>
+  static HWY_INLINE void pageCorners(const PageCache& pages, const Stored* pool, I o, F* c) {
+    using P = PageCache;
     for (int i = 0; i < 8; ++i)
-      c[i] = pageValue(
-          v, gather(pool, o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice)));
+      c[i] = pageValue(pages, pool,
+                       o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice));
   }
   template <class Level, class Cache>
   static HWY_INLINE F pageSample(const Level& v, Cache& cache, const kernels::Lanes3<F>& p, M m) {
-    using P = codec::DecodedPages;
-    P& pages = *v.pages;
+    using P = PageCache;
+    P::Reader& reader = *cache.reader;
+    P& pages = reader.cache();
+    reader.quiesce();  // the last step's page offsets are no longer used
     const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
     const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
     const I page =
         (hn::ShiftRight<P::kShift>(iz) * splatI(pages.pagesY) + hn::ShiftRight<P::kShift>(iy)) *
             splatI(pages.pagesX) +
         hn::ShiftRight<P::kShift>(ix);
-    I slot = hn::GatherIndex(DI(), pages.table(), page);
+    I slot = hn::GatherIndex(DI(), pages.table(), selectI(m, page, splatI(0)));
     // Entries are published with a release store after their page is written.
     std::atomic_thread_fence(std::memory_order_acquire);
     const M miss = both(m, lessI(slot, splatI(0)));
-    if (any(miss)) {
+    const M entered = both(m, hn::RebindMask(D(), page != cache.lastPage));
+    if (any(either(miss, entered))) {
       HWY_ALIGN std::int32_t s[kLanes], at[kLanes];
       hn::Store(slot, DI(), s), hn::Store(page, DI(), at);
-      forLanes(miss, [&](std::size_t i) { s[i] = pages.fill(at[i], v); });
+      forLanes(miss, [&](std::size_t i) { s[i] = reader.fill(at[i], v, int(i)); });
+      forLanes(entered, [&](std::size_t i) { pages.touch(at[i]); });
       slot = hn::Load(DI(), s);
+      cache.lastPage = selectI(m, page, cache.lastPage);
     }
-    const M paged = butNot(m, lessI(slot, splatI(0)));
-    cache.paged = paged;
-    if (!any(paged)) return hn::Zero(D());  // (other lanes gather from the first page)
+    const std::size_t missed = hn::CountTrue(D(), miss);
+    reader.missed += missed;
+    reader.hits += hn::CountTrue(D(), m) - missed;
+    cache.paged = m;
     const I low = splatI(P::kSide - 1), one = splatI(1);
-    const I o = selectI(paged, slot, splatI(0)) + (hn::And(ix, low) + one) +
+    const I o = selectI(m, slot, splatI(0)) + (hn::And(ix, low) + one) +
                 (hn::And(iy, low) + one) * splatI(P::kRow) +
                 (hn::And(iz, low) + one) * splatI(P::kSlice);
     cache.pageAt = o;
-    const auto* pool = static_cast<const typename codec::PageFormat<Level>::Stored*>(pages.pool());
-    pageCorners(v, pool, o, cache.c);
+    withPool(pages, [&](const auto* pool) { pageCorners(pages, pool, o, cache.c); });
     return Corners::blend(cache.c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
   }
   // The cell gradient of the lanes pageSample served, from the same page (its apron holds the
@@ -275,16 +294,17 @@ struct HwyLanes {
   static HWY_INLINE kernels::Lanes3<F> pageGradient(const Level& v, Cache& cache,
                                                     const kernels::RayFrame& f,
                                                     const kernels::Lanes3<F>& p) {
-    using P = codec::DecodedPages;
+    using P = PageCache;
+    const P& pages = cache.reader->cache();
     const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
     const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
-    const auto* pool =
-        static_cast<const typename codec::PageFormat<Level>::Stored*>(v.pages->pool());
     const I o = cache.pageAt;
-    auto at = [&](int dx, int dy, int dz) {
-      return pageValue(v, gather(pool, o + splatI(dx + dy * P::kRow + dz * P::kSlice)));
-    };
-    return cellGradient(cache.c, at, f, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+    return withPool(pages, [&](const auto* pool) {
+      auto at = [&](int dx, int dy, int dz) {
+        return pageValue(pages, pool, o + splatI(dx + dy * P::kRow + dz * P::kSlice));
+      };
+      return cellGradient(cache.c, at, f, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
+    });
   }
   // The six-sample gradient (kernels::sampleGradient without the cell hook) of the lanes
   // pageSample served, from the same page: a sample one voxel away along an axis, with its
@@ -293,7 +313,8 @@ struct HwyLanes {
   static HWY_INLINE kernels::Lanes3<F> pageSixSamples(const Level& v, Cache& cache,
                                                       const kernels::RayFrame& f,
                                                       const kernels::Lanes3<F>& p) {
-    using P = codec::DecodedPages;
+    using P = PageCache;
+    const P& pages = cache.reader->cache();
     const I low = splatI(P::kSide - 1), one = splatI(1);
     // The sample's page: its slot and first voxel, from the sample's cell.
     const I ix = trunc(clampTo(p.x, v.maxX)), iy = trunc(clampTo(p.y, v.maxY)),
@@ -302,21 +323,22 @@ struct HwyLanes {
     const I slot =
         cache.pageAt - (lx + one) - (ly + one) * splatI(P::kRow) - (lz + one) * splatI(P::kSlice);
     const I bx = ix - lx, by = iy - ly, bz = iz - lz;
-    const auto* pool =
-        static_cast<const typename codec::PageFormat<Level>::Stored*>(v.pages->pool());
-    auto at = [&](F qx, F qy, F qz) {
-      qx = clampTo(qx, v.maxX), qy = clampTo(qy, v.maxY), qz = clampTo(qz, v.maxZ);
-      const I jx = trunc(qx), jy = trunc(qy), jz = trunc(qz);
-      const I o = slot + (jx - bx + one) + (jy - by + one) * splatI(P::kRow) +
-                  (jz - bz + one) * splatI(P::kSlice);
-      F c[8];
-      pageCorners(v, pool, o, c);
-      return Corners::blend(c, qx - toFloat(jx), qy - toFloat(jy), qz - toFloat(jz));
-    };
-    const F d = splat(1.0f);
-    return {(at(p.x + d, p.y, p.z) - at(p.x - d, p.y, p.z)) * splat(0.5f * f.invSpacing.x),
-            (at(p.x, p.y + d, p.z) - at(p.x, p.y - d, p.z)) * splat(0.5f * f.invSpacing.y),
-            (at(p.x, p.y, p.z + d) - at(p.x, p.y, p.z - d)) * splat(0.5f * f.invSpacing.z)};
+    return withPool(pages, [&](const auto* pool) {
+      auto at = [&](F qx, F qy, F qz) {
+        qx = clampTo(qx, v.maxX), qy = clampTo(qy, v.maxY), qz = clampTo(qz, v.maxZ);
+        const I jx = trunc(qx), jy = trunc(qy), jz = trunc(qz);
+        const I o = slot + (jx - bx + one) + (jy - by + one) * splatI(P::kRow) +
+                    (jz - bz + one) * splatI(P::kSlice);
+        F c[8];
+        pageCorners(pages, pool, o, c);
+        return Corners::blend(c, qx - toFloat(jx), qy - toFloat(jy), qz - toFloat(jz));
+      };
+      const F d = splat(1.0f);
+      return kernels::Lanes3<F>{
+          (at(p.x + d, p.y, p.z) - at(p.x - d, p.y, p.z)) * splat(0.5f * f.invSpacing.x),
+          (at(p.x, p.y + d, p.z) - at(p.x, p.y - d, p.z)) * splat(0.5f * f.invSpacing.y),
+          (at(p.x, p.y, p.z + d) - at(p.x, p.y, p.z - d)) * splat(0.5f * f.invSpacing.z)};
+    });
   }
   // The lanes of m whose sample reads the paged level: all for a brick view; for a view with
   // levels (ksvd, svmm) those whose footprint picks the full-resolution level, with trilinear
@@ -356,7 +378,7 @@ struct HwyLanes {
     if constexpr (kPaged<View>) {
       const auto& level = pagedLevel(view);
       cache.paged = hn::FirstN(D(), 0);
-      if (level.pages) {
+      if (cache.reader) {
         const M lanes = pageLanes(view, cache, m);
         if (any(lanes)) {
           const F value = pageSample(level, cache, p, lanes);
@@ -392,7 +414,7 @@ struct HwyLanes {
       // inside the grid, else (the outer half voxel, --gradients samples) the six samples.
       const auto& level = pagedLevel(view);
       const M paged = both(m, cache.paged);
-      if (level.pages && any(paged)) {
+      if (cache.reader && any(paged)) {
         const M cell = f.cellGradients ? both(paged, insideGrid(level, p)) : hn::FirstN(D(), 0);
         const M six = butNot(paged, cell);
         if (any(cell)) vectors = pageGradient(level, cache, f, p);
@@ -456,6 +478,11 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
   constexpr int kRowShift = kW == 4 ? 2 : 1;  // lane / kW
   const auto laneX = hn::And(lane, hn::Set(di, kW - 1)), laneY = hn::ShiftRight<kRowShift>(lane);
   return forEachBlock(job, [&](int x0, int y0, int x1, int y1, std::uint64_t& samples) {
+    // This thread's hold on the pages while it renders the block (page_cache.hpp).
+    std::optional<PageCache::Reader> reader;
+    if constexpr (kPaged<View>)
+      if (job.pages) reader.emplace(*job.pages);
+    const ReaderScope scope(reader ? &*reader : nullptr);
     HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
     HWY_ALIGN std::int32_t n[L::kLanes];
     for (int y = y0; y < y1; y += kH)

@@ -581,7 +581,7 @@ TEST(Cli, SimdChoosesPacketsOrOneRayAtATime) {
 }
 
 // --decode-cache: a wrong size is the one-line error; the dry run counts the decoded pages of a
-// brick-coded volume in what a rank needs (a 40^3 vq volume is 8 pages of 35^3 16-bit voxels),
+// brick-coded volume in what a rank needs (a 40^3 uint8 vq volume is 8 pages of 35^3 bytes),
 // and the picture is the same with and without them.
 TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
   expectOneLineError(
@@ -596,8 +596,8 @@ TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
     return r.out;
   };
   if (node::cpuPacketLanes() > 1) {
-    // 8 pages of 35^3 16-bit voxels; 100K holds one.
-    EXPECT_NE(dryRun("1G").find("decoded pages: up to 669.9 KiB per rank"), std::string::npos)
+    // 8 pages of 35^3 bytes; 100K holds two.
+    EXPECT_NE(dryRun("1G").find("decoded pages: up to 335.0 KiB per rank"), std::string::npos)
         << dryRun("1G");
     EXPECT_NE(dryRun("100K").find("decoded pages: up to 83.7 KiB per rank"), std::string::npos)
         << dryRun("100K");

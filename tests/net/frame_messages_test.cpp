@@ -31,6 +31,7 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   r.renderSeconds = 0.25;
   r.samples = 12345;
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
+  r.pages = {1000, 20, 3, 2, 5 << 20};
   for (const auto& rect : t.rects[1]) {
     net::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
     for (std::size_t i = 0; i < tile.image.pixels.size(); ++i)
@@ -165,6 +166,11 @@ TEST(RankReport, RoundTrips) {
   EXPECT_EQ(back.renderSeconds, 0.25);
   EXPECT_EQ(back.samples, 12345u);
   EXPECT_EQ(back.peakResidentBytes, 2u << 20);
+  EXPECT_EQ(back.pages.hits, 1000u);
+  EXPECT_EQ(back.pages.missed, 20u);
+  EXPECT_EQ(back.pages.decoded, 3u);
+  EXPECT_EQ(back.pages.evictions, 2u);
+  EXPECT_EQ(back.pages.residentBytes, 5u << 20);
   ASSERT_EQ(back.tiles.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i) {
     EXPECT_EQ(back.tiles[i].rect, r.tiles[i].rect);

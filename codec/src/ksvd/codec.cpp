@@ -694,6 +694,7 @@ kernels::KsvdView<Side> Layout::view(const std::byte* base) const {
     d.blocksX = level.blocks.x, d.blocksY = level.blocks.y;
     d.bricksX = level.bricks.x, d.bricksY = level.bricks.y;
     d.blocksPerBrick = n_, d.indexBits = indexBits_;
+    d.integral = info_.type != ScalarType::Float32;
   }
   return v;
 }

@@ -468,9 +468,10 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option(
          "--decode-cache", o.decodeCache,
          "CPU backend with --simd on: memory per rank for decoded pages of a vq, svmm, ksvd or "
-         "tvq volume, decoded as rays first reach them, so frames after the first render "
-         "at about the speed of raw data; rays past a full cache decode bricks as they "
-         "go (the same picture). off: no pages")
+         "tvq volume (the data's own scalar type), decoded as rays first reach them, so frames "
+         "after the first render at about the speed of raw data; when full, pages no ray has "
+         "touched lately are evicted (the same picture whatever the size; render -v counts "
+         "hits, misses and evictions). off: no pages, bricks decoded per ray")
       ->capture_default_str();
 }
 

@@ -34,7 +34,7 @@ struct RenderOptions {
   int frames = 1, threads = 0, costCell = 32;
   std::string sampling = "trilinear", gradients = "cell";
   std::string simd = "on";         // --simd: the CPU backend's ray packets
-  std::string decodeCache = "1G";  // --decode-cache: decoded pages of a brick-coded volume
+  std::string decodeCache = "512M";  // --decode-cache: decoded pages of a brick-coded volume
   bool lod = false;
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
   std::map<std::string, std::string> codecFlags;

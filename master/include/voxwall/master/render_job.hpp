@@ -13,6 +13,7 @@
 #include <voxwall/master/communicator.hpp>
 #include <voxwall/master/load_balancer.hpp>
 #include <voxwall/master/steering.hpp>
+#include <voxwall/net/frame_messages.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -79,6 +80,7 @@ struct FrameSummary {
   double writeWaitSeconds = 0;  // waiting for the previous frame's write to finish
   std::vector<int> ranks;       // the rendering ranks
   std::vector<double> rankSeconds;
+  std::vector<net::PageStats> rankPages;          // per rendering rank: its decoded pages
   std::vector<std::vector<voxwall::Rect>> rects;  // per rendering rank
   double imbalance = 1;                           // max / mean of rankSeconds
   std::uint64_t samples = 0;

@@ -16,7 +16,8 @@
 //               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, i32 step, u32
 //               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
-//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u32 flags (bit 0:
+//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 pageHits,
+//               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, u32 flags (bit 0:
 //               pixels included, bit 1: streamed to the sink, bit 2: the sink refused this
 //               rank for good, bit 3: the rank abandoned the frame), f64 encodeSeconds,
 //               u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
@@ -38,8 +39,8 @@ namespace voxwall::net {
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
 // 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
-// RankReport.abandoned.
-inline constexpr std::uint32_t kFrameMessageVersion = 5;
+// RankReport.abandoned; 6: RankReport.pages.
+inline constexpr std::uint32_t kFrameMessageVersion = 6;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -68,12 +69,19 @@ struct RenderedTile {
   voxwall::Image image;  // rect.width x rect.height, premultiplied RGBA8; empty without pixels
 };
 
+// A rank's decoded-page cache in a frame (node::TileStats): lane samples that found their page
+// resident and that did not, pages decoded, pages evicted, bytes resident after the frame.
+struct PageStats {
+  std::uint64_t hits = 0, missed = 0, decoded = 0, evictions = 0, residentBytes = 0;
+};
+
 struct RankReport {
   std::uint32_t frame = 0;
   int rank = 0;
   double renderSeconds = 0;  // wall time for all of this rank's rects
   std::uint64_t samples = 0;
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
+  PageStats pages;
   bool pixels = true;        // tiles carry their pixels (rank 0 writes frames)
   bool streamed = false;     // the tiles went to the wall sink
   double encodeSeconds = 0;  // compressing tiles for the sink

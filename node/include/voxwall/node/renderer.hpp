@@ -56,6 +56,11 @@ struct TileStats {
   double seconds = 0.0;
   std::uint64_t samples = 0;  // transfer-function samples taken (empty-space skips excluded)
   bool stopped = false;       // told to stop before every pixel was rendered
+  // The CPU backend's decoded pages (node/page_cache.hpp) in this tile: lane samples that found
+  // their page resident and that did not, pages decoded, pages evicted, and the bytes resident
+  // after it.
+  std::uint64_t pageHits = 0, pageMissed = 0, pageDecoded = 0, pageEvictions = 0;
+  std::uint64_t pageResidentBytes = 0;
 };
 
 enum class BackendKind { Cpu, Cuda };
@@ -92,15 +97,19 @@ std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0);
 // compiled them for (AVX2, AVX-512); false, or no such set: one ray at a time (the same per-ray
 // code, as CUDA runs it). Both give the same picture to rounding.
 // decodeCacheBytes: with packets, a compressed volume (vq, svmm, ksvd, tvq) is sampled from pages
-// of decoded voxels (codec/decoded_pages.hpp), decoded as rays first reach them, in at most this
-// many bytes; 0 decodes bricks per ray, as without packets.
-inline constexpr std::uint64_t kDefaultDecodeCacheBytes = std::uint64_t(1) << 30;
+// of decoded voxels (node/page_cache.hpp), decoded as rays reach them and evicted when more than
+// this many bytes would be held; 0 decodes bricks per ray, as without packets.
+inline constexpr std::uint64_t kDefaultDecodeCacheBytes = std::uint64_t(512) << 20;
 std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
                                         std::uint64_t decodeCacheBytes = kDefaultDecodeCacheBytes);
-// The decoded pages a CPU backend made for the last compressed volume it rendered: bytes decoded,
-// the bytes every page of the volume would take, and the pool's capacity (all 0: none).
+// The decoded pages a CPU backend made for the last compressed volume it rendered: bytes resident
+// now, the bytes every page of the volume would take, the pool's capacity and a page's bytes
+// (all 0: none), and the counts since they were made: lane samples that found their page
+// resident and that did not, pages decoded into the pool, pages decoded into a lane's scratch page (no slot was free), pages
+// evicted.
 struct DecodeCacheUse {
-  std::uint64_t bytes = 0, allPagesBytes = 0, capacityBytes = 0;
+  std::uint64_t bytes = 0, allPagesBytes = 0, capacityBytes = 0, pageBytes = 0;
+  std::uint64_t hits = 0, missed = 0, misses = 0, scratch = 0, evictions = 0;
 };
 DecodeCacheUse cpuDecodeCacheUse(const Backend& backend);
 // The most a CPU backend with packets holds in decoded pages for `volume` with this budget: every

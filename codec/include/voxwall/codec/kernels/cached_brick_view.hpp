@@ -15,10 +15,6 @@
 #endif
 #include <voxwall/codec/kernels/trilinear.hpp>
 
-namespace voxwall::codec {
-class DecodedPages;  // decoded_pages.hpp (host only)
-}
-
 namespace voxwall::codec::kernels {
 
 // What a codec gives CachedBrickView:
@@ -64,9 +60,6 @@ struct CachedBrickView {
   float maxX = 0, maxY = 0, maxZ = 0;  // dim - 1, for clamping positions
   // Unique per loaded volume: keys the per-thread host cache, which outlives views.
   std::uint64_t cacheId = 0;
-  // The CPU backend's decoded pages of this volume, which its SIMD packets sample (null
-  // elsewhere: the view's own methods never read them).
-  DecodedPages* pages = nullptr;
 
   // Sets the geometry from the volume's size (the decoder is set by the caller).
   VOXWALL_HD_INLINE void setDims(int x, int y, int z) {

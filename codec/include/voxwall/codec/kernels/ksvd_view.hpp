@@ -59,6 +59,7 @@ struct KsvdDecoder {
   int blocksPerBrick = 1;  // N: bricks are N^3 blocks
   int indexBits = 10;
   std::uint64_t keyBase = 0;
+  bool integral = false;  // integer data: decoded voxels round to integers
 
   VOXWALL_HD_INLINE std::uint64_t key(int bx, int by, int bz) const {
     return keyBase +
@@ -98,8 +99,9 @@ struct KsvdDecoder {
   // A decoded voxel: the brick's minimum plus the sum of the pairs' contributions, clamped to
   // the brick's range; written so that a NaN (a hostile file's overflowing sum) becomes the
   // brick's minimum too.
-  static VOXWALL_HD_INLINE float finish(const KsvdBrick& brick, float sum) {
-    const float v = brick.lo + sum;
+  VOXWALL_HD_INLINE float finish(const KsvdBrick& brick, float sum) const {
+    // Integer data is rounded here, so the view samples exactly the decoded volume's values.
+    const float v = integral ? floorf(brick.lo + sum + 0.5f) : brick.lo + sum;
     return v >= brick.lo ? (v <= brick.hi ? v : brick.hi) : brick.lo;
   }
 

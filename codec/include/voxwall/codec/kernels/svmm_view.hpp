@@ -15,10 +15,6 @@
 #include <cuda_runtime.h>
 #endif
 
-namespace voxwall::codec {
-class DecodedPages;  // decoded_pages.hpp (host only)
-}
-
 namespace voxwall::codec::kernels {
 
 inline constexpr int kSvmmMaxLevels = 16;
@@ -97,10 +93,8 @@ struct SvmmView {
   int dimX = 1, dimY = 1, dimZ = 1;
   int rootX = 1, rootY = 1, rootZ = 1;  // the root grid (padded to even when levels > 1)
   float maxX = 0, maxY = 0, maxZ = 0;   // dim - 1, for clamping positions
-  // Unique per loaded volume, and the CPU backend's decoded pages of its full-resolution voxels,
-  // which its SIMD packets sample (null elsewhere: the view's own methods never read them).
+  // Unique per loaded volume (keys the CPU backend's decoded pages).
   std::uint64_t cacheId = 0;
-  DecodedPages* pages = nullptr;
 
   VOXWALL_HD_INLINE int baseBytes() const { return svmmBaseBytes(format); }
   VOXWALL_HD_INLINE std::uint32_t load(const std::uint8_t* p, int bytes) const {

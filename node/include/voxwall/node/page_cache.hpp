@@ -1,0 +1,318 @@
+// The CPU backend's cache of decoded pages of a compressed volume's full-resolution voxels (any
+// brick view: vq, ksvd's full-resolution level, tvq; and svmm's view), host only: the SIMD packets
+// sample these instead of decoding bricks per ray, so a compressed volume renders at about the
+// speed of raw data (docs/rendering.md).
+//
+// A page holds 32^3 voxels of the volume plus an apron (one voxel below, two above on every
+// axis, clamped at the volume's faces), so a sample's eight corners and the 24 voxels of its cell
+// gradient all lie in one page, as they lie in one brick of the raw codec: the packet path reads
+// them with the same gathers, after one more gather in the page table. A page stores the
+// volume's own scalar type (uint8 data: a byte a voxel; int16 as uint16 with a bias; float32 as
+// floats): lossy codecs round to it, which loses nothing the input had.
+//
+// Pages are decoded the first time a ray samples them (from any thread) into a pool of at most
+// `budget` bytes. When the pool is full, a CLOCK hand evicts pages no ray has touched since it
+// last passed (second chance): rays set a page's bit when they enter it. Regions the rays skip
+// (empty space) are never decoded, and a rank decodes only the pages its own rectangles' rays
+// reach. The pool is allocated untouched, so only decoded pages become resident.
+//
+// Why a lane never reads a page while it is evicted and its slot refilled: the slots are
+// reclaimed by quiescent states (QSBR, as in McKenney and Slingwine, "Read-copy update", 1998).
+// A thread rendering a block is a Reader; it holds page offsets only within one sample step (the
+// page-table gather, the corners, the gradient), and at the start of every step it declares that
+// it holds none (quiesce: it records the cache's epoch). Eviction unmaps the page's table entry
+// (so no new step finds it), then advances the epoch and retires the slot with the old epoch; a
+// retired slot is refilled only once every Reader has recorded a later epoch or left its block.
+// The hit path takes no lock and writes nothing shared: a page-table gather, and once per lane
+// per page entered, a byte read (the CLOCK bit, written only when clear). Misses take a mutex to
+// get a slot, then decode outside it. A lane that finds no slot it may take (a budget of a few
+// pages, every slot retired in the current step) decodes its page into a scratch page of its
+// own, used for that step only: the picture never depends on the budget.
+//
+// This is the decoded-brick cache of the GPU renderers behind the codecs (Gobbetti, Iglesias
+// Guitian and Marton, "COVRA: a compression-domain output-sensitive volume rendering
+// architecture", 2012; Guthe and Goesele, "Variable length coding for GPU-based direct volume
+// rendering", 2016), kept per rank on the CPU.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+#include <typeindex>
+#include <typeinfo>
+#include <vector>
+#include <voxwall/codec/kernels/trilinear.hpp>
+#include <voxwall/codec/volume.hpp>
+
+namespace voxwall::node {
+
+// What a page stores per voxel: the value as float(stored) + bias.
+enum class PageFormat : std::uint8_t { UInt8, UInt16, Float32 };
+
+class PageCache {
+ public:
+  static constexpr int kShift = 5;  // 32 voxels per page side
+  static constexpr int kSide = 1 << kShift;
+  static constexpr int kRow = kSide + 3;  // the apron: one voxel below, two above
+  static constexpr int kSlice = kRow * kRow;
+  static constexpr int kVoxels = kSlice * kRow;
+  // A page's table entry: the element offset of its page in the pool, or one of these.
+  static constexpr std::int32_t kAbsent = -1, kFilling = -2;
+  // Scratch pages per Reader: one per lane of the widest packet.
+  static constexpr int kScratchPerReader = 16;
+
+  // Counts since the cache was made (take differences for a frame).
+  struct Counts {
+    std::uint64_t hits = 0;       // lane samples that found their page resident
+    std::uint64_t missed = 0;     // lane samples that did not (decoded, waited or scratch)
+    std::uint64_t misses = 0;     // pages decoded into the pool
+    std::uint64_t scratch = 0;    // pages decoded into a lane's scratch page (no slot free)
+    std::uint64_t evictions = 0;  // pages evicted
+  };
+
+  // The storage of a volume of this scalar type.
+  static PageFormat formatOf(codec::ScalarType type) {
+    switch (type) {
+      case codec::ScalarType::UInt8: return PageFormat::UInt8;
+      case codec::ScalarType::UInt16:
+      case codec::ScalarType::Int16: return PageFormat::UInt16;
+      default: return PageFormat::Float32;
+    }
+  }
+  static std::size_t valueBytes(PageFormat f) {
+    return f == PageFormat::UInt8 ? 1 : f == PageFormat::UInt16 ? 2 : 4;
+  }
+
+  // Pages for `level` (a view with cacheId, dimX..dimZ and voxel(x, y, z, RayCache&)) of a volume
+  // of scalar type `type`, in at most `budgetBytes` of decoded voxels, for up to `readers`
+  // threads at once.
+  template <class Level>
+  static std::unique_ptr<PageCache> make(const Level& level, codec::ScalarType type,
+                                         std::uint64_t budgetBytes, int readers) {
+    return std::unique_ptr<PageCache>(new PageCache(typeid(Level), level.cacheId, level.dimX,
+                                                    level.dimY, level.dimZ, formatOf(type),
+                                                    budgetBytes, readers));
+  }
+
+  // The pages `make` would hold for `level` with this budget, in bytes (what becomes resident
+  // when rays reach that many pages; scratch pages not counted).
+  template <class Level>
+  static std::uint64_t bytesFor(const Level& level, codec::ScalarType type,
+                                std::uint64_t budgetBytes) {
+    const PageFormat f = formatOf(type);
+    return capacityFor(level.dimX, level.dimY, level.dimZ, f, budgetBytes, 1) *
+           std::uint64_t(kVoxels) * valueBytes(f);
+  }
+
+  // Whether these are the pages of `level` (its view type, cacheId and size: each codec numbers
+  // its volumes from 1) for this scalar type.
+  template <class Level>
+  bool holds(const Level& level, codec::ScalarType type, int readers) const {
+    return std::type_index(typeid(Level)) == type_ && level.cacheId == id_ &&
+           level.dimX == dimX && level.dimY == dimY && level.dimZ == dimZ &&
+           formatOf(type) == format_ && readers <= readers_;
+  }
+
+  int dimX, dimY, dimZ;
+  int pagesX, pagesY, pagesZ;
+
+  PageFormat format() const { return format_; }
+  // Added to a stored value to give the voxel (int16 data stored as uint16: -32768; else 0).
+  float bias() const { return bias_; }
+  void setBias(float bias) { bias_ = bias; }
+  // The page table, for gathers: the entry of page (px, py, pz) is at
+  // (pz * pagesY + py) * pagesX + px.
+  const std::int32_t* table() const { return reinterpret_cast<const std::int32_t*>(entry_.get()); }
+  // The pool, for gathers (readable 8 bytes past its last element).
+  const void* pool() const { return pool_.get(); }
+  std::size_t pageBytes() const { return std::size_t(kVoxels) * valueBytes(format_); }
+  std::size_t capacityPages() const { return std::size_t(capacity_); }
+  // Pages holding a decoded page now (resident: the pool's slots written once stay so).
+  std::size_t residentPages() const;
+  // Slots ever written (the pool's resident part).
+  std::size_t touchedSlots() const;
+  std::uint64_t allPagesBytes() const {
+    return std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ) * pageBytes();
+  }
+  Counts counts() const;
+
+  // Marks page `page` used (CLOCK's second chance), where a lane enters it.
+  void touch(std::int32_t page) {
+    auto& bit = ref_[std::size_t(page)];
+    if (!bit.load(std::memory_order_relaxed)) bit.store(1, std::memory_order_relaxed);
+  }
+
+  // A thread's registration while it samples pages (a block of the tile). Not copyable.
+  class Reader {
+   public:
+    explicit Reader(PageCache& cache);
+    ~Reader();
+    Reader(const Reader&) = delete;
+    Reader& operator=(const Reader&) = delete;
+
+    PageCache& cache() const { return cache_; }
+    // Declares that this thread holds no page offset (the start of a sample step).
+    void quiesce() {
+      ++step_;
+      const std::uint64_t e = cache_.epoch_.load(std::memory_order_seq_cst);
+      if (e != seen_) {
+        seen_ = e;
+        cache_.reader_[std::size_t(index_)].seen.store(e, std::memory_order_seq_cst);
+      }
+    }
+    // The pool offset of `page` for lane `lane` of this step: the page's slot after decoding it
+    // from `level` where absent (or waiting for the thread decoding it), or a scratch page of
+    // this lane's when no slot is free.
+    template <class Level>
+    std::int32_t fill(std::int32_t page, const Level& level, int lane);
+
+    std::uint64_t hits = 0, missed = 0;  // added by the caller (Counts)
+
+   private:
+    PageCache& cache_;
+    int index_ = -1;
+    std::uint64_t seen_;
+    Counts counts_;
+    std::uint64_t step_ = 0;                        // steps begun (quiesce)
+    std::int32_t scratchPage_[kScratchPerReader];   // the page each scratch slot holds
+    std::uint64_t scratchStep_[kScratchPerReader];  // the step that last used it
+  };
+
+ private:
+  friend class Reader;
+  static constexpr std::uint64_t kOffline = ~std::uint64_t(0);
+
+  PageCache(const std::type_info& type, std::uint64_t id, int x, int y, int z, PageFormat format,
+            std::uint64_t budgetBytes, int readers);
+
+  // Slots for the budget's worth of pages, at most every page of the volume, and together with
+  // the readers' scratch pages no more than int32 offsets reach (narrow gathers address bytes).
+  static std::uint64_t capacityFor(int x, int y, int z, PageFormat format,
+                                   std::uint64_t budgetBytes, int readers);
+
+  // A slot for a page (-1: none may be taken now). Takes the mutex.
+  std::int32_t takeSlot();
+  void evictLocked(std::size_t n);
+  void reclaimLocked();
+  // Publishes a filled slot's page (makes it evictable).
+  void filled(std::int32_t slot, std::int32_t page);
+
+  template <class Level>
+  void decode(std::int32_t page, const Level& level, std::int32_t slot) const;
+
+  std::type_index type_;
+  std::uint64_t id_;
+  PageFormat format_;
+  float bias_ = 0.0f;
+  int readers_;
+  std::int32_t capacity_ = 0;
+  std::unique_ptr<std::atomic<std::int32_t>[]> entry_;  // per page: its offset or kAbsent...
+  std::unique_ptr<std::atomic<std::uint8_t>[]> ref_;    // per page: CLOCK's bit
+  std::unique_ptr<std::byte[]> pool_;
+  std::atomic<std::uint64_t> epoch_{1};
+  struct alignas(64) ReaderSlot {
+    std::atomic<std::uint64_t> seen{kOffline};
+    std::atomic<bool> busy{false};
+  };
+  std::unique_ptr<ReaderSlot[]> reader_;
+
+  // Under mutex_:
+  std::mutex mutex_;
+  std::vector<std::int32_t> slotPage_;  // per slot: its page, or -1 (free, filling, retired)
+  std::vector<std::int32_t> free_;      // slots to refill
+  struct Retired {
+    std::int32_t slot;
+    std::uint64_t epoch;
+  };
+  std::deque<Retired> retired_;
+  std::int32_t fresh_ = 0;  // slots never written are fresh_ .. capacity_ - 1
+  std::int32_t hand_ = 0;   // CLOCK's
+  std::size_t reserve_ = 0;
+  std::atomic<std::size_t> resident_{0};
+  Counts totals_;  // of Readers that left
+};
+
+template <class Level>
+void PageCache::decode(std::int32_t page, const Level& level, std::int32_t slot) const {
+  const int px = page % pagesX, py = (page / pagesX) % pagesY, pz = page / pagesX / pagesY;
+  typename Level::RayCache cache;
+  auto write = [&](auto* out) {
+    using Stored = std::remove_pointer_t<decltype(out)>;
+    for (int z = 0; z < kRow; ++z)
+      for (int y = 0; y < kRow; ++y) {
+        const int gz = codec::kernels::clampIndex(pz * kSide + z - 1, dimZ);
+        const int gy = codec::kernels::clampIndex(py * kSide + y - 1, dimY);
+        for (int x = 0; x < kRow; ++x) {
+          const int gx = codec::kernels::clampIndex(px * kSide + x - 1, dimX);
+          const float v = level.voxel(gx, gy, gz, cache);
+          if constexpr (std::is_same_v<Stored, float>) {
+            *out++ = v;
+          } else {
+            // Rounded to the data's integers (exact for the lossless codecs), clamped.
+            const float hi = std::is_same_v<Stored, std::uint8_t> ? 255.0f : 65535.0f;
+            const float s = std::nearbyint(v - bias_);
+            *out++ = Stored(s >= 0.0f ? (s <= hi ? s : hi) : 0.0f);
+          }
+        }
+      }
+  };
+  std::byte* at = pool_.get() + std::size_t(slot) * pageBytes();
+  switch (format_) {
+    case PageFormat::UInt8: write(reinterpret_cast<std::uint8_t*>(at)); break;
+    case PageFormat::UInt16: write(reinterpret_cast<std::uint16_t*>(at)); break;
+    case PageFormat::Float32: write(reinterpret_cast<float*>(at)); break;
+  }
+}
+
+template <class Level>
+std::int32_t PageCache::Reader::fill(std::int32_t page, const Level& level, int lane) {
+  PageCache& c = cache_;
+  auto& entry = c.entry_[std::size_t(page)];
+  for (;;) {
+    std::int32_t state = entry.load(std::memory_order_acquire);
+    if (state >= 0) return state;
+    if (state == kFilling) {  // another thread decodes it: it never waits on anything
+      std::this_thread::yield();
+      continue;
+    }
+    if (!entry.compare_exchange_weak(state, kFilling, std::memory_order_acq_rel)) continue;
+    const std::int32_t slot = c.takeSlot();
+    if (slot < 0) {
+      entry.store(kAbsent, std::memory_order_release);
+      // A scratch page of this Reader's: one already holding the page, else one no lane of
+      // this step uses (there is one per lane).
+      int k = 0;
+      while (k < kScratchPerReader && scratchPage_[k] != page) ++k;
+      const bool have = k < kScratchPerReader;
+      if (!have) {
+        k = lane;
+        if (scratchStep_[k] == step_)
+          for (k = 0; scratchStep_[k] == step_; ++k) {
+          }
+      }
+      const std::int32_t at = c.capacity_ + index_ * kScratchPerReader + k;
+      if (!have) {
+        c.decode(page, level, at);
+        scratchPage_[k] = page;
+        ++counts_.scratch;
+      }
+      scratchStep_[k] = step_;
+      return at * kVoxels;
+    }
+    c.decode(page, level, slot);
+    ++counts_.misses;
+    const std::int32_t offset = slot * kVoxels;
+    entry.store(offset, std::memory_order_release);
+    c.filled(slot, page);
+    return offset;
+  }
+}
+
+}  // namespace voxwall::node

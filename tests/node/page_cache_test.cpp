@@ -1,0 +1,104 @@
+// The decoded-page cache on its own: threads that evict each other's pages from a pool of a few
+// slots never read a voxel of another page than the one they asked for (the quiescent-state
+// reclamation of page_cache.hpp), and the budget, formats and counts hold.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <thread>
+#include <vector>
+#include <voxwall/node/page_cache.hpp>
+
+using namespace voxwall;
+using namespace voxwall::node;
+
+namespace {
+
+// A level whose voxels are a formula of their position.
+struct Formula {
+  struct RayCache {};
+  std::uint64_t cacheId = 1;
+  int dimX = 100, dimY = 70, dimZ = 40;
+  static float value(int x, int y, int z) { return float((x * 7 + y * 13 + z * 29) % 251); }
+  float voxel(int x, int y, int z, RayCache&) const { return value(x, y, z); }
+};
+
+}  // namespace
+
+TEST(PageCache, ThreadsEvictingEachOtherNeverReadAnotherPagesVoxels) {
+  const Formula level;
+  const std::uint64_t page = std::uint64_t(PageCache::kVoxels);  // bytes of a uint8 page
+  const auto cache = PageCache::make(level, codec::ScalarType::UInt8, 3 * page, 4);
+  ASSERT_EQ(cache->capacityPages(), 3u);
+  ASSERT_EQ(cache->pageBytes(), page);
+  const int pages = cache->pagesX * cache->pagesY * cache->pagesZ;
+  ASSERT_EQ(pages, 4 * 3 * 2);
+  const auto* pool = static_cast<const std::uint8_t*>(cache->pool());
+  std::atomic<int> wrong{0};
+  auto worker = [&](unsigned seed) {
+    std::mt19937 rng(seed);
+    for (int block = 0; block < 60; ++block) {
+      PageCache::Reader reader(*cache);
+      for (int step = 0; step < 40; ++step) {
+        reader.quiesce();
+        std::int32_t asked[8], at[8];
+        for (int lane = 0; lane < 8; ++lane) {
+          asked[lane] = std::int32_t(rng() % unsigned(pages));
+          at[lane] = reader.fill(asked[lane], level, lane);
+        }
+        // Read them all after every lane's fill: other threads evict and refill meanwhile.
+        for (int lane = 0; lane < 8; ++lane) {
+          const int px = asked[lane] % cache->pagesX, py = asked[lane] / cache->pagesX % cache->pagesY;
+          const int pz = asked[lane] / cache->pagesX / cache->pagesY;
+          for (int probe = 0; probe < 16; ++probe) {
+            const int x = int(rng() % 32), y = int(rng() % 32), z = int(rng() % 32);
+            const int gx = px * 32 + x, gy = py * 32 + y, gz = pz * 32 + z;
+            if (gx >= level.dimX || gy >= level.dimY || gz >= level.dimZ) continue;
+            const std::uint8_t v = pool[std::size_t(at[lane]) + std::size_t(x + 1) +
+                                        std::size_t(y + 1) * PageCache::kRow +
+                                        std::size_t(z + 1) * PageCache::kSlice];
+            if (float(v) != Formula::value(gx, gy, gz)) wrong.fetch_add(1);
+          }
+        }
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (unsigned t = 0; t < 4; ++t) threads.emplace_back(worker, 17 + t);
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(wrong.load(), 0);
+  const PageCache::Counts c = cache->counts();
+  EXPECT_GT(c.evictions, 0u);
+  EXPECT_GT(c.misses, 3u);
+  EXPECT_LE(cache->residentPages(), 3u);
+  EXPECT_LE(cache->touchedSlots(), 3u);
+}
+
+// Every page once with room for all: nothing evicted, and each scalar type in its own width.
+TEST(PageCache, RoomForEveryPageDecodesEachOnce) {
+  const Formula level;
+  for (auto type : {codec::ScalarType::UInt8, codec::ScalarType::UInt16,
+                    codec::ScalarType::Int16, codec::ScalarType::Float32}) {
+    const auto cache = PageCache::make(level, type, std::uint64_t(1) << 30, 1);
+    EXPECT_EQ(cache->pageBytes(), std::size_t(PageCache::kVoxels) * codec::scalarBytes(type));
+    EXPECT_EQ(cache->capacityPages(), 24u);
+    PageCache::Reader reader(*cache);
+    for (int round = 0; round < 2; ++round)
+      for (std::int32_t p = 0; p < 24; ++p) {
+        reader.quiesce();
+        EXPECT_GE(reader.fill(p, level, 0), 0);
+      }
+  }
+  const auto cache = PageCache::make(level, codec::ScalarType::UInt8, std::uint64_t(1) << 30, 1);
+  {
+    PageCache::Reader reader(*cache);
+    for (std::int32_t p = 0; p < 24; ++p) (void)reader.fill(p, level, 0);
+    for (std::int32_t p = 0; p < 24; ++p) (void)reader.fill(p, level, 0);
+  }
+  EXPECT_EQ(cache->counts().misses, 24u);
+  EXPECT_EQ(cache->counts().evictions, 0u);
+  EXPECT_EQ(cache->residentPages(), 24u);
+  // The size a budget allows, in whole pages; under one page, none.
+  EXPECT_EQ(PageCache::bytesFor(level, codec::ScalarType::Float32, 5 * 4 * PageCache::kVoxels),
+            5u * 4u * PageCache::kVoxels);
+  EXPECT_EQ(PageCache::bytesFor(level, codec::ScalarType::UInt8, PageCache::kVoxels - 1), 0u);
+}
