@@ -2,8 +2,8 @@
 // rays (raycastLanes over Highway vectors) or, without packets, each pixel by raycastPixel. Every
 // pixel is independent of the others, so the image is the same for any thread count.
 #include <chrono>
-#include <voxwall/node/page_cache.hpp>
 #include <voxwall/core/parallel.hpp>
+#include <voxwall/node/page_cache.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "cpu_blocks.hpp"
@@ -68,7 +68,8 @@ class CpuBackend final : public Backend {
       const bool same = used == pages_.get() && before.hits <= after.hits;
       stats.pageHits = after.hits - (same ? before.hits : 0);
       stats.pageMissed = after.missed - (same ? before.missed : 0);
-      stats.pageDecoded = after.misses + after.scratch - (same ? before.misses + before.scratch : 0);
+      stats.pageDecoded =
+          after.misses + after.scratch - (same ? before.misses + before.scratch : 0);
       stats.pageEvictions = after.evictions - (same ? before.evictions : 0);
       stats.pageResidentBytes = std::uint64_t(used->residentPages()) * used->pageBytes();
     }
@@ -84,7 +85,8 @@ class CpuBackend final : public Backend {
     use.capacityBytes = std::uint64_t(pages_->capacityPages()) * pages_->pageBytes();
     use.pageBytes = pages_->pageBytes();
     const PageCache::Counts c = pages_->counts();
-    use.hits = c.hits, use.missed = c.missed, use.misses = c.misses, use.scratch = c.scratch, use.evictions = c.evictions;
+    use.hits = c.hits, use.missed = c.missed, use.misses = c.misses, use.scratch = c.scratch,
+    use.evictions = c.evictions;
     return use;
   }
 

@@ -229,9 +229,12 @@ struct HwyLanes {
   template <class Fn>
   static HWY_INLINE auto withPool(const PageCache& pages, const Fn& fn) {
     switch (pages.format()) {
-      case PageFormat::UInt8: return fn(static_cast<const std::uint8_t*>(pages.pool()));
-      case PageFormat::UInt16: return fn(static_cast<const std::uint16_t*>(pages.pool()));
-      default: return fn(static_cast<const float*>(pages.pool()));
+      case PageFormat::UInt8:
+        return fn(static_cast<const std::uint8_t*>(pages.pool()));
+      case PageFormat::UInt16:
+        return fn(static_cast<const std::uint16_t*>(pages.pool()));
+      default:
+        return fn(static_cast<const float*>(pages.pool()));
     }
   }
   // A stored value as the voxel: the bias of 16-bit pages (int16 data) added.

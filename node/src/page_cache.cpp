@@ -4,13 +4,17 @@ namespace voxwall::node {
 
 PageCache::PageCache(const std::type_info& type, std::uint64_t id, int x, int y, int z,
                      PageFormat format, std::uint64_t budgetBytes, int readers)
-    : dimX(x), dimY(y), dimZ(z), type_(type), id_(id), format_(format),
+    : dimX(x),
+      dimY(y),
+      dimZ(z),
+      type_(type),
+      id_(id),
+      format_(format),
       readers_(std::max(1, readers)) {
   if (x <= 0 || y <= 0 || z <= 0) throw std::invalid_argument("decoded pages of an empty volume");
   pagesX = (x + kSide - 1) / kSide, pagesY = (y + kSide - 1) / kSide;
   pagesZ = (z + kSide - 1) / kSide;
-  const std::uint64_t pages =
-      std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ);
+  const std::uint64_t pages = std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ);
   if (pages >= (std::uint64_t(1) << 31)) throw std::invalid_argument("too many decoded pages");
   capacity_ = std::int32_t(capacityFor(x, y, z, format, budgetBytes, readers_));
   entry_ = std::make_unique<std::atomic<std::int32_t>[]>(std::size_t(pages));
@@ -128,7 +132,7 @@ PageCache::Reader::Reader(PageCache& cache) : cache_(cache) {
     for (int r = 0; r < cache.readers_ && index_ < 0; ++r) {
       bool expected = false;
       if (cache.reader_[std::size_t(r)].busy.compare_exchange_strong(expected, true,
-                                                                      std::memory_order_acquire))
+                                                                     std::memory_order_acquire))
         index_ = r;
     }
     if (index_ >= 0) break;

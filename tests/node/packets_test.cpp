@@ -272,8 +272,7 @@ TEST(Packets, EvictingPagesGiveExactlyThePictureOfUnlimitedRoom) {
         s.shading = shading;
         const std::string label = c.name + (shading ? " shaded" : "") + " on " + target;
         DecodeCacheUse all;
-        const Image unlimited =
-            render(c, s, true, {0, 0, 96, 72}, std::uint64_t(1) << 40, &all);
+        const Image unlimited = render(c, s, true, {0, 0, 96, 72}, std::uint64_t(1) << 40, &all);
         ASSERT_GT(all.pageBytes, 0u) << label;
         for (int pages : {2, 3}) {
           DecodeCacheUse few;

@@ -47,15 +47,16 @@ TEST(PageCache, ThreadsEvictingEachOtherNeverReadAnotherPagesVoxels) {
         }
         // Read them all after every lane's fill: other threads evict and refill meanwhile.
         for (int lane = 0; lane < 8; ++lane) {
-          const int px = asked[lane] % cache->pagesX, py = asked[lane] / cache->pagesX % cache->pagesY;
+          const int px = asked[lane] % cache->pagesX,
+                    py = asked[lane] / cache->pagesX % cache->pagesY;
           const int pz = asked[lane] / cache->pagesX / cache->pagesY;
           for (int probe = 0; probe < 16; ++probe) {
             const int x = int(rng() % 32), y = int(rng() % 32), z = int(rng() % 32);
             const int gx = px * 32 + x, gy = py * 32 + y, gz = pz * 32 + z;
             if (gx >= level.dimX || gy >= level.dimY || gz >= level.dimZ) continue;
-            const std::uint8_t v = pool[std::size_t(at[lane]) + std::size_t(x + 1) +
-                                        std::size_t(y + 1) * PageCache::kRow +
-                                        std::size_t(z + 1) * PageCache::kSlice];
+            const std::uint8_t v =
+                pool[std::size_t(at[lane]) + std::size_t(x + 1) +
+                     std::size_t(y + 1) * PageCache::kRow + std::size_t(z + 1) * PageCache::kSlice];
             if (float(v) != Formula::value(gx, gy, gz)) wrong.fetch_add(1);
           }
         }
@@ -76,8 +77,8 @@ TEST(PageCache, ThreadsEvictingEachOtherNeverReadAnotherPagesVoxels) {
 // Every page once with room for all: nothing evicted, and each scalar type in its own width.
 TEST(PageCache, RoomForEveryPageDecodesEachOnce) {
   const Formula level;
-  for (auto type : {codec::ScalarType::UInt8, codec::ScalarType::UInt16,
-                    codec::ScalarType::Int16, codec::ScalarType::Float32}) {
+  for (auto type : {codec::ScalarType::UInt8, codec::ScalarType::UInt16, codec::ScalarType::Int16,
+                    codec::ScalarType::Float32}) {
     const auto cache = PageCache::make(level, type, std::uint64_t(1) << 30, 1);
     EXPECT_EQ(cache->pageBytes(), std::size_t(PageCache::kVoxels) * codec::scalarBytes(type));
     EXPECT_EQ(cache->capacityPages(), 24u);

@@ -242,12 +242,12 @@ class Report {
         std::printf("  rank %d:%s\n", f.ranks[i], rectList(f.rects[i]).c_str());
         const net::PageStats& p = f.rankPages[i];
         if (p.hits + p.missed > 0)
-          std::printf("    decoded pages: %.2f%% hits (%llu of %llu samples), %llu decoded, %llu "
-                      "evicted, %s resident\n",
-                      100.0 * double(p.hits) / double(p.hits + p.missed),
-                      (unsigned long long)p.hits, (unsigned long long)(p.hits + p.missed),
-                      (unsigned long long)p.decoded, (unsigned long long)p.evictions,
-                      humanBytes(double(p.residentBytes)).c_str());
+          std::printf(
+              "    decoded pages: %.2f%% hits (%llu of %llu samples), %llu decoded, %llu "
+              "evicted, %s resident\n",
+              100.0 * double(p.hits) / double(p.hits + p.missed), (unsigned long long)p.hits,
+              (unsigned long long)(p.hits + p.missed), (unsigned long long)p.decoded,
+              (unsigned long long)p.evictions, humanBytes(double(p.residentBytes)).c_str());
       }
       std::printf("  %llu samples\n", (unsigned long long)f.samples);
     }

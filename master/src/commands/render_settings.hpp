@@ -33,7 +33,7 @@ struct RenderOptions {
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
   std::string sampling = "trilinear", gradients = "cell";
-  std::string simd = "on";         // --simd: the CPU backend's ray packets
+  std::string simd = "on";           // --simd: the CPU backend's ray packets
   std::string decodeCache = "512M";  // --decode-cache: decoded pages of a brick-coded volume
   bool lod = false;
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.

@@ -80,10 +80,13 @@ class PageCache {
   // The storage of a volume of this scalar type.
   static PageFormat formatOf(codec::ScalarType type) {
     switch (type) {
-      case codec::ScalarType::UInt8: return PageFormat::UInt8;
+      case codec::ScalarType::UInt8:
+        return PageFormat::UInt8;
       case codec::ScalarType::UInt16:
-      case codec::ScalarType::Int16: return PageFormat::UInt16;
-      default: return PageFormat::Float32;
+      case codec::ScalarType::Int16:
+        return PageFormat::UInt16;
+      default:
+        return PageFormat::Float32;
     }
   }
   static std::size_t valueBytes(PageFormat f) {
@@ -115,9 +118,9 @@ class PageCache {
   // its volumes from 1) for this scalar type.
   template <class Level>
   bool holds(const Level& level, codec::ScalarType type, int readers) const {
-    return std::type_index(typeid(Level)) == type_ && level.cacheId == id_ &&
-           level.dimX == dimX && level.dimY == dimY && level.dimZ == dimZ &&
-           formatOf(type) == format_ && readers <= readers_;
+    return std::type_index(typeid(Level)) == type_ && level.cacheId == id_ && level.dimX == dimX &&
+           level.dimY == dimY && level.dimZ == dimZ && formatOf(type) == format_ &&
+           readers <= readers_;
   }
 
   int dimX, dimY, dimZ;
@@ -265,9 +268,15 @@ void PageCache::decode(std::int32_t page, const Level& level, std::int32_t slot)
   };
   std::byte* at = pool_.get() + std::size_t(slot) * pageBytes();
   switch (format_) {
-    case PageFormat::UInt8: write(reinterpret_cast<std::uint8_t*>(at)); break;
-    case PageFormat::UInt16: write(reinterpret_cast<std::uint16_t*>(at)); break;
-    case PageFormat::Float32: write(reinterpret_cast<float*>(at)); break;
+    case PageFormat::UInt8:
+      write(reinterpret_cast<std::uint8_t*>(at));
+      break;
+    case PageFormat::UInt16:
+      write(reinterpret_cast<std::uint16_t*>(at));
+      break;
+    case PageFormat::Float32:
+      write(reinterpret_cast<float*>(at));
+      break;
   }
 }
 

@@ -105,8 +105,8 @@ std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
 // The decoded pages a CPU backend made for the last compressed volume it rendered: bytes resident
 // now, the bytes every page of the volume would take, the pool's capacity and a page's bytes
 // (all 0: none), and the counts since they were made: lane samples that found their page
-// resident and that did not, pages decoded into the pool, pages decoded into a lane's scratch page (no slot was free), pages
-// evicted.
+// resident and that did not, pages decoded into the pool, pages decoded into a lane's scratch page
+// (no slot was free), pages evicted.
 struct DecodeCacheUse {
   std::uint64_t bytes = 0, allPagesBytes = 0, capacityBytes = 0, pageBytes = 0;
   std::uint64_t hits = 0, missed = 0, misses = 0, scratch = 0, evictions = 0;
