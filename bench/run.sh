@@ -26,3 +26,5 @@ echo "== Steering from the overview page in headless chromium: pointer to pictur
 echo "== The wall's frame rate at the sink: a bigeye stream to 12 display pages, files, chromium pages"
 /usr/bin/python3 bench/wall_fps.py --voxwall "$build/master/voxwall" \
   --replay "$build/bench/voxwall_bench_wall_replay" --chromium 4 --chromium-rate 3
+echo "== Big volumes: the MRI upsampled 3x (0.95 Gvox): compress, frames vs raw, memory per rank, page cache"
+/usr/bin/python3 bench/scale_bench.py --voxwall "$build/master/voxwall"

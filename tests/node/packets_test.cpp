@@ -26,6 +26,18 @@ struct Case {
   TransferFunction tf;
 };
 
+// Shepp-Logan's values as uint16 (x 257) and as int16 (- 100).
+std::pair<codec::Volume, codec::Volume> wideAndSigned(const codec::Volume& sl) {
+  codec::Volume wide = codec::Volume::allocate(sl.dims, codec::ScalarType::UInt16);
+  codec::Volume signedV = codec::Volume::allocate(sl.dims, codec::ScalarType::Int16);
+  for (std::size_t i = 0; i < sl.as<std::uint8_t>().size(); ++i) {
+    wide.as<std::uint16_t>()[i] = std::uint16_t(sl.as<std::uint8_t>()[i] * 257);
+    signedV.as<std::int16_t>()[i] = std::int16_t(int(sl.as<std::uint8_t>()[i]) - 100);
+  }
+  wide.computeRange(), signedV.computeRange();
+  return {std::move(wide), std::move(signedV)};
+}
+
 // One volume per view type of the raycaster (codec::AnyView).
 std::vector<Case> everyView(const test::TempDir& dir) {
   std::vector<Case> cases;
@@ -36,13 +48,7 @@ std::vector<Case> everyView(const test::TempDir& dir) {
   // Odd sizes: cells straddle brick borders and the padded edge.
   const codec::Volume sl = codec::generateSheppLogan(45);
   cases.push_back({"raw uint8", RenderVolume::fromVolume(sl, 16), ct});
-  codec::Volume wide = codec::Volume::allocate(sl.dims, codec::ScalarType::UInt16);
-  codec::Volume signedV = codec::Volume::allocate(sl.dims, codec::ScalarType::Int16);
-  for (std::size_t i = 0; i < sl.as<std::uint8_t>().size(); ++i) {
-    wide.as<std::uint16_t>()[i] = std::uint16_t(sl.as<std::uint8_t>()[i] * 257);
-    signedV.as<std::int16_t>()[i] = std::int16_t(int(sl.as<std::uint8_t>()[i]) - 100);
-  }
-  wide.computeRange(), signedV.computeRange();
+  const auto [wide, signedV] = wideAndSigned(sl);
   cases.push_back({"raw uint16", RenderVolume::fromVolume(wide, 8), ct.rescaled(0, 65535)});
   cases.push_back({"raw int16", RenderVolume::fromVolume(signedV, 8), signedTf});
   const codec::Volume ml = codec::generateMarschnerLobb(37, codec::ScalarType::Float32);
@@ -241,13 +247,7 @@ TEST(Packets, EvictingPagesGiveExactlyThePictureOfUnlimitedRoom) {
   {
     voxwall::Progress quiet;
     const codec::Volume sl = codec::generateSheppLogan(45);
-    codec::Volume wide = codec::Volume::allocate(sl.dims, codec::ScalarType::UInt16);
-    codec::Volume signedV = codec::Volume::allocate(sl.dims, codec::ScalarType::Int16);
-    for (std::size_t i = 0; i < sl.as<std::uint8_t>().size(); ++i) {
-      wide.as<std::uint16_t>()[i] = std::uint16_t(sl.as<std::uint8_t>()[i] * 257);
-      signedV.as<std::int16_t>()[i] = std::int16_t(int(sl.as<std::uint8_t>()[i]) - 100);
-    }
-    wide.computeRange(), signedV.computeRange();
+    const auto [wide, signedV] = wideAndSigned(sl);
     auto file = [&](const std::string& name, const codec::CompressedVolume& c) {
       codec::writeContainer(c, dir.path(name));
       return RenderVolume::open(dir.path(name));
