@@ -207,6 +207,10 @@ ContainerFile ContainerFile::open(const std::string& path) {
   return file;
 }
 
+void ContainerFile::releaseResident() const {
+  if (mapping_ && mapping_->address) madvise(mapping_->address, mapping_->length, MADV_DONTNEED);
+}
+
 ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::string& source) {
   ContainerFile file;
   file.bytes_ = bytes;

@@ -219,9 +219,9 @@ TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   auto extra = bytes;
   extra.push_back(std::byte{0});
   expectRejected(extra, &t);
-  // A stream error longer than the limit (its u16 length follows 68 bytes of fields).
+  // A stream error longer than the limit (its u16 length follows 108 bytes of fields).
   auto longError = bytes;
   const std::uint16_t huge = 60000;
-  std::memcpy(longError.data() + 68, &huge, 2);
+  std::memcpy(longError.data() + 108, &huge, 2);
   expectRejected(longError, &t);
 }

@@ -321,6 +321,8 @@ void runRender(const RenderOptions& o) {
   Setup s;
   setUpTogether(o, *comm, quiet, s);
   const std::uint64_t fingerprint = s.volume->fingerprint();
+  // Every byte of the file was read by now; from here a rank holds what its rays read.
+  s.volume->releaseMappedPages();
   const RankHosts ranks =
       checkSameVolume(*comm, s, fingerprint, int(std::max(1.0, o.watchdogSeconds) * 1000));
   s.job.manifest = manifest(o, s.job, s.render, fingerprint);

@@ -92,6 +92,11 @@ class ContainerFile {
   const SectionSet& sections() const { return sections_; }
   std::uint64_t fileBytes() const { return bytes_.size(); }
   const std::string& path() const { return sections_.source; }
+  // Drops the mapped file's pages from this process's resident memory (madvise MADV_DONTNEED on
+  // the read-only mapping): after the passes that read all of it (open's checksums, a codec's
+  // range grid), only what is read again comes back, from the system's page cache, which the
+  // ranks on one host share. Spans stay valid. Nothing for parsed bytes.
+  void releaseResident() const;
 
  private:
   struct Mapping;

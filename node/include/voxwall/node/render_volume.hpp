@@ -47,6 +47,12 @@ class RenderVolume {
   // xxHash64 of the volume's description and every section's bytes: two ranks with the same
   // fingerprint render the same pixels. Computed on first use (reads the whole payload).
   std::uint64_t fingerprint() const;
+  // Drops the mapped .vwz file from this process's resident memory after the passes that read
+  // all of it (opening, the range grid, the fingerprint): a rank then holds only the compressed
+  // bytes its rays read (codec::ContainerFile::releaseResident). Nothing for a volume in memory.
+  void releaseMappedPages() const {
+    if (file_) file_->releaseResident();
+  }
 
  private:
   RenderVolume() = default;
