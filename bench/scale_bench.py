@@ -147,6 +147,8 @@ def main():
     ap.add_argument("--budget-codecs", default="vq,ksvd")
     ap.add_argument("--budgets", default="32M,128M,512M,64G")
     ap.add_argument("--keep", help="work directory to use and keep (default: a temporary one)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="render the .vwz files an earlier run left in --keep (no compress table)")
     args = ap.parse_args()
     if not os.path.exists(MRI):
         sys.exit("needs the MRI template %s (apt-get install mricron-data)" % MRI)
@@ -156,31 +158,46 @@ def main():
             sys.exit("unknown codec %s (expected raw, vq, svmm, ksvd or tvq)" % c)
     if "raw" not in codecs:
         sys.exit("--codecs must include raw: every frame time is compared with raw's")
+    if args.reuse and not args.keep:
+        sys.exit("--reuse needs --keep DIR")
     work = args.keep or tempfile.mkdtemp(prefix="voxwall-scale-")
     os.makedirs(work, exist_ok=True)
     try:
-        print("generating the volume (MRI x%d)" % args.scale, file=sys.stderr)
-        source, dims = generate(args.voxwall, args.scale, work)
+        files = {c: os.path.join(work, c + ".vwz") for c in codecs}
+        if args.reuse:
+            # The files of an earlier run with --keep: no compress table.
+            for c in codecs:
+                if not os.path.exists(files[c]):
+                    sys.exit("--reuse: %s is missing" % files[c])
+            m = re.search(r"^dims\s+(\d+) x (\d+) x (\d+) ",
+                          run([args.voxwall, "info", files["raw"]]), re.M)
+            if not m:
+                sys.exit("cannot find the dims of " + files["raw"])
+            dims = [int(m.group(i)) for i in (1, 2, 3)]
+            compress = {c: (0, 0, os.path.getsize(files[c])) for c in codecs}
+        else:
+            print("generating the volume (MRI x%d)" % args.scale, file=sys.stderr)
+            source, dims = generate(args.voxwall, args.scale, work)
         voxels = dims[0] * dims[1] * dims[2]
-        raw_layout = ["--dims", "%d,%d,%d" % tuple(dims), "--type", "uint8"]
-        files, compress = {}, {}
-        for c in codecs:
-            print("compressing as %s" % c, file=sys.stderr)
-            files[c] = os.path.join(work, c + ".vwz")
-            _, seconds, peak = timed([args.voxwall, "compress", source, "--codec", c, "-q", "-o",
-                                      files[c]] + raw_layout + OPTIONS[c])
-            compress[c] = (seconds, peak, os.path.getsize(files[c]))
-        os.remove(source)
-        print("| codec | file | bits/voxel | compress time | compress peak | peak / input |")
-        print("|---|---|---|---|---|---|")
-        for c in codecs:
-            seconds, peak, size = compress[c]
-            print("| %s | %s | %.2f | %.0f s | %s | %.2f |"
-                  % (c, mib(size), 8.0 * size / voxels, seconds, mib(peak), peak / voxels))
-        print()
+        if not args.reuse:
+            raw_layout = ["--dims", "%d,%d,%d" % tuple(dims), "--type", "uint8"]
+            compress = {}
+            for c in codecs:
+                print("compressing as %s" % c, file=sys.stderr)
+                _, seconds, peak = timed([args.voxwall, "compress", source, "--codec", c, "-q",
+                                          "-o", files[c]] + raw_layout + OPTIONS[c])
+                compress[c] = (seconds, peak, os.path.getsize(files[c]))
+            os.remove(source)
+            print("| codec | file | bits/voxel | compress time | compress peak | peak / input |")
+            print("|---|---|---|---|---|---|")
+            for c in codecs:
+                seconds, peak, size = compress[c]
+                print("| %s | %s | %.2f | %.0f s | %s | %.2f |"
+                      % (c, mib(size), 8.0 * size / voxels, seconds, mib(peak), peak / voxels))
+            print()
         print("%dx%dx%d uint8 (%.2f Gvox), %s, shaded, 1 rank, default --decode-cache (512M); "
               "frames 2 and 3\n" % (dims[0], dims[1], dims[2], voxels / 1e9, args.size))
-        print("| codec | frame ms | frame / raw | resident | resident - file | page hits "
+        print("| codec | frame ms | frame / raw | resident | file | page hits "
               "| pages decoded (frames 1, 2, 3) | evicted (frames 2, 3) |")
         print("|---|---|---|---|---|---|---|---|")
         one = {}
@@ -194,7 +211,7 @@ def main():
             evicted = "%s, %s" % (pages[1][4], pages[2][4]) if len(pages) == 3 else "-"
             print("| %s | %.0f | %.2f | %s | %s | %s | %s | %s |"
                   % (c, ms, ms / one["raw"][0], mib(resident[0]),
-                     mib(resident[0] - compress[c][2]), hits, decoded, evicted))
+                     mib(compress[c][2]), hits, decoded, evicted))
         print()
         print("Resident memory per rank (the largest rank's), strip cut, --balance static\n")
         print("| codec | 1 rank | 2 ranks | 4 ranks | 4 ranks / 1 rank |")
