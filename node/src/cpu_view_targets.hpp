@@ -60,9 +60,10 @@ struct HwyLanes {
     F c[8];    // the corners of the last sample of a view sampled on vectors (raw, pages)
     I pageAt;  // decoded pages: the pool offset of the last sample's cell, where `paged`
     M paged;
-    // The block's hold on the backend's decoded pages (null: none), and each lane's last page.
+    // The block's hold on the backend's decoded pages (null: none), and each lane's last page
+    // plus one (0: none yet; an array, so that no vector op runs outside the target's code).
     PageCache::Reader* reader = currentReader;
-    I lastPage = hn::Set(DI(), -1);
+    std::int32_t lastPage1[kLanes] = {};
   };
 
   static HWY_INLINE F splat(float v) { return hn::Set(D(), v); }
@@ -270,14 +271,15 @@ struct HwyLanes {
     // Entries are published with a release store after their page is written.
     std::atomic_thread_fence(std::memory_order_acquire);
     const M miss = both(m, lessI(slot, splatI(0)));
-    const M entered = both(m, hn::RebindMask(D(), page != cache.lastPage));
+    const I page1 = page + splatI(1), last1 = hn::LoadU(DI(), cache.lastPage1);
+    const M entered = both(m, hn::RebindMask(D(), page1 != last1));
     if (any(either(miss, entered))) {
       HWY_ALIGN std::int32_t s[kLanes], at[kLanes];
       hn::Store(slot, DI(), s), hn::Store(page, DI(), at);
       forLanes(miss, [&](std::size_t i) { s[i] = reader.fill(at[i], v, int(i)); });
       forLanes(entered, [&](std::size_t i) { pages.touch(at[i]); });
       slot = hn::Load(DI(), s);
-      cache.lastPage = selectI(m, page, cache.lastPage);
+      hn::StoreU(selectI(m, page1, last1), DI(), cache.lastPage1);
     }
     const std::size_t missed = hn::CountTrue(D(), miss);
     reader.missed += missed;
