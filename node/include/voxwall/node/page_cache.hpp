@@ -137,9 +137,9 @@ class PageCache {
   const void* pool() const { return pool_.get(); }
   std::size_t pageBytes() const { return std::size_t(kVoxels) * valueBytes(format_); }
   std::size_t capacityPages() const { return std::size_t(capacity_); }
-  // Pages holding a decoded page now (resident: the pool's slots written once stay so).
+  // Pages mapped in the table now (each in a slot of its own; evicted ones not counted).
   std::size_t residentPages() const;
-  // Slots ever written (the pool's resident part).
+  // Slots ever written: the pool's resident part, since a written slot stays mapped.
   std::size_t touchedSlots() const;
   std::uint64_t allPagesBytes() const {
     return std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ) * pageBytes();
