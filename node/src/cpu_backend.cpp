@@ -43,12 +43,13 @@ class CpuBackend final : public Backend {
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
     cpu::TileJob job{plan,     tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
                      packets_, stop};
-    const PageCache::Counts before = pages_ ? pages_->counts() : PageCache::Counts{};
-    PageCache* used = nullptr;
+    PageCache::Counts before;  // of the pages this tile uses, once attached
     const std::uint64_t samples = std::visit(
         [&](auto view) {
-          if constexpr (cpu::kPaged<decltype(view)>)
-            used = job.pages = attachPages(cpu::pagedLevel(view), volume.info().type);
+          if constexpr (cpu::kPaged<decltype(view)>) {
+            job.pages = attachPages(cpu::pagedLevel(view), volume.info().type);
+            if (job.pages) before = job.pages->counts();
+          }
           return cpu::renderBlocks(view, job);
         },
         volume.view());
@@ -63,15 +64,13 @@ class CpuBackend final : public Backend {
     TileStats stats;
     stats.samples = samples;
     stats.stopped = stop && stop->load();
-    if (used) {
-      const PageCache::Counts after = used->counts();
-      const bool same = used == pages_.get() && before.hits <= after.hits;
-      stats.pageHits = after.hits - (same ? before.hits : 0);
-      stats.pageMissed = after.missed - (same ? before.missed : 0);
-      stats.pageDecoded =
-          after.misses + after.scratch - (same ? before.misses + before.scratch : 0);
-      stats.pageEvictions = after.evictions - (same ? before.evictions : 0);
-      stats.pageResidentBytes = std::uint64_t(used->residentPages()) * used->pageBytes();
+    if (job.pages) {
+      const PageCache::Counts after = job.pages->counts();
+      stats.pageHits = after.hits - before.hits;
+      stats.pageMissed = after.missed - before.missed;
+      stats.pageDecoded = after.misses + after.scratch - before.misses - before.scratch;
+      stats.pageEvictions = after.evictions - before.evictions;
+      stats.pageResidentBytes = std::uint64_t(job.pages->residentPages()) * job.pages->pageBytes();
     }
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
@@ -100,8 +99,6 @@ class CpuBackend final : public Backend {
     if (!pages_ || !pages_->holds(level, type, threads_)) {
       pages_.reset();  // the old pool goes before the new one is allocated
       pages_ = PageCache::make(level, type, decodeCacheBytes_, threads_);
-      // int16 data is stored as uint16 values 0 .. 65535 for -32768 .. 32767.
-      if (type == codec::ScalarType::Int16) pages_->setBias(-32768.0f);
     }
     return pages_.get();
   }

@@ -3,20 +3,22 @@
 namespace voxwall::node {
 
 PageCache::PageCache(const std::type_info& type, std::uint64_t id, int x, int y, int z,
-                     PageFormat format, std::uint64_t budgetBytes, int readers)
+                     codec::ScalarType scalar, std::uint64_t budgetBytes, int readers)
     : dimX(x),
       dimY(y),
       dimZ(z),
       type_(type),
       id_(id),
-      format_(format),
+      format_(formatOf(scalar)),
+      // int16 data is stored as uint16 values 0 .. 65535 for -32768 .. 32767.
+      bias_(scalar == codec::ScalarType::Int16 ? -32768.0f : 0.0f),
       readers_(std::max(1, readers)) {
   if (x <= 0 || y <= 0 || z <= 0) throw std::invalid_argument("decoded pages of an empty volume");
   pagesX = (x + kSide - 1) / kSide, pagesY = (y + kSide - 1) / kSide;
   pagesZ = (z + kSide - 1) / kSide;
   const std::uint64_t pages = std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ);
   if (pages >= (std::uint64_t(1) << 31)) throw std::invalid_argument("too many decoded pages");
-  capacity_ = std::int32_t(capacityFor(x, y, z, format, budgetBytes, readers_));
+  capacity_ = std::int32_t(capacityFor(x, y, z, format_, budgetBytes, readers_));
   entry_ = std::make_unique<std::atomic<std::int32_t>[]>(std::size_t(pages));
   ref_ = std::make_unique<std::atomic<std::uint8_t>[]>(std::size_t(pages));
   for (std::uint64_t i = 0; i < pages; ++i) {
@@ -50,12 +52,12 @@ std::uint64_t PageCache::capacityFor(int x, int y, int z, PageFormat format,
 std::size_t PageCache::residentPages() const { return resident_.load(std::memory_order_relaxed); }
 
 std::size_t PageCache::touchedSlots() const {
-  std::lock_guard lock(const_cast<std::mutex&>(mutex_));
+  std::lock_guard lock(mutex_);
   return std::size_t(fresh_);
 }
 
 PageCache::Counts PageCache::counts() const {
-  std::lock_guard lock(const_cast<std::mutex&>(mutex_));
+  std::lock_guard lock(mutex_);
   return totals_;
 }
 

@@ -601,6 +601,11 @@ TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
         << dryRun("1G");
     EXPECT_NE(dryRun("100K").find("decoded pages: up to 83.7 KiB per rank"), std::string::npos)
         << dryRun("100K");
+    // -v prints the rank's page cache each frame: hits, pages decoded, evicted, resident.
+    const CliRun v = runVoxwall("render " + vq + " --size 40x30 --frames 2 --no-write -v");
+    EXPECT_EQ(v.status, 0) << v.out;
+    EXPECT_NE(v.out.find("    decoded pages: "), std::string::npos) << v.out;
+    EXPECT_NE(v.out.find(" evicted, "), std::string::npos) << v.out;
   }
   EXPECT_EQ(dryRun("off").find("decoded pages"), std::string::npos);
   EXPECT_EQ(dryRun("0").find("decoded pages"), std::string::npos);

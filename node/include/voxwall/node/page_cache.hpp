@@ -100,8 +100,8 @@ class PageCache {
   static std::unique_ptr<PageCache> make(const Level& level, codec::ScalarType type,
                                          std::uint64_t budgetBytes, int readers) {
     return std::unique_ptr<PageCache>(new PageCache(typeid(Level), level.cacheId, level.dimX,
-                                                    level.dimY, level.dimZ, formatOf(type),
-                                                    budgetBytes, readers));
+                                                    level.dimY, level.dimZ, type, budgetBytes,
+                                                    readers));
   }
 
   // The pages `make` would hold for `level` with this budget, in bytes (what becomes resident
@@ -129,7 +129,6 @@ class PageCache {
   PageFormat format() const { return format_; }
   // Added to a stored value to give the voxel (int16 data stored as uint16: -32768; else 0).
   float bias() const { return bias_; }
-  void setBias(float bias) { bias_ = bias; }
   // The page table, for gathers: the entry of page (px, py, pz) is at
   // (pz * pagesY + py) * pagesX + px.
   const std::int32_t* table() const { return reinterpret_cast<const std::int32_t*>(entry_.get()); }
@@ -192,8 +191,8 @@ class PageCache {
   friend class Reader;
   static constexpr std::uint64_t kOffline = ~std::uint64_t(0);
 
-  PageCache(const std::type_info& type, std::uint64_t id, int x, int y, int z, PageFormat format,
-            std::uint64_t budgetBytes, int readers);
+  PageCache(const std::type_info& type, std::uint64_t id, int x, int y, int z,
+            codec::ScalarType scalar, std::uint64_t budgetBytes, int readers);
 
   // Slots for the budget's worth of pages, at most every page of the volume, and together with
   // the readers' scratch pages no more than int32 offsets reach (narrow gathers address bytes).
@@ -227,7 +226,7 @@ class PageCache {
   std::unique_ptr<ReaderSlot[]> reader_;
 
   // Under mutex_:
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::vector<std::int32_t> slotPage_;  // per slot: its page, or -1 (free, filling, retired)
   std::vector<std::int32_t> free_;      // slots to refill
   struct Retired {
