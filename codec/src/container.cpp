@@ -112,21 +112,29 @@ std::uint64_t CompressedVolume::payloadBytes() const {
   return n;
 }
 
-std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
+namespace {
+
+// The header and section table of `volume`'s file, and where each section starts.
+struct ContainerHead {
+  std::vector<std::byte> bytes;
+  std::vector<std::size_t> offsets;
+  std::size_t fileBytes = 0;
+};
+
+ContainerHead containerHead(const CompressedVolume& volume) {
   if (volume.sections.size() > kMaxSections)
     throw std::invalid_argument("too many sections for a .vwz file");
+  ContainerHead head;
   // Lay out the sections first so the header can state the file size.
-  std::vector<std::size_t> offsets;
   std::size_t end = alignUp(kHeaderBytes + kTableEntryBytes * volume.sections.size());
   for (auto& s : volume.sections) {
-    offsets.push_back(end);
+    head.offsets.push_back(end);
     end = alignUp(end + s.second.size());
   }
-  const std::size_t fileBytes =
-      volume.sections.empty() ? end : offsets.back() + volume.sections.back().second.size();
+  head.fileBytes =
+      volume.sections.empty() ? end : head.offsets.back() + volume.sections.back().second.size();
 
-  std::vector<std::byte> out;
-  out.reserve(fileBytes);
+  std::vector<std::byte>& out = head.bytes;
   ByteWriter w(out);
   w.putBytes(std::as_bytes(std::span(kMagic)));
   w.put<std::uint32_t>(kContainerVersion);
@@ -138,7 +146,7 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
   for (int i = 0; i < 3; ++i) w.put<double>(volume.info.spacing[i]);
   w.put<double>(volume.info.valueMin);
   w.put<double>(volume.info.valueMax);
-  w.put<std::uint64_t>(fileBytes);
+  w.put<std::uint64_t>(head.fileBytes);
   // The table comes after the header but its hash sits in it: write the table aside first.
   std::vector<std::byte> table;
   ByteWriter tw(table);
@@ -146,7 +154,7 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
     auto& [id, bytes] = volume.sections[i];
     tw.put<std::uint32_t>(id);
     tw.put<std::uint32_t>(0);
-    tw.put<std::uint64_t>(offsets[i]);
+    tw.put<std::uint64_t>(head.offsets[i]);
     tw.put<std::uint64_t>(bytes.size());
     tw.put<std::uint64_t>(hashBytes(bytes));
   }
@@ -154,18 +162,37 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
   for (int i = 0; i < 3; ++i) w.put<std::uint64_t>(0);
   w.put<std::uint64_t>(hashBytes(std::span(out).first(kOffHeaderHash)));
   w.putBytes(table);
+  return head;
+}
+
+}  // namespace
+
+std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
+  ContainerHead head = containerHead(volume);
+  std::vector<std::byte> out = std::move(head.bytes);
+  out.reserve(head.fileBytes);
   for (std::size_t i = 0; i < volume.sections.size(); ++i) {
-    out.resize(offsets[i]);
-    w.putBytes(volume.sections[i].second);
+    out.resize(head.offsets[i]);
+    out.insert(out.end(), volume.sections[i].second.begin(), volume.sections[i].second.end());
   }
-  out.resize(fileBytes);
+  out.resize(head.fileBytes);
   return out;
 }
 
 std::uint64_t writeContainer(const CompressedVolume& volume, const std::string& path) {
-  const auto bytes = serializeContainer(volume);
-  writeFileAtomically(path, bytes);
-  return bytes.size();
+  // Piece by piece from the sections themselves: a joined copy of the file would double the
+  // memory `compress` needs for its output.
+  const ContainerHead head = containerHead(volume);
+  static constexpr std::byte kZeros[kSectionAlignment] = {};
+  std::vector<std::span<const std::byte>> pieces{head.bytes};
+  std::size_t at = head.bytes.size();
+  for (std::size_t i = 0; i < volume.sections.size(); ++i) {
+    pieces.emplace_back(kZeros, head.offsets[i] - at);
+    pieces.emplace_back(volume.sections[i].second);
+    at = head.offsets[i] + volume.sections[i].second.size();
+  }
+  commitTemporary(writeTemporary(path, pieces), path);
+  return head.fileBytes;
 }
 
 struct ContainerFile::Mapping {

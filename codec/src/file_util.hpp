@@ -2,10 +2,14 @@
 #pragma once
 
 #include <string>
+#include <voxwall/codec/volume_io.hpp>
 
 namespace voxwall::codec {
 
 // Lower-case file name suffix after the last '.', with ".gz" kept as part of it ("nii.gz").
 std::string extensionOf(const std::string& path);
+
+// Refuses a raw file that does not hold exactly the voxels `layout` states (before any is read).
+void checkRawFile(const std::string& path, const RawLayout& layout);
 
 }  // namespace voxwall::codec

@@ -14,6 +14,13 @@ std::unique_ptr<RenderPayload> Codec::openWith(const VolumeInfo& info, const Sec
   return open(info, sections);
 }
 
+CompressedVolume Codec::encodeSource(const VolumeSource& source, const CodecOptionValues& options,
+                                     Progress& progress, std::string& report) const {
+  if (const Volume* whole = source.inMemory()) return encode(*whole, options, progress, report);
+  const Volume volume = source.readAll();
+  return encode(volume, options, progress, report);
+}
+
 std::string CodecOptionValues::text(const std::string& flag, const std::string& fallback) const {
   const auto it = values_.find(flag);
   return it == values_.end() ? fallback : it->second;

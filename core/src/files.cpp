@@ -54,7 +54,8 @@ bool fileHasDigest(const std::string& path, std::uint64_t bytes, const std::stri
   return digestFile(path, &digest) && digest.bytes == bytes && hex64(digest.xxh64) == xxh64Hex;
 }
 
-std::string writeTemporary(const std::string& path, std::span<const std::byte> bytes) {
+std::string writeTemporary(const std::string& path,
+                           std::span<const std::span<const std::byte>> pieces) {
   const std::string tmp = temporaryNameFor(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw FormatError(path, std::string("cannot create: ") + std::strerror(errno));
@@ -63,13 +64,15 @@ std::string writeTemporary(const std::string& path, std::span<const std::byte> b
     ::unlink(tmp.c_str());
     throw FormatError(path, std::string("cannot write: ") + std::strerror(err));
   };
-  const std::byte* p = bytes.data();
-  std::size_t left = bytes.size();
-  while (left > 0) {
-    const ssize_t n = ::write(fd, p, std::min<std::size_t>(left, 1 << 24));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) fail(n < 0 ? errno : ENOSPC);
-    p += n, left -= std::size_t(n);
+  for (const std::span<const std::byte> bytes : pieces) {
+    const std::byte* p = bytes.data();
+    std::size_t left = bytes.size();
+    while (left > 0) {
+      const ssize_t n = ::write(fd, p, std::min<std::size_t>(left, 1 << 24));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) fail(n < 0 ? errno : ENOSPC);
+      p += n, left -= std::size_t(n);
+    }
   }
   // Delayed allocation reports a full disk only here (or at close) on some filesystems.
   if (::fsync(fd) != 0 && errno != EINVAL && errno != EROFS) fail(errno);
@@ -79,6 +82,11 @@ std::string writeTemporary(const std::string& path, std::span<const std::byte> b
     throw FormatError(path, std::string("cannot write: ") + std::strerror(err));
   }
   return tmp;
+}
+
+std::string writeTemporary(const std::string& path, std::span<const std::byte> bytes) {
+  const std::span<const std::byte> pieces[] = {bytes};
+  return writeTemporary(path, pieces);
 }
 
 void syncFile(const std::string& file, const std::string& path) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <initializer_list>
 #include <voxwall/codec/container.hpp>
@@ -23,9 +24,13 @@ struct CliRun {
   std::string out;  // stdout and stderr together
 };
 
-CliRun runVoxwall(const std::string& args) {
+CliRun runLimited(const std::string& prefix, const std::string& args);
+CliRun runVoxwall(const std::string& args) { return runLimited("", args); }
+
+// voxwall behind `prefix` (e.g. "prlimit --data=N ").
+CliRun runLimited(const std::string& prefix, const std::string& args) {
   CliRun r;
-  const std::string cmd = std::string(VOXWALL_BINARY) + " " + args + " 2>&1";
+  const std::string cmd = prefix + std::string(VOXWALL_BINARY) + " " + args + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
   std::array<char, 4096> buf;
@@ -89,6 +94,37 @@ TEST(Cli, CompressReadsRawInputWithItsLayout) {
   expectOneLineError(runVoxwall("compress " + dir.path("v.raw") +
                                 " --dims 4,3,3 --type uint16 -o " + dir.path("w.vwz")),
                      "voxwall: " + dir.path("v.raw") + ": truncated");
+}
+
+// `compress` reads raw, NRRD and NIfTI inputs a slab at a time: vq compresses a volume larger
+// than the memory it may use, and gives back every voxel. The raw codec, whose output alone is
+// larger than the limit, fails with one line and leaves no file. The limit is RLIMIT_DATA
+// (prlimit --data: the process's private writable memory, about 100 MiB of which are the
+// libraries' and threads' own before any voxel), not the address space, which the mapped
+// libraries fill.
+TEST(Cli, CompressStreamsAVolumeLargerThanItsMemoryLimit) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer maps its shadow memory as data: a data limit cannot apply";
+#endif
+  if (std::system("prlimit --version > /dev/null 2>&1") != 0) GTEST_SKIP() << "no prlimit";
+  test::TempDir dir;
+  const std::string input = dir.path("big.raw");
+  // 704^3 uint8: 332.8 MiB, half as much again as the 224 MiB limit.
+  ASSERT_EQ(runVoxwall("generate shepp-logan --size 704 -o " + input).status, 0);
+  ASSERT_EQ(std::filesystem::file_size(input), std::uintmax_t(704) * 704 * 704);
+  const std::string limited = "prlimit --data=" + std::to_string(224 << 20) + " ";
+  const std::string layout = " --dims 704,704,704 --type uint8 -q";
+  const CliRun vq =
+      runLimited(limited, "compress " + input + layout + " --codec vq -o " + dir.path("big.vwz"));
+  ASSERT_EQ(vq.status, 0) << vq.out;
+  ASSERT_EQ(runVoxwall("decompress " + dir.path("big.vwz") + " -o " + dir.path("back.raw")).status,
+            0);
+  EXPECT_EQ(std::system(("cmp -s " + input + " " + dir.path("back.raw")).c_str()), 0);
+
+  expectOneLineError(
+      runLimited(limited, "compress " + input + layout + " --codec raw -o " + dir.path("raw.vwz")),
+      "voxwall: " + input + ": not enough memory to compress it with codec raw");
+  EXPECT_FALSE(std::filesystem::exists(dir.path("raw.vwz")));
 }
 
 TEST(Cli, RenderWritesPngFrames) {

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <memory>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
 
@@ -82,9 +83,9 @@ void checkRawHeader(const std::string& path, std::uint64_t have) {
                                   " is not a voxel spacing");
 }
 
-}  // namespace
-
-Volume readNifti(const std::string& path) {
+// The header of a NIfTI file readNifti accepts, checked against the file before any voxel is
+// read: a single 3D volume, a datatype of known size, all its data there.
+NiftiPtr checkedHeader(const std::string& path) {
   nifti_set_debug_level(0);  // we report errors ourselves, in one line
   NiftiPtr header(nifti_image_read(path.c_str(), 0));
   if (!header) throw FormatError(path, "not a readable NIfTI file");
@@ -111,19 +112,74 @@ Volume readNifti(const std::string& path) {
     throw FormatError(path, "truncated: " + std::to_string(have) +
                                 " bytes of data, the header needs " +
                                 std::to_string(std::uint64_t(need)));
-  header.reset();
+  return header;
+}
 
+// The scaling nifticlib reports, as readNifti applies it (0 or a non-finite slope: none).
+std::pair<double, double> scalingOf(const nifti_image& nim) {
+  double slope = nim.scl_slope, inter = nim.scl_inter;
+  if (slope == 0 || !std::isfinite(slope)) slope = 1.0, inter = 0.0;
+  if (!std::isfinite(inter)) inter = 0.0;
+  return {slope, inter};
+}
+
+glm::dvec3 spacingOf(const nifti_image& nim) {
+  // Negative and non-finite spacings were refused by checkRawHeader; 0 (old ANALYZE files)
+  // means unknown.
+  glm::dvec3 spacing(nim.dx, nim.dy, nim.dz);
+  for (int i = 0; i < 3; ++i)
+    if (!(spacing[i] > 0)) spacing[i] = 1.0;
+  return spacing;
+}
+
+}  // namespace
+
+std::optional<SlabLayout> niftiSlabLayout(const std::string& path) {
+  const NiftiPtr header = checkedHeader(path);
+  if (!header->iname || nifti_is_gzfile(header->iname)) return std::nullopt;
+  const auto [slope, inter] = scalingOf(*header);
+  if (slope != 1.0 || inter != 0.0) return std::nullopt;  // converted to float32 on reading
+  SlabLayout slab;
+  RawLayout& l = slab.layout;
+  switch (header->datatype) {
+    case DT_UINT8:
+      l.type = ScalarType::UInt8;
+      break;
+    case DT_UINT16:
+      l.type = ScalarType::UInt16;
+      break;
+    case DT_INT16:
+      l.type = ScalarType::Int16;
+      break;
+    case DT_FLOAT32:
+      l.type = ScalarType::Float32;
+      break;
+    default:
+      return std::nullopt;  // converted on reading: read whole
+  }
+  slab.file = header->iname;
+  l.dims = glm::ivec3(int(header->nx), int(header->ny), int(header->nz));
+  l.spacing = spacingOf(*header);
+  l.headerBytes = std::uint64_t(std::max(0, header->iname_offset));
+  l.bigEndian = scalarBytes(l.type) > 1 && header->byteorder != nifti_short_order();
+  std::error_code ec;
+  const std::uint64_t have = std::filesystem::file_size(slab.file, ec);
+  if (ec) throw FormatError(path, slab.file + ": " + ec.message());
+  const std::uint64_t need = l.headerBytes + std::uint64_t(header->nvox) * scalarBytes(l.type);
+  if (have < need)
+    throw FormatError(path, "truncated: " + std::to_string(have) +
+                                " bytes of data, the header needs " + std::to_string(need));
+  return slab;
+}
+
+Volume readNifti(const std::string& path) {
+  checkedHeader(path);
   NiftiPtr nim(nifti_image_read(path.c_str(), 1));
   if (!nim || !nim->data)
     throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
-  // Negative and non-finite spacings were refused above; 0 (old ANALYZE files) means unknown.
-  glm::dvec3 spacing(nim->dx, nim->dy, nim->dz);
-  for (int i = 0; i < 3; ++i)
-    if (!(spacing[i] > 0)) spacing[i] = 1.0;
-
-  double slope = nim->scl_slope, inter = nim->scl_inter;
-  if (slope == 0 || !std::isfinite(slope)) slope = 1.0, inter = 0.0;
-  if (!std::isfinite(inter)) inter = 0.0;
+  const glm::dvec3 spacing = spacingOf(*nim);
+  const glm::ivec3 dims(int(nim->nx), int(nim->ny), int(nim->nz));
+  const auto [slope, inter] = scalingOf(*nim);
   const bool scaled = slope != 1.0 || inter != 0.0;
 
   Volume v;

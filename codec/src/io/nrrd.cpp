@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
 
@@ -159,7 +160,80 @@ void checkNrrdHeader(const std::string& path) {
                                 (compressed ? " (decompressed)" : ""));
 }
 
+// The voxel spacing of axes first .. first+2 (1 where the header gives none).
+glm::dvec3 spacingOf(Nrrd* nin, unsigned first) {
+  glm::dvec3 spacing(1.0);
+  for (int i = 0; i < 3; ++i) {
+    double s = 0, dir[NRRD_SPACE_DIM_MAX] = {};
+    const int status = nrrdSpacingCalculate(nin, first + unsigned(i), &s, dir);
+    if ((status == nrrdSpacingStatusScalarNoSpace || status == nrrdSpacingStatusScalarWithSpace ||
+         status == nrrdSpacingStatusDirection) &&
+        std::isfinite(s) && s > 0)
+      spacing[i] = s;
+  }
+  return spacing;
+}
+
 }  // namespace
+
+std::optional<SlabLayout> nrrdSlabLayout(const std::string& path) {
+  checkNrrdHeader(path);
+  std::unique_ptr<Nrrd, NrrdNuker> header(nrrdNew());
+  std::unique_ptr<NrrdIoState, IoStateDeleter> io(nrrdIoStateNew());
+  io->skipData = AIR_TRUE;
+  if (nrrdLoad(header.get(), path.c_str(), io.get())) throw FormatError(path, teemError());
+  const unsigned first = header->dim == 4 && header->axis[0].size == 1 ? 1 : 0;
+  if (header->dim - first != 3 || io->encoding != nrrdEncodingRaw || io->lineSkip != 0 ||
+      io->byteSkip < -1 || (io->dataFNArr && io->dataFNArr->len > 1))
+    return std::nullopt;
+  SlabLayout slab;
+  RawLayout& l = slab.layout;
+  switch (header->type) {
+    case nrrdTypeUChar:
+      l.type = ScalarType::UInt8;
+      break;
+    case nrrdTypeUShort:
+      l.type = ScalarType::UInt16;
+      break;
+    case nrrdTypeShort:
+      l.type = ScalarType::Int16;
+      break;
+    case nrrdTypeFloat:
+      l.type = ScalarType::Float32;
+      break;
+    default:
+      return std::nullopt;  // converted on reading: read whole
+  }
+  l.dims = glm::ivec3(int(header->axis[first].size), int(header->axis[first + 1].size),
+                      int(header->axis[first + 2].size));
+  checkDims(l.dims, path);
+  l.spacing = spacingOf(header.get(), first);
+  l.bigEndian = scalarBytes(l.type) > 1 && io->endian == airEndianBig;
+  namespace fs = std::filesystem;
+  std::uint64_t start = 0;
+  if (io->dataFNArr && io->dataFNArr->len == 1) {
+    fs::path data = io->dataFN[0];
+    if (data.is_relative()) data = fs::path(path).parent_path() / data;
+    slab.file = data.string();
+  } else {
+    slab.file = path;
+    start = attachedDataOffset(path);
+    if (start == 0) return std::nullopt;
+  }
+  std::error_code ec;
+  const std::uint64_t have = fs::file_size(slab.file, ec);
+  if (ec) throw FormatError(path, slab.file + ": " + ec.message());
+  const std::uint64_t need = std::uint64_t(l.dims.x) * std::uint64_t(l.dims.y) *
+                             std::uint64_t(l.dims.z) * scalarBytes(l.type);
+  // "byte skip: -1" means the voxels are the file's last bytes.
+  l.headerBytes =
+      io->byteSkip == -1 ? have - std::min(have, need) : start + std::uint64_t(io->byteSkip);
+  if (have < l.headerBytes + need)
+    throw FormatError(path, "truncated: the header needs " + std::to_string(need) +
+                                " bytes of data, the file holds " +
+                                std::to_string(have - std::min(have, l.headerBytes)));
+  return slab;
+}
 
 Volume readNrrd(const std::string& path) {
   checkNrrdHeader(path);
@@ -173,15 +247,7 @@ Volume readNrrd(const std::string& path) {
   const glm::ivec3 dims(int(nin->axis[first].size), int(nin->axis[first + 1].size),
                         int(nin->axis[first + 2].size));
   checkDims(dims, path);
-  glm::dvec3 spacing(1.0);
-  for (int i = 0; i < 3; ++i) {
-    double s = 0, dir[NRRD_SPACE_DIM_MAX] = {};
-    const int status = nrrdSpacingCalculate(nin.get(), first + unsigned(i), &s, dir);
-    if ((status == nrrdSpacingStatusScalarNoSpace || status == nrrdSpacingStatusScalarWithSpace ||
-         status == nrrdSpacingStatusDirection) &&
-        std::isfinite(s) && s > 0)
-      spacing[i] = s;
-  }
+  const glm::dvec3 spacing = spacingOf(nin.get(), first);
   Volume v;
   auto make = [&](ScalarType t) { v = Volume::allocate(dims, t, spacing); };
   switch (nin->type) {

@@ -12,7 +12,7 @@
 
 namespace voxwall::codec {
 
-Volume readRaw(const std::string& path, const RawLayout& layout) {
+void checkRawFile(const std::string& path, const RawLayout& layout) {
   if (layout.dims.x <= 0 || layout.dims.y <= 0 || layout.dims.z <= 0)
     throw FormatError(path, "raw files need their dimensions (--dims X,Y,Z)");
   checkDims(layout.dims, path);
@@ -35,6 +35,10 @@ Volume readRaw(const std::string& path, const RawLayout& layout) {
                   std::to_string(layout.dims.y) + "x" + std::to_string(layout.dims.z) + " " +
                   std::string(scalarName(layout.type)) + " needs " + std::to_string(need) +
                   " (wrong dimensions or type, or give --header-bytes)");
+}
+
+Volume readRaw(const std::string& path, const RawLayout& layout) {
+  checkRawFile(path, layout);
   Volume v = Volume::allocate(layout.dims, layout.type, layout.spacing);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FormatError(path, std::strerror(errno));

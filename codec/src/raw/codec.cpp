@@ -20,6 +20,10 @@ int shiftFor(int voxels, int minShift, const char* what) {
 }  // namespace
 
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress) {
+  return encode(*memorySource(volume), params, progress);
+}
+
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress) {
   const int shift = shiftFor(params.brickVoxels, 2, "brick size");
   const int rangeShift = shiftFor(params.rangeCellVoxels, 1, "range cell size");
   const int b = 1 << shift;
@@ -31,7 +35,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   const std::size_t scalar = scalarBytes(volume.type);
 
   CompressedVolume out;
-  out.info = volumeInfo(volume, CodecId::Raw);
+  out.info = volumeInfo(volume.headerVolume(), CodecId::Raw);
 
   std::vector<std::byte> paramBytes;
   ByteWriter pw(paramBytes);
@@ -40,25 +44,29 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
 
   std::vector<std::byte> brickBytes(brickCount * brickScalars * scalar);
   progress.begin("bricking", brickCount);
+  // One row of bricks at a time, from its b + 1 slices (the last repeats at the volume's end).
+  std::vector<std::byte> window(edge * volume.sliceBytes());
+  const std::size_t rowBricks = std::size_t(bricks.x) * std::size_t(bricks.y);
   dispatchScalar(volume.type, [&](auto t) {
     using T = decltype(t);
-    auto src = volume.as<T>();
+    const T* src = reinterpret_cast<const T*>(window.data());
     T* dst = reinterpret_cast<T*>(brickBytes.data());
-    parallelFor(brickCount, 0, [&](std::size_t brick) {
-      const int bx = int(brick % std::size_t(bricks.x));
-      const int by = int(brick / std::size_t(bricks.x) % std::size_t(bricks.y));
-      const int bz = int(brick / (std::size_t(bricks.x) * std::size_t(bricks.y)));
-      T* out = dst + brick * brickScalars;
-      for (int z = 0; z <= b; ++z)
-        for (int y = 0; y <= b; ++y)
-          for (int x = 0; x <= b; ++x) {
-            const int vx = std::min(bx * b + x, volume.dims.x - 1);
+    for (int bz = 0; bz < bricks.z; ++bz) {
+      volume.readSlices(bz * b, int(edge), window);
+      parallelFor(rowBricks, 0, [&](std::size_t inRow) {
+        const int bx = int(inRow % std::size_t(bricks.x));
+        const int by = int(inRow / std::size_t(bricks.x));
+        T* out = dst + (std::size_t(bz) * rowBricks + inRow) * brickScalars;
+        for (int z = 0; z <= b; ++z)
+          for (int y = 0; y <= b; ++y) {
             const int vy = std::min(by * b + y, volume.dims.y - 1);
-            const int vz = std::min(bz * b + z, volume.dims.z - 1);
-            *out++ = src[volume.index(vx, vy, vz)];
+            const T* line = src + (std::size_t(z) * std::size_t(volume.dims.y) + std::size_t(vy)) *
+                                      std::size_t(volume.dims.x);
+            for (int x = 0; x <= b; ++x) *out++ = line[std::min(bx * b + x, volume.dims.x - 1)];
           }
-      progress.advance();
-    });
+        progress.advance();
+      });
+    }
   });
   progress.end();
 

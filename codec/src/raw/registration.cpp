@@ -27,6 +27,14 @@ class Payload final : public RenderPayload {
 namespace {
 
 class RawCodec final : public Codec {
+  static Params params(const CodecOptionValues& options) {
+    const Params defaults;
+    Params p;
+    p.brickVoxels = options.integer("--brick", defaults.brickVoxels, 1, 1 << 20);
+    p.rangeCellVoxels = options.integer("--range-cell", defaults.rangeCellVoxels, 1, 1 << 20);
+    return p;
+  }
+
  public:
   CodecId id() const override { return CodecId::Raw; }
 
@@ -49,11 +57,13 @@ class RawCodec final : public Codec {
 
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string&) const override {
-    const Params defaults;
-    Params p;
-    p.brickVoxels = options.integer("--brick", defaults.brickVoxels, 1, 1 << 20);
-    p.rangeCellVoxels = options.integer("--range-cell", defaults.rangeCellVoxels, 1, 1 << 20);
-    return raw::encode(volume, p, progress);
+    return raw::encode(volume, params(options), progress);
+  }
+
+  // Streams: one row of bricks in memory at a time.
+  CompressedVolume encodeSource(const VolumeSource& source, const CodecOptionValues& options,
+                                Progress& progress, std::string&) const override {
+    return raw::encode(source, params(options), progress);
   }
 
   Volume decode(const VolumeInfo& info, const SectionSet& sections) const override {

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <unordered_map>
+#include <unordered_set>
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/vq_codec.hpp>
@@ -18,6 +19,10 @@
 #include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec::vq {
+
+// The bit depth for data of this type and range (8, 12 or 16).
+int bitDepth(ScalarType type, double lo, double hi);
+
 namespace {
 
 constexpr int kN = kernels::kVqBrickVoxels;
@@ -43,13 +48,16 @@ class BitWriter {
   int used_ = 0;
 };
 
-// Writes n entries of `bits` bits into a zero-initialised buffer at byte offset `at`.
-void packInto(std::vector<std::uint8_t>& buf, std::size_t at, std::span<const std::uint64_t> v,
-              int bits) {
-  for (std::size_t i = 0; i < v.size(); ++i) {
+// Writes `count` entries of `bits` bits, value(i) each, into a zero-initialised buffer at byte
+// offset `at`.
+template <class Value>
+void packInto(std::vector<std::uint8_t>& buf, std::size_t at, std::size_t count, int bits,
+              Value value) {
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint64_t v = value(i);
     const std::uint64_t bit = std::uint64_t(i) * std::uint64_t(bits);
     for (int b = 0; b < bits; ++b)
-      if ((v[i] >> b) & 1u) {
+      if ((v >> b) & 1u) {
         const std::uint64_t pos = bit + std::uint64_t(b);
         buf[at + (pos >> 3)] |= std::uint8_t(1u << (pos & 7));
       }
@@ -103,25 +111,51 @@ void rbucBody(const Brick& u, std::int32_t range, int t, std::vector<std::uint8_
   }
 }
 
+// Brick (bx, by) of a row from `window`, the row's 4 slices (x fastest), minus `bias`.
 template <class T>
-void gatherBrick(const Volume& v, std::span<const T> src, int bias, int bx, int by, int bz,
-                 Brick& out) {
+void gatherBrick(glm::ivec3 dims, const T* window, int bias, int bx, int by, Brick& out) {
   int i = 0;
   for (int z = 0; z < 4; ++z)
-    for (int y = 0; y < 4; ++y)
-      for (int x = 0; x < 4; ++x) {
-        const int vx = std::min(bx * 4 + x, v.dims.x - 1);
-        const int vy = std::min(by * 4 + y, v.dims.y - 1);
-        const int vz = std::min(bz * 4 + z, v.dims.z - 1);
-        out[i++] = std::uint16_t(int(src[v.index(vx, vy, vz)]) - bias);
-      }
+    for (int y = 0; y < 4; ++y) {
+      const int vy = std::min(by * 4 + y, dims.y - 1);
+      const T* line =
+          window + (std::size_t(z) * std::size_t(dims.y) + std::size_t(vy)) * std::size_t(dims.x);
+      for (int x = 0; x < 4; ++x)
+        out[i++] = std::uint16_t(int(line[std::min(bx * 4 + x, dims.x - 1)]) - bias);
+    }
 }
 
-int biasOf(const Volume& v) {
-  if (v.type != ScalarType::Int16) return 0;
-  auto s = v.as<std::int16_t>();
-  return s.empty() ? 0 : int(*std::min_element(s.begin(), s.end()));
+// The range of the voxels themselves: computed for a volume in memory (whose header may not
+// say), what the first pass over a file found for a file.
+std::pair<double, double> dataRange(const VolumeSource& source) {
+  const Volume* v = source.inMemory();
+  if (!v) return {source.valueMin, source.valueMax};
+  return dispatchScalar(v->type, [&](auto t) -> std::pair<double, double> {
+    auto s = v->as<decltype(t)>();
+    if (s.empty()) return {0.0, 0.0};
+    const auto [lo, hi] = std::minmax_element(s.begin(), s.end());
+    return {double(*lo), double(*hi)};
+  });
 }
+
+// Indices into the unique bricks, hashed and compared by the bricks they name: the set of bricks
+// seen so far without a second copy of each.
+struct UniqueHash {
+  using is_transparent = void;
+  const std::vector<Brick>* unique;
+  std::size_t operator()(std::uint32_t i) const { return BrickHash{}((*unique)[i]); }
+  std::size_t operator()(const Brick& b) const { return BrickHash{}(b); }
+};
+struct UniqueEqual {
+  using is_transparent = void;
+  const std::vector<Brick>* unique;
+  const Brick& of(std::uint32_t i) const { return (*unique)[i]; }
+  const Brick& of(const Brick& b) const { return b; }
+  template <class A, class B>
+  bool operator()(const A& a, const B& b) const {
+    return of(a) == of(b);
+  }
+};
 
 // Estimated bytes of a compressed codeword, from a sample of bricks.
 double meanCodewordBytes(std::span<const Brick> bricks, int bits) {
@@ -150,21 +184,19 @@ bool chooseIndirect(std::uint64_t entries, std::uint64_t codewords, std::uint64_
   return indirect < direct;
 }
 
-int bitDepth(const Volume& v) {
-  switch (v.type) {
+int bitDepth(const Volume& volume) {
+  const auto [lo, hi] = dataRange(*memorySource(volume));
+  return bitDepth(volume.type, lo, hi);
+}
+
+int bitDepth(ScalarType type, double lo, double hi) {
+  switch (type) {
     case ScalarType::UInt8:
       return 8;
-    case ScalarType::UInt16: {
-      auto s = v.as<std::uint16_t>();
-      const int maxV = s.empty() ? 0 : int(*std::max_element(s.begin(), s.end()));
-      return maxV < 4096 ? 12 : 16;
-    }
-    case ScalarType::Int16: {
-      auto s = v.as<std::int16_t>();
-      if (s.empty()) return 12;
-      const auto [lo, hi] = std::minmax_element(s.begin(), s.end());
-      return int(*hi) - int(*lo) < 4096 ? 12 : 16;
-    }
+    case ScalarType::UInt16:
+      return hi < 4096 ? 12 : 16;
+    case ScalarType::Int16:
+      return hi - lo < 4096 ? 12 : 16;
     case ScalarType::Float32:
       break;
   }
@@ -233,13 +265,19 @@ std::size_t codewordLength(const std::uint8_t* p, std::size_t available, int bit
 
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* statsOut) {
-  const int bits = bitDepth(volume);
+  return encode(*memorySource(volume), params, progress, statsOut);
+}
+
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
+                        EncodeStats* statsOut) {
+  const auto [lowest, highest] = dataRange(volume);
+  const int bits = bitDepth(volume.type, lowest, highest);
   if (params.reduction < 1 || params.reduction > 1 << 20)
     throw std::invalid_argument("vq codec: --reduction must be 1 (lossless) to 1048576, not " +
                                 std::to_string(params.reduction));
   if (params.targetBitsPerVoxel < 0 || !std::isfinite(params.targetBitsPerVoxel))
     throw std::invalid_argument("vq codec: --bits-per-voxel must be positive");
-  const int bias = biasOf(volume);
+  const int bias = volume.type == ScalarType::Int16 ? int(lowest) : 0;
   const glm::ivec3 bricks = (volume.dims + 3) / 4;
   const std::size_t brickCount =
       std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
@@ -247,43 +285,49 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   stats.bricks = brickCount;
 
   // ---- bricks and the lossless codebook (section 3) ----
-  std::vector<Brick> all(brickCount);
-  progress.begin("bricking", brickCount);
-  dispatchScalar(volume.type, [&](auto t) {
-    using T = decltype(t);
-    if constexpr (std::is_integral_v<T>) {
-      auto src = volume.as<T>();
-      parallelFor(std::size_t(bricks.z) * std::size_t(bricks.y), params.threads,
-                  [&](std::size_t row) {
-                    const int by = int(row % std::size_t(bricks.y)), bz = int(row / bricks.y);
-                    for (int bx = 0; bx < bricks.x; ++bx)
-                      gatherBrick<T>(volume, src, bias, bx, by, bz,
-                                     all[row * std::size_t(bricks.x) + std::size_t(bx)]);
-                    progress.advance(std::uint64_t(bricks.x));
-                  });
-    }
-  });
-  progress.end();
+  // A row of bricks (4 slices) at a time: gathered in parallel, then added to the unique bricks
+  // in brick order, so the codebook is the same whatever the threads.
   std::vector<std::uint32_t> brickToUnique(brickCount);
   std::vector<Point> unique;
   std::vector<std::uint32_t> weight;
+  progress.begin("bricking", brickCount);
   {
-    std::unordered_map<Brick, std::uint32_t, BrickHash> index;
-    index.reserve(brickCount);
-    for (std::size_t i = 0; i < brickCount; ++i) {
-      const auto [it, inserted] = index.try_emplace(all[i], std::uint32_t(unique.size()));
-      if (inserted) unique.push_back(all[i]), weight.push_back(0);
-      brickToUnique[i] = it->second;
-      ++weight[it->second];
+    const std::size_t rowBricks = std::size_t(bricks.x) * std::size_t(bricks.y);
+    std::vector<Brick> row(rowBricks);
+    std::vector<std::byte> window(4 * volume.sliceBytes());
+    std::unordered_set<std::uint32_t, UniqueHash, UniqueEqual> index(0, UniqueHash{&unique},
+                                                                     UniqueEqual{&unique});
+    for (int bz = 0; bz < bricks.z; ++bz) {
+      volume.readSlices(bz * 4, 4, window);
+      dispatchScalar(volume.type, [&](auto t) {
+        using T = decltype(t);
+        if constexpr (std::is_integral_v<T>) {
+          const T* src = reinterpret_cast<const T*>(window.data());
+          parallelFor(std::size_t(bricks.y), params.threads, [&](std::size_t by) {
+            for (int bx = 0; bx < bricks.x; ++bx)
+              gatherBrick<T>(volume.dims, src, bias, bx, int(by),
+                             row[by * std::size_t(bricks.x) + std::size_t(bx)]);
+          });
+        }
+      });
+      for (std::size_t j = 0; j < rowBricks; ++j) {
+        auto it = index.find(row[j]);
+        if (it == index.end()) {
+          unique.push_back(row[j]), weight.push_back(0);
+          it = index.insert(std::uint32_t(unique.size() - 1)).first;
+        }
+        brickToUnique[std::size_t(bz) * rowBricks + j] = *it;
+        ++weight[*it];
+      }
+      progress.advance(rowBricks);
     }
   }
-  all.clear();
-  all.shrink_to_fit();
+  progress.end();
   stats.uniqueBricks = unique.size();
 
   // ---- data reduction (section 4) ----
   std::vector<Brick> codebook;
-  std::vector<std::uint32_t> brickToCodeword(brickCount);
+  std::vector<std::uint32_t> brickToCodeword;  // sized by reduce(), or the unique map moved in
   const std::uint64_t maxValue = (std::uint64_t(1) << bits) - 1;
   auto reduce = [&](std::size_t k) {
     const auto start = std::chrono::steady_clock::now();
@@ -309,12 +353,13 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
       if (inserted) codebook.push_back(b);
       centerToCodeword[c] = it->second;
     }
+    brickToCodeword.resize(brickCount);
     for (std::size_t i = 0; i < brickCount; ++i)
       brickToCodeword[i] = centerToCodeword[r.assignment[brickToUnique[i]]];
   };
   auto keepLossless = [&] {
     codebook.assign(unique.begin(), unique.end());
-    brickToCodeword = brickToUnique;
+    brickToCodeword = std::move(brickToUnique);
   };
   int reduction = params.reduction;
   if (params.targetBitsPerVoxel > 0) {
@@ -395,18 +440,19 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   const int indexBits = bitsFor(m - 1);
   const int addressBits = bitsFor(codebookBytes.empty() ? 0 : codebookBytes.size() - 1);
   const int offsetBits = params.compressedCodebook && !indirect ? addressBits : indexBits;
-  std::vector<std::uint64_t> entries(brickCount);
-  for (std::size_t i = 0; i < brickCount; ++i)
-    entries[i] =
-        params.compressedCodebook && !indirect ? address[brickToCodeword[i]] : brickToCodeword[i];
   const std::size_t offsetBytes = packedBytes(brickCount, offsetBits);
   const std::size_t tableBytes = indirect ? packedBytes(m, addressBits) : 0;
   const std::size_t indexTableAt = align64(offsetBytes + kPad);
   const std::size_t codebookAt =
       indirect ? align64(indexTableAt + tableBytes + kPad) : indexTableAt;
   std::vector<std::uint8_t> data(align64(codebookAt + codebookBytes.size() + kPad), 0);
-  packInto(data, 0, entries, offsetBits);
-  if (indirect) packInto(data, indexTableAt, address, addressBits);
+  const bool byAddress = params.compressedCodebook && !indirect;
+  packInto(data, 0, brickCount, offsetBits, [&](std::size_t i) -> std::uint64_t {
+    return byAddress ? address[brickToCodeword[i]] : brickToCodeword[i];
+  });
+  if (indirect)
+    packInto(data, indexTableAt, address.size(), addressBits,
+             [&](std::size_t i) { return address[i]; });
   if (!codebookBytes.empty())
     std::memcpy(data.data() + codebookAt, codebookBytes.data(), codebookBytes.size());
   stats.indirect = indirect;
@@ -414,7 +460,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   stats.codebookBytes = codebookBytes.size();
 
   CompressedVolume out;
-  out.info = volumeInfo(volume, CodecId::Vq);
+  out.info = volumeInfo(volume.headerVolume(), CodecId::Vq);
   auto writeParams = [&](double psnr) {
     std::vector<std::byte> bytes;
     ByteWriter w(bytes);
@@ -443,7 +489,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   stats.psnr = std::numeric_limits<double>::infinity();
   if (!lossless) {
     progress.begin("measuring PSNR", 1);
-    stats.psnr = psnr(volume, decode(out.info, out.view()));
+    stats.psnr = brickPsnr(volume, Layout(out.info, out.view()).view());
     progress.advance();
     progress.end();
     out.sections[0].second = writeParams(stats.psnr);

@@ -80,6 +80,12 @@ class VqCodec final : public Codec {
 
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string& report) const override {
+    return encodeSource(*memorySource(volume), options, progress, report);
+  }
+
+  // Streams: a row of bricks in memory at a time, besides the unique bricks.
+  CompressedVolume encodeSource(const VolumeSource& source, const CodecOptionValues& options,
+                                Progress& progress, std::string& report) const override {
     Params p;
     p.reduction = options.integer("--reduction", 1, 1, 1 << 20);
     p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
@@ -92,7 +98,7 @@ class VqCodec final : public Codec {
     p.compressedCodebook = codebook == "compressed";
     p.threads = options.threads;
     EncodeStats s;
-    CompressedVolume out = vq::encode(volume, p, progress, &s);
+    CompressedVolume out = vq::encode(source, p, progress, &s);
     report = encodeReport(p, s);
     return out;
   }

@@ -5,6 +5,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/master/render_job.hpp>
 
 #include "../cli_common.hpp"
@@ -51,17 +52,31 @@ void runCompress(const CompressOptions& o) {
   const codec::Codec& chosen = codec::codecNamed(o.codec);
   const codec::CodecOptionValues values = codecOptionValues(o, chosen);
   const auto start = std::chrono::steady_clock::now();
-  codec::Volume v = loadVolume(o.input, o.raw.layout());
-  if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
   voxwall::Progress progress = makeProgress(o.quiet);
+  // Raw, NRRD (raw encoding) and uncompressed NIfTI files are read a slab at a time by the codecs
+  // that stream; anything else is read whole first.
+  const std::unique_ptr<codec::VolumeSource> source =
+      o.input.rfind("generated:", 0) == 0
+          ? codec::memorySource(loadVolume(o.input, o.raw.layout()))
+          : codec::openVolumeSource(o.input, o.raw.layout(), progress);
+  if (!o.raw.spacing.empty()) source->setSpacing(parseSpacing(o.raw.spacing, "--spacing"));
   std::string report;
-  const codec::CompressedVolume compressed = chosen.encode(v, values, progress, report);
-  const std::uint64_t fileBytes = codec::writeContainer(compressed, o.output);
+  std::uint64_t fileBytes = 0;
+  try {
+    const codec::CompressedVolume compressed =
+        chosen.encodeSource(*source, values, progress, report);
+    fileBytes = codec::writeContainer(compressed, o.output);
+  } catch (const std::bad_alloc&) {
+    throw voxwall::FormatError(o.input,
+                               "not enough memory to compress it with codec " + o.codec +
+                                   (source->streams() ? "" : " (the input was read whole)"));
+  }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // The process's peak resident memory (the input, the encoder's work and the output together):
   // VmHWM, which starts over at exec (getrusage's maximum keeps a large parent's pages).
   const std::uint64_t peak = master::processMemory().second;
+  const codec::Volume v = source->headerVolume();
   std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs, peak memory %s%s\n",
               o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
               std::string(codec::scalarName(v.type)).c_str(), o.codec.c_str(),

@@ -12,6 +12,7 @@
 #include <vector>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec {
@@ -76,6 +77,12 @@ class Codec {
   // that each start with "\n  ". Throws std::invalid_argument for options or data it refuses.
   virtual CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                                   Progress& progress, std::string& report) const = 0;
+  // Encodes the volume `source` reads, holding a bounded window of its slices at a time where the
+  // codec streams (then the file equals encode()'s of the whole volume, byte for byte). By
+  // default: the whole volume in memory, then encode().
+  virtual CompressedVolume encodeSource(const VolumeSource& source,
+                                        const CodecOptionValues& options, Progress& progress,
+                                        std::string& report) const;
   // The full volume. Throws FormatError for sections that do not describe one.
   virtual Volume decode(const VolumeInfo& info, const SectionSet& sections) const = 0;
   // The codec's `info` lines (after the container's).

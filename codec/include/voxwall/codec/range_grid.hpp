@@ -6,6 +6,8 @@
 
 namespace voxwall::codec {
 
+class VolumeSource;  // volume_source.hpp
+
 // Min/max of the voxel values in each cell of cellVoxels^3 voxels, *dilated by one voxel* on
 // every side (clamped at the border): every trilinear sample whose lower corner voxel lies in a
 // cell interpolates only voxels the cell's range covers. Cells are x fastest.
@@ -20,5 +22,7 @@ struct RangeGrid {
 
 // Computes the grid from a dense volume (multi-threaded).
 RangeGrid computeRangeGrid(const Volume& volume, int cellVoxels);
+// The same from a volume read a row of cells (and the slice either side) at a time.
+RangeGrid computeRangeGrid(const VolumeSource& source, int cellVoxels);
 
 }  // namespace voxwall::codec

@@ -31,6 +31,8 @@ struct Params {
 
 // Throws std::invalid_argument for sizes that are not powers of two in range.
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress);
+// The same from a volume read one row of bricks (b + 1 slices) at a time: the same bytes.
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress);
 
 // The sections of a raw-coded volume, checked against the header: every size and count is
 // validated before use; throws FormatError naming the source and the section.

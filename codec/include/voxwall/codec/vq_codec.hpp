@@ -86,6 +86,10 @@ struct EncodeStats {
 // Throws std::invalid_argument for float data or bad parameters.
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
+// The same from a volume read a row of bricks (4 slices) at a time: the same bytes. What stays
+// in memory is the unique bricks (the lossless codebook, or k-means' input) and 4 bytes per brick.
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats = nullptr);
 
 // Data bit depth the codec uses for a volume (8, 12 or 16) and its bias.
 int bitDepth(const Volume& volume);

@@ -28,6 +28,9 @@ bool fileHasDigest(const std::string& path, std::uint64_t bytes, const std::stri
 // FormatError naming `path` and the reason (e.g. "No space left on device"); nothing is left
 // behind then.
 std::string writeTemporary(const std::string& path, std::span<const std::byte> bytes);
+// The same for a file written piece after piece (no copy of them joined).
+std::string writeTemporary(const std::string& path,
+                           std::span<const std::span<const std::byte>> pieces);
 // Renames a finished temporary over `path` (or removes it and throws FormatError).
 void commitTemporary(const std::string& temporary, const std::string& path);
 // writeTemporary + commitTemporary.

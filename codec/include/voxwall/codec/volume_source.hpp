@@ -1,0 +1,74 @@
+// A volume read a slab of z-slices at a time, so an encoder holds a bounded window of it rather
+// than the whole input. Raw files, NRRD files with raw encoding and uncompressed NIfTI files whose
+// voxels are stored in one of voxwall's scalar types are read from the file with pread(); every
+// other input (gzip, slice stacks, types that are converted) is read whole into memory first.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <voxwall/codec/volume.hpp>
+#include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/progress.hpp>
+
+namespace voxwall::codec {
+
+class VolumeSource {
+ public:
+  virtual ~VolumeSource() = default;
+
+  glm::ivec3 dims{0, 0, 0};
+  glm::dvec3 spacing{1, 1, 1};  // change it with setSpacing()
+  ScalarType type = ScalarType::UInt8;
+  double valueMin = 0, valueMax = 0;  // of every voxel (a first pass over a file finds them)
+
+  std::size_t sliceVoxels() const { return std::size_t(dims.x) * std::size_t(dims.y); }
+  std::size_t sliceBytes() const { return sliceVoxels() * scalarBytes(type); }
+  std::size_t voxelCount() const { return sliceVoxels() * std::size_t(dims.z); }
+
+  // Copies slices z0 .. z0+count-1 into `out` (count * sliceBytes() bytes), in the volume's type,
+  // native endian. Slices past the last one repeat the last one (an encoder's bricks and aprons
+  // clamp at the volume's edge); z0 must lie in the volume. Throws FormatError on a read error.
+  void readSlices(int z0, int count, std::span<std::byte> out) const;
+  // Whether readSlices() reads the file (true) or copies from a volume held in memory.
+  virtual bool streams() const = 0;
+  // The whole volume in memory (what an encoder that does not stream works on).
+  Volume readAll() const;
+  // The volume this source copies from, when it holds one (no copy needed); null when it streams.
+  virtual const Volume* inMemory() const = 0;
+  // Overrides the file's spacing (`compress --spacing`), also in the volume inMemory() gives
+  // when the source owns it; throws std::logic_error for a source that borrows its volume.
+  virtual void setSpacing(glm::dvec3 s) { spacing = s; }
+  // The header of a volume with this source's dims, type, spacing and range, and no data.
+  Volume headerVolume() const;
+
+ protected:
+  // Slices z0 .. z0+count-1, all inside the volume.
+  virtual void read(int z0, int count, std::byte* out) const = 0;
+};
+
+// A source that copies from `volume`, which must outlive it (or owns it when moved in).
+std::unique_ptr<VolumeSource> memorySource(const Volume& volume);
+std::unique_ptr<VolumeSource> memorySource(Volume&& volume);
+
+// Where a file's voxels lie, when they lie uncompressed in one of voxwall's types.
+struct SlabLayout {
+  std::string file;  // the file holding the voxels (a detached NRRD's data file)
+  RawLayout layout;  // dims, type, spacing, endianness, and the offset of the first voxel
+};
+// For a NRRD file with raw encoding and one data file, and an uncompressed single-file or
+// .hdr/.img NIfTI file without scaling; nullopt for any other file of those formats (which
+// readVolume reads whole). Throws FormatError for files readVolume refuses too.
+std::optional<SlabLayout> nrrdSlabLayout(const std::string& path);
+std::optional<SlabLayout> niftiSlabLayout(const std::string& path);
+
+// The source for `path`: read in slabs where the format allows (raw with `raw` given, NRRD and
+// NIfTI as above), else read whole with readVolume(). Opening a file source reads the file once
+// to find its value range, reporting on `progress`. Throws FormatError like readVolume().
+std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path,
+                                               const std::optional<RawLayout>& raw,
+                                               Progress& progress);
+
+}  // namespace voxwall::codec
