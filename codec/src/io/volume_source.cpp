@@ -33,6 +33,17 @@ Volume VolumeSource::headerVolume() const {
   return v;
 }
 
+std::pair<double, double> VolumeSource::dataRange() const {
+  const Volume* v = inMemory();
+  if (!v) return {valueMin, valueMax};
+  return dispatchScalar(v->type, [&](auto t) -> std::pair<double, double> {
+    auto s = v->as<decltype(t)>();
+    if (s.empty()) return {0.0, 0.0};
+    const auto [lo, hi] = std::minmax_element(s.begin(), s.end());
+    return {double(*lo), double(*hi)};
+  });
+}
+
 Volume VolumeSource::readAll() const {
   Volume v = Volume::allocate(dims, type, spacing);
   v.valueMin = valueMin, v.valueMax = valueMax;
@@ -48,6 +59,8 @@ class MemorySource final : public VolumeSource {
     volume_ = volume ? volume : &owned_;
     dims = volume_->dims, spacing = volume_->spacing, type = volume_->type;
     valueMin = volume_->valueMin, valueMax = volume_->valueMax;
+    if (type == ScalarType::Float32)
+      for (const float f : volume_->as<float>()) finite = finite && std::isfinite(f);
   }
   bool streams() const override { return false; }
   const Volume* inMemory() const override { return volume_; }
@@ -117,7 +130,10 @@ class FileSource final : public VolumeSource {
       dispatchScalar(type, [&](auto t) {
         using T = decltype(t);
         const T* v = reinterpret_cast<const T*>(buffer.data());
-        const auto [a, b] = std::minmax_element(v, v + std::size_t(n) * sliceVoxels());
+        const std::size_t count = std::size_t(n) * sliceVoxels();
+        if constexpr (std::is_floating_point_v<T>)
+          for (std::size_t i = 0; i < count; ++i) finite = finite && std::isfinite(v[i]);
+        const auto [a, b] = std::minmax_element(v, v + count);
         lo = std::min(lo, double(*a)), hi = std::max(hi, double(*b));
       });
       progress.advance(std::uint64_t(n));

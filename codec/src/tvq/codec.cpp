@@ -202,19 +202,19 @@ std::uint64_t plannedBytes(const std::vector<SubPlan>& plans, int dcBits) {
 }
 
 template <class T>
-CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progress& progress,
+CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, Progress& progress,
                              EncodeStats& stats) {
   const int workers = resolveThreads(params.threads);
-  const auto data = volume.as<T>();
-  float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
-  for (T v : data) {
-    if (!std::isfinite(float(v)))
-      throw std::invalid_argument(
-          "the volume holds NaN or infinite values: the tvq codec codes finite numbers only");
-    vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
-  }
+  if (!volume.finite)
+    throw std::invalid_argument(
+        "the volume holds NaN or infinite values: the tvq codec codes finite numbers only");
+  const auto [lowest, highest] = volume.dataRange();
+  const float vmin = float(lowest), vmax = float(highest);
   const double range = vmax > vmin ? double(vmax) - double(vmin) : 1.0;
   const Grid grid(volume.dims, params.subvolumeVoxels / 4);
+  // The slices of the blocks at hand: a batch of blocks for the KLT, a row of sub-volumes after.
+  SliceWindow<T> window(volume);
+  auto loadBlockRows = [&](int firstRow, int rows) { window.load(firstRow * 4, rows * 4); };
   auto blockAt = [&](glm::ivec3 b, float* out) {
     for (int z = 0, i = 0; z < 4; ++z)
       for (int y = 0; y < 4; ++y)
@@ -222,7 +222,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
           const int vx = std::min(b.x * 4 + x, volume.dims.x - 1);
           const int vy = std::min(b.y * 4 + y, volume.dims.y - 1);
           const int vz = std::min(b.z * 4 + z, volume.dims.z - 1);
-          out[i] = float(data[volume.index(vx, vy, vz)]);
+          out[i] = float(window.at(vx, vy, vz));
         }
   };
   const std::uint64_t blockCount = Grid::volume(grid.blocks);
@@ -239,7 +239,11 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
           ? dctBasis()
           : kltBasis(
                 blockCount, [&](std::uint64_t i, float* out) { blockAt(blockOfIndex(i), out); },
-                workers, progress);
+                workers, progress,
+                [&](std::uint64_t first, std::uint64_t end) {
+                  const int a = blockOfIndex(first).z, b = blockOfIndex(end - 1).z;
+                  loadBlockRows(a, b - a + 1);
+                });
   stats.transformSeconds = seconds(t0);
 
   const int dcLevels = (1 << params.dcBits) - 1;
@@ -255,6 +259,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
   auto transformed = [&](const SubPlan& plan,
                          const std::function<void(std::size_t, const float*)>& each) {
     const std::uint64_t local = Grid::volume(plan.extent);
+    loadBlockRows(plan.first.z, plan.extent.z);
     std::vector<float> coefficients(local * kBlockVoxels);
     parallelFor(local, workers, [&](std::size_t i) {
       const glm::ivec3 e = plan.extent;
@@ -462,7 +467,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
 
   // 5. The sections.
   CompressedVolume cv;
-  cv.info = volumeInfo(volume, CodecId::Tvq);
+  cv.info = volumeInfo(volume.headerVolume(), CodecId::Tvq);
   std::vector<std::byte> params1, basisBytes, subBytes, bookBytes, occBytes, recBytes;
   {
     ByteWriter w(params1);
@@ -555,7 +560,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
   {
     const Layout layout(cv.info, cv.view());
     for (int l = 0; l < kProgressiveLevels; ++l) {
-      stats.levelPsnr[std::size_t(l)] = psnr(volume, layout.decode(l));
+      stats.levelPsnr[std::size_t(l)] = brickPsnr(volume, layout.view(nullptr, l));
       progress.advance();
     }
   }
@@ -570,6 +575,11 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
 }  // namespace
 
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats) {
+  return encode(*memorySource(volume), params, progress, stats);
+}
+
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
                         EncodeStats* stats) {
   if (params.dcBits < 1 || params.dcBits > 16)
     throw std::invalid_argument("--dc-bits must be in 1..16");

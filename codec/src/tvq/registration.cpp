@@ -95,6 +95,12 @@ class TvqCodec final : public Codec {
 
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string& report) const override {
+    return encodeSource(*memorySource(volume), options, progress, report);
+  }
+
+  // Streams: a row of sub-volumes of the input in memory at a time.
+  CompressedVolume encodeSource(const VolumeSource& volume, const CodecOptionValues& options,
+                                Progress& progress, std::string& report) const override {
     Params p;
     const std::string transform = options.text("--transform", "klt");
     if (transform == "klt")
@@ -119,7 +125,7 @@ class TvqCodec final : public Codec {
     p.threads = options.threads;
     EncodeStats s;
     CompressedVolume out = tvq::encode(volume, p, progress, &s);
-    report = encodeReport(s, volume, p);
+    report = encodeReport(s, volume.headerVolume(), p);
     return out;
   }
 

@@ -83,31 +83,38 @@ Basis dctBasis() {
 }
 
 Basis kltBasis(std::uint64_t count, const std::function<void(std::uint64_t, float*)>& block,
-               int threads, Progress& progress) {
-  // The covariance of the mean-removed blocks, summed per worker in double.
+               int threads, Progress& progress,
+               const std::function<void(std::uint64_t, std::uint64_t)>& prepare) {
+  // The covariance of the mean-removed blocks, summed per chunk in double and the chunks summed
+  // in order (the same basis whatever the threads), a batch of chunks at a time.
   const int workers = std::max(1, resolveThreads(threads));
-  const std::uint64_t chunk = 4096;
+  const std::uint64_t chunk = 4096, batch = 16;
   const std::uint64_t chunks = (count + chunk - 1) / chunk;
   std::vector<Eigen::MatrixXd> partial(static_cast<std::size_t>(chunks));
   progress.begin("tvq: KLT covariance", chunks);
-  parallelFor(std::size_t(chunks), workers, [&](std::size_t c) {
-    Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(kBlockVoxels, kBlockVoxels);
-    Eigen::Matrix<double, kBlockVoxels, Eigen::Dynamic> xs(kBlockVoxels, 256);
-    float x[kBlockVoxels];
-    int filled = 0;
-    const std::uint64_t end = std::min(count, (c + 1) * chunk);
-    for (std::uint64_t i = c * chunk; i < end; ++i) {
-      block(i, x);
-      double mean = 0;
-      for (float v : x) mean += v;
-      mean /= kBlockVoxels;
-      for (int j = 0; j < kBlockVoxels; ++j) xs(j, filled) = double(x[j]) - mean;
-      if (++filled == 256) sum.noalias() += xs * xs.transpose(), filled = 0;
-    }
-    if (filled) sum.noalias() += xs.leftCols(filled) * xs.leftCols(filled).transpose();
-    partial[c] = std::move(sum);
-    progress.advance();
-  });
+  for (std::uint64_t first = 0; first < chunks; first += batch) {
+    const std::uint64_t last = std::min(chunks, first + batch);
+    if (prepare) prepare(first * chunk, std::min(count, last * chunk));
+    parallelFor(std::size_t(last - first), workers, [&](std::size_t inBatch) {
+      const std::size_t c = std::size_t(first) + inBatch;
+      Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(kBlockVoxels, kBlockVoxels);
+      Eigen::Matrix<double, kBlockVoxels, Eigen::Dynamic> xs(kBlockVoxels, 256);
+      float x[kBlockVoxels];
+      int filled = 0;
+      const std::uint64_t end = std::min(count, (c + 1) * chunk);
+      for (std::uint64_t i = c * chunk; i < end; ++i) {
+        block(i, x);
+        double mean = 0;
+        for (float v : x) mean += v;
+        mean /= kBlockVoxels;
+        for (int j = 0; j < kBlockVoxels; ++j) xs(j, filled) = double(x[j]) - mean;
+        if (++filled == 256) sum.noalias() += xs * xs.transpose(), filled = 0;
+      }
+      if (filled) sum.noalias() += xs.leftCols(filled) * xs.leftCols(filled).transpose();
+      partial[c] = std::move(sum);
+      progress.advance();
+    });
+  }
   progress.end();
   Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(kBlockVoxels, kBlockVoxels);
   for (const auto& p : partial) cov += p;

@@ -125,19 +125,6 @@ void gatherBrick(glm::ivec3 dims, const T* window, int bias, int bx, int by, Bri
     }
 }
 
-// The range of the voxels themselves: computed for a volume in memory (whose header may not
-// say), what the first pass over a file found for a file.
-std::pair<double, double> dataRange(const VolumeSource& source) {
-  const Volume* v = source.inMemory();
-  if (!v) return {source.valueMin, source.valueMax};
-  return dispatchScalar(v->type, [&](auto t) -> std::pair<double, double> {
-    auto s = v->as<decltype(t)>();
-    if (s.empty()) return {0.0, 0.0};
-    const auto [lo, hi] = std::minmax_element(s.begin(), s.end());
-    return {double(*lo), double(*hi)};
-  });
-}
-
 // Indices into the unique bricks, hashed and compared by the bricks they name: the set of bricks
 // seen so far without a second copy of each.
 struct UniqueHash {
@@ -185,7 +172,7 @@ bool chooseIndirect(std::uint64_t entries, std::uint64_t codewords, std::uint64_
 }
 
 int bitDepth(const Volume& volume) {
-  const auto [lo, hi] = dataRange(*memorySource(volume));
+  const auto [lo, hi] = memorySource(volume)->dataRange();
   return bitDepth(volume.type, lo, hi);
 }
 
@@ -270,7 +257,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
 
 CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
                         EncodeStats* statsOut) {
-  const auto [lowest, highest] = dataRange(volume);
+  const auto [lowest, highest] = volume.dataRange();
   const int bits = bitDepth(volume.type, lowest, highest);
   if (params.reduction < 1 || params.reduction > 1 << 20)
     throw std::invalid_argument("vq codec: --reduction must be 1 (lossless) to 1048576, not " +

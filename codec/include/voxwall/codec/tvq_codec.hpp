@@ -128,6 +128,10 @@ struct EncodeStats {
 // Throws std::invalid_argument for bad parameters or a target no file meets.
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
+// The same from a volume read a row of sub-volumes (or a batch of blocks for the KLT) at a time:
+// the same bytes.
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats = nullptr);
 
 // Full reconstruction (every partition), in the volume's scalar type.
 Volume decode(const VolumeInfo& info, const SectionSet& sections);
@@ -151,9 +155,12 @@ Basis dctBasis();
 // The KLT of the blocks whose 64 voxels `block(i, out)` writes (i < count): basis vector 0 the
 // constant, the others the eigenvectors of the mean-removed blocks' covariance within the
 // constant's orthogonal complement, by decreasing eigenvalue; each takes the zone in which the
-// DCT finds most of its energy, the zones keeping the DCT's sizes (docs/tvq.md).
+// DCT finds most of its energy, the zones keeping the DCT's sizes (docs/tvq.md). Blocks are read
+// in batches of consecutive indices; `prepare(first, end)`, when given, runs before the blocks
+// first .. end-1 are read (a streaming encoder loads their slices).
 Basis kltBasis(std::uint64_t count, const std::function<void(std::uint64_t, float*)>& block,
-               int threads, Progress& progress);
+               int threads, Progress& progress,
+               const std::function<void(std::uint64_t, std::uint64_t)>& prepare = {});
 
 // The cheapest class whose kept zones leave a squared error of at most maxError2 (over the 64
 // voxels) of the coefficients `c` (coefficient 0 ignored: the mean is coded apart).

@@ -9,6 +9,8 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
+#include <vector>
 #include <voxwall/codec/volume.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/progress.hpp>
@@ -23,6 +25,7 @@ class VolumeSource {
   glm::dvec3 spacing{1, 1, 1};  // change it with setSpacing()
   ScalarType type = ScalarType::UInt8;
   double valueMin = 0, valueMax = 0;  // of every voxel (a first pass over a file finds them)
+  bool finite = true;                 // false when float data holds NaN or infinities
 
   std::size_t sliceVoxels() const { return std::size_t(dims.x) * std::size_t(dims.y); }
   std::size_t sliceBytes() const { return sliceVoxels() * scalarBytes(type); }
@@ -38,6 +41,9 @@ class VolumeSource {
   Volume readAll() const;
   // The volume this source copies from, when it holds one (no copy needed); null when it streams.
   virtual const Volume* inMemory() const = 0;
+  // The range of the voxels themselves: scanned for a volume in memory (whose header need not
+  // say), what the first pass over a file found for a file.
+  std::pair<double, double> dataRange() const;
   // Overrides the file's spacing (`compress --spacing`), also in the volume inMemory() gives
   // when the source owns it; throws std::logic_error for a source that borrows its volume.
   virtual void setSpacing(glm::dvec3 s) { spacing = s; }
@@ -47,6 +53,31 @@ class VolumeSource {
  protected:
   // Slices z0 .. z0+count-1, all inside the volume.
   virtual void read(int z0, int count, std::byte* out) const = 0;
+};
+
+// Slices of a source held for random access, loaded a window at a time: load() reads slices z0 ..
+// z0+count-1 (the last slice repeated past the volume's end) unless they are held already, and
+// at() reads a voxel of them.
+template <class T>
+class SliceWindow {
+ public:
+  explicit SliceWindow(const VolumeSource& source) : source_(source) {}
+  void load(int z0, int count) {
+    if (z0 == z0_ && count <= count_) return;
+    buffer_.resize(std::size_t(count) * source_.sliceVoxels());
+    source_.readSlices(z0, count, std::as_writable_bytes(std::span(buffer_)));
+    z0_ = z0, count_ = count;
+  }
+  T at(int x, int y, int z) const {
+    return buffer_[(std::size_t(z - z0_) * std::size_t(source_.dims.y) + std::size_t(y)) *
+                       std::size_t(source_.dims.x) +
+                   std::size_t(x)];
+  }
+
+ private:
+  const VolumeSource& source_;
+  std::vector<T> buffer_;
+  int z0_ = -1, count_ = 0;
 };
 
 // A source that copies from `volume`, which must outlive it (or owns it when moved in).
