@@ -12,6 +12,10 @@ codec's over raw's from the same run. Per-rank resident memory comes from the re
 totals (`rank N on HOST: resident ..., peak ...`), at 1, 2 and 4 ranks under mpirun (strip cut,
 --balance static) for --rank-codecs. The page cache is measured at --budgets for --budget-codecs.
 
+Then a float32 volume (the same MRI at --float-scale, values not rounded) is compressed with
+--float-codecs and rendered the same way, and a generated volume (shepp-logan --limit-size^3) is
+compressed under a data limit of a third of its size (prlimit --data).
+
 Prints markdown tables. Stops with an error when a run fails or prints something it cannot
 parse. Needs the bench dependencies (scripts/install-deps.sh bench: numpy, time, Open MPI) and
 a release build. Takes about an hour on a 2-core VM at --scale 3; --scale 1 is the MRI itself
@@ -57,8 +61,9 @@ def mib(b):
     return "%.0f MiB" % (b / (1 << 20))
 
 
-def generate(voxwall, scale, work):
-    """The MRI upsampled `scale` times per axis with mild noise, as a .raw file; its dims."""
+def generate(voxwall, scale, work, dtype=np.uint8):
+    """The MRI upsampled `scale` times per axis with mild noise, as a .raw file of uint8 (rounded)
+    or float32 (not rounded); its dims."""
     small = os.path.join(work, "mri.raw")
     vwz = os.path.join(work, "mri.vwz")
     run([voxwall, "compress", MRI, "--codec", "raw", "-q", "-o", vwz])
@@ -71,9 +76,9 @@ def generate(voxwall, scale, work):
     os.remove(vwz)
     src = np.fromfile(small, dtype=np.uint8).reshape(dims[2], dims[1], dims[0])
     os.remove(small)
-    out_dims = [d * scale for d in dims]
-    path = os.path.join(work, "big.raw")
-    out = np.lib.format.open_memmap(path + ".npy", mode="w+", dtype=np.uint8,
+    out_dims = [int(round(d * scale)) for d in dims]
+    path = os.path.join(work, "big-%s.raw" % np.dtype(dtype).name)
+    out = np.lib.format.open_memmap(path + ".npy", mode="w+", dtype=dtype,
                                     shape=(out_dims[2], out_dims[1], out_dims[0]))
     # Trilinear: positions (i + 0.5) / scale - 0.5 in the source, per axis.
     def axis(n_out, n_in):
@@ -91,12 +96,21 @@ def generate(voxwall, scale, work):
         rows = plane[y0] * (1 - ty)[:, None] + plane[y1] * ty[:, None]
         vals = rows[:, x0] * (1 - tx)[None, :] + rows[:, x1] * tx[None, :]
         vals += rng.normal(0.0, 1.5, vals.shape).astype(np.float32)
-        out[z] = np.clip(np.rint(vals), 0, 255).astype(np.uint8)
+        if dtype == np.uint8:
+            out[z] = np.clip(np.rint(vals), 0, 255).astype(np.uint8)
+        else:
+            out[z] = vals
     out.flush()
     del out
-    # The .npy's header is 128 bytes: the raw voxels follow it.
+    # The voxels follow the .npy's header.
+    with open(path + ".npy", "rb") as f:
+        if np.lib.format.read_magic(f) == (1, 0):
+            np.lib.format.read_array_header_1_0(f)
+        else:
+            np.lib.format.read_array_header_2_0(f)
+        start = f.tell()
     with open(path + ".npy", "rb") as f, open(path, "wb") as g:
-        f.seek(128)
+        f.seek(start)
         shutil.copyfileobj(f, g, 64 << 20)
     os.remove(path + ".npy")
     return path, out_dims
@@ -137,6 +151,61 @@ def render(args, path, ranks=1, budget=None, extra=()):
     return (frames[2] + frames[3]) / 2, resident, pages
 
 
+def compress_table(args, source, dims, scalar, codecs, files):
+    """Compresses `source` with each codec: {codec: (seconds, peak bytes, file bytes)}; prints the
+    table."""
+    voxels = dims[0] * dims[1] * dims[2]
+    input_bytes = voxels * (4 if scalar == "float32" else 1)
+    layout = ["--dims", "%d,%d,%d" % tuple(dims), "--type", scalar]
+    compress = {}
+    for c in codecs:
+        print("compressing %s as %s" % (scalar, c), file=sys.stderr)
+        _, seconds, peak = timed([args.voxwall, "compress", source, "--codec", c, "-q",
+                                  "-o", files[c]] + layout + OPTIONS[c])
+        compress[c] = (seconds, peak, os.path.getsize(files[c]))
+    print("%dx%dx%d %s (%.2f Gvox, %s)\n" % (dims[0], dims[1], dims[2], scalar, voxels / 1e9,
+                                          mib(input_bytes)))
+    print("| codec | file | bits/voxel | compress time | compress peak | peak / input |")
+    print("|---|---|---|---|---|---|")
+    for c in codecs:
+        seconds, peak, size = compress[c]
+        print("| %s | %s | %.2f | %.0f s | %s | %.2f |"
+              % (c, mib(size), 8.0 * size / voxels, seconds, mib(peak), peak / input_bytes))
+    print()
+    return compress
+
+
+def limit_table(args, work):
+    """A generated volume --limit-size^3 compressed with vq under a data limit of a third of its
+    size (prlimit --data), and with raw, whose output alone is over the limit."""
+    n = args.limit_size
+    if n ** 3 // 3 < 256 << 20:
+        sys.exit("--limit-size %d is too small: a third of it must leave room for the ~100 MiB of "
+                 "data the process has before any voxel (libraries, threads); use 923 or more" % n)
+    source = os.path.join(work, "limit.raw")
+    run([args.voxwall, "generate", "shepp-logan", "--size", str(n), "-o", source])
+    input_bytes = n ** 3
+    limit = input_bytes // 3
+    print("Compress under a memory limit: shepp-logan %d^3 uint8 (%s), prlimit --data=%s (a third "
+          "of the input)\n" % (n, mib(input_bytes), mib(limit)))
+    print("| codec | result | compress peak | peak / input |")
+    print("|---|---|---|---|")
+    for c in ("vq", "raw"):
+        cmd = ["/usr/bin/time", "-v", "prlimit", "--data=%d" % limit, args.voxwall, "compress",
+               source, "--dims", "%d,%d,%d" % (n, n, n), "--type", "uint8", "--codec", c, "-q",
+               "-o", os.path.join(work, "limit.vwz")]
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        peak = re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stdout)
+        refused = re.search(r"^voxwall: .*not enough memory.*$", r.stdout, re.M)
+        if not peak or (r.returncode != 0 and not refused):
+            sys.exit("cannot read the limited compress with %s:\n%s" % (c, r.stdout[-3000:]))
+        result = "compressed" if r.returncode == 0 else "refused: not enough memory"
+        peak_bytes = int(peak.group(1)) * 1024
+        print("| %s | %s | %s | %.2f |" % (c, result, mib(peak_bytes), peak_bytes / input_bytes))
+    print()
+    os.remove(source)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--voxwall", default="build/master/voxwall")
@@ -146,6 +215,11 @@ def main():
     ap.add_argument("--rank-codecs", default="raw,vq,ksvd")
     ap.add_argument("--budget-codecs", default="vq,ksvd")
     ap.add_argument("--budgets", default="32M,128M,512M,64G")
+    ap.add_argument("--float-scale", type=float, default=2.5,
+                    help="the float32 volume: the MRI upsampled this much (2.5: 0.55 Gvox); 0: none")
+    ap.add_argument("--float-codecs", default="raw,tvq,ksvd")
+    ap.add_argument("--limit-size", type=int, default=1024,
+                    help="side of the volume compressed under a memory limit (0: none)")
     ap.add_argument("--keep", help="work directory to use and keep (default: a temporary one)")
     ap.add_argument("--reuse", action="store_true",
                     help="render the .vwz files an earlier run left in --keep (no compress table)")
@@ -180,21 +254,8 @@ def main():
             source, dims = generate(args.voxwall, args.scale, work)
         voxels = dims[0] * dims[1] * dims[2]
         if not args.reuse:
-            raw_layout = ["--dims", "%d,%d,%d" % tuple(dims), "--type", "uint8"]
-            compress = {}
-            for c in codecs:
-                print("compressing as %s" % c, file=sys.stderr)
-                _, seconds, peak = timed([args.voxwall, "compress", source, "--codec", c, "-q",
-                                          "-o", files[c]] + raw_layout + OPTIONS[c])
-                compress[c] = (seconds, peak, os.path.getsize(files[c]))
+            compress = compress_table(args, source, dims, "uint8", codecs, files)
             os.remove(source)
-            print("| codec | file | bits/voxel | compress time | compress peak | peak / input |")
-            print("|---|---|---|---|---|---|")
-            for c in codecs:
-                seconds, peak, size = compress[c]
-                print("| %s | %s | %.2f | %.0f s | %s | %.2f |"
-                      % (c, mib(size), 8.0 * size / voxels, seconds, mib(peak), peak / voxels))
-            print()
         print("%dx%dx%d uint8 (%.2f Gvox), %s, shaded, 1 rank, default --decode-cache (512M); "
               "frames 2 and 3\n" % (dims[0], dims[1], dims[2], voxels / 1e9, args.size))
         print("| codec | frame ms | frame / raw | resident | file | page hits "
@@ -239,6 +300,34 @@ def main():
             print("| %s | %s | %.0f | %.2f | %s | %s%%, %s%% | %s, %s | %s, %s | %s |"
                   % (c, b, ms, ms / raw_ms, pages[0][3], pages[1][0], pages[2][0], pages[1][3],
                      pages[2][3], pages[1][4], pages[2][4], mib(resident[0])))
+        print()
+        if args.float_scale > 0 and not args.reuse:
+            float_codecs = args.float_codecs.split(",")
+            if "raw" not in float_codecs:
+                sys.exit("--float-codecs must include raw")
+            print("generating the float32 volume (MRI x%g)" % args.float_scale, file=sys.stderr)
+            fsource, fdims = generate(args.voxwall, args.float_scale, work, np.float32)
+            ffiles = {c: os.path.join(work, c + "-float.vwz") for c in float_codecs}
+            compress_table(args, fsource, fdims, "float32", float_codecs, ffiles)
+            os.remove(fsource)
+            print("float32, %s, shaded, 1 rank, default --decode-cache (512M); frames 2 and 3\n"
+                  % args.size)
+            print("| codec | frame ms | frame / raw | resident | page hits |")
+            print("|---|---|---|---|---|")
+            fone = {}
+            for c in float_codecs:
+                print("rendering float32 %s" % c, file=sys.stderr)
+                fone[c] = render(args, ffiles[c])
+            for c in float_codecs:
+                ms, resident, pages = fone[c]
+                hits = "%s%%, %s%%" % (pages[1][0], pages[2][0]) if len(pages) == 3 else "-"
+                print("| %s | %.0f | %.2f | %s | %s |"
+                      % (c, ms, ms / fone["raw"][0], mib(resident[0]), hits))
+            print()
+            for f in ffiles.values():
+                os.remove(f)
+        if args.limit_size > 0 and not args.reuse:
+            limit_table(args, work)
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)
