@@ -78,12 +78,17 @@ struct Grid {
   glm::ivec3 logical{0}, padded{0};
   std::vector<std::uint32_t> value;
   std::vector<std::uint8_t> terminal;  // empty: every voxel is terminal (level 0)
+  // Level 0 of a scalar volume is read from the volume's own voxels through `read` (no copy of
+  // 4 bytes per voxel); `value` is then empty.
+  const void* base = nullptr;
+  std::uint32_t (*read)(const void*, std::size_t) = nullptr;
+  std::uint32_t get(std::size_t i) const { return base ? read(base, i) : value[i]; }
   std::size_t at(int x, int y, int z) const {
     return (std::size_t(z) * std::size_t(padded.y) + std::size_t(y)) * std::size_t(padded.x) +
            std::size_t(x);
   }
   bool inside(glm::ivec3 g) const { return g.x < padded.x && g.y < padded.y && g.z < padded.z; }
-  std::uint32_t valueAt(glm::ivec3 g) const { return inside(g) ? value[at(g.x, g.y, g.z)] : 0u; }
+  std::uint32_t valueAt(glm::ivec3 g) const { return inside(g) ? get(at(g.x, g.y, g.z)) : 0u; }
   bool terminalAt(glm::ivec3 g) const {
     return !inside(g) || terminal.empty() || terminal[at(g.x, g.y, g.z)];
   }
@@ -110,7 +115,7 @@ Grid buildLevel(const Grid& fine, int w, int format, double threshold2, int thre
           for (int fy = lo.y; fy < hi.y; ++fy)
             for (int fx = lo.x; fx < hi.x; ++fx) {
               const std::size_t i = fine.at(fx, fy, fz);
-              const std::uint32_t v = fine.value[i];
+              const std::uint32_t v = fine.get(i);
               if (!fine.terminal.empty() && !fine.terminal[i]) allTerminal = false;
               if (channels == 1) {
                 sum[0] += v;
@@ -130,7 +135,7 @@ Grid buildLevel(const Grid& fine, int w, int format, double threshold2, int thre
         for (int fz = lo.z; homogeneous && fz < hi.z; ++fz)
           for (int fy = lo.y; homogeneous && fy < hi.y; ++fy)
             for (int fx = lo.x; fx < hi.x; ++fx)
-              if (double(distance2(format, fine.value[fine.at(fx, fy, fz)], stored)) > threshold2) {
+              if (double(distance2(format, fine.get(fine.at(fx, fy, fz)), stored)) > threshold2) {
                 homogeneous = false;
                 break;
               }
@@ -147,12 +152,19 @@ void putValue(std::vector<std::byte>& out, std::uint32_t v, int bytes) {
   for (int b = 0; b < bytes; ++b) out.push_back(std::byte((v >> (8 * b)) & 255u));
 }
 
+template <class T, int Bias>
+std::uint32_t readBiased(const void* voxels, std::size_t i) {
+  return std::uint32_t(int(static_cast<const T*>(voxels)[i]) + Bias);
+}
+
 struct Input {
   glm::ivec3 dims;
   int format;
   int bias;
   double peak;
-  std::vector<std::uint32_t> values;  // x fastest
+  std::vector<std::uint32_t> values;  // x fastest (RGBA)
+  const void* base = nullptr;         // or the scalar voxels, read through `read`
+  std::uint32_t (*read)(const void*, std::size_t) = nullptr;
 };
 
 CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progress& progress,
@@ -172,6 +184,7 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
   grids[0].logical = in.dims;
   grids[0].padded = in.dims;
   grids[0].value = std::move(in.values);
+  grids[0].base = in.base, grids[0].read = in.read;
   std::vector<int> widths, shifts{0};
   while (maxOf(grids.back().logical) > p.rootWidth) {
     if (int(grids.size()) == kernels::kSvmmMaxLevels)
@@ -241,8 +254,9 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
     const Grid& G = grids[0];
     auto& o = out[0];
     if (n == 1) {
-      o.reserve(G.value.size() * std::size_t(bs));
-      for (const std::uint32_t v : G.value) putValue(o, v, bs);
+      const std::size_t voxels = count3(G.padded);
+      o.reserve(voxels * std::size_t(bs));
+      for (std::size_t i = 0; i < voxels; ++i) putValue(o, G.get(i), bs);
     } else {
       const int w = widths[0];
       o.reserve(cur.size() * std::size_t(w * w * w) * std::size_t(bs));
@@ -253,7 +267,7 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
               for (int x = 0; x < w; ++x) {
                 const glm::ivec3 q = origin + glm::ivec3(x, y, z);
                 const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
-                putValue(o, in ? G.value[G.at(q.x, q.y, q.z)] : 0u, bs);
+                putValue(o, in ? G.get(G.at(q.x, q.y, q.z)) : 0u, bs);
               }
           continue;
         }
@@ -266,7 +280,7 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
                 const glm::ivec3 q =
                     origin + glm::ivec3(gx + (j & 1), gy + (j >> 1 & 1), gz + (j >> 2));
                 const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
-                const std::uint32_t v = in ? G.value[G.at(q.x, q.y, q.z)] : 0u;
+                const std::uint32_t v = in ? G.get(G.at(q.x, q.y, q.z)) : 0u;
                 const bool occupied = format == kSvmmRgba32 ? (v >> 24) != 0 : v != 0;
                 if (!occupied) continue;
                 bitmap |= 1u << j;
@@ -374,17 +388,34 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   }
   in.peak = volume.valueMax - volume.valueMin;
   if (!(in.peak > 0)) in.peak = 1;
-  in.values.resize(volume.voxelCount());
-  dispatchScalar(volume.type, [&](auto t) {
-    using T = decltype(t);
-    const T* src = volume.as<T>().data();
-    for (std::size_t i = 0; i < in.values.size(); ++i)
-      in.values[i] = std::uint32_t(int(src[i]) + in.bias);
-  });
+  in.base = volume.data.data();
+  in.read = volume.type == ScalarType::UInt8    ? &readBiased<std::uint8_t, 0>
+            : volume.type == ScalarType::UInt16 ? &readBiased<std::uint16_t, 0>
+                                                : &readBiased<std::int16_t, kInt16Bias>;
   const VolumeInfo info = volumeInfo(volume, CodecId::Svmm);
+  // PSNR from the stored tree's leaves against the volume, leaf by leaf (no decoded copy).
   return encodeInput(std::move(in), info, params, progress, stats, [&](const CompressedVolume& cv) {
-    const Volume decoded = decode(cv.info, cv.view());
-    return psnr(volume, decoded);
+    const Layout layout(cv.info, cv.view());
+    const int bias = layout.view().bias;
+    PsnrSum sum(volume);
+    dispatchScalar(volume.type, [&](auto t) {
+      using T = decltype(t);
+      const T* src = volume.as<T>().data();
+      layout.forEachLeaf(
+          [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {
+            const double v = double(T(int(value) - bias));
+            const glm::ivec3 b = glm::min(glm::ivec3(x0, y0, z0) + size, volume.dims);
+            if (b.x <= x0) return;
+            for (int z = z0; z < b.z; ++z)
+              for (int y = y0; y < b.y; ++y)
+                sum.addConstant(src + volume.index(x0, y, z), v, std::size_t(b.x - x0));
+          },
+          [&](int x, int y, int z, std::uint32_t value) {
+            const double v = double(T(int(value) - bias));
+            sum.addConstant(src + volume.index(x, y, z), v, 1);
+          });
+    });
+    return sum.psnr();
   });
 }
 

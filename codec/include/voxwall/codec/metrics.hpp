@@ -26,6 +26,15 @@ class PsnrSum {
     }
     count_ += n;
   }
+  // n reference values against one test value.
+  template <class A>
+  void addConstant(const A* reference, double test, std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = double(reference[i]) - test;
+      sum_ += d * d;
+    }
+    count_ += n;
+  }
   double psnr() const;
 
  private:
