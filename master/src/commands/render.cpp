@@ -1,6 +1,8 @@
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <thread>
 #include <voxwall/codec/container.hpp>
@@ -93,6 +95,33 @@ std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Commu
   return node::makeCpuBackend(threads, o.simd == "on", decodeCacheBytes(o));
 }
 
+// The decoded pages this rank's rays reach in the first frame: its first-frame rectangles rendered
+// at a quarter of the resolution per side (pages are 32 voxels wide, so the fewer rays still
+// reach nearly every page the full frame's do) by a CPU backend with no page budget, counting
+// the pages it decodes.
+std::uint64_t firstFramePageBytes(const Setup& s, master::Communicator& comm) {
+  const auto rects = master::firstFrameRects(s.job, comm.size())[std::size_t(comm.rank())];
+  if (rects.empty()) return 0;
+  constexpr int kReduce = 4;
+  const int width = std::max(1, s.job.width / kReduce),
+            height = std::max(1, s.job.height / kReduce);
+  const node::Camera camera =
+      node::orbitCamera(s.job.path.at(0), node::boundingRadius(s.volume->info()));
+  const node::FramePlan plan = node::planFrame(*s.volume, camera, width, height, *s.tf, s.render);
+  const auto backend = node::makeCpuBackend(1, true, std::numeric_limits<std::uint64_t>::max() / 2);
+  std::uint64_t decoded = 0;
+  for (const voxwall::Rect& r : rects) {
+    const int x0 = r.x / kReduce, y0 = r.y / kReduce;
+    const int x1 = std::min(width, (r.x + r.width + kReduce - 1) / kReduce);
+    const int y1 = std::min(height, (r.y + r.height + kReduce - 1) / kReduce);
+    if (x1 <= x0 || y1 <= y0) continue;
+    voxwall::Image out;
+    decoded +=
+        backend->render(*s.volume, plan, voxwall::Rect{x0, y0, x1 - x0, y1 - y0}, out).pageDecoded;
+  }
+  return decoded * node::cpuDecodeCacheUse(*backend).pageBytes;
+}
+
 // Everything a rank does before the job; throws what is wrong on this rank.
 void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, Setup& s) {
   s.job = jobSettings(o);
@@ -108,10 +137,13 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
     throw std::invalid_argument(
         "--sampling nearest and --lod need a volume with mip levels (compress it with --codec " +
         codec::RegisteredCodecs::traversalCodecNames() + ")");
-  // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache.
-  const std::uint64_t pages = o.backend == "cpu" && o.simd == "on"
-                                  ? node::cpuDecodeCacheNeed(*s.volume, decodeCacheBytes(o))
-                                  : 0;
+  s.tf = loadTransferFunction(o, s.volume->info(), s.tfNotes);
+  // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache. A dry
+  // run counts the pages this rank's rays reach in the first frame.
+  std::uint64_t pages = o.backend == "cpu" && o.simd == "on"
+                            ? node::cpuDecodeCacheNeed(*s.volume, decodeCacheBytes(o))
+                            : 0;
+  if (o.dryRun && pages > 0) pages = std::min(pages, firstFramePageBytes(s, comm));
   s.pageBytes = pages;
   // Loading may have peaked higher than the job will run (a codec holds the file's bytes and the
   // volume it builds from them at once): this rank's measured peak so far counts too.
@@ -128,7 +160,6 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
                                " plus frame buffers), over the --memory-budget of " +
                                humanBytes(double(budget)));
   }
-  s.tf = loadTransferFunction(o, s.volume->info(), s.tfNotes);
   if (!o.dryRun) s.backend = rankBackend(o, comm, quiet);
 }
 
@@ -157,6 +188,7 @@ void setUpTogether(const RenderOptions& o, master::Communicator& comm, bool quie
 struct RankHosts {
   std::vector<std::string> hosts;
   std::vector<std::uint64_t> needs;
+  std::vector<std::uint64_t> pages;  // of needs: decoded pages
 };
 
 // Every rank must hold the same volume, or the tiles would not fit together. Returns every
@@ -164,17 +196,19 @@ struct RankHosts {
 RankHosts checkSameVolume(master::Communicator& comm, const Setup& s, std::uint64_t fingerprint,
                           int timeoutMs) {
   char mine[256];
-  std::snprintf(mine, sizeof mine, "%016llx %llu %s", (unsigned long long)fingerprint,
-                (unsigned long long)s.needBytes, comm.hostName().c_str());
+  std::snprintf(mine, sizeof mine, "%016llx %llu %llu %s", (unsigned long long)fingerprint,
+                (unsigned long long)s.needBytes, (unsigned long long)s.pageBytes,
+                comm.hostName().c_str());
   const auto all = master::gatherStrings(comm, mine, timeoutMs);
   std::string verdict;
   RankHosts out;
   for (std::size_t r = 0; r < all.size(); ++r) {
     char hash[32] = {}, host[200] = {};
-    unsigned long long need = 0;
-    std::sscanf(all[r].c_str(), "%31s %llu %199s", hash, &need, host);
+    unsigned long long need = 0, pages = 0;
+    std::sscanf(all[r].c_str(), "%31s %llu %llu %199s", hash, &need, &pages, host);
     out.hosts.push_back(host);
     out.needs.push_back(need);
+    out.pages.push_back(pages);
     if (verdict.empty() && std::string(hash) != std::string(all[0].substr(0, 16)))
       verdict = "rank " + std::to_string(r) + " (" + host +
                 ") holds a different volume than rank 0 (fingerprint " + hash + " vs " +
@@ -199,13 +233,18 @@ void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup
   const bool dynamic = s.job.balance == master::Balance::Dynamic;
   std::printf("dry run: %d rank(s), %s cut%s\n", comm.size(), dynamic ? "dynamic" : "static",
               dynamic ? " (first frame shown; re-cut from measured costs after it)" : "");
-  if (s.pageBytes > 0)
-    std::printf("decoded pages: up to %s per rank (--decode-cache %s), counted below\n",
-                humanBytes(double(s.pageBytes)).c_str(), o.decodeCache.c_str());
+  if (s.pageBytes > 0 ||
+      std::any_of(ranks.pages.begin(), ranks.pages.end(), [](std::uint64_t p) { return p > 0; }))
+    std::printf(
+        "decoded pages: those each rank's rays reach in the first frame (rendered at a "
+        "quarter of its size to count them), at most --decode-cache %s\n",
+        o.decodeCache.c_str());
   for (int r = 0; r < comm.size(); ++r) {
     const std::string list = rectList(rects[std::size_t(r)]);
-    std::printf("rank %d on %s: needs %s; tiles:%s\n", r, ranks.hosts[std::size_t(r)].c_str(),
+    const std::uint64_t pages = ranks.pages[std::size_t(r)];
+    std::printf("rank %d on %s: needs %s%s; tiles:%s\n", r, ranks.hosts[std::size_t(r)].c_str(),
                 humanBytes(double(ranks.needs[std::size_t(r)])).c_str(),
+                pages ? (" (decoded pages " + humanBytes(double(pages)) + ")").c_str() : "",
                 list.empty() ? " none (assembles and writes)" : list.c_str());
   }
 }

@@ -374,7 +374,8 @@ void addCutOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
                "Rank 0 only assembles and writes frames; the other ranks render");
   cmd.add_flag("--dry-run", o.dryRun,
                "Load the volume on every rank, print the rank -> tile map, each rank's host and "
-               "the memory it needs, then exit");
+               "the memory it needs (with the decoded pages its rays reach in the first frame, "
+               "rendered at a quarter of its size to count them), then exit");
   cmd.add_option("--memory-budget", o.memoryBudget,
                  "Refuse to start when a rank would need more memory than this (e.g. 2G, 512M)");
   cmd.add_option("--watchdog", o.watchdogSeconds,
