@@ -11,50 +11,62 @@ RangeGrid computeRangeGrid(const Volume& volume, int cellVoxels) {
 }
 
 RangeGrid computeRangeGrid(const VolumeSource& source, int cellVoxels) {
-  if (cellVoxels < 1) throw std::invalid_argument("range grid cell size must be positive");
   RangeGrid grid;
   grid.cellVoxels = cellVoxels;
   grid.cells = (source.dims + cellVoxels - 1) / cellVoxels;
   grid.lo.resize(grid.cellCount());
   grid.hi.resize(grid.cellCount());
+  const std::size_t layer = std::size_t(grid.cells.x) * std::size_t(grid.cells.y);
+  forEachRangeLayer(source, cellVoxels,
+                    [&](int cz, std::span<const float> lo, std::span<const float> hi) {
+                      std::copy(lo.begin(), lo.end(), grid.lo.begin() + std::ptrdiff_t(cz * layer));
+                      std::copy(hi.begin(), hi.end(), grid.hi.begin() + std::ptrdiff_t(cz * layer));
+                    });
+  return grid;
+}
+
+void forEachRangeLayer(
+    const VolumeSource& source, int cellVoxels,
+    const std::function<void(int, std::span<const float>, std::span<const float>)>& layerDone) {
+  if (cellVoxels < 1) throw std::invalid_argument("range grid cell size must be positive");
+  const glm::ivec3 cells = (source.dims + cellVoxels - 1) / cellVoxels;
+  const std::size_t layer = std::size_t(cells.x) * std::size_t(cells.y);
+  std::vector<float> lo(layer), hi(layer);
   const glm::ivec3 d = source.dims;
-  // One row of cells at a time, from its slices and the one either side (the dilation).
+  // One layer of cells at a time, from its slices and the one either side (the dilation).
   std::vector<std::byte> window(std::size_t(cellVoxels + 2) * source.sliceBytes());
   dispatchScalar(source.type, [&](auto t) {
     using T = decltype(t);
-    for (int cz = 0; cz < grid.cells.z; ++cz) {
+    for (int cz = 0; cz < cells.z; ++cz) {
       const int z0 = std::max(0, cz * cellVoxels - 1),
                 z1 = std::min(d.z, (cz + 1) * cellVoxels + 1);
       source.readSlices(z0, z1 - z0, window);
       const T* values = reinterpret_cast<const T*>(window.data());
-      parallelFor(std::size_t(grid.cells.y), 0, [&](std::size_t cyIndex) {
+      parallelFor(std::size_t(cells.y), 0, [&](std::size_t cyIndex) {
         const int cy = int(cyIndex);
         const int y0 = std::max(0, cy * cellVoxels - 1),
                   y1 = std::min(d.y, (cy + 1) * cellVoxels + 1);
-        for (int cx = 0; cx < grid.cells.x; ++cx) {
+        for (int cx = 0; cx < cells.x; ++cx) {
           const int x0 = std::max(0, cx * cellVoxels - 1),
                     x1 = std::min(d.x, (cx + 1) * cellVoxels + 1);
-          float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
+          float l = std::numeric_limits<float>::max(), h = std::numeric_limits<float>::lowest();
           for (int z = z0; z < z1; ++z)
             for (int y = y0; y < y1; ++y) {
               const T* line = values + (std::size_t(z - z0) * std::size_t(d.y) + std::size_t(y)) *
                                            std::size_t(d.x);
               for (int x = x0; x < x1; ++x) {
                 const float v = float(line[x]);
-                lo = std::min(lo, v);
-                hi = std::max(hi, v);
+                l = std::min(l, v);
+                h = std::max(h, v);
               }
             }
-          const std::size_t c = (std::size_t(cz) * std::size_t(grid.cells.y) + std::size_t(cy)) *
-                                    std::size_t(grid.cells.x) +
-                                std::size_t(cx);
-          grid.lo[c] = lo;
-          grid.hi[c] = hi;
+          const std::size_t c = std::size_t(cy) * std::size_t(cells.x) + std::size_t(cx);
+          lo[c] = l, hi[c] = h;
         }
       });
+      layerDone(cz, lo, hi);
     }
   });
-  return grid;
 }
 
 }  // namespace voxwall::codec

@@ -70,18 +70,22 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   });
   progress.end();
 
-  const RangeGrid grid = computeRangeGrid(volume, 1 << rangeShift);
   // Stored in the volume's own type: the extremes are voxel values, so this is exact.
+  const glm::ivec3 cells = (volume.dims + (1 << rangeShift) - 1) >> rangeShift;
   std::vector<std::byte> rangeBytes;
-  rangeBytes.reserve(grid.cellCount() * 2 * scalar);
+  rangeBytes.reserve(std::size_t(cells.x) * std::size_t(cells.y) * std::size_t(cells.z) * 2 *
+                     scalar);
   ByteWriter rw(rangeBytes);
-  dispatchScalar(volume.type, [&](auto t) {
-    using T = decltype(t);
-    for (std::size_t i = 0; i < grid.cellCount(); ++i) {
-      rw.put<T>(T(grid.lo[i]));
-      rw.put<T>(T(grid.hi[i]));
-    }
-  });
+  forEachRangeLayer(volume, 1 << rangeShift,
+                    [&](int, std::span<const float> lo, std::span<const float> hi) {
+                      dispatchScalar(volume.type, [&](auto t) {
+                        using T = decltype(t);
+                        for (std::size_t i = 0; i < lo.size(); ++i) {
+                          rw.put<T>(T(lo[i]));
+                          rw.put<T>(T(hi[i]));
+                        }
+                      });
+                    });
 
   out.sections.emplace_back(kParams, std::move(paramBytes));
   out.sections.emplace_back(kRanges, std::move(rangeBytes));

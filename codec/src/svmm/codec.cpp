@@ -249,17 +249,31 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
     cur = std::move(next);
     progress.advance();
   }
+  // The data section: levels top .. 1, then the base level written straight into it (it is
+  // most of the file: a second copy of it would double the encoder's peak).
+  std::vector<std::byte> data;
+  std::vector<std::uint64_t> offsets(static_cast<std::size_t>(n)),
+      lengths(static_cast<std::size_t>(n));
+  for (int L = top; L >= 1; --L) {
+    while (data.size() % 8) data.push_back(std::byte{0});
+    offsets[std::size_t(L)] = data.size();
+    lengths[std::size_t(L)] = out[std::size_t(L)].size();
+    data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
+    std::vector<std::byte>().swap(out[std::size_t(L)]);
+  }
+  while (data.size() % 8) data.push_back(std::byte{0});
+  offsets[0] = data.size();
   // Base level.
   {
     const Grid& G = grids[0];
-    auto& o = out[0];
+    auto& o = data;
     if (n == 1) {
       const std::size_t voxels = count3(G.padded);
-      o.reserve(voxels * std::size_t(bs));
+      o.reserve(o.size() + voxels * std::size_t(bs));
       for (std::size_t i = 0; i < voxels; ++i) putValue(o, G.get(i), bs);
     } else {
       const int w = widths[0];
-      o.reserve(cur.size() * std::size_t(w * w * w) * std::size_t(bs));
+      o.reserve(o.size() + cur.size() * std::size_t(w * w * w) * std::size_t(bs));
       for (const glm::ivec3 origin : cur) {
         if (!compressBase) {
           for (int z = 0; z < w; ++z)
@@ -307,17 +321,7 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
   }
   progress.end();
 
-  // Sections.
-  std::vector<std::byte> data;
-  std::vector<std::uint64_t> offsets(static_cast<std::size_t>(n)),
-      lengths(static_cast<std::size_t>(n));
-  for (int L = top; L >= 0; --L) {
-    while (data.size() % 8) data.push_back(std::byte{0});
-    offsets[std::size_t(L)] = data.size();
-    lengths[std::size_t(L)] = out[std::size_t(L)].size();
-    data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
-    std::vector<std::byte>().swap(out[std::size_t(L)]);
-  }
+  lengths[0] = data.size() - offsets[0];
   for (int i = 0; i < 8; ++i) data.push_back(std::byte{0});
   auto writeParams = [&](double psnrValue) {
     std::vector<std::byte> params;

@@ -51,7 +51,7 @@ class BitWriter {
 // Writes `count` entries of `bits` bits, value(i) each, into a zero-initialised buffer at byte
 // offset `at`.
 template <class Value>
-void packInto(std::vector<std::uint8_t>& buf, std::size_t at, std::size_t count, int bits,
+void packInto(std::vector<std::byte>& buf, std::size_t at, std::size_t count, int bits,
               Value value) {
   for (std::size_t i = 0; i < count; ++i) {
     const std::uint64_t v = value(i);
@@ -59,7 +59,7 @@ void packInto(std::vector<std::uint8_t>& buf, std::size_t at, std::size_t count,
     for (int b = 0; b < bits; ++b)
       if ((v >> b) & 1u) {
         const std::uint64_t pos = bit + std::uint64_t(b);
-        buf[at + (pos >> 3)] |= std::uint8_t(1u << (pos & 7));
+        buf[at + (pos >> 3)] |= std::byte(1u << (pos & 7));
       }
   }
 }
@@ -345,7 +345,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
       brickToCodeword[i] = centerToCodeword[r.assignment[brickToUnique[i]]];
   };
   auto keepLossless = [&] {
-    codebook.assign(unique.begin(), unique.end());
+    codebook = std::move(unique);
     brickToCodeword = std::move(brickToUnique);
   };
   int reduction = params.reduction;
@@ -398,20 +398,32 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   std::vector<std::uint64_t> address(m, 0);
   progress.begin("coding codebook", m);
   if (params.compressedCodebook) {
-    std::vector<std::vector<std::uint8_t>> coded(m);
-    std::vector<int> used(m);
-    parallelFor((m + 1023) / 1024, params.threads, [&](std::size_t chunk) {
-      for (std::size_t i = chunk * 1024; i < std::min<std::size_t>(m, (chunk + 1) * 1024); ++i)
-        used[i] = encodeCodeword(codebook[i], bits, coded[i]);
-      progress.advance(std::min<std::size_t>(m, (chunk + 1) * 1024) - chunk * 1024);
+    // Coded a chunk of 1024 codewords per task into one buffer each (a buffer per codeword
+    // would cost more than the codewords), then joined in order.
+    const std::size_t chunks = (m + 1023) / 1024;
+    std::vector<std::vector<std::uint8_t>> coded(chunks);
+    std::vector<std::uint8_t> length(m);  // a codeword is at most maxCodewordBytes(16) = 133
+    std::vector<std::int16_t> used(m);
+    parallelFor(chunks, params.threads, [&](std::size_t chunk) {
+      const std::size_t end = std::min<std::size_t>(m, (chunk + 1) * 1024);
+      for (std::size_t i = chunk * 1024; i < end; ++i) {
+        const std::size_t before = coded[chunk].size();
+        used[i] = std::int16_t(encodeCodeword(codebook[i], bits, coded[chunk]));
+        length[i] = std::uint8_t(coded[chunk].size() - before);
+      }
+      progress.advance(end - chunk * 1024);
     });
-    for (std::size_t i = 0; i < m; ++i) {
-      address[i] = codebookBytes.size();
-      codebookBytes.insert(codebookBytes.end(), coded[i].begin(), coded[i].end());
-      if (used[i] == kernels::kVqEscape)
-        ++stats.escapes;
-      else if (used[i] >= 0)
-        ++stats.transformUse[used[i]];
+    for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+      std::size_t at = codebookBytes.size();
+      for (std::size_t i = chunk * 1024; i < std::min<std::size_t>(m, (chunk + 1) * 1024); ++i) {
+        address[i] = at, at += length[i];
+        if (used[i] == kernels::kVqEscape)
+          ++stats.escapes;
+        else if (used[i] >= 0)
+          ++stats.transformUse[used[i]];
+      }
+      codebookBytes.insert(codebookBytes.end(), coded[chunk].begin(), coded[chunk].end());
+      std::vector<std::uint8_t>().swap(coded[chunk]);
     }
   } else {
     for (std::size_t i = 0; i < m; ++i) {
@@ -421,6 +433,8 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
     progress.advance(m);
   }
   progress.end();
+  // The codewords are coded: only their count is needed from here on.
+  std::vector<Brick>().swap(codebook);
 
   const bool indirect =
       params.compressedCodebook && chooseIndirect(brickCount, m, codebookBytes.size());
@@ -432,7 +446,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   const std::size_t indexTableAt = align64(offsetBytes + kPad);
   const std::size_t codebookAt =
       indirect ? align64(indexTableAt + tableBytes + kPad) : indexTableAt;
-  std::vector<std::uint8_t> data(align64(codebookAt + codebookBytes.size() + kPad), 0);
+  std::vector<std::byte> data(align64(codebookAt + codebookBytes.size() + kPad), std::byte{0});
   const bool byAddress = params.compressedCodebook && !indirect;
   packInto(data, 0, brickCount, offsetBits, [&](std::size_t i) -> std::uint64_t {
     return byAddress ? address[brickToCodeword[i]] : brickToCodeword[i];
@@ -465,13 +479,9 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
     w.put<double>(psnr);
     return bytes;
   };
-  const bool lossless = codebook.size() == stats.uniqueBricks && reduction == 1;
+  const bool lossless = m == stats.uniqueBricks && reduction == 1;
   out.sections.emplace_back(kParams, writeParams(std::numeric_limits<double>::infinity()));
-  {
-    std::vector<std::byte> d(data.size());
-    std::memcpy(d.data(), data.data(), data.size());
-    out.sections.emplace_back(kData, std::move(d));
-  }
+  out.sections.emplace_back(kData, std::move(data));
   // The quality of what was stored, measured on the decoder's output.
   stats.psnr = std::numeric_limits<double>::infinity();
   if (!lossless) {

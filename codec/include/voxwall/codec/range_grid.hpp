@@ -1,6 +1,8 @@
 // Coarse value ranges of a volume, for empty-space skipping.
 #pragma once
 
+#include <functional>
+#include <span>
 #include <vector>
 #include <voxwall/codec/volume.hpp>
 
@@ -22,7 +24,12 @@ struct RangeGrid {
 
 // Computes the grid from a dense volume (multi-threaded).
 RangeGrid computeRangeGrid(const Volume& volume, int cellVoxels);
-// The same from a volume read a row of cells (and the slice either side) at a time.
+// The same from a volume read a layer of cells (and the slice either side) at a time.
 RangeGrid computeRangeGrid(const VolumeSource& source, int cellVoxels);
+// The grid a layer of cells at a time, without holding it: layerDone(cz, lo, hi) with the cells
+// of layer cz, x fastest (an encoder that stores the ranges in its own form).
+void forEachRangeLayer(
+    const VolumeSource& source, int cellVoxels,
+    const std::function<void(int, std::span<const float>, std::span<const float>)>& layerDone);
 
 }  // namespace voxwall::codec
