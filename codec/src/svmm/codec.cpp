@@ -269,11 +269,13 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
     auto& o = data;
     if (n == 1) {
       const std::size_t voxels = count3(G.padded);
-      o.reserve(o.size() + voxels * std::size_t(bs));
+      o.reserve(o.size() + voxels * std::size_t(bs) + 8);  // + the 8 zero bytes at the end
       for (std::size_t i = 0; i < voxels; ++i) putValue(o, G.get(i), bs);
     } else {
       const int w = widths[0];
-      o.reserve(o.size() + cur.size() * std::size_t(w * w * w) * std::size_t(bs));
+      // The most the base level takes (uncompressed blocks), and the 8 zero bytes at the end: a
+      // reallocation past it would copy the whole section into twice its size.
+      o.reserve(o.size() + cur.size() * std::size_t(w * w * w) * std::size_t(bs) + 8);
       for (const glm::ivec3 origin : cur) {
         if (!compressBase) {
           for (int z = 0; z < w; ++z)
