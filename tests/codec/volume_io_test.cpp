@@ -13,6 +13,7 @@
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/errors.hpp>
 
+#include "support/patterned_volume.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
@@ -21,24 +22,7 @@ using voxwall::test::TempDir;
 
 namespace {
 
-// A volume whose every voxel differs from its neighbours, with a size that is no block multiple.
-Volume patterned(ScalarType type, glm::ivec3 dims = {13, 7, 5}) {
-  Volume v = Volume::allocate(dims, type, {0.5, 0.75, 1.25});
-  dispatchScalar(type, [&](auto t) {
-    using T = decltype(t);
-    auto out = v.as<T>();
-    for (std::size_t i = 0; i < out.size(); ++i) {
-      if constexpr (std::is_same_v<T, float>)
-        out[i] = float(i) * 0.37f - 11.0f;
-      else if constexpr (std::is_same_v<T, std::int16_t>)
-        out[i] = T(int(i * 97 % 60000) - 30000);
-      else
-        out[i] = T(i * 131 + 7);
-    }
-  });
-  v.computeRange();
-  return v;
-}
+using voxwall::test::patterned;
 
 void expectSameVoxels(const Volume& a, const Volume& b) {
   ASSERT_EQ(a.dims, b.dims);
