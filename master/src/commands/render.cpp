@@ -195,7 +195,7 @@ struct RankHosts {
 // rank's host and memory need.
 RankHosts checkSameVolume(master::Communicator& comm, const Setup& s, std::uint64_t fingerprint,
                           int timeoutMs) {
-  char mine[256];
+  char mine[320];  // fingerprint, need, pages and a host name of up to 199 characters
   std::snprintf(mine, sizeof mine, "%016llx %llu %llu %s", (unsigned long long)fingerprint,
                 (unsigned long long)s.needBytes, (unsigned long long)s.pageBytes,
                 comm.hostName().c_str());
