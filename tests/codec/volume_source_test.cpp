@@ -102,6 +102,17 @@ TEST(VolumeSource, AnUncompressedNiftiIsReadInSlabsAndAGzippedOneWhole) {
     EXPECT_TRUE(source->streams());
     expectReads(*source, readVolume(dir.path("v.nii")), 5);
 
+    // Cut short, it is refused before any voxel is read.
+    const std::string bytes = test::readFile(dir.path("v.nii"));
+    test::writeFile(dir.path("cut.nii"), bytes.substr(0, bytes.size() - 7));
+    try {
+      openVolumeSource(dir.path("cut.nii"), std::nullopt, quiet);
+      ADD_FAILURE() << "no error for a cut NIfTI file";
+    } catch (const FormatError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(dir.path("cut.nii") + ": truncated", 0), 0u)
+          << e.what();
+    }
+
     writeVolume(v, dir.path("v.nii.gz"));
     EXPECT_FALSE(niftiSlabLayout(dir.path("v.nii.gz")).has_value());
     const auto whole = openVolumeSource(dir.path("v.nii.gz"), std::nullopt, quiet);
