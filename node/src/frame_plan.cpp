@@ -59,8 +59,10 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
 
   const auto& ranges = volume.ranges();
   int shift = 0;
-  while ((1 << shift) < ranges.cellVoxels) ++shift;
-  if (settings.emptySpaceSkipping && (1 << shift) == ranges.cellVoxels && ranges.cellCount() > 0) {
+  while ((1 << shift) < ranges.cellVoxels()) ++shift;
+  const glm::ivec3 cells = ranges.cells();
+  if (settings.emptySpaceSkipping && (1 << shift) == ranges.cellVoxels() &&
+      ranges.cellCount() > 0) {
     int factorShift = 0;
     while ((1 << factorShift) < settings.coarseCellFactor) ++factorShift;
     if ((1 << factorShift) != settings.coarseCellFactor)
@@ -69,20 +71,20 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     const std::size_t fineCount = ranges.cellCount();
     plan.fineEmptyCells.resize(fineCount);
     std::size_t fineEmpty = 0;
-    for (std::size_t c = 0; c < fineCount; ++c) {
-      plan.fineEmptyCells[c] = plan.lut.maxOpacity(ranges.lo[c], ranges.hi[c]) <= 0.0f;
+    ranges.forEach([&](std::size_t c, float lo, float hi) {
+      plan.fineEmptyCells[c] = plan.lut.maxOpacity(lo, hi) <= 0.0f;
       fineEmpty += plan.fineEmptyCells[c];
-    }
+    });
     // A coarse cell is empty when all its fine cells are.
-    const glm::ivec3 coarse = (ranges.cells + (1 << factorShift) - 1) >> factorShift;
+    const glm::ivec3 coarse = (cells + (1 << factorShift) - 1) >> factorShift;
     const std::size_t coarseCount =
         std::size_t(coarse.x) * std::size_t(coarse.y) * std::size_t(coarse.z);
     plan.emptyCells.assign(coarseCount, 1);
-    for (int z = 0; z < ranges.cells.z; ++z)
-      for (int y = 0; y < ranges.cells.y; ++y)
-        for (int x = 0; x < ranges.cells.x; ++x) {
-          const std::size_t fine = (std::size_t(z) * std::size_t(ranges.cells.y) + std::size_t(y)) *
-                                       std::size_t(ranges.cells.x) +
+    for (int z = 0; z < cells.z; ++z)
+      for (int y = 0; y < cells.y; ++y)
+        for (int x = 0; x < cells.x; ++x) {
+          const std::size_t fine = (std::size_t(z) * std::size_t(cells.y) + std::size_t(y)) *
+                                       std::size_t(cells.x) +
                                    std::size_t(x);
           const std::size_t c = (std::size_t(z >> factorShift) * std::size_t(coarse.y) +
                                  std::size_t(y >> factorShift)) *
@@ -100,9 +102,9 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     plan.skip.cellsZ = coarse.z;
     plan.skip.cellShift = shift + factorShift;
     plan.skip.fineEmpty = plan.fineEmptyCells.data();
-    plan.skip.fineX = ranges.cells.x;
-    plan.skip.fineY = ranges.cells.y;
-    plan.skip.fineZ = ranges.cells.z;
+    plan.skip.fineX = cells.x;
+    plan.skip.fineY = cells.y;
+    plan.skip.fineZ = cells.z;
     plan.skip.fineShift = shift;
   }
   return plan;

@@ -1,11 +1,34 @@
 #include <xxhash.h>
 
+#include <algorithm>
 #include <glm/geometric.hpp>
+#include <type_traits>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/node/render_volume.hpp>
 
 namespace voxwall::node {
+
+CellRanges::CellRanges(const codec::RangeGrid& grid, codec::ScalarType type)
+    : cellVoxels_(grid.cellVoxels), cells_(grid.cells), type_(type) {
+  codec::dispatchScalar(type, [&]<class T>(T) {
+    const std::size_t n = cellCount();
+    bytes_.resize(n * 2 * sizeof(T));
+    for (std::size_t c = 0; c < n; ++c) {
+      T pair[2];
+      if constexpr (std::is_floating_point_v<T>) {
+        pair[0] = grid.lo[c], pair[1] = grid.hi[c];
+      } else {
+        constexpr float kMin = float(std::numeric_limits<T>::lowest());
+        constexpr float kMax = float(std::numeric_limits<T>::max());
+        const float lo = grid.lo[c], hi = grid.hi[c];
+        pair[0] = T(std::isnan(lo) ? kMin : std::clamp(std::floor(lo), kMin, kMax));
+        pair[1] = T(std::isnan(hi) ? kMax : std::clamp(std::ceil(hi), kMin, kMax));
+      }
+      std::memcpy(bytes_.data() + c * sizeof pair, pair, sizeof pair);
+    }
+  });
+}
 
 RenderVolume RenderVolume::open(const std::string& path, const std::optional<codec::RawLayout>& raw,
                                 const codec::CodecOptionValues& renderOptions) {
@@ -61,7 +84,7 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
                                 " is " + std::string(c.name()));
   }
   payload_ = c.openWith(info_, sections_, renderOptions);
-  ranges_ = payload_->rangeGrid();
+  ranges_ = CellRanges(payload_->rangeGrid(), info_.type);
 }
 
 bool RenderVolume::traversal() const {
