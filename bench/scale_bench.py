@@ -36,7 +36,8 @@ import numpy as np
 MRI = "/usr/share/mricron/templates/ch2better.nii.gz"
 FRAME = re.compile(r"^frame (\d+)/\d+: ([0-9.]+) ms", re.M)
 PAGES = re.compile(r"decoded pages: ([0-9.]+)% hits \((\d+) of (\d+) samples\), (\d+) decoded, "
-                   r"(\d+) evicted, ([0-9.]+ [KMGT]?i?B|\d+ B) resident")
+                   r"(\d+) evicted, ([0-9.]+ [KMGT]?i?B|\d+ B) resident"
+                   r"(?:, (\d+) samples from coarser levels)?")
 RESIDENT = re.compile(r"^rank (\d+) on \S+: resident ([0-9.]+ [KMGT]?i?B|\d+ B), peak "
                       r"([0-9.]+ [KMGT]?i?B|\d+ B)", re.M)
 UNITS = {"B": 1, "KiB": 1 << 10, "MiB": 1 << 20, "GiB": 1 << 30, "TiB": 1 << 40}
@@ -175,6 +176,31 @@ def compress_table(args, source, dims, scalar, codecs, files):
     return compress
 
 
+def pressure_table(args, files, raw_ms):
+    """Frames of the codecs with coarser levels at budgets below the view's working set, with and
+    without --lod-under-pressure."""
+    rows = [(c, b) for c in args.pressure_codecs.split(",") if c in files
+            for b in args.pressure_budgets.split(",")]
+    if not rows:
+        return
+    print("Level of detail under pressure (1 rank, still view, frames 2 and 3, raw's frame as "
+          "in the table above)\n")
+    print("| codec | budget | frame / raw | with --lod-under-pressure | samples from coarser "
+          "levels (frames 2, 3) | pages decoded (frames 2, 3) |")
+    print("|---|---|---|---|---|---|")
+    for c, b in rows:
+        print("rendering %s with --decode-cache %s, with and without --lod-under-pressure" % (c, b),
+              file=sys.stderr)
+        plain = render(args, files[c], budget=b)[0]
+        ms, _, pages = render(args, files[c], budget=b, extra=["--lod-under-pressure"])
+        if len(pages) != 3 or any(p[6] is None for p in pages):
+            sys.exit("expected three page lines with coarse samples for %s, got %r" % (c, pages))
+        share = ["%.1f%%" % (100.0 * int(p[6]) / int(p[2])) for p in pages[1:]]
+        print("| %s | %s | %.2f | %.2f | %s | %s, %s |"
+              % (c, b, plain / raw_ms, ms / raw_ms, ", ".join(share), pages[1][3], pages[2][3]))
+    print()
+
+
 def limit_table(args, work):
     """A generated volume --limit-size^3 compressed with vq under a data limit of a third of its
     size (prlimit --data), and with raw, whose output alone is over the limit."""
@@ -215,6 +241,10 @@ def main():
     ap.add_argument("--rank-codecs", default="raw,vq,ksvd")
     ap.add_argument("--budget-codecs", default="vq,ksvd")
     ap.add_argument("--budgets", default="32M,128M,512M,64G")
+    ap.add_argument("--pressure-codecs", default="svmm,ksvd",
+                    help="codecs rendered with and without --lod-under-pressure at "
+                         "--pressure-budgets")
+    ap.add_argument("--pressure-budgets", default="32M,128M")
     ap.add_argument("--float-scale", type=float, default=2.5,
                     help="the float32 volume: the MRI upsampled this much (2.5: 0.55 Gvox); 0: none")
     ap.add_argument("--float-codecs", default="raw,tvq,ksvd")
@@ -301,6 +331,7 @@ def main():
                   % (c, b, ms, ms / raw_ms, pages[0][3], pages[1][0], pages[2][0], pages[1][3],
                      pages[2][3], pages[1][4], pages[2][4], mib(resident[0])))
         print()
+        pressure_table(args, files, raw_ms)
         if args.float_scale > 0 and not args.reuse:
             float_codecs = args.float_codecs.split(",")
             if "raw" not in float_codecs:

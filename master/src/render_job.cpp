@@ -176,6 +176,7 @@ net::RankReport renderRects(int rank, node::Backend& backend, const node::Render
         report.pages.hits += stats.pageHits, report.pages.missed += stats.pageMissed;
         report.pages.decoded += stats.pageDecoded;
         report.pages.evictions += stats.pageEvictions;
+        report.pages.coarse += stats.pageCoarse;
         report.pages.residentBytes = stats.pageResidentBytes;
         report.renderSeconds += since(start);
         if (stats.stopped) {

@@ -48,7 +48,15 @@ class CpuBackend final : public Backend {
         [&](auto view) {
           if constexpr (cpu::kPaged<decltype(view)>) {
             job.pages = attachPages(cpu::pagedLevel(view), volume.info().type);
-            if (job.pages) before = job.pages->counts();
+            if (job.pages) {
+              before = job.pages->counts();
+              job.pages->setPressure(plan.lodUnderPressure);
+            }
+            const std::uint64_t n = cpu::renderBlocks(view, job);
+            // The pages lanes sampled coarser for: decoded now, for the frames that follow.
+            if (job.pages && plan.lodUnderPressure)
+              job.pages->refill(cpu::pagedLevel(view), threads_);
+            return n;
           }
           return cpu::renderBlocks(view, job);
         },
@@ -70,6 +78,7 @@ class CpuBackend final : public Backend {
       stats.pageMissed = after.missed - before.missed;
       stats.pageDecoded = after.misses + after.scratch - before.misses - before.scratch;
       stats.pageEvictions = after.evictions - before.evictions;
+      stats.pageCoarse = after.coarse - before.coarse;
       stats.pageResidentBytes = std::uint64_t(job.pages->residentPages()) * job.pages->pageBytes();
     }
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -85,7 +94,7 @@ class CpuBackend final : public Backend {
     use.pageBytes = pages_->pageBytes();
     const PageCache::Counts c = pages_->counts();
     use.hits = c.hits, use.missed = c.missed, use.misses = c.misses, use.scratch = c.scratch,
-    use.evictions = c.evictions;
+    use.evictions = c.evictions, use.coarse = c.coarse;
     return use;
   }
 

@@ -64,6 +64,10 @@ struct HwyLanes {
     // plus one (0: none yet; an array, so that no vector op runs outside the target's code).
     PageCache::Reader* reader = currentReader;
     std::int32_t lastPage1[kLanes] = {};
+    // Lanes whose page was not resident under pressure (PageCache::Reader::fillIfRoom): this step
+    // they sample the view's next coarser level, with the footprint they had kept here.
+    M coarse = hn::FirstN(D(), 0);
+    float footprint[kLanes] = {};
   };
 
   static HWY_INLINE F splat(float v) { return hn::Set(D(), v); }
@@ -255,8 +259,13 @@ struct HwyLanes {
       c[i] = pageValue(pages, pool,
                        o + splatI((i & 1) + ((i >> 1) & 1) * P::kRow + (i >> 2) * P::kSlice));
   }
+  //
+  // Under pressure, lanes whose page is neither resident nor decodable without evicting are left
+  // out of cache.paged and set in cache.coarse (their value here is 0): the caller samples them
+  // from a coarser level.
   template <class Level, class Cache>
-  static HWY_INLINE F pageSample(const Level& v, Cache& cache, const kernels::Lanes3<F>& p, M m) {
+  static HWY_INLINE F pageSample(const Level& v, Cache& cache, const kernels::Lanes3<F>& p, M m,
+                                 bool pressure) {
     using P = PageCache;
     P::Reader& reader = *cache.reader;
     P& pages = reader.cache();
@@ -273,17 +282,26 @@ struct HwyLanes {
     const M miss = both(m, lessI(slot, splatI(0)));
     const I page1 = page + splatI(1), last1 = hn::LoadU(DI(), cache.lastPage1);
     const M entered = both(m, hn::RebindMask(D(), page1 != last1));
-    if (any(either(miss, entered))) {
-      HWY_ALIGN std::int32_t s[kLanes], at[kLanes];
-      hn::Store(slot, DI(), s), hn::Store(page, DI(), at);
-      forLanes(miss, [&](std::size_t i) { s[i] = reader.fill(at[i], v, int(i)); });
-      forLanes(entered, [&](std::size_t i) { pages.touch(at[i]); });
-      slot = hn::Load(DI(), s);
-      hn::StoreU(selectI(m, page1, last1), DI(), cache.lastPage1);
-    }
     const std::size_t missed = hn::CountTrue(D(), miss);
     reader.missed += missed;
     reader.hits += hn::CountTrue(D(), m) - missed;
+    cache.coarse = hn::FirstN(D(), 0);
+    if (any(either(miss, entered))) {
+      HWY_ALIGN std::int32_t s[kLanes], at[kLanes];
+      hn::Store(slot, DI(), s), hn::Store(page, DI(), at);
+      if (pressure)
+        forLanes(miss, [&](std::size_t i) { s[i] = reader.fillIfRoom(at[i], v); });
+      else
+        forLanes(miss, [&](std::size_t i) { s[i] = reader.fill(at[i], v, int(i)); });
+      forLanes(entered, [&](std::size_t i) { pages.touch(at[i]); });
+      slot = hn::Load(DI(), s);
+      hn::StoreU(selectI(m, page1, last1), DI(), cache.lastPage1);
+      if (pressure) {
+        cache.coarse = both(miss, lessI(slot, splatI(0)));
+        reader.coarse += hn::CountTrue(D(), cache.coarse);
+        m = butNot(m, cache.coarse);
+      }
+    }
     cache.paged = m;
     const I low = splatI(P::kSide - 1), one = splatI(1);
     const I o = selectI(m, slot, splatI(0)) + (hn::And(ix, low) + one) +
@@ -384,9 +402,22 @@ struct HwyLanes {
       const auto& level = pagedLevel(view);
       cache.paged = hn::FirstN(D(), 0);
       if (cache.reader) {
+        constexpr bool levels = requires { View::kTraversal; };
+        // Last step's coarse lanes take their own footprint back.
+        if constexpr (levels)
+          forLanes(cache.coarse,
+                   [&](std::size_t i) { cache.lane[i].footprint = cache.footprint[i]; });
+        cache.coarse = hn::FirstN(D(), 0);
         const M lanes = pageLanes(view, cache, m);
         if (any(lanes)) {
-          const F value = pageSample(level, cache, p, lanes);
+          const F value = pageSample(level, cache, p, lanes, levels && cache.reader->pressure());
+          // Lanes under pressure sample (and shade, and skip regions of) the next coarser
+          // level for this step: the footprint of its voxels (the views' lodLevel).
+          if constexpr (levels)
+            forLanes(cache.coarse, [&](std::size_t i) {
+              cache.footprint[i] = cache.lane[i].footprint;
+              cache.lane[i].footprint = std::max(cache.lane[i].footprint, 2.0f);
+            });
           m = butNot(m, cache.paged);  // the rest decode through the view's caches
           if (!any(m)) return value;
           hn::Store(value, D(), out);
@@ -451,6 +482,7 @@ struct HwyLanes {
     HWY_ALIGN float v[kLanes];
     hn::Store(footprint, D(), v);
     forLanes(m, [&](std::size_t i) { cache.lane[i].footprint = v[i]; });
+    cache.coarse = butNot(cache.coarse, m);  // their own footprint is set anew
   }
   template <class View>
   static HWY_INLINE I regionEnd(const Caches<View>& cache, const glm::vec3& o,

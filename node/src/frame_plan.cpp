@@ -44,6 +44,8 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
   r.lodAngle =
       settings.levelOfDetail ? float(2.0 * tanY / double(screenHeight) / maxSpacing) : 0.0f;
 
+  plan.lodUnderPressure = settings.lodUnderPressure;
+
   if (reuse) {
     plan.lut = reuse->lut;
     plan.emptyCells = reuse->emptyCells;
@@ -83,9 +85,9 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     for (int z = 0; z < cells.z; ++z)
       for (int y = 0; y < cells.y; ++y)
         for (int x = 0; x < cells.x; ++x) {
-          const std::size_t fine = (std::size_t(z) * std::size_t(cells.y) + std::size_t(y)) *
-                                       std::size_t(cells.x) +
-                                   std::size_t(x);
+          const std::size_t fine =
+              (std::size_t(z) * std::size_t(cells.y) + std::size_t(y)) * std::size_t(cells.x) +
+              std::size_t(x);
           const std::size_t c = (std::size_t(z >> factorShift) * std::size_t(coarse.y) +
                                  std::size_t(y >> factorShift)) *
                                     std::size_t(coarse.x) +

@@ -61,7 +61,7 @@ PageCache::Counts PageCache::counts() const {
   return totals_;
 }
 
-std::int32_t PageCache::takeSlot() {
+std::int32_t PageCache::takeSlot(bool evict) {
   std::lock_guard lock(mutex_);
   std::int32_t slot = -1;
   if (free_.empty()) reclaimLocked();
@@ -70,6 +70,8 @@ std::int32_t PageCache::takeSlot() {
     free_.pop_back();
   } else if (fresh_ < capacity_) {
     slot = fresh_++;
+  } else if (!evict) {
+    return -1;
   } else {
     evictLocked(1 + reserve_);
     reclaimLocked();
@@ -78,7 +80,7 @@ std::int32_t PageCache::takeSlot() {
     free_.pop_back();
   }
   // Keep a reserve on its way back to the free list.
-  if (fresh_ >= capacity_ && free_.size() + retired_.size() < reserve_)
+  if (evict && fresh_ >= capacity_ && free_.size() + retired_.size() < reserve_)
     evictLocked(reserve_ - free_.size() - retired_.size());
   return slot;
 }
@@ -125,7 +127,7 @@ void PageCache::reclaimLocked() {
   }
 }
 
-PageCache::Reader::Reader(PageCache& cache) : cache_(cache) {
+PageCache::Reader::Reader(PageCache& cache) : cache_(cache), pressure_(cache.pressure_) {
   for (auto& p : scratchPage_) p = -1;
   for (auto& p : scratchStep_) p = ~std::uint64_t(0);
   // A slot of its own: the backend makes the cache for as many readers as it has threads, so
@@ -153,6 +155,8 @@ PageCache::Reader::~Reader() {
     cache_.totals_.missed += missed;
     cache_.totals_.misses += counts_.misses;
     cache_.totals_.scratch += counts_.scratch;
+    cache_.totals_.coarse += coarse;
+    cache_.wanted_.insert(cache_.wanted_.end(), wanted_.begin(), wanted_.end());
   }
   slot.busy.store(false, std::memory_order_release);
 }

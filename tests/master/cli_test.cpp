@@ -197,8 +197,11 @@ TEST(Cli, BadArgumentsGiveOneLine) {
       "voxwall: --block-width must be a power of two in 2..64 or 'stepped'");
   expectOneLineError(
       runVoxwall("render generated:menger:2 --lod --size 8x8 --no-write"),
-      "voxwall: --sampling nearest and --lod need a volume with mip levels (compress it "
-      "with --codec svmm, ksvd)");
+      "voxwall: --sampling nearest, --lod and --lod-under-pressure need a volume with mip "
+      "levels (compress it with --codec svmm, ksvd)");
+  expectOneLineError(
+      runVoxwall("render generated:menger:2 --lod-under-pressure --size 8x8 --no-write"),
+      "voxwall: --sampling nearest, --lod and --lod-under-pressure need a volume with mip");
   expectOneLineError(
       runVoxwall("compress generated:menger:2 --codec vq --codebook bogus -o /tmp/x.vwz"),
       "voxwall: --codebook must be");
@@ -321,6 +324,22 @@ TEST(Cli, KsvdPyramidInfoAndLevelOfDetailRender) {
   EXPECT_NE(info.out.find("2 (render --lod), PSNR 40x40x40: "), std::string::npos) << info.out;
   EXPECT_NE(info.out.find(", 20x20x20: "), std::string::npos) << info.out;
   expectRendersWith(vwz, dir, {" --sampling nearest", " --lod --shading"});
+  if (node::cpuPacketLanes() > 1) {
+    // Two pages of room for a volume of eight: later frames sample coarser where pages are not
+    // resident, and -v counts those samples.
+    const CliRun pressed = runVoxwall("render " + vwz +
+                                      " --size 40x30 --frames 3 --no-write -v "
+                                      "--decode-cache 100K --lod-under-pressure");
+    ASSERT_EQ(pressed.status, 0) << pressed.out;
+    std::uint64_t coarse = 0;
+    for (std::size_t at = pressed.out.find(" resident, "); at != std::string::npos;
+         at = pressed.out.find(" resident, ", at + 1)) {
+      unsigned long long n = 0;
+      if (std::sscanf(pressed.out.c_str() + at, " resident, %llu samples from coarser", &n) == 1)
+        coarse += n;
+    }
+    EXPECT_GT(coarse, 0u) << pressed.out;
+  }
   const CliRun flat = runVoxwall(
       "compress generated:marschner-lobb:40 --codec ksvd --levels 1 --atoms 16 --iterations 2 -q "
       "-o " +

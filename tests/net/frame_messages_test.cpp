@@ -31,7 +31,7 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   r.renderSeconds = 0.25;
   r.samples = 12345;
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
-  r.pages = {1000, 20, 3, 2, 5 << 20};
+  r.pages = {1000, 20, 3, 2, 5 << 20, 17};
   for (const auto& rect : t.rects[1]) {
     net::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
     for (std::size_t i = 0; i < tile.image.pixels.size(); ++i)
@@ -171,6 +171,7 @@ TEST(RankReport, RoundTrips) {
   EXPECT_EQ(back.pages.decoded, 3u);
   EXPECT_EQ(back.pages.evictions, 2u);
   EXPECT_EQ(back.pages.residentBytes, 5u << 20);
+  EXPECT_EQ(back.pages.coarse, 17u);
   ASSERT_EQ(back.tiles.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i) {
     EXPECT_EQ(back.tiles[i].rect, r.tiles[i].rect);
@@ -219,9 +220,9 @@ TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   auto extra = bytes;
   extra.push_back(std::byte{0});
   expectRejected(extra, &t);
-  // A stream error longer than the limit (its u16 length follows 108 bytes of fields).
+  // A stream error longer than the limit (its u16 length follows 116 bytes of fields).
   auto longError = bytes;
   const std::uint16_t huge = 60000;
-  std::memcpy(longError.data() + 108, &huge, 2);
+  std::memcpy(longError.data() + 116, &huge, 2);
   expectRejected(longError, &t);
 }

@@ -360,3 +360,79 @@ TEST(Packets, DecodedPagesWithLevelsOfDetail) {
   }
   EXPECT_EQ(cases, 4) << "svmm, three ksvd";
 }
+
+// Lod under pressure (svmm, ksvd): with room for every page nothing changes; with a pool another
+// view filled, a frame samples the next coarser level where its pages are not resident (close
+// to the full-resolution picture, counted), decodes those pages after the frame (a quarter of the
+// pool at a time, evicting the other view's) and sharpens frame by frame until it is exactly the
+// picture of unlimited room.
+TEST(Packets, LodUnderPressureSamplesCoarserLevelsThenSharpens) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "this CPU has no SIMD target the build compiled";
+  voxwall::Progress quiet;
+  test::TempDir dir;
+  // 128^3: 64 pages; the camera looks down an axis, so the halves of the screen reach apart pages.
+  const codec::Volume sl = codec::generateSheppLogan(128);
+  auto file = [&](const std::string& name, const codec::CompressedVolume& c) {
+    codec::writeContainer(c, dir.path(name));
+    return RenderVolume::open(dir.path(name));
+  };
+  codec::ksvd::Params kp;
+  kp.blockSide = 4, kp.atoms = 48, kp.sparsity = 5, kp.iterations = 3;
+  const auto ct = TransferFunction::preset("ct-soft").rescaled(0, 255);
+  std::vector<Case> cases;
+  cases.push_back({"svmm", file("svmm.vwz", codec::svmm::encode(sl, {}, quiet)), ct});
+  cases.push_back({"ksvd", file("ksvd.vwz", codec::ksvd::encode(sl, kp, quiet)), ct});
+  Orbit o;
+  o.azimuthDeg = 0, o.elevationDeg = 0;
+  const Rect left{0, 0, 64, 96}, right{64, 0, 64, 96};
+  for (const auto& c : cases)
+    for (bool shading : {false, true}) {
+      const std::string label = c.name + (shading ? " shaded" : "");
+      const Camera camera = orbitCamera(o, boundingRadius(c.volume.info()));
+      RenderSettings s;
+      s.shading = shading;
+      const auto plain = planFrame(c.volume, camera, 128, 96, c.tf, s);
+      s.lodUnderPressure = true;
+      const auto pressed = planFrame(c.volume, camera, 128, 96, c.tf, s);
+      Image full, image;
+      const auto unlimited = makeCpuBackend(2, true, std::uint64_t(1) << 40);
+      unlimited->render(c.volume, plain, right, full);
+      const std::uint64_t pageBytes = cpuDecodeCacheUse(*unlimited).pageBytes;
+      const std::uint64_t rightPages = cpuDecodeCacheUse(*unlimited).bytes / pageBytes;
+      ASSERT_GT(pageBytes, 0u) << label;
+      // With room for every page nothing is sampled coarser: the same picture.
+      {
+        const auto roomy = makeCpuBackend(2, true, std::uint64_t(1) << 40);
+        const TileStats stats = roomy->render(c.volume, pressed, right, image);
+        test::expectImagesNear(full, image, 0, 0.0, label + ", room for every page");
+        EXPECT_EQ(stats.pageCoarse, 0u) << label;
+      }
+      // Room for the right half's pages, filled by the left half's; then the right half, frame
+      // after frame.
+      const std::uint64_t room = rightPages * pageBytes;
+      const auto backend = makeCpuBackend(2, true, room);
+      backend->render(c.volume, pressed, left, image);
+      ASSERT_EQ(cpuDecodeCacheUse(*backend).bytes, room) << label;
+      std::vector<std::uint64_t> coarse;
+      for (int frame = 0; frame < 12; ++frame) {
+        const TileStats stats = backend->render(c.volume, pressed, right, image);
+        coarse.push_back(stats.pageCoarse);
+        EXPECT_LE(stats.pageCoarse, stats.pageMissed) << label;
+        EXPECT_LE(cpuDecodeCacheUse(*backend).bytes, room) << label;
+        if (frame == 0) {
+          EXPECT_GT(stats.pageCoarse, 0u) << label;
+          EXPECT_GT(stats.pageDecoded, 0u) << label << ": decoded after the frame";
+          EXPECT_GT(stats.pageEvictions, 0u) << label << ": the left half's pages";
+          test::expectImagesNear(full, image, 255, 20.0, label + ", first frame under pressure");
+        }
+        if (stats.pageCoarse == 0) break;
+      }
+      ASSERT_EQ(coarse.back(), 0u) << label << ": never sharpened";
+      EXPECT_GT(coarse.size(), 2u) << label << ": a quarter of the pool a frame";
+      test::expectImagesNear(full, image, 0, 0.0, label + ", sharpened");
+      std::string counts;
+      for (auto n : coarse) counts += ' ' + std::to_string(n);
+      std::printf("%s: samples from coarser levels, frame by frame:%s\n", label.c_str(),
+                  counts.c_str());
+    }
+}

@@ -133,9 +133,11 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
     if (!quiet) std::fprintf(stderr, "voxwall: no volume given, rendering %s\n", s.input.c_str());
   }
   s.volume = loadRenderVolume(o, s.input);
-  if ((s.render.nearest || s.render.levelOfDetail) && !s.volume->traversal())
+  if ((s.render.nearest || s.render.levelOfDetail || s.render.lodUnderPressure) &&
+      !s.volume->traversal())
     throw std::invalid_argument(
-        "--sampling nearest and --lod need a volume with mip levels (compress it with --codec " +
+        "--sampling nearest, --lod and --lod-under-pressure need a volume with mip levels "
+        "(compress it with --codec " +
         codec::RegisteredCodecs::traversalCodecNames() + ")");
   s.tf = loadTransferFunction(o, s.volume->info(), s.tfNotes);
   // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache. A dry
@@ -283,10 +285,13 @@ class Report {
         if (p.hits + p.missed > 0)
           std::printf(
               "    decoded pages: %.2f%% hits (%llu of %llu samples), %llu decoded, %llu "
-              "evicted, %s resident\n",
+              "evicted, %s resident%s\n",
               100.0 * double(p.hits) / double(p.hits + p.missed), (unsigned long long)p.hits,
               (unsigned long long)(p.hits + p.missed), (unsigned long long)p.decoded,
-              (unsigned long long)p.evictions, humanBytes(double(p.residentBytes)).c_str());
+              (unsigned long long)p.evictions, humanBytes(double(p.residentBytes)).c_str(),
+              s_.render.lodUnderPressure
+                  ? (", " + std::to_string(p.coarse) + " samples from coarser levels").c_str()
+                  : "");
       }
       std::printf("  %llu samples\n", (unsigned long long)f.samples);
     }

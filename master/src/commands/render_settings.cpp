@@ -266,6 +266,7 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
     throw std::invalid_argument("--sampling: expected trilinear or nearest");
   render.nearest = o.sampling == "nearest";
   render.levelOfDetail = o.lod;
+  render.lodUnderPressure = o.lodUnderPressure;
   if (o.backend != "cpu" && o.backend != "cuda")
     throw std::invalid_argument("--backend: expected cpu or cuda");
   return render;
@@ -296,6 +297,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   if (!render.cellGradients) m["gradients"] = "samples";
   if (render.nearest) m["sampling"] = "nearest";
   if (render.levelOfDetail) m["lod"] = true;
+  if (render.lodUnderPressure) m["lod_under_pressure"] = true;
   for (const auto& [flag, value] : o.codecFlags) m["codec_options"][flag] = value;
   m["format"] = job.format;
   m["background"] = o.background;
@@ -443,6 +445,12 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_flag("--lod", o.lod,
                "Volumes with mip levels (svmm, ksvd): sample coarser levels where a voxel is "
                "smaller than the pixel's footprint");
+  cmd.add_flag("--lod-under-pressure", o.lodUnderPressure,
+               "Volumes with mip levels (svmm, ksvd), CPU backend with decoded pages: when "
+               "--decode-cache is full, a sample whose page is not resident reads the next "
+               "coarser level instead of evicting a page mid-frame; those pages are decoded after "
+               "the frame (a quarter of the cache at most), so later frames sharpen. render -v "
+               "counts the samples taken from coarser levels");
   // Each codec's render flags, each flag once (help texts joined when codecs share one).
   std::map<std::string, CLI::Option*> codecFlags;
   for (const codec::Codec* c : codec::codecs())

@@ -36,6 +36,7 @@ struct RenderOptions {
   std::string simd = "on";           // --simd: the CPU backend's ray packets
   std::string decodeCache = "512M";  // --decode-cache: decoded pages of a brick-coded volume
   bool lod = false;
+  bool lodUnderPressure = false;  // --lod-under-pressure
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
   std::map<std::string, std::string> codecFlags;
   bool shading = false, noSkip = false, noWrite = false, quiet = false, verbose = false;

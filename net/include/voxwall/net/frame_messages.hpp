@@ -17,10 +17,10 @@
 //               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 pageHits,
-//               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, u32 flags (bit 0:
-//               pixels included, bit 1: streamed to the sink, bit 2: the sink refused this
-//               rank for good, bit 3: the rank abandoned the frame), f64 encodeSeconds,
-//               u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
+//               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, pageCoarse, u32
+//               flags (bit 0: pixels included, bit 1: streamed to the sink, bit 2: the sink
+//               refused this rank for good, bit 3: the rank abandoned the frame), f64
+//               encodeSeconds, u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
 //               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8,
 //               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
 //               under this rank's tiles) and cw*ch f64 seconds, row by row.
@@ -39,8 +39,8 @@ namespace voxwall::net {
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
 // 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
-// RankReport.abandoned; 6: RankReport.pages.
-inline constexpr std::uint32_t kFrameMessageVersion = 6;
+// RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse.
+inline constexpr std::uint32_t kFrameMessageVersion = 7;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -70,9 +70,10 @@ struct RenderedTile {
 };
 
 // A rank's decoded-page cache in a frame (node::TileStats): lane samples that found their page
-// resident and that did not, pages decoded, pages evicted, bytes resident after the frame.
+// resident and that did not, pages decoded, pages evicted, bytes resident after the frame, and of
+// the samples that missed, those taken from a coarser level (--lod-under-pressure).
 struct PageStats {
-  std::uint64_t hits = 0, missed = 0, decoded = 0, evictions = 0, residentBytes = 0;
+  std::uint64_t hits = 0, missed = 0, decoded = 0, evictions = 0, residentBytes = 0, coarse = 0;
 };
 
 struct RankReport {

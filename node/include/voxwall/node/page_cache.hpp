@@ -29,6 +29,13 @@
 // pages, every slot retired in the current step) decodes its page into a scratch page of its
 // own, used for that step only: the picture never depends on the budget.
 //
+// Under pressure (the renderer's --lod-under-pressure, for the views with coarser levels: svmm,
+// ksvd), a lane whose page is not resident and finds no slot free without evicting samples the
+// view's next coarser level for this step instead (per ray, through the view: an eighth of the
+// voxels to decode) and marks the page wanted; refill() decodes the wanted pages after the tile,
+// evicting by CLOCK, at most a quarter of the pool per call, so that later frames find them. No
+// page is evicted while a frame renders in this mode.
+//
 // This is the decoded-brick cache of the GPU renderers behind the codecs (Gobbetti, Iglesias
 // Guitian and Marton, "COVRA: a compression-domain output-sensitive volume rendering
 // architecture", 2012; Guthe and Goesele, "Variable length coding for GPU-based direct volume
@@ -50,6 +57,7 @@
 #include <vector>
 #include <voxwall/codec/kernels/trilinear.hpp>
 #include <voxwall/codec/volume.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::node {
 
@@ -64,7 +72,8 @@ class PageCache {
   static constexpr int kSlice = kRow * kRow;
   static constexpr int kVoxels = kSlice * kRow;
   // A page's table entry: the element offset of its page in the pool, or one of these.
-  static constexpr std::int32_t kAbsent = -1, kFilling = -2;
+  // kWanted: absent, and waiting for refill() (lod under pressure).
+  static constexpr std::int32_t kAbsent = -1, kFilling = -2, kWanted = -3;
   // Scratch pages per Reader: one per lane of the widest packet.
   static constexpr int kScratchPerReader = 16;
 
@@ -75,6 +84,7 @@ class PageCache {
     std::uint64_t misses = 0;     // pages decoded into the pool
     std::uint64_t scratch = 0;    // pages decoded into a lane's scratch page (no slot free)
     std::uint64_t evictions = 0;  // pages evicted
+    std::uint64_t coarse = 0;     // lane samples taken from a coarser level instead (of missed)
   };
 
   // The storage of a volume of this scalar type.
@@ -160,6 +170,8 @@ class PageCache {
     Reader& operator=(const Reader&) = delete;
 
     PageCache& cache() const { return cache_; }
+    // Whether a lane that misses samples a coarser level instead (PageCache::setPressure).
+    bool pressure() const { return pressure_; }
     // Declares that this thread holds no page offset (the start of a sample step).
     void quiesce() {
       ++step_;
@@ -174,8 +186,13 @@ class PageCache {
     // this lane's when no slot is free.
     template <class Level>
     std::int32_t fill(std::int32_t page, const Level& level, int lane);
+    // Under pressure: the pool offset of `page` where it is resident, or after decoding it into
+    // a slot that is free without evicting anything; else -1 (the lane samples a coarser level)
+    // and the page is wanted by the next refill().
+    template <class Level>
+    std::int32_t fillIfRoom(std::int32_t page, const Level& level);
 
-    std::uint64_t hits = 0, missed = 0;  // added by the caller (Counts)
+    std::uint64_t hits = 0, missed = 0, coarse = 0;  // added by the caller (Counts)
 
    private:
     PageCache& cache_;
@@ -185,7 +202,18 @@ class PageCache {
     std::uint64_t step_ = 0;                        // steps begun (quiesce)
     std::int32_t scratchPage_[kScratchPerReader];   // the page each scratch slot holds
     std::uint64_t scratchStep_[kScratchPerReader];  // the step that last used it
+    std::vector<std::int32_t> wanted_;              // pages this Reader marked kWanted
+    bool pressure_;
   };
+
+  // Lod under pressure for the Readers made from now on (the backend sets it per tile).
+  void setPressure(bool on) { pressure_ = on; }
+
+  // Decodes the pages lanes wanted under pressure since the last call (at most a quarter of the
+  // pool, evicting by CLOCK; the rest are forgotten and wanted again when rays reach them), on
+  // `threads` threads. Call it when no Reader is online (between tiles). Returns pages decoded.
+  template <class Level>
+  std::size_t refill(const Level& level, int threads);
 
  private:
   friend class Reader;
@@ -199,8 +227,8 @@ class PageCache {
   static std::uint64_t capacityFor(int x, int y, int z, PageFormat format,
                                    std::uint64_t budgetBytes, int readers);
 
-  // A slot for a page (-1: none may be taken now). Takes the mutex.
-  std::int32_t takeSlot();
+  // A slot for a page (-1: none may be taken now), evicting where `evict`. Takes the mutex.
+  std::int32_t takeSlot(bool evict = true);
   void evictLocked(std::size_t n);
   void reclaimLocked();
   // Publishes a filled slot's page (makes it evictable).
@@ -238,7 +266,9 @@ class PageCache {
   std::int32_t hand_ = 0;   // CLOCK's
   std::size_t reserve_ = 0;
   std::atomic<std::size_t> resident_{0};
-  Counts totals_;  // of Readers that left
+  Counts totals_;                     // of Readers that left
+  std::vector<std::int32_t> wanted_;  // pages in state kWanted, for refill()
+  bool pressure_ = false;
 };
 
 template <class Level>
@@ -321,6 +351,67 @@ std::int32_t PageCache::Reader::fill(std::int32_t page, const Level& level, int 
     c.filled(slot, page);
     return offset;
   }
+}
+
+template <class Level>
+std::int32_t PageCache::Reader::fillIfRoom(std::int32_t page, const Level& level) {
+  PageCache& c = cache_;
+  auto& entry = c.entry_[std::size_t(page)];
+  for (;;) {
+    std::int32_t state = entry.load(std::memory_order_acquire);
+    if (state >= 0) return state;
+    if (state == kFilling) {  // another thread decodes it into a slot it had free: wait
+      std::this_thread::yield();
+      continue;
+    }
+    if (state == kWanted) return -1;
+    if (!entry.compare_exchange_weak(state, kFilling, std::memory_order_acq_rel)) continue;
+    const std::int32_t slot = c.takeSlot(false);
+    if (slot < 0) {
+      entry.store(kWanted, std::memory_order_release);
+      wanted_.push_back(page);
+      return -1;
+    }
+    c.decode(page, level, slot);
+    ++counts_.misses;
+    const std::int32_t offset = slot * kVoxels;
+    entry.store(offset, std::memory_order_release);
+    c.filled(slot, page);
+    return offset;
+  }
+}
+
+template <class Level>
+std::size_t PageCache::refill(const Level& level, int threads) {
+  std::vector<std::int32_t> pages;
+  {
+    std::lock_guard lock(mutex_);
+    pages.swap(wanted_);
+  }
+  // Slots first (no Reader is online, so every slot evicted now is free at once), then the
+  // decoding on every thread.
+  const std::size_t most = std::max<std::size_t>(1, std::size_t(capacity_) / 4);
+  std::vector<std::pair<std::int32_t, std::int32_t>> jobs;  // page, slot
+  for (const std::int32_t page : pages) {
+    auto& entry = entry_[std::size_t(page)];
+    std::int32_t state = kWanted;
+    if (!entry.compare_exchange_strong(state, kFilling, std::memory_order_acq_rel)) continue;
+    const std::int32_t slot = jobs.size() < most ? takeSlot(true) : -1;
+    if (slot < 0) {
+      entry.store(kAbsent, std::memory_order_release);  // wanted again when a ray reaches it
+      continue;
+    }
+    jobs.emplace_back(page, slot);
+  }
+  voxwall::parallelFor(jobs.size(), threads, [&](std::size_t i) {
+    const auto [page, slot] = jobs[i];
+    decode(page, level, slot);
+    entry_[std::size_t(page)].store(slot * kVoxels, std::memory_order_release);
+    filled(slot, page);
+  });
+  std::lock_guard lock(mutex_);
+  totals_.misses += jobs.size();
+  return jobs.size();
 }
 
 }  // namespace voxwall::node

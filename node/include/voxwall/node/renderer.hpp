@@ -27,6 +27,10 @@ struct RenderSettings {
   // where a voxel is smaller than the pixel's footprint (level of detail).
   bool nearest = false;
   bool levelOfDetail = false;
+  // Views with coarser levels (svmm, ksvd) on the CPU backend's decoded pages: a sample whose page
+  // is not resident and would need an eviction reads the next coarser level instead; the pages
+  // are decoded after the tile (node/page_cache.hpp).
+  bool lodUnderPressure = false;
   int coarseCellFactor = 4;  // coarse skip cells are this many fine (codec range) cells per side
   double earlyTerminationOpacity = 0.995;
   int lutEntries = 4096;
@@ -41,6 +45,7 @@ struct FramePlan {
   kernels::SkipGrid skip;                    // points into the two vectors (host)
   double emptyFraction = 0.0;                // share of coarse cells skipped
   double fineEmptyFraction = 0.0;            // share of fine cells skipped
+  bool lodUnderPressure = false;             // RenderSettings::lodUnderPressure
 };
 
 // `tfDomain` is the data-value range the LUT covers (usually the TF's own domain).
@@ -58,8 +63,8 @@ struct TileStats {
   bool stopped = false;       // told to stop before every pixel was rendered
   // The CPU backend's decoded pages (node/page_cache.hpp) in this tile: lane samples that found
   // their page resident and that did not, pages decoded, pages evicted, and the bytes resident
-  // after it.
-  std::uint64_t pageHits = 0, pageMissed = 0, pageDecoded = 0, pageEvictions = 0;
+  // after it; of the samples that missed, those taken from a coarser level (lod under pressure).
+  std::uint64_t pageHits = 0, pageMissed = 0, pageDecoded = 0, pageEvictions = 0, pageCoarse = 0;
   std::uint64_t pageResidentBytes = 0;
 };
 
@@ -109,7 +114,7 @@ std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
 // (no slot was free), pages evicted.
 struct DecodeCacheUse {
   std::uint64_t bytes = 0, allPagesBytes = 0, capacityBytes = 0, pageBytes = 0;
-  std::uint64_t hits = 0, missed = 0, misses = 0, scratch = 0, evictions = 0;
+  std::uint64_t hits = 0, missed = 0, misses = 0, scratch = 0, evictions = 0, coarse = 0;
 };
 DecodeCacheUse cpuDecodeCacheUse(const Backend& backend);
 // The most a CPU backend with packets holds in decoded pages for `volume` with this budget: every
