@@ -8,8 +8,8 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <unordered_map>
-#include <unordered_set>
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/vq_codec.hpp>
@@ -125,27 +125,92 @@ void gatherBrick(glm::ivec3 dims, const T* window, int bias, int bx, int by, Bri
     }
 }
 
-// Indices into the unique bricks, hashed and compared by the bricks they name: the set of bricks
-// seen so far without a second copy of each.
-struct UniqueHash {
-  using is_transparent = void;
-  const std::vector<Brick>* unique;
-  std::size_t operator()(std::uint32_t i) const { return BrickHash{}((*unique)[i]); }
-  std::size_t operator()(const Brick& b) const { return BrickHash{}(b); }
-};
-struct UniqueEqual {
-  using is_transparent = void;
-  const std::vector<Brick>* unique;
-  const Brick& of(std::uint32_t i) const { return (*unique)[i]; }
-  const Brick& of(const Brick& b) const { return b; }
-  template <class A, class B>
-  bool operator()(const A& a, const B& b) const {
-    return of(a) == of(b);
+// The distinct bricks seen so far, each once, in the order first seen: a byte a voxel where the
+// data has at most 8 bits (64 bytes a brick instead of 128), in chunks that never move (no copy
+// of the whole store as it grows), found through an open-addressing table of their indices (4
+// bytes a slot, at most half full). On noisy data, where nearly every brick is unique, this is
+// the input's size plus a tenth, which bounds a lossless compress's peak.
+class UniqueBricks {
+ public:
+  explicit UniqueBricks(int bits) : width_(bits > 8 ? 2 : 1) {}
+  std::size_t size() const { return count_; }
+
+  // The index of brick b, added at the end where it is new (`added`).
+  std::uint32_t insert(const Brick& b, bool& added) {
+    std::uint8_t packed[kN * 2];
+    pack(b, packed);
+    const std::size_t bytes = std::size_t(kN) * width_;
+    if (2 * (count_ + 1) > table_.size()) grow();
+    const std::size_t mask = table_.size() - 1;
+    for (std::size_t at = XXH3_64bits(packed, bytes) & mask;; at = (at + 1) & mask) {
+      const std::uint32_t entry = table_[at];
+      if (entry == 0) {
+        if (count_ >= std::numeric_limits<std::uint32_t>::max() - 1)
+          throw std::length_error("vq codec: more than 2^32 - 2 distinct bricks");
+        if (count_ % kChunk == 0)
+          chunks_.push_back(std::make_unique<std::uint8_t[]>(kChunk * bytes));
+        std::memcpy(at_(count_), packed, bytes);
+        table_[at] = std::uint32_t(++count_);
+        added = true;
+        return std::uint32_t(count_ - 1);
+      }
+      if (std::memcmp(at_(entry - 1), packed, bytes) == 0) {
+        added = false;
+        return entry - 1;
+      }
+    }
   }
+  Brick operator[](std::size_t i) const {
+    Brick b;
+    const std::uint8_t* p = at_(i);
+    for (int d = 0; d < kN; ++d)
+      b[d] = width_ == 1 ? p[d] : std::uint16_t(p[2 * d] | (p[2 * d + 1] << 8));
+    return b;
+  }
+  // Done adding: the table goes.
+  void seal() { std::vector<std::uint32_t>().swap(table_); }
+  std::vector<Brick> all() const {
+    std::vector<Brick> out(count_);
+    for (std::size_t i = 0; i < count_; ++i) out[i] = (*this)[i];
+    return out;
+  }
+  void clear() {
+    seal();
+    chunks_.clear();
+    count_ = 0;
+  }
+
+ private:
+  static constexpr std::size_t kChunk = 1 << 16;  // bricks per chunk
+  void pack(const Brick& b, std::uint8_t* out) const {
+    for (int d = 0; d < kN; ++d)
+      if (width_ == 1) {
+        out[d] = std::uint8_t(b[d]);
+      } else {
+        out[2 * d] = std::uint8_t(b[d]), out[2 * d + 1] = std::uint8_t(b[d] >> 8);
+      }
+  }
+  std::uint8_t* at_(std::size_t i) const {
+    return chunks_[i / kChunk].get() + (i % kChunk) * std::size_t(kN) * width_;
+  }
+  void grow() {
+    std::vector<std::uint32_t> table(std::max<std::size_t>(1024, table_.size() * 2), 0);
+    const std::size_t mask = table.size() - 1, bytes = std::size_t(kN) * width_;
+    for (std::size_t i = 0; i < count_; ++i) {
+      std::size_t at = XXH3_64bits(at_(i), bytes) & mask;
+      while (table[at] != 0) at = (at + 1) & mask;
+      table[at] = std::uint32_t(i + 1);
+    }
+    table_.swap(table);
+  }
+  std::size_t width_;
+  std::vector<std::unique_ptr<std::uint8_t[]>> chunks_;
+  std::vector<std::uint32_t> table_;  // 0: empty, else index + 1
+  std::size_t count_ = 0;
 };
 
-// Estimated bytes of a compressed codeword, from a sample of bricks.
-double meanCodewordBytes(std::span<const Brick> bricks, int bits) {
+// Estimated bytes of a compressed codeword, from a sample of the bricks.
+double meanCodewordBytes(const UniqueBricks& bricks, int bits) {
   const std::size_t step = std::max<std::size_t>(1, bricks.size() / 4096);
   double sum = 0;
   std::size_t n = 0;
@@ -275,15 +340,13 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   // A row of bricks (4 slices) at a time: gathered in parallel, then added to the unique bricks
   // in brick order, so the codebook is the same whatever the threads.
   std::vector<std::uint32_t> brickToUnique(brickCount);
-  std::vector<Point> unique;
+  UniqueBricks unique(bits);
   std::vector<std::uint32_t> weight;
   progress.begin("bricking", brickCount);
   {
     const std::size_t rowBricks = std::size_t(bricks.x) * std::size_t(bricks.y);
     std::vector<Brick> row(rowBricks);
     std::vector<std::byte> window(4 * volume.sliceBytes());
-    std::unordered_set<std::uint32_t, UniqueHash, UniqueEqual> index(0, UniqueHash{&unique},
-                                                                     UniqueEqual{&unique});
     for (int bz = 0; bz < bricks.z; ++bz) {
       volume.readSlices(bz * 4, 4, window);
       dispatchScalar(volume.type, [&](auto t) {
@@ -298,28 +361,35 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
         }
       });
       for (std::size_t j = 0; j < rowBricks; ++j) {
-        auto it = index.find(row[j]);
-        if (it == index.end()) {
-          unique.push_back(row[j]), weight.push_back(0);
-          it = index.insert(std::uint32_t(unique.size() - 1)).first;
-        }
-        brickToUnique[std::size_t(bz) * rowBricks + j] = *it;
-        ++weight[*it];
+        bool added = false;
+        const std::uint32_t u = unique.insert(row[j], added);
+        if (added) weight.push_back(0);
+        brickToUnique[std::size_t(bz) * rowBricks + j] = u;
+        ++weight[u];
       }
       progress.advance(rowBricks);
     }
   }
   progress.end();
-  stats.uniqueBricks = unique.size();
+  unique.seal();
+  const std::size_t uniqueCount = unique.size();
+  stats.uniqueBricks = uniqueCount;
 
   // ---- data reduction (section 4) ----
+  // The codebook: the unique bricks themselves (lossless) or the rounded k-means centres.
   std::vector<Brick> codebook;
+  bool uniqueCodebook = false;
   std::vector<std::uint32_t> brickToCodeword;  // sized by reduce(), or the unique map moved in
   const std::uint64_t maxValue = (std::uint64_t(1) << bits) - 1;
+  std::vector<Point> points;  // the unique bricks as k-means points, made on the first reduce
   auto reduce = [&](std::size_t k) {
+    if (points.empty()) {
+      points = unique.all();
+      unique.clear();  // k-means codes from its centres from here on
+    }
     const auto start = std::chrono::steady_clock::now();
     const KMeansResult r =
-        kmeans(unique, weight, k, params.maxIterations, params.threads, progress);
+        kmeans(points, weight, k, params.maxIterations, params.threads, progress);
     stats.kmeansSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     stats.iterations = r.iterations;
@@ -345,8 +415,10 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
       brickToCodeword[i] = centerToCodeword[r.assignment[brickToUnique[i]]];
   };
   auto keepLossless = [&] {
-    codebook = std::move(unique);
+    codebook.clear();
+    uniqueCodebook = true;
     brickToCodeword = std::move(brickToUnique);
+    std::vector<std::uint32_t>().swap(weight);  // only k-means weighs the bricks
   };
   int reduction = params.reduction;
   if (params.targetBitsPerVoxel > 0) {
@@ -360,11 +432,11 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
               8.0 * k * perCodeword) /
              voxels;
     };
-    if (model(double(unique.size())) <= params.targetBitsPerVoxel) {
+    if (model(double(uniqueCount)) <= params.targetBitsPerVoxel) {
       keepLossless();
       reduction = 1;
     } else {
-      double k = double(unique.size());
+      double k = double(uniqueCount);
       while (k > 1 && model(k) > params.targetBitsPerVoxel) k = std::floor(k * 0.9);
       for (int attempt = 0; attempt < 6; ++attempt) {
         reduce(std::size_t(std::max(1.0, k)));
@@ -380,20 +452,21 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
         if (bpv <= params.targetBitsPerVoxel * 1.02 || k <= 1) break;
         k = std::floor(k * std::min(0.95, params.targetBitsPerVoxel / bpv));
       }
-      reduction = int(std::lround(double(unique.size()) / double(codebook.size())));
+      reduction = int(std::lround(double(uniqueCount) / double(codebook.size())));
     }
   } else if (params.reduction > 1) {
-    reduce(std::max<std::size_t>(1, unique.size() / std::size_t(params.reduction)));
+    reduce(std::max<std::size_t>(1, uniqueCount / std::size_t(params.reduction)));
   } else {
     keepLossless();
   }
-  unique.clear();
-  unique.shrink_to_fit();
-  stats.codewords = codebook.size();
+  std::vector<Point>().swap(points);
+  if (!uniqueCodebook) unique.clear();
+  const std::uint64_t m = uniqueCodebook ? unique.size() : codebook.size();
+  auto codeword = [&](std::size_t i) { return uniqueCodebook ? unique[i] : codebook[i]; };
+  stats.codewords = m;
   stats.reduction = reduction;
 
   // ---- codebook (section 3.1) and offset volume (section 3.2) ----
-  const std::uint64_t m = codebook.size();
   std::vector<std::uint8_t> codebookBytes;
   std::vector<std::uint64_t> address(m, 0);
   progress.begin("coding codebook", m);
@@ -408,11 +481,17 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
       const std::size_t end = std::min<std::size_t>(m, (chunk + 1) * 1024);
       for (std::size_t i = chunk * 1024; i < end; ++i) {
         const std::size_t before = coded[chunk].size();
-        used[i] = std::int16_t(encodeCodeword(codebook[i], bits, coded[chunk]));
+        used[i] = std::int16_t(encodeCodeword(codeword(i), bits, coded[chunk]));
         length[i] = std::uint8_t(coded[chunk].size() - before);
       }
       progress.advance(end - chunk * 1024);
     });
+    // The bricks are coded: free them before joining, into one allocation of the whole size.
+    std::vector<Brick>().swap(codebook);
+    unique.clear();
+    std::size_t total = 0;
+    for (const auto& c : coded) total += c.size();
+    codebookBytes.reserve(total);
     for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
       std::size_t at = codebookBytes.size();
       for (std::size_t i = chunk * 1024; i < std::min<std::size_t>(m, (chunk + 1) * 1024); ++i) {
@@ -428,13 +507,14 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   } else {
     for (std::size_t i = 0; i < m; ++i) {
       address[i] = codebookBytes.size();
-      plainCodeword(codebook[i], bits, codebookBytes);
+      plainCodeword(codeword(i), bits, codebookBytes);
     }
     progress.advance(m);
   }
   progress.end();
   // The codewords are coded: only their count is needed from here on.
   std::vector<Brick>().swap(codebook);
+  unique.clear();
 
   const bool indirect =
       params.compressedCodebook && chooseIndirect(brickCount, m, codebookBytes.size());
