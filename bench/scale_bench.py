@@ -183,8 +183,8 @@ def pressure_table(args, files, raw_ms):
             for b in args.pressure_budgets.split(",")]
     if not rows:
         return
-    print("Level of detail under pressure (1 rank, still view, frames 2 and 3, raw's frame as "
-          "in the table above)\n")
+    print("Level of detail under pressure (1 rank, still view, frames 2 and 3, over raw's frame "
+          "rendered again just before)\n")
     print("| codec | budget | frame / raw | with --lod-under-pressure | samples from coarser "
           "levels (frames 2, 3) | pages decoded (frames 2, 3) |")
     print("|---|---|---|---|---|---|")
@@ -304,25 +304,30 @@ def main():
                   % (c, ms, ms / one["raw"][0], mib(resident[0]),
                      mib(compress[c][2]), hits, decoded, evicted))
         print()
-        print("Resident memory per rank (the largest rank's), strip cut, --balance static\n")
-        print("| codec | 1 rank | 2 ranks | 4 ranks | 4 ranks / 1 rank |")
-        print("|---|---|---|---|---|")
-        for c in [c for c in args.rank_codecs.split(",") if c in files]:
+        rank_codecs = [c for c in args.rank_codecs.split(",") if c in files]
+        if rank_codecs:
+            print("Resident memory per rank (the largest rank's), strip cut, --balance static\n")
+            print("| codec | 1 rank | 2 ranks | 4 ranks | 4 ranks / 1 rank |")
+            print("|---|---|---|---|---|")
+        for c in rank_codecs:
             per = {1: max(one[c][1].values())}
             for n in (2, 4):
                 print("rendering %s on %d ranks" % (c, n), file=sys.stderr)
                 per[n] = max(render(args, files[c], ranks=n, extra=["--threads", "1"])[1].values())
             print("| %s | %s | %s | %s | %.2f |"
                   % (c, mib(per[1]), mib(per[2]), mib(per[4]), per[4] / per[1]))
-        print()
-        print("Page cache by budget (1 rank): pages decoded by frame 1, then frames 2 and 3 (raw "
-              "rendered again first, for the ratio)\n")
-        print("| codec | budget | frame ms | frame / raw | frame 1 decoded | hits | decoded "
-              "| evicted | resident |")
-        print("|---|---|---|---|---|---|---|---|---|")
+        if rank_codecs:
+            print()
+        budget_rows = [(c, b) for c in args.budget_codecs.split(",") if c in files
+                       for b in args.budgets.split(",")]
+        if budget_rows:
+            print("Page cache by budget (1 rank): pages decoded by frame 1, then frames 2 and 3 "
+                  "(raw rendered again first, for the ratio)\n")
+            print("| codec | budget | frame ms | frame / raw | frame 1 decoded | hits | decoded "
+                  "| evicted | resident |")
+            print("|---|---|---|---|---|---|---|---|---|")
         raw_ms = render(args, files["raw"])[0]
-        for c, b in [(c, b) for c in args.budget_codecs.split(",") if c in files
-                     for b in args.budgets.split(",")]:
+        for c, b in budget_rows:
             print("rendering %s with --decode-cache %s" % (c, b), file=sys.stderr)
             ms, resident, pages = render(args, files[c], budget=b)
             if len(pages) != 3:
@@ -330,7 +335,8 @@ def main():
             print("| %s | %s | %.0f | %.2f | %s | %s%%, %s%% | %s, %s | %s, %s | %s |"
                   % (c, b, ms, ms / raw_ms, pages[0][3], pages[1][0], pages[2][0], pages[1][3],
                      pages[2][3], pages[1][4], pages[2][4], mib(resident[0])))
-        print()
+        if budget_rows:
+            print()
         pressure_table(args, files, raw_ms)
         if args.float_scale > 0 and not args.reuse:
             float_codecs = args.float_codecs.split(",")

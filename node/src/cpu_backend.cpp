@@ -52,6 +52,9 @@ class CpuBackend final : public Backend {
               before = job.pages->counts();
               job.pages->setPressure(plan.lodUnderPressure);
             }
+            if constexpr (cpu::kLevels<decltype(view)>)
+              if (job.pages && plan.lodUnderPressure && view.levels > 1)
+                job.coarsePages = attachCoarsePages(cpu::coarseLevel(view), volume.info().type);
             const std::uint64_t n = cpu::renderBlocks(view, job);
             // The pages lanes sampled coarser for: decoded now, for the frames that follow.
             if (job.pages && plan.lodUnderPressure)
@@ -80,6 +83,9 @@ class CpuBackend final : public Backend {
       stats.pageEvictions = after.evictions - before.evictions;
       stats.pageCoarse = after.coarse - before.coarse;
       stats.pageResidentBytes = std::uint64_t(job.pages->residentPages()) * job.pages->pageBytes();
+      if (job.coarsePages)
+        stats.pageResidentBytes +=
+            std::uint64_t(job.coarsePages->residentPages()) * job.coarsePages->pageBytes();
     }
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
@@ -95,6 +101,8 @@ class CpuBackend final : public Backend {
     const PageCache::Counts c = pages_->counts();
     use.hits = c.hits, use.missed = c.missed, use.misses = c.misses, use.scratch = c.scratch,
     use.evictions = c.evictions, use.coarse = c.coarse;
+    if (coarsePages_)
+      use.coarseBytes = std::uint64_t(coarsePages_->residentPages()) * coarsePages_->pageBytes();
     return use;
   }
 
@@ -111,11 +119,23 @@ class CpuBackend final : public Backend {
     }
     return pages_.get();
   }
+  // Under pressure, pages of level 1 of a view with levels, in a quarter of the budget more.
+  template <class Level>
+  PageCache* attachCoarsePages(const Level& level, codec::ScalarType type) {
+    const std::uint64_t budget = decodeCacheBytes_ / 4;
+    if (PageCache::bytesFor(level, type, budget) == 0) return nullptr;
+    if (!coarsePages_ || !coarsePages_->holds(level, type, threads_)) {
+      coarsePages_.reset();
+      coarsePages_ = PageCache::make(level, type, budget, threads_);
+    }
+    return coarsePages_.get();
+  }
 
   int threads_;
   bool packets_;
   std::uint64_t decodeCacheBytes_;
   std::unique_ptr<PageCache> pages_;
+  std::unique_ptr<PageCache> coarsePages_;
 };
 
 }  // namespace
@@ -133,6 +153,20 @@ std::uint64_t cpuDecodeCacheNeed(const RenderVolume& volume, std::uint64_t decod
         } else {
           return 0;
         }
+      },
+      volume.view());
+}
+
+std::uint64_t cpuCoarsePageNeed(const RenderVolume& volume, std::uint64_t decodeCacheBytes) {
+  if (decodeCacheBytes == 0 || cpu::packetLanes() <= 1) return 0;
+  return std::visit(
+      [&](auto view) -> std::uint64_t {
+        if constexpr (cpu::kLevels<decltype(view)>) {
+          if (view.levels > 1)
+            return PageCache::bytesFor(cpu::coarseLevel(view), volume.info().type,
+                                       decodeCacheBytes / 4);
+        }
+        return 0;
       },
       volume.view());
 }

@@ -35,6 +35,51 @@ auto& pagedLevel(View& view) {
     return view;
 }
 
+// Views with coarser levels (ksvd, svmm): under pressure (RenderSettings::lodUnderPressure) the
+// lanes whose full-resolution page is not resident sample level 1 from pages of its own.
+template <class V>
+inline constexpr bool kLevels = kKsvd<V> || std::is_same_v<V, codec::kernels::SvmmView>;
+
+// svmm's level `T` as PageCache takes a level: its grid's size and voxels (looked up through the
+// mip-map, as the view's own samples at that level read them).
+struct SvmmLevelPages {
+  const codec::kernels::SvmmView* view = nullptr;
+  int T = 1;
+  int dimX = 1, dimY = 1, dimZ = 1;
+  float maxX = 0, maxY = 0, maxZ = 0;
+  std::uint64_t cacheId = 0;
+  using RayCache = codec::kernels::SvmmView::RayCache;
+  float voxel(int x, int y, int z, RayCache& rc) const {
+    int stop;
+    return view->scalar(view->lookup(x, y, z, T, rc, stop));
+  }
+};
+
+// Level 1 of a view with levels (call only where view.levels > 1), and how many full-resolution
+// voxels one of its voxels spans per side.
+template <class View>
+decltype(auto) coarseLevel(const View& view) {
+  if constexpr (kKsvd<View>) {
+    return (view.level[1]);
+  } else {
+    SvmmLevelPages l;
+    l.view = &view;
+    const int sh = view.level[1].shift;
+    l.dimX = ((view.dimX - 1) >> sh) + 1, l.dimY = ((view.dimY - 1) >> sh) + 1;
+    l.dimZ = ((view.dimZ - 1) >> sh) + 1;
+    l.maxX = float(l.dimX - 1), l.maxY = float(l.dimY - 1), l.maxZ = float(l.dimZ - 1);
+    l.cacheId = view.cacheId;
+    return l;
+  }
+}
+template <class View>
+float coarseScale(const View& view) {
+  if constexpr (kKsvd<View>)
+    return 2.0f;
+  else
+    return float(1 << view.level[1].shift);
+}
+
 // One tile's blocks of kBlockPixels x kBlockPixels, rendered by `threads` threads.
 struct TileJob {
   const FramePlan& plan;
@@ -45,18 +90,26 @@ struct TileJob {
   bool packets = true;                      // SIMD ray packets where the CPU has them, else one ray
   const std::atomic<bool>* stop = nullptr;  // when it turns true, blocks not begun are skipped
   PageCache* pages = nullptr;               // decoded pages of the view's paged level (packets)
+  PageCache* coarsePages = nullptr;         // under pressure: pages of level 1 (kLevels views)
 };
 
-// The Reader of the block this thread renders (null: no pages), which the packets' caches take.
+// The Readers of the block this thread renders (null: no pages), which the packets' caches take:
+// of the paged level and, under pressure, of level 1.
 inline thread_local PageCache::Reader* currentReader = nullptr;
+inline thread_local PageCache::Reader* currentCoarseReader = nullptr;
 struct ReaderScope {
-  explicit ReaderScope(PageCache::Reader* reader) : previous(currentReader) {
+  ReaderScope(PageCache::Reader* reader, PageCache::Reader* coarse)
+      : previous(currentReader), previousCoarse(currentCoarseReader) {
     currentReader = reader;
+    currentCoarseReader = coarse;
   }
-  ~ReaderScope() { currentReader = previous; }
+  ~ReaderScope() {
+    currentReader = previous;
+    currentCoarseReader = previousCoarse;
+  }
   ReaderScope(const ReaderScope&) = delete;
   ReaderScope& operator=(const ReaderScope&) = delete;
-  PageCache::Reader* previous;
+  PageCache::Reader *previous, *previousCoarse;
 };
 
 // Renders every block of `job` from `view`; returns the samples taken. Defined in

@@ -65,9 +65,19 @@ struct HwyLanes {
     PageCache::Reader* reader = currentReader;
     std::int32_t lastPage1[kLanes] = {};
     // Lanes whose page was not resident under pressure (PageCache::Reader::fillIfRoom): this step
-    // they sample the view's next coarser level, with the footprint they had kept here.
+    // they sample level 1, from its pages (`lower`) where the backend has them, else through the
+    // view with a footprint that selects it (their own kept here).
     M coarse = hn::FirstN(D(), 0);
     float footprint[kLanes] = {};
+    // Level 1's pages, under pressure (views with levels): the same state as above for them.
+    struct Lower {
+      PageCache::Reader* reader = currentCoarseReader;
+      F c[8];
+      I pageAt;
+      M paged = hn::FirstN(D(), 0);
+      M coarse = hn::FirstN(D(), 0);
+      std::int32_t lastPage1[kLanes] = {};
+    } lower;
   };
 
   static HWY_INLINE F splat(float v) { return hn::Set(D(), v); }
@@ -381,6 +391,11 @@ struct HwyLanes {
       return m;
     }
   }
+  // A full-resolution index-space position on the grid of a level whose voxels span `scale`.
+  static HWY_INLINE kernels::Lanes3<F> toCoarse(const kernels::Lanes3<F>& p, float scale) {
+    const F half = splat(0.5f), inv = splat(1.0f / scale);
+    return {(p.x + half) * inv - half, (p.y + half) * inv - half, (p.z + half) * inv - half};
+  }
   // Both inside [0, dim - 1] on every axis (else the view's gradient takes six samples).
   template <class Level>
   static HWY_INLINE M insideGrid(const Level& v, const kernels::Lanes3<F>& p) {
@@ -401,22 +416,36 @@ struct HwyLanes {
     if constexpr (kPaged<View>) {
       const auto& level = pagedLevel(view);
       cache.paged = hn::FirstN(D(), 0);
+      cache.lower.paged = hn::FirstN(D(), 0);
       if (cache.reader) {
         constexpr bool levels = requires { View::kTraversal; };
         // Last step's coarse lanes take their own footprint back.
-        if constexpr (levels)
+        if constexpr (kLevels<View>)
           forLanes(cache.coarse,
                    [&](std::size_t i) { cache.lane[i].footprint = cache.footprint[i]; });
         cache.coarse = hn::FirstN(D(), 0);
+        // (No page offset of level 1 is held between steps either.)
+        if (cache.lower.reader) cache.lower.reader->quiesce();
         const M lanes = pageLanes(view, cache, m);
         if (any(lanes)) {
-          const F value = pageSample(level, cache, p, lanes, levels && cache.reader->pressure());
-          // Lanes under pressure sample (and shade, and skip regions of) the next coarser
-          // level for this step: the footprint of its voxels (the views' lodLevel).
-          if constexpr (levels)
+          F value = pageSample(level, cache, p, lanes, levels && cache.reader->pressure());
+          if constexpr (kLevels<View>) {
+            // Lanes under pressure sample level 1 from its own pages, gathered as level 0's.
+            if (cache.lower.reader && any(cache.coarse)) {
+              const float s = coarseScale(view);
+              const F v =
+                  pageSample(coarseLevel(view), cache.lower, toCoarse(p, s), cache.coarse, false);
+              value = select(cache.coarse, v, value);
+              m = butNot(m, cache.coarse);
+              cache.coarse = hn::FirstN(D(), 0);
+            }
+          }
+          // Lanes under pressure without those pages sample (and shade, and skip regions of)
+          // level 1 through the view for this step: the footprint of its voxels.
+          if constexpr (kLevels<View>)
             forLanes(cache.coarse, [&](std::size_t i) {
               cache.footprint[i] = cache.lane[i].footprint;
-              cache.lane[i].footprint = std::max(cache.lane[i].footprint, 2.0f);
+              cache.lane[i].footprint = std::max(cache.lane[i].footprint, coarseScale(view));
             });
           m = butNot(m, cache.paged);  // the rest decode through the view's caches
           if (!any(m)) return value;
@@ -463,6 +492,30 @@ struct HwyLanes {
         if (!any(m)) return vectors;
       }
     }
+    if constexpr (kLevels<View>) {
+      // Lanes sampled from level 1's pages: their gradient from the same pages, in level-1 index
+      // units, scaled to the volume's.
+      const M lower = both(m, cache.lower.paged);
+      if (cache.lower.reader && any(lower)) {
+        const float s = coarseScale(view);
+        const auto& level = coarseLevel(view);
+        const kernels::Lanes3<F> q = toCoarse(p, s);
+        kernels::RayFrame fl = f;
+        fl.invSpacing = f.invSpacing / s;
+        const M cell = f.cellGradients ? both(lower, insideGrid(level, q)) : hn::FirstN(D(), 0);
+        const M six = butNot(lower, cell);
+        kernels::Lanes3<F> g = vectors;
+        if (any(cell)) g = pageGradient(level, cache.lower, fl, q);
+        if (any(six)) {
+          const kernels::Lanes3<F> g6 = pageSixSamples(level, cache.lower, fl, q);
+          g = {select(six, g6.x, g.x), select(six, g6.y, g.y), select(six, g6.z, g.z)};
+        }
+        vectors = {select(lower, g.x, vectors.x), select(lower, g.y, vectors.y),
+                   select(lower, g.z, vectors.z)};
+        m = butNot(m, lower);
+        if (!any(m)) return vectors;
+      }
+    }
     HWY_ALIGN float x[kLanes], y[kLanes], z[kLanes], gx[kLanes], gy[kLanes], gz[kLanes];
     hn::Store(p.x, D(), x), hn::Store(p.y, D(), y), hn::Store(p.z, D(), z);
     hn::Store(vectors.x, D(), gx), hn::Store(vectors.y, D(), gy), hn::Store(vectors.z, D(), gz);
@@ -494,7 +547,7 @@ struct HwyLanes {
     hn::Store(tEnter, D(), te), hn::Store(steps, DI(), st), hn::Store(k, DI(), kk);
     hn::Store(k + splatI(1), DI(), out);
     // A lane sampled from pages knows no region: it takes the next sample.
-    if constexpr (kPaged<View>) m = butNot(m, cache.paged);
+    if constexpr (kPaged<View>) m = butNot(m, either(cache.paged, cache.lower.paged));
     forLanes(m, [&](std::size_t i) {
       out[i] = kernels::regionEnd(cache.lane[i], o, glm::vec3(ix[i], iy[i], iz[i]), f, te[i],
                                   invStep, st[i], kk[i]);
@@ -516,10 +569,12 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
   const auto laneX = hn::And(lane, hn::Set(di, kW - 1)), laneY = hn::ShiftRight<kRowShift>(lane);
   return forEachBlock(job, [&](int x0, int y0, int x1, int y1, std::uint64_t& samples) {
     // This thread's hold on the pages while it renders the block (page_cache.hpp).
-    std::optional<PageCache::Reader> reader;
+    std::optional<PageCache::Reader> reader, coarse;
     if constexpr (kPaged<View>)
       if (job.pages) reader.emplace(*job.pages);
-    const ReaderScope scope(reader ? &*reader : nullptr);
+    if constexpr (kLevels<View>)
+      if (job.coarsePages) coarse.emplace(*job.coarsePages);
+    const ReaderScope scope(reader ? &*reader : nullptr, coarse ? &*coarse : nullptr);
     HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
     HWY_ALIGN std::int32_t n[L::kLanes];
     for (int y = y0; y < y1; y += kH)

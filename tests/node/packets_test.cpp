@@ -423,7 +423,10 @@ TEST(Packets, LodUnderPressureSamplesCoarserLevelsThenSharpens) {
           EXPECT_GT(stats.pageCoarse, 0u) << label;
           EXPECT_GT(stats.pageDecoded, 0u) << label << ": decoded after the frame";
           EXPECT_GT(stats.pageEvictions, 0u) << label << ": the left half's pages";
-          test::expectImagesNear(full, image, 255, 20.0, label + ", first frame under pressure");
+          // Level 1 is twice as coarse for ksvd, four times for svmm (its blocks of 4).
+          test::expectImagesNear(full, image, 255, c.name == "ksvd" ? 20.0 : 12.0,
+                                 label + ", first frame under pressure");
+          EXPECT_GT(cpuDecodeCacheUse(*backend).coarseBytes, 0u) << label << ": level 1's pages";
         }
         if (stats.pageCoarse == 0) break;
       }

@@ -145,7 +145,17 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   std::uint64_t pages = o.backend == "cpu" && o.simd == "on"
                             ? node::cpuDecodeCacheNeed(*s.volume, decodeCacheBytes(o))
                             : 0;
-  if (o.dryRun && pages > 0) pages = std::min(pages, firstFramePageBytes(s, comm));
+  // Under pressure, level 1's pages come on top once the budget is full (a dry run: once the
+  // first frame's pages are over it).
+  const std::uint64_t coarse = pages > 0 && s.render.lodUnderPressure
+                                   ? node::cpuCoarsePageNeed(*s.volume, decodeCacheBytes(o))
+                                   : 0;
+  if (o.dryRun && pages > 0) {
+    const std::uint64_t first = firstFramePageBytes(s, comm);
+    pages = std::min(pages, first) + (first > pages ? coarse : 0);
+  } else {
+    pages += coarse;
+  }
   s.pageBytes = pages;
   // Loading may have peaked higher than the job will run (a codec holds the file's bytes and the
   // volume it builds from them at once): this rank's measured peak so far counts too.
@@ -239,8 +249,9 @@ void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup
       std::any_of(ranks.pages.begin(), ranks.pages.end(), [](std::uint64_t p) { return p > 0; }))
     std::printf(
         "decoded pages: those each rank's rays reach in the first frame (rendered at a "
-        "quarter of its size to count them), at most --decode-cache %s\n",
-        o.decodeCache.c_str());
+        "quarter of its size to count them), at most --decode-cache %s%s\n",
+        o.decodeCache.c_str(),
+        s.render.lodUnderPressure ? ", and level 1's where they are more (a quarter of it)" : "");
   for (int r = 0; r < comm.size(); ++r) {
     const std::string list = rectList(rects[std::size_t(r)]);
     const std::uint64_t pages = ranks.pages[std::size_t(r)];

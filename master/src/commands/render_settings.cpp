@@ -447,10 +447,11 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                "smaller than the pixel's footprint");
   cmd.add_flag("--lod-under-pressure", o.lodUnderPressure,
                "Volumes with mip levels (svmm, ksvd), CPU backend with decoded pages: when "
-               "--decode-cache is full, a sample whose page is not resident reads the next "
-               "coarser level instead of evicting a page mid-frame; those pages are decoded after "
-               "the frame (a quarter of the cache at most), so later frames sharpen. render -v "
-               "counts the samples taken from coarser levels");
+               "--decode-cache is full, a sample whose page is not resident reads level 1 (from "
+               "pages of its own, in a quarter of --decode-cache more) instead of evicting a page "
+               "mid-frame; those pages are decoded after the frame (a quarter of the cache at "
+               "most), so later frames sharpen. render -v counts the samples taken from coarser "
+               "levels");
   // Each codec's render flags, each flag once (help texts joined when codecs share one).
   std::map<std::string, CLI::Option*> codecFlags;
   for (const codec::Codec* c : codec::codecs())

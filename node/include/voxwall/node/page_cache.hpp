@@ -30,11 +30,12 @@
 // own, used for that step only: the picture never depends on the budget.
 //
 // Under pressure (the renderer's --lod-under-pressure, for the views with coarser levels: svmm,
-// ksvd), a lane whose page is not resident and finds no slot free without evicting samples the
-// view's next coarser level for this step instead (per ray, through the view: an eighth of the
-// voxels to decode) and marks the page wanted; refill() decodes the wanted pages after the tile,
+// ksvd), a lane whose page is not resident and finds no slot free without evicting samples level
+// 1 for this step instead (from a second PageCache over that level, which the backend makes with
+// a quarter of the budget: an eighth of the voxels per page of the volume for ksvd, a 64th for
+// svmm's blocks of 4) and marks the page wanted; refill() decodes the wanted pages after the tile,
 // evicting by CLOCK, at most a quarter of the pool per call, so that later frames find them. No
-// page is evicted while a frame renders in this mode.
+// page of the full-resolution pool is evicted while a frame renders in this mode.
 //
 // This is the decoded-brick cache of the GPU renderers behind the codecs (Gobbetti, Iglesias
 // Guitian and Marton, "COVRA: a compression-domain output-sensitive volume rendering

@@ -28,8 +28,9 @@ struct RenderSettings {
   bool nearest = false;
   bool levelOfDetail = false;
   // Views with coarser levels (svmm, ksvd) on the CPU backend's decoded pages: a sample whose page
-  // is not resident and would need an eviction reads the next coarser level instead; the pages
-  // are decoded after the tile (node/page_cache.hpp).
+  // is not resident and would need an eviction reads level 1 instead, from pages of its own (a
+  // quarter of the decode budget more); the pages are decoded after the tile
+  // (node/page_cache.hpp).
   bool lodUnderPressure = false;
   int coarseCellFactor = 4;  // coarse skip cells are this many fine (codec range) cells per side
   double earlyTerminationOpacity = 0.995;
@@ -115,11 +116,15 @@ std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
 struct DecodeCacheUse {
   std::uint64_t bytes = 0, allPagesBytes = 0, capacityBytes = 0, pageBytes = 0;
   std::uint64_t hits = 0, missed = 0, misses = 0, scratch = 0, evictions = 0, coarse = 0;
+  std::uint64_t coarseBytes = 0;  // resident in the pages of level 1 (--lod-under-pressure)
 };
 DecodeCacheUse cpuDecodeCacheUse(const Backend& backend);
 // The most a CPU backend with packets holds in decoded pages for `volume` with this budget: every
 // page of the volume, capped by the budget (0 for raw volumes, which need none).
 std::uint64_t cpuDecodeCacheNeed(const RenderVolume& volume, std::uint64_t decodeCacheBytes);
+// What --lod-under-pressure adds: level 1's pages (svmm, ksvd with levels), up to a quarter of the
+// budget (0 for other volumes).
+std::uint64_t cpuCoarsePageNeed(const RenderVolume& volume, std::uint64_t decodeCacheBytes);
 // Rays per packet of the CPU backend on this CPU (1: none of the build's SIMD targets runs here).
 std::size_t cpuPacketLanes();
 // The SIMD targets the build compiled the packets for that this CPU runs, best first, by
