@@ -237,6 +237,16 @@ class PageCache {
 
   template <class Level>
   void decode(std::int32_t page, const Level& level, std::int32_t slot) const;
+  // Decodes `page` into `slot` (taken for it, its entry kFilling) and publishes it; returns its
+  // pool offset.
+  template <class Level>
+  std::int32_t decodeInto(std::int32_t page, const Level& level, std::int32_t slot) {
+    decode(page, level, slot);
+    const std::int32_t offset = slot * kVoxels;
+    entry_[std::size_t(page)].store(offset, std::memory_order_release);
+    filled(slot, page);
+    return offset;
+  }
 
   std::type_index type_;
   std::uint64_t id_;
@@ -345,12 +355,8 @@ std::int32_t PageCache::Reader::fill(std::int32_t page, const Level& level, int 
       scratchStep_[k] = step_;
       return at * kVoxels;
     }
-    c.decode(page, level, slot);
     ++counts_.misses;
-    const std::int32_t offset = slot * kVoxels;
-    entry.store(offset, std::memory_order_release);
-    c.filled(slot, page);
-    return offset;
+    return c.decodeInto(page, level, slot);
   }
 }
 
@@ -373,12 +379,8 @@ std::int32_t PageCache::Reader::fillIfRoom(std::int32_t page, const Level& level
       wanted_.push_back(page);
       return -1;
     }
-    c.decode(page, level, slot);
     ++counts_.misses;
-    const std::int32_t offset = slot * kVoxels;
-    entry.store(offset, std::memory_order_release);
-    c.filled(slot, page);
-    return offset;
+    return c.decodeInto(page, level, slot);
   }
 }
 
@@ -404,12 +406,8 @@ std::size_t PageCache::refill(const Level& level, int threads) {
     }
     jobs.emplace_back(page, slot);
   }
-  voxwall::parallelFor(jobs.size(), threads, [&](std::size_t i) {
-    const auto [page, slot] = jobs[i];
-    decode(page, level, slot);
-    entry_[std::size_t(page)].store(slot * kVoxels, std::memory_order_release);
-    filled(slot, page);
-  });
+  voxwall::parallelFor(jobs.size(), threads,
+                       [&](std::size_t i) { decodeInto(jobs[i].first, level, jobs[i].second); });
   std::lock_guard lock(mutex_);
   totals_.misses += jobs.size();
   return jobs.size();
