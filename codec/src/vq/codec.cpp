@@ -18,6 +18,8 @@
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/parallel.hpp>
 
+#include "book.hpp"
+
 namespace voxwall::codec::vq {
 
 // The bit depth for data of this type and range (8, 12 or 16).
@@ -75,11 +77,6 @@ struct BrickHash {
   }
 };
 
-void plainCodeword(const Brick& b, int bits, std::vector<std::uint8_t>& out) {
-  BitWriter w(out);
-  for (int i = 0; i < kN; ++i) w.put(b[i], bits);
-}
-
 // The RBUC body of brick values u (relative to min) for transformation t: c2 header, c1s, c0s.
 void rbucBody(const Brick& u, std::int32_t range, int t, std::vector<std::uint8_t>& out) {
   std::uint32_t c0[kN];
@@ -111,104 +108,6 @@ void rbucBody(const Brick& u, std::int32_t range, int t, std::vector<std::uint8_
   }
 }
 
-// Brick (bx, by) of a row from `window`, the row's 4 slices (x fastest), minus `bias`.
-template <class T>
-void gatherBrick(glm::ivec3 dims, const T* window, int bias, int bx, int by, Brick& out) {
-  int i = 0;
-  for (int z = 0; z < 4; ++z)
-    for (int y = 0; y < 4; ++y) {
-      const int vy = std::min(by * 4 + y, dims.y - 1);
-      const T* line =
-          window + (std::size_t(z) * std::size_t(dims.y) + std::size_t(vy)) * std::size_t(dims.x);
-      for (int x = 0; x < 4; ++x)
-        out[i++] = std::uint16_t(int(line[std::min(bx * 4 + x, dims.x - 1)]) - bias);
-    }
-}
-
-// The distinct bricks seen so far, each once, in the order first seen: a byte a voxel where the
-// data has at most 8 bits (64 bytes a brick instead of 128), in chunks that never move (no copy
-// of the whole store as it grows), found through an open-addressing table of their indices (4
-// bytes a slot, at most half full). On noisy data, where nearly every brick is unique, this is
-// the input's size plus a tenth, which bounds a lossless compress's peak.
-class UniqueBricks {
- public:
-  explicit UniqueBricks(int bits) : width_(bits > 8 ? 2 : 1) {}
-  std::size_t size() const { return count_; }
-
-  // The index of brick b, added at the end where it is new (`added`).
-  std::uint32_t insert(const Brick& b, bool& added) {
-    std::uint8_t packed[kN * 2];
-    pack(b, packed);
-    const std::size_t bytes = std::size_t(kN) * width_;
-    if (2 * (count_ + 1) > table_.size()) grow();
-    const std::size_t mask = table_.size() - 1;
-    for (std::size_t at = XXH3_64bits(packed, bytes) & mask;; at = (at + 1) & mask) {
-      const std::uint32_t entry = table_[at];
-      if (entry == 0) {
-        if (count_ >= std::numeric_limits<std::uint32_t>::max() - 1)
-          throw std::length_error("vq codec: more than 2^32 - 2 distinct bricks");
-        if (count_ % kChunk == 0)
-          chunks_.push_back(std::make_unique<std::uint8_t[]>(kChunk * bytes));
-        std::memcpy(at_(count_), packed, bytes);
-        table_[at] = std::uint32_t(++count_);
-        added = true;
-        return std::uint32_t(count_ - 1);
-      }
-      if (std::memcmp(at_(entry - 1), packed, bytes) == 0) {
-        added = false;
-        return entry - 1;
-      }
-    }
-  }
-  Brick operator[](std::size_t i) const {
-    Brick b;
-    const std::uint8_t* p = at_(i);
-    for (int d = 0; d < kN; ++d)
-      b[d] = width_ == 1 ? p[d] : std::uint16_t(p[2 * d] | (p[2 * d + 1] << 8));
-    return b;
-  }
-  // Done adding: the table goes.
-  void seal() { std::vector<std::uint32_t>().swap(table_); }
-  std::vector<Brick> all() const {
-    std::vector<Brick> out(count_);
-    for (std::size_t i = 0; i < count_; ++i) out[i] = (*this)[i];
-    return out;
-  }
-  void clear() {
-    seal();
-    chunks_.clear();
-    count_ = 0;
-  }
-
- private:
-  static constexpr std::size_t kChunk = 1 << 16;  // bricks per chunk
-  void pack(const Brick& b, std::uint8_t* out) const {
-    for (int d = 0; d < kN; ++d)
-      if (width_ == 1) {
-        out[d] = std::uint8_t(b[d]);
-      } else {
-        out[2 * d] = std::uint8_t(b[d]), out[2 * d + 1] = std::uint8_t(b[d] >> 8);
-      }
-  }
-  std::uint8_t* at_(std::size_t i) const {
-    return chunks_[i / kChunk].get() + (i % kChunk) * std::size_t(kN) * width_;
-  }
-  void grow() {
-    std::vector<std::uint32_t> table(std::max<std::size_t>(1024, table_.size() * 2), 0);
-    const std::size_t mask = table.size() - 1, bytes = std::size_t(kN) * width_;
-    for (std::size_t i = 0; i < count_; ++i) {
-      std::size_t at = XXH3_64bits(at_(i), bytes) & mask;
-      while (table[at] != 0) at = (at + 1) & mask;
-      table[at] = std::uint32_t(i + 1);
-    }
-    table_.swap(table);
-  }
-  std::size_t width_;
-  std::vector<std::unique_ptr<std::uint8_t[]>> chunks_;
-  std::vector<std::uint32_t> table_;  // 0: empty, else index + 1
-  std::size_t count_ = 0;
-};
-
 // Estimated bytes of a compressed codeword, from a sample of the bricks.
 double meanCodewordBytes(const UniqueBricks& bricks, int bits) {
   const std::size_t step = std::max<std::size_t>(1, bricks.size() / 4096);
@@ -224,6 +123,11 @@ double meanCodewordBytes(const UniqueBricks& bricks, int bits) {
 }
 
 }  // namespace
+
+void plainCodeword(const Brick& b, int bits, std::vector<std::uint8_t>& out) {
+  BitWriter w(out);
+  for (int i = 0; i < kN; ++i) w.put(b[i], bits);
+}
 
 int bitsFor(std::uint64_t maxValue) { return std::max(1, int(std::bit_width(maxValue))); }
 
@@ -315,66 +219,94 @@ std::size_t codewordLength(const std::uint8_t* p, std::size_t available, int bit
   return n <= available ? n : fail("truncated values");
 }
 
-CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
-                        EncodeStats* statsOut) {
-  return encode(*memorySource(volume), params, progress, statsOut);
+namespace {
+
+// The unique bricks of a volume in order of first appearance (a row of bricks at a time, in
+// brick order, so the same whatever the threads), each brick's index among them and how many
+// bricks each stands for.
+struct Uniques {
+  explicit Uniques(int bits) : bricks(bits) {}
+  UniqueBricks bricks;
+  std::vector<std::uint32_t> brickToUnique, weight;
+};
+Uniques findUniqueBricks(const VolumeSource& volume, int bits, int bias, int threads,
+                         Progress& progress) {
+  const glm::ivec3 bricks = (volume.dims + 3) / 4;
+  const std::size_t rowBricks = std::size_t(bricks.x) * std::size_t(bricks.y);
+  Uniques u(bits);
+  u.brickToUnique.resize(rowBricks * std::size_t(bricks.z));
+  std::vector<Brick> row;
+  std::vector<std::byte> window;
+  progress.begin("bricking", u.brickToUnique.size());
+  for (int bz = 0; bz < bricks.z; ++bz) {
+    gatherRow(volume, bz, bias, threads, window, row);
+    for (std::size_t j = 0; j < rowBricks; ++j) {
+      bool added = false;
+      const std::uint32_t i = u.bricks.insert(row[j], added);
+      if (added) u.weight.push_back(0);
+      u.brickToUnique[std::size_t(bz) * rowBricks + j] = i;
+      ++u.weight[i];
+    }
+    progress.advance(rowBricks);
+  }
+  progress.end();
+  u.bricks.seal();
+  return u;
 }
 
-CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
-                        EncodeStats* statsOut) {
-  const auto [lowest, highest] = volume.dataRange();
-  const int bits = bitDepth(volume.type, lowest, highest);
-  if (params.reduction < 1 || params.reduction > 1 << 20)
-    throw std::invalid_argument("vq codec: --reduction must be 1 (lossless) to 1048576, not " +
-                                std::to_string(params.reduction));
-  if (params.targetBitsPerVoxel < 0 || !std::isfinite(params.targetBitsPerVoxel))
-    throw std::invalid_argument("vq codec: --bits-per-voxel must be positive");
-  const int bias = volume.type == ScalarType::Int16 ? int(lowest) : 0;
+// Codes codewords 0 .. m-1 (codeword(i): a Brick), a chunk of 1024 per task into one buffer each
+// (a buffer per codeword would cost more than the codewords), joined in order; `done()` is
+// called once every codeword is coded, before the join (the caller frees its bricks).
+template <class Codeword, class Done>
+CodedBook codeBook(std::size_t m, const Codeword& codeword, int bits, bool compressed, int threads,
+                   Progress& progress, EncodeStats& stats, const Done& done) {
+  CodedBook book;
+  book.address.resize(m);
+  progress.begin("coding codebook", m);
+  const std::size_t chunks = (m + 1023) / 1024;
+  std::vector<std::vector<std::uint8_t>> coded(chunks);
+  std::vector<std::uint8_t> length(m);  // a codeword is at most maxCodewordBytes(16) = 133
+  std::vector<std::int16_t> used(m, -1);
+  parallelFor(chunks, threads, [&](std::size_t chunk) {
+    const std::size_t end = std::min<std::size_t>(m, (chunk + 1) * 1024);
+    for (std::size_t i = chunk * 1024; i < end; ++i) {
+      const std::size_t before = coded[chunk].size();
+      if (compressed)
+        used[i] = std::int16_t(encodeCodeword(codeword(i), bits, coded[chunk]));
+      else
+        plainCodeword(codeword(i), bits, coded[chunk]);
+      length[i] = std::uint8_t(coded[chunk].size() - before);
+    }
+    progress.advance(end - chunk * 1024);
+  });
+  done();
+  for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+    std::uint64_t at = book.bytes.size();
+    for (std::size_t i = chunk * 1024; i < std::min<std::size_t>(m, (chunk + 1) * 1024); ++i) {
+      book.address[i] = at, at += length[i];
+      if (used[i] == kernels::kVqEscape)
+        ++stats.escapes;
+      else if (used[i] >= 0)
+        ++stats.transformUse[used[i]];
+    }
+    book.bytes.append(coded[chunk].data(), coded[chunk].size());
+    std::vector<std::uint8_t>().swap(coded[chunk]);
+  }
+  progress.end();
+  return book;
+}
+
+// The codebook of a reduced file (--reduction, or --bits-per-voxel, which may also find the
+// lossless codebook small enough): the unique bricks, reduced by k-means (section 4), coded.
+CodedBook reducedBook(const VolumeSource& volume, int bits, int bias, const Params& params,
+                      Progress& progress, EncodeStats& stats, int& reduction) {
   const glm::ivec3 bricks = (volume.dims + 3) / 4;
   const std::size_t brickCount =
       std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
-  EncodeStats stats;
-  stats.bricks = brickCount;
-
-  // ---- bricks and the lossless codebook (section 3) ----
-  // A row of bricks (4 slices) at a time: gathered in parallel, then added to the unique bricks
-  // in brick order, so the codebook is the same whatever the threads.
-  std::vector<std::uint32_t> brickToUnique(brickCount);
-  UniqueBricks unique(bits);
-  std::vector<std::uint32_t> weight;
-  progress.begin("bricking", brickCount);
-  {
-    const std::size_t rowBricks = std::size_t(bricks.x) * std::size_t(bricks.y);
-    std::vector<Brick> row(rowBricks);
-    std::vector<std::byte> window(4 * volume.sliceBytes());
-    for (int bz = 0; bz < bricks.z; ++bz) {
-      volume.readSlices(bz * 4, 4, window);
-      dispatchScalar(volume.type, [&](auto t) {
-        using T = decltype(t);
-        if constexpr (std::is_integral_v<T>) {
-          const T* src = reinterpret_cast<const T*>(window.data());
-          parallelFor(std::size_t(bricks.y), params.threads, [&](std::size_t by) {
-            for (int bx = 0; bx < bricks.x; ++bx)
-              gatherBrick<T>(volume.dims, src, bias, bx, int(by),
-                             row[by * std::size_t(bricks.x) + std::size_t(bx)]);
-          });
-        }
-      });
-      for (std::size_t j = 0; j < rowBricks; ++j) {
-        bool added = false;
-        const std::uint32_t u = unique.insert(row[j], added);
-        if (added) weight.push_back(0);
-        brickToUnique[std::size_t(bz) * rowBricks + j] = u;
-        ++weight[u];
-      }
-      progress.advance(rowBricks);
-    }
-  }
-  progress.end();
-  unique.seal();
+  Uniques u = findUniqueBricks(volume, bits, bias, params.threads, progress);
+  UniqueBricks& unique = u.bricks;
   const std::size_t uniqueCount = unique.size();
   stats.uniqueBricks = uniqueCount;
-
   // ---- data reduction (section 4) ----
   // The codebook: the unique bricks themselves (lossless) or the rounded k-means centres.
   std::vector<Brick> codebook;
@@ -389,7 +321,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
     }
     const auto start = std::chrono::steady_clock::now();
     const KMeansResult r =
-        kmeans(points, weight, k, params.maxIterations, params.threads, progress);
+        kmeans(points, u.weight, k, params.maxIterations, params.threads, progress);
     stats.kmeansSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     stats.iterations = r.iterations;
@@ -412,15 +344,14 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
     }
     brickToCodeword.resize(brickCount);
     for (std::size_t i = 0; i < brickCount; ++i)
-      brickToCodeword[i] = centerToCodeword[r.assignment[brickToUnique[i]]];
+      brickToCodeword[i] = centerToCodeword[r.assignment[u.brickToUnique[i]]];
   };
   auto keepLossless = [&] {
     codebook.clear();
     uniqueCodebook = true;
-    brickToCodeword = std::move(brickToUnique);
-    std::vector<std::uint32_t>().swap(weight);  // only k-means weighs the bricks
+    brickToCodeword = std::move(u.brickToUnique);
+    std::vector<std::uint32_t>().swap(u.weight);  // only k-means weighs the bricks
   };
-  int reduction = params.reduction;
   if (params.targetBitsPerVoxel > 0) {
     // Choose k from a size model (offset volume + mean codeword size), run k-means, and shrink
     // k while the result is still above the target.
@@ -461,84 +392,80 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   }
   std::vector<Point>().swap(points);
   if (!uniqueCodebook) unique.clear();
-  const std::uint64_t m = uniqueCodebook ? unique.size() : codebook.size();
-  auto codeword = [&](std::size_t i) { return uniqueCodebook ? unique[i] : codebook[i]; };
+  const std::size_t m = uniqueCodebook ? unique.size() : codebook.size();
+  CodedBook book = codeBook(
+      m, [&](std::size_t i) { return uniqueCodebook ? unique[i] : codebook[i]; }, bits,
+      params.compressedCodebook, params.threads, progress, stats,
+      [&] {
+        // The bricks are coded: free them before joining.
+        std::vector<Brick>().swap(codebook);
+        unique.clear();
+      });
+  book.brickToCodeword = std::move(brickToCodeword);
+  return book;
+}
+
+}  // namespace
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* statsOut) {
+  return encode(*memorySource(volume), params, progress, statsOut);
+}
+
+CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
+                        EncodeStats* statsOut) {
+  const auto [lowest, highest] = volume.dataRange();
+  const int bits = bitDepth(volume.type, lowest, highest);
+  if (params.reduction < 1 || params.reduction > 1 << 20)
+    throw std::invalid_argument("vq codec: --reduction must be 1 (lossless) to 1048576, not " +
+                                std::to_string(params.reduction));
+  if (params.targetBitsPerVoxel < 0 || !std::isfinite(params.targetBitsPerVoxel))
+    throw std::invalid_argument("vq codec: --bits-per-voxel must be positive");
+  const int bias = volume.type == ScalarType::Int16 ? int(lowest) : 0;
+  const glm::ivec3 bricks = (volume.dims + 3) / 4;
+  const std::size_t brickCount =
+      std::size_t(bricks.x) * std::size_t(bricks.y) * std::size_t(bricks.z);
+  EncodeStats stats;
+  stats.bricks = brickCount;
+
+  // ---- the codebook (sections 3 and 4) ----
+  // A lossless file codes each row of bricks and deduplicates the codes: no brick is held beyond
+  // its row (book.hpp). Reducing needs the bricks themselves (reducedBook).
+  CodedBook book;
+  int reduction = params.reduction;
+  if (params.reduction == 1 && params.targetBitsPerVoxel == 0)
+    book = losslessBook(volume, bits, bias, params.compressedCodebook, params.threads, progress,
+                        stats);
+  else
+    book = reducedBook(volume, bits, bias, params, progress, stats, reduction);
+  const std::uint64_t m = book.address.size();
   stats.codewords = m;
   stats.reduction = reduction;
+  const std::uint64_t codebookBytes = book.bytes.size();
 
-  // ---- codebook (section 3.1) and offset volume (section 3.2) ----
-  std::vector<std::uint8_t> codebookBytes;
-  std::vector<std::uint64_t> address(m, 0);
-  progress.begin("coding codebook", m);
-  if (params.compressedCodebook) {
-    // Coded a chunk of 1024 codewords per task into one buffer each (a buffer per codeword
-    // would cost more than the codewords), then joined in order.
-    const std::size_t chunks = (m + 1023) / 1024;
-    std::vector<std::vector<std::uint8_t>> coded(chunks);
-    std::vector<std::uint8_t> length(m);  // a codeword is at most maxCodewordBytes(16) = 133
-    std::vector<std::int16_t> used(m);
-    parallelFor(chunks, params.threads, [&](std::size_t chunk) {
-      const std::size_t end = std::min<std::size_t>(m, (chunk + 1) * 1024);
-      for (std::size_t i = chunk * 1024; i < end; ++i) {
-        const std::size_t before = coded[chunk].size();
-        used[i] = std::int16_t(encodeCodeword(codeword(i), bits, coded[chunk]));
-        length[i] = std::uint8_t(coded[chunk].size() - before);
-      }
-      progress.advance(end - chunk * 1024);
-    });
-    // The bricks are coded: free them before joining, into one allocation of the whole size.
-    std::vector<Brick>().swap(codebook);
-    unique.clear();
-    std::size_t total = 0;
-    for (const auto& c : coded) total += c.size();
-    codebookBytes.reserve(total);
-    for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
-      std::size_t at = codebookBytes.size();
-      for (std::size_t i = chunk * 1024; i < std::min<std::size_t>(m, (chunk + 1) * 1024); ++i) {
-        address[i] = at, at += length[i];
-        if (used[i] == kernels::kVqEscape)
-          ++stats.escapes;
-        else if (used[i] >= 0)
-          ++stats.transformUse[used[i]];
-      }
-      codebookBytes.insert(codebookBytes.end(), coded[chunk].begin(), coded[chunk].end());
-      std::vector<std::uint8_t>().swap(coded[chunk]);
-    }
-  } else {
-    for (std::size_t i = 0; i < m; ++i) {
-      address[i] = codebookBytes.size();
-      plainCodeword(codeword(i), bits, codebookBytes);
-    }
-    progress.advance(m);
-  }
-  progress.end();
-  // The codewords are coded: only their count is needed from here on.
-  std::vector<Brick>().swap(codebook);
-  unique.clear();
-
-  const bool indirect =
-      params.compressedCodebook && chooseIndirect(brickCount, m, codebookBytes.size());
+  const bool indirect = params.compressedCodebook && chooseIndirect(brickCount, m, codebookBytes);
   const int indexBits = bitsFor(m - 1);
-  const int addressBits = bitsFor(codebookBytes.empty() ? 0 : codebookBytes.size() - 1);
+  const int addressBits = bitsFor(codebookBytes == 0 ? 0 : codebookBytes - 1);
   const int offsetBits = params.compressedCodebook && !indirect ? addressBits : indexBits;
   const std::size_t offsetBytes = packedBytes(brickCount, offsetBits);
   const std::size_t tableBytes = indirect ? packedBytes(m, addressBits) : 0;
   const std::size_t indexTableAt = align64(offsetBytes + kPad);
   const std::size_t codebookAt =
       indirect ? align64(indexTableAt + tableBytes + kPad) : indexTableAt;
-  std::vector<std::byte> data(align64(codebookAt + codebookBytes.size() + kPad), std::byte{0});
+  std::vector<std::byte> data(align64(codebookAt + std::size_t(codebookBytes) + kPad),
+                              std::byte{0});
   const bool byAddress = params.compressedCodebook && !indirect;
   packInto(data, 0, brickCount, offsetBits, [&](std::size_t i) -> std::uint64_t {
-    return byAddress ? address[brickToCodeword[i]] : brickToCodeword[i];
+    return byAddress ? book.address[book.brickToCodeword[i]] : book.brickToCodeword[i];
   });
   if (indirect)
-    packInto(data, indexTableAt, address.size(), addressBits,
-             [&](std::size_t i) { return address[i]; });
-  if (!codebookBytes.empty())
-    std::memcpy(data.data() + codebookAt, codebookBytes.data(), codebookBytes.size());
+    packInto(data, indexTableAt, book.address.size(), addressBits,
+             [&](std::size_t i) { return book.address[i]; });
+  book.bytes.copyTo(data.data() + codebookAt);
+  book = {};
   stats.indirect = indirect;
   stats.offsetVolumeBytes = offsetBytes, stats.indexTableBytes = tableBytes;
-  stats.codebookBytes = codebookBytes.size();
+  stats.codebookBytes = codebookBytes;
 
   CompressedVolume out;
   out.info = volumeInfo(volume.headerVolume(), CodecId::Vq);
@@ -555,7 +482,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
     w.put<std::uint64_t>(m);
     w.put<std::uint64_t>(indexTableAt);
     w.put<std::uint64_t>(codebookAt);
-    w.put<std::uint64_t>(codebookBytes.size());
+    w.put<std::uint64_t>(codebookBytes);
     w.put<double>(psnr);
     return bytes;
   };
