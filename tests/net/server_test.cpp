@@ -97,8 +97,9 @@ class RunningServer {
   std::thread thread_;
 };
 
+// Waits up to 10 s for `done` (a deadline, not a timing assertion).
 bool eventually(const std::function<bool()>& done) {
-  for (int i = 0; i < 500; ++i) {
+  for (int i = 0; i < 1000; ++i) {
     if (done()) return true;
     std::this_thread::sleep_for(10ms);
   }

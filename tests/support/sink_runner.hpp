@@ -58,6 +58,14 @@ class SinkRunner {
     }
     return done(sink_.stats());
   }
+  // Waits up to 10 s until the log holds `text`.
+  bool waitForLog(const std::string& text) {
+    for (int i = 0; i < 1000; ++i) {
+      if (log().find(text) != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return log().find(text) != std::string::npos;
+  }
 
  private:
   walls::Sink sink_;

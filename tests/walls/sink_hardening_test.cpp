@@ -64,7 +64,8 @@ int rawConnect(std::uint16_t port) {
   return fd;
 }
 
-// Whether the sink closed the connection within `ms`.
+// Whether the sink closed the connection within `ms` (a deadline, not a timing assertion: what
+// closes the connection is told apart by the sink's log).
 bool closedWithin(int fd, int ms) {
   for (int waited = 0; waited < ms; waited += 10) {
     pollfd p{fd, POLLIN, 0};
@@ -116,7 +117,7 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   first->send(net::encodeMessage(net::Bye{"done"}));
   first.reset();
   std::unique_ptr<net::Connection> second;
-  for (int i = 0; i < 100 && !second; ++i) {
+  for (int i = 0; i < 1000 && !second; ++i) {
     try {
       second = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
     } catch (const net::SinkRefused&) {
@@ -131,11 +132,15 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   EXPECT_NE(sink.log().find("job 000000000000006f ended; job 00000000000000de took the wall"),
             std::string::npos)
       << sink.log();
-  // The old job cannot take the wall back.
+  // The old job cannot take the wall back, even once the new one has left.
   second.reset();
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  EXPECT_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000),
-               net::SinkRefused);
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.renderersConnected == 0; }));
+  try {
+    net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
+    FAIL() << "the ended job took the wall back";
+  } catch (const net::SinkRefused& e) {
+    EXPECT_NE(std::string(e.what()).find("has ended"), std::string::npos) << e.what();
+  }
 }
 
 // Defect 2: one complete tile with frame id 2^64 - 1 made the sink discard every later frame.
@@ -157,7 +162,7 @@ TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
       << sink.log();
   // Rank 0 hears of it too.
   std::vector<std::string> notes;
-  for (int i = 0; i < 200 && notes.empty(); ++i) {
+  for (int i = 0; i < 1000 && notes.empty(); ++i) {
     notes = control.drainNotes();
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
@@ -187,12 +192,11 @@ TEST(SinkHardening, KeepsAcceptingAfterRunningOutOfFileDescriptors) {
   std::vector<int> flood;
   for (int i = 0; i < 20; ++i)
     if (const int fd = rawConnect(sink.port()); fd >= 0) flood.push_back(fd);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const bool failed = sink.waitForLog("cannot accept a peer");
   ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &old), 0);
-  EXPECT_NE(sink.log().find("cannot accept a peer"), std::string::npos) << sink.log();
-  // Once the flood is dropped (no Hello) and released, a real peer still gets in: the accept
-  // loop went on after the error (it used to end there for good).
-  std::this_thread::sleep_for(std::chrono::milliseconds(1800));
+  EXPECT_TRUE(failed) << sink.log();
+  // Once the flood is released, a real peer still gets in: the accept loop went on after the
+  // error (it used to end there for good).
   for (const int fd : flood) ::close(fd);
   auto good = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 3000);
   good->send(net::encodeMessage(2, wholeScreen()));
@@ -208,12 +212,13 @@ TEST(SinkHardening, DropsPeersThatSayNoHelloAndCapsConnections) {
   const int a = rawConnect(sink.port()), b = rawConnect(sink.port());
   ASSERT_GE(a, 0);
   ASSERT_GE(b, 0);
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  const int c = rawConnect(sink.port());  // the third is over --max-peers
+  const int c = rawConnect(sink.port());  // the third is over --max-peers (accepted in order)
   ASSERT_GE(c, 0);
-  EXPECT_TRUE(closedWithin(c, 150));
-  EXPECT_TRUE(closedWithin(a, 2000));  // no Hello within 200 ms
-  EXPECT_TRUE(closedWithin(b, 2000));
+  // One is refused for the cap, two are dropped for saying no Hello within 200 ms: the log says
+  // which happened.
+  EXPECT_TRUE(closedWithin(c, 10000));
+  EXPECT_TRUE(closedWithin(a, 10000));
+  EXPECT_TRUE(closedWithin(b, 10000));
   for (const int fd : {a, b, c}) ::close(fd);
   EXPECT_NE(sink.log().find("sent no Hello within 200 ms"), std::string::npos) << sink.log();
   EXPECT_NE(sink.log().find("peers connected (--max-peers)"), std::string::npos) << sink.log();

@@ -291,7 +291,7 @@ TEST(Sink, ForwardsCameraCommandsToTheController) {
   sink.sink().sendControl(walls::parseControlLine("rotate 30 -5"));
   sink.sink().sendControl(walls::parseControlLine("zoom 1.5"));
   std::vector<net::Control> got;
-  for (int i = 0; i < 200 && got.size() < 2; ++i) {
+  for (int i = 0; i < 1000 && got.size() < 2; ++i) {
     auto more = channel.drain();
     got.insert(got.end(), more.begin(), more.end());
     std::this_thread::sleep_for(std::chrono::milliseconds(10));

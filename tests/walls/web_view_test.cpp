@@ -104,8 +104,8 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
     EXPECT_TRUE(v.closedByServer());
     EXPECT_EQ(v.closeReason(), "wrong token");
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_TRUE(control.drain().empty());
+  // Nothing of the refused viewers reached rank 0: the one command that arrives below is the
+  // authenticated viewer's (they were closed before it connected).
   Viewer v(port);
   v.read();
   v.send("auth s3cret");
@@ -139,11 +139,13 @@ TEST(WebView, CommandsBeyondTheRateAreDroppedAndTheViewerIsTold) {
     told = m.find("too many commands") != std::string::npos;
   }
   EXPECT_TRUE(told);
+  // The burst arrives (within 10 s: a deadline, not a timing assertion); the rest was dropped.
   std::size_t got = 0;
-  for (int i = 0; i < 100; ++i) {
+  for (int i = 0; i < 1000 && got < 120; ++i) {
     got += control.drain().size();
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (got < 120) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
+  got += control.drain().size();
   EXPECT_GE(got, 120u);
   EXPECT_LT(got, std::size_t(kSent));
 }
@@ -158,11 +160,18 @@ TEST(WebView, IdleConnectionsAreBoundedAndCutOff) {
     idle.push_back(std::make_unique<tcp::socket>(io));
     idle.back()->connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_EQ(get(port, "/").first, 0);  // closed unanswered: no place left
+  // Once the server has taken all 256, a request is closed unanswered: no place left. (Waits
+  // for it with a deadline: until then a request may still find a place.)
+  auto eventually = [&](int status) {
+    for (int i = 0; i < 1000; ++i) {
+      if (get(port, "/").first == status) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  };
+  EXPECT_TRUE(eventually(0));
   idle.clear();
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_EQ(get(port, "/").first, 200);
+  EXPECT_TRUE(eventually(200));  // the places come back as the idle connections close
 }
 
 TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
