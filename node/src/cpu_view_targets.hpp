@@ -67,15 +67,17 @@ struct HwyLanes {
     // Lanes whose page was not resident under pressure (PageCache::Reader::fillIfRoom): this step
     // they sample level 1, from its pages (`lower`) where the backend has them, else through the
     // view with a footprint that selects it (their own kept here).
-    M coarse = hn::FirstN(D(), 0);
+    // (No vector op in these initialisers: they may run outside the target's code.)
+    M coarse;                      // set in every step before it is read
+    std::uint64_t raisedBits = 0;  // lanes whose footprint was raised for the last step
     float footprint[kLanes] = {};
     // Level 1's pages, under pressure (views with levels): the same state as above for them.
     struct Lower {
       PageCache::Reader* reader = currentCoarseReader;
       F c[8];
       I pageAt;
-      M paged = hn::FirstN(D(), 0);
-      M coarse = hn::FirstN(D(), 0);
+      M paged;  // set in every step before it is read, as coarse
+      M coarse;
       std::int32_t lastPage1[kLanes] = {};
     } lower;
   };
@@ -421,8 +423,11 @@ struct HwyLanes {
         constexpr bool levels = requires { View::kTraversal; };
         // Last step's coarse lanes take their own footprint back.
         if constexpr (kLevels<View>)
-          forLanes(cache.coarse,
-                   [&](std::size_t i) { cache.lane[i].footprint = cache.footprint[i]; });
+          for (std::uint64_t b = cache.raisedBits; b; b &= b - 1) {
+            const std::size_t i = std::size_t(std::countr_zero(b));
+            cache.lane[i].footprint = cache.footprint[i];
+          }
+        cache.raisedBits = 0;
         cache.coarse = hn::FirstN(D(), 0);
         // (No page offset of level 1 is held between steps either.)
         if (cache.lower.reader) cache.lower.reader->quiesce();
@@ -442,11 +447,13 @@ struct HwyLanes {
           }
           // Lanes under pressure without those pages sample (and shade, and skip regions of)
           // level 1 through the view for this step: the footprint of its voxels.
-          if constexpr (kLevels<View>)
+          if constexpr (kLevels<View>) {
             forLanes(cache.coarse, [&](std::size_t i) {
               cache.footprint[i] = cache.lane[i].footprint;
               cache.lane[i].footprint = std::max(cache.lane[i].footprint, coarseScale(view));
             });
+            cache.raisedBits = bits(cache.coarse);
+          }
           m = butNot(m, cache.paged);  // the rest decode through the view's caches
           if (!any(m)) return value;
           hn::Store(value, D(), out);
@@ -535,7 +542,7 @@ struct HwyLanes {
     HWY_ALIGN float v[kLanes];
     hn::Store(footprint, D(), v);
     forLanes(m, [&](std::size_t i) { cache.lane[i].footprint = v[i]; });
-    cache.coarse = butNot(cache.coarse, m);  // their own footprint is set anew
+    cache.raisedBits &= ~bits(m);  // their own footprint is set anew
   }
   template <class View>
   static HWY_INLINE I regionEnd(const Caches<View>& cache, const glm::vec3& o,
