@@ -8,6 +8,8 @@
 #include <vector>
 #include <voxwall/walls/sink.hpp>
 
+#include "wait_until.hpp"
+
 namespace voxwall::test {
 
 // Two 20x10 displays side by side with a 4-pixel gap: a 44x10 virtual screen.
@@ -52,19 +54,11 @@ class SinkRunner {
   // Waits up to 10 s until `done(stats)` holds.
   template <typename F>
   bool waitFor(F done) {
-    for (int i = 0; i < 1000; ++i) {
-      if (done(sink_.stats())) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return done(sink_.stats());
+    return waitUntil([&] { return done(sink_.stats()); });
   }
   // Waits up to 10 s until the log holds `text`.
   bool waitForLog(const std::string& text) {
-    for (int i = 0; i < 1000; ++i) {
-      if (log().find(text) != std::string::npos) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return log().find(text) != std::string::npos;
+    return waitUntil([&] { return log().find(text) != std::string::npos; });
   }
 
  private:

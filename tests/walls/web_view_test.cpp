@@ -141,10 +141,10 @@ TEST(WebView, CommandsBeyondTheRateAreDroppedAndTheViewerIsTold) {
   EXPECT_TRUE(told);
   // The burst arrives (within 10 s: a deadline, not a timing assertion); the rest was dropped.
   std::size_t got = 0;
-  for (int i = 0; i < 1000 && got < 120; ++i) {
+  test::waitUntil([&] {
     got += control.drain().size();
-    if (got < 120) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
+    return got >= 120;
+  });
   got += control.drain().size();
   EXPECT_GE(got, 120u);
   EXPECT_LT(got, std::size_t(kSent));
@@ -163,11 +163,7 @@ TEST(WebView, IdleConnectionsAreBoundedAndCutOff) {
   // Once the server has taken all 256, a request is closed unanswered: no place left. (Waits
   // for it with a deadline: until then a request may still find a place.)
   auto eventually = [&](int status) {
-    for (int i = 0; i < 1000; ++i) {
-      if (get(port, "/").first == status) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return false;
+    return test::waitUntil([&] { return get(port, "/").first == status; });
   };
   EXPECT_TRUE(eventually(0));
   idle.clear();
