@@ -136,6 +136,30 @@ TEST(VqCodec, EqualBricksAreStoredOnce) {
   EXPECT_EQ(stats.uniqueBricks, 2u);
 }
 
+// A lossless file deduplicates the coded bricks row by row (no brick held); a size target that
+// the lossless codebook already meets deduplicates the bricks themselves. Both must write the
+// same file, byte for byte, for 8- and 16-bit data and both codebook forms.
+TEST(VqCodec, DeduplicatingCodesGivesTheFileDeduplicatingBricksGives) {
+  voxwall::Progress quiet;
+  const Volume sl = generateSheppLogan(45);
+  const Volume wide = mixed<std::uint16_t>({40, 36, 30}, 0, 65535, 4);
+  for (const Volume* v : {&sl, &wide})
+    for (bool compressed : {true, false}) {
+      vq::Params coded;
+      coded.compressedCodebook = compressed;
+      vq::Params bricks = coded;
+      bricks.targetBitsPerVoxel = 64;  // above any lossless file: kept lossless
+      vq::EncodeStats a, b;
+      const CompressedVolume byCodes = vq::encode(*v, coded, quiet, &a);
+      const CompressedVolume byBricks = vq::encode(*v, bricks, quiet, &b);
+      EXPECT_EQ(a.uniqueBricks, b.uniqueBricks);
+      ASSERT_EQ(byCodes.sections.size(), byBricks.sections.size());
+      for (std::size_t i = 0; i < byCodes.sections.size(); ++i)
+        EXPECT_EQ(byCodes.sections[i].second, byBricks.sections[i].second)
+            << "section " << i << (compressed ? " compressed" : " plain");
+    }
+}
+
 TEST(VqCodec, StatsAccountForEveryCodewordAndByte) {
   const Volume v = mixed<std::uint16_t>({40, 36, 30}, 0, 65535, 4);
   Progress quiet;
