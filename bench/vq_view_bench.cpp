@@ -113,7 +113,7 @@ double frameMs(const node::RenderVolume& v, int w, int h, int frames, int thread
 
 std::string describe(const node::RenderVolume& v, const std::string& path) {
   const auto file = codec::ContainerFile::open(path);
-  if (v.info().codec != codec::CodecId::Vq) {
+  if (v.info().codec != codec::vq::VqCodecEntry::kId) {
     const std::string name = path.substr(path.find_last_of('/') + 1);
     return std::string(codec::codecName(v.info().codec)) + " " + name;
   }

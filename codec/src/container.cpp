@@ -69,28 +69,6 @@ VolumeInfo volumeInfo(const Volume& volume, CodecId codec) {
   return info;
 }
 
-std::string_view codecName(CodecId id) {
-  switch (id) {
-    case CodecId::Raw:
-      return "raw";
-    case CodecId::Svmm:
-      return "svmm";
-    case CodecId::Vq:
-      return "vq";
-    case CodecId::SparseCoding:
-      return "ksvd";
-    case CodecId::Tvq:
-      return "tvq";
-  }
-  return "unknown";
-}
-
-CodecId parseCodecName(std::string_view name) {
-  for (auto id : {CodecId::Raw, CodecId::Svmm, CodecId::Vq, CodecId::SparseCoding, CodecId::Tvq})
-    if (codecName(id) == name) return id;
-  throw std::invalid_argument("unknown codec '" + std::string(name) + "'");
-}
-
 std::span<const std::byte> SectionSet::get(std::uint32_t id, const char* name) const {
   auto it = sections.find(id);
   if (it == sections.end())
@@ -264,7 +242,7 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
 
   VolumeInfo& info = file.info_;
   const auto codec = r.get<std::uint32_t>();
-  if (codec < 1 || codec > 5) fail("unknown codec id " + std::to_string(codec));
+  if (codec == 0) fail("codec id 0 (no codec has it)");
   info.codec = CodecId(codec);
   const auto type = r.get<std::uint32_t>();
   if (type < 1 || type > 4) fail("unknown scalar type " + std::to_string(type));

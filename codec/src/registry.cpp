@@ -78,21 +78,19 @@ std::string codecNames() {
 const Codec& codecNamed(std::string_view name) {
   for (const Codec* c : codecs())
     if (c->name() == name) return *c;
-  bool known = true;  // a file-format id this build does not carry yet
-  try {
-    (void)parseCodecName(name);
-  } catch (const std::invalid_argument&) {
-    known = false;
-  }
-  throw std::invalid_argument((known ? "codec '" + std::string(name) + "' is not implemented"
-                                     : "unknown codec '" + std::string(name) + "'") +
-                              " (this build has: " + codecNames() + ")");
+  throw std::invalid_argument("unknown codec '" + std::string(name) +
+                              "' (this build has: " + codecNames() + ")");
+}
+
+std::string codecName(CodecId id) {
+  if (const Codec* c = findCodec(id)) return std::string(c->name());
+  return "id " + std::to_string(std::uint32_t(id));
 }
 
 const Codec& codecOf(const VolumeInfo& info, const std::string& source) {
   if (const Codec* c = findCodec(info.codec)) return *c;
-  throw FormatError(source, "codec '" + std::string(codecName(info.codec)) +
-                                "' is not in this build (it has: " + codecNames() + ")");
+  throw FormatError(source, "unknown codec id " + std::to_string(std::uint32_t(info.codec)) +
+                                " (this build has: " + codecNames() + ")");
 }
 
 }  // namespace voxwall::codec

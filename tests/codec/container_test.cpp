@@ -49,7 +49,7 @@ TEST(Container, RoundTripsHeaderAndSections) {
   const auto file = ContainerFile::parse(bytes, "mem");
   EXPECT_EQ(file.info().dims, c.info.dims);
   EXPECT_EQ(file.info().type, ScalarType::UInt16);
-  EXPECT_EQ(file.info().codec, CodecId::Raw);
+  EXPECT_EQ(file.info().codec, raw::RawCodecEntry::kId);
   EXPECT_EQ(file.info().valueMax, c.info.valueMax);
   ASSERT_EQ(file.sections().sections.size(), c.sections.size());
   for (auto& [id, data] : c.sections) {

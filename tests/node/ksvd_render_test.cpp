@@ -32,7 +32,7 @@ TEST(KsvdRender, Float32RendersLikeItsDecodedVolumeForEveryBlockSide) {
     const std::string path = dir.path(name);
     codec::writeContainer(codec::ksvd::encode(v, p, quiet), path);
     const auto file = RenderVolume::open(path);
-    EXPECT_EQ(file.info().codec, codec::CodecId::SparseCoding);
+    EXPECT_EQ(file.info().codec, codec::ksvd::KsvdCodecEntry::kId);
     const auto container = codec::ContainerFile::open(path);
     const codec::Volume decoded = codec::ksvd::decode(container.info(), container.sections());
     const auto reference = RenderVolume::fromVolume(decoded);

@@ -86,7 +86,7 @@ TEST(SvmmRender, LosslessRendersLikeRaw) {
     };
     for (const Shape& sh : {Shape{4, 8, false}, Shape{8, 8, false}, Shape{0, 4, true}}) {
       const auto svmm = svmmFile(dir, v, sh.w, sh.r, 100, sh.stepped);
-      EXPECT_EQ(svmm.info().codec, codec::CodecId::Svmm);
+      EXPECT_EQ(svmm.info().codec, codec::svmm::SvmmCodecEntry::kId);
       for (bool shading : {false, true}) {
         char label[64];
         std::snprintf(label, sizeof label, "%s w=%d%s",

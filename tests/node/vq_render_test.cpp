@@ -41,7 +41,7 @@ TEST(VqRender, LosslessRendersLikeRaw) {
       codec::vq::Params p;
       p.compressedCodebook = compressed;
       const auto vq = vqFile(dir, v, p, "v.vwz");
-      EXPECT_EQ(vq.info().codec, codec::CodecId::Vq);
+      EXPECT_EQ(vq.info().codec, codec::vq::VqCodecEntry::kId);
       for (bool shading : {false, true}) {
         const Image reference = test::renderOrbit(raw, 72, 56, tf, shading);
         test::expectImagesNear(

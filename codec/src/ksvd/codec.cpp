@@ -376,7 +376,7 @@ CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progres
   // The sections.
   const std::uint64_t pairCount = result.pairCount;
   CompressedVolume out;
-  out.info = volumeInfo(volume, CodecId::SparseCoding);
+  out.info = volumeInfo(volume, KsvdCodecEntry::kId);
   auto writeParams = [&](double psnr) {
     std::vector<std::byte> bytes;
     ByteWriter w(bytes);

@@ -55,7 +55,8 @@ std::string encodeReport(const EncodeStats& s, const Volume& v) {
 
 class KsvdCodec final : public Codec {
  public:
-  CodecId id() const override { return CodecId::SparseCoding; }
+  CodecId id() const override { return KsvdCodecEntry::kId; }
+  std::string_view name() const override { return KsvdCodecEntry::kName; }
 
   std::string_view summary() const override {
     return "blocks as sparse combinations of a K-SVD dictionary learned on a coreset (Gobbetti "

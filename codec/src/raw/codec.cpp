@@ -35,7 +35,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   const std::size_t scalar = scalarBytes(volume.type);
 
   CompressedVolume out;
-  out.info = volumeInfo(volume.headerVolume(), CodecId::Raw);
+  out.info = volumeInfo(volume.headerVolume(), RawCodecEntry::kId);
 
   std::vector<std::byte> paramBytes;
   ByteWriter pw(paramBytes);

@@ -36,7 +36,8 @@ class RawCodec final : public Codec {
   }
 
  public:
-  CodecId id() const override { return CodecId::Raw; }
+  CodecId id() const override { return RawCodecEntry::kId; }
+  std::string_view name() const override { return RawCodecEntry::kName; }
 
   std::string_view summary() const override {
     return "bricked, uncompressed (every scalar type; the reference the lossy codecs are measured "

@@ -398,7 +398,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   in.read = volume.type == ScalarType::UInt8    ? &readBiased<std::uint8_t, 0>
             : volume.type == ScalarType::UInt16 ? &readBiased<std::uint16_t, 0>
                                                 : &readBiased<std::int16_t, kInt16Bias>;
-  const VolumeInfo info = volumeInfo(volume, CodecId::Svmm);
+  const VolumeInfo info = volumeInfo(volume, SvmmCodecEntry::kId);
   // PSNR from the stored tree's leaves against the volume, leaf by leaf (no decoded copy).
   return encodeInput(std::move(in), info, params, progress, stats, [&](const CompressedVolume& cv) {
     const Layout layout(cv.info, cv.view());
@@ -437,7 +437,7 @@ CompressedVolume encodeRgba(const RgbaVolume& volume, const Params& params, Prog
   in.peak = 255;
   in.values = volume.rgba;
   VolumeInfo info;
-  info.codec = CodecId::Svmm;
+  info.codec = SvmmCodecEntry::kId;
   info.type = ScalarType::UInt8;
   info.dims = volume.dims;
   info.spacing = volume.spacing;

@@ -81,7 +81,8 @@ namespace {
 
 class SvmmCodec final : public Codec {
  public:
-  CodecId id() const override { return CodecId::Svmm; }
+  CodecId id() const override { return SvmmCodecEntry::kId; }
+  std::string_view name() const override { return SvmmCodecEntry::kName; }
 
   std::string_view summary() const override {
     return "sparse voxel mip-map (Faas): blocks within --quality of their mean dropped, lossless "

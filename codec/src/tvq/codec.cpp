@@ -467,7 +467,7 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
 
   // 5. The sections.
   CompressedVolume cv;
-  cv.info = volumeInfo(volume.headerVolume(), CodecId::Tvq);
+  cv.info = volumeInfo(volume.headerVolume(), TvqCodecEntry::kId);
   std::vector<std::byte> params1, basisBytes, subBytes, bookBytes, occBytes, recBytes;
   {
     ByteWriter w(params1);

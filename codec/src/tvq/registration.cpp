@@ -60,7 +60,8 @@ std::string encodeReport(const EncodeStats& s, const Volume& v, const Params& p)
 
 class TvqCodec final : public Codec {
  public:
-  CodecId id() const override { return CodecId::Tvq; }
+  CodecId id() const override { return TvqCodecEntry::kId; }
+  std::string_view name() const override { return TvqCodecEntry::kName; }
 
   std::string_view summary() const override {
     return "transform vector quantization of 4^3 blocks (Fout & Ma): KLT or DCT, classified "

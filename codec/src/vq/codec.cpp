@@ -468,7 +468,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   stats.codebookBytes = codebookBytes;
 
   CompressedVolume out;
-  out.info = volumeInfo(volume.headerVolume(), CodecId::Vq);
+  out.info = volumeInfo(volume.headerVolume(), VqCodecEntry::kId);
   auto writeParams = [&](double psnr) {
     std::vector<std::byte> bytes;
     ByteWriter w(bytes);

@@ -56,7 +56,8 @@ namespace {
 
 class VqCodec final : public Codec {
  public:
-  CodecId id() const override { return CodecId::Vq; }
+  CodecId id() const override { return VqCodecEntry::kId; }
+  std::string_view name() const override { return VqCodecEntry::kName; }
 
   std::string_view summary() const override {
     return "4^3 bricks deduplicated into a codebook (Guthe & Goesele), lossless unless --reduction "

@@ -31,19 +31,21 @@ void runInfo(const InfoOptions& o) {
     std::printf("file        %s\n", o.input.c_str());
     std::printf("container   .vwz version %u, %zu sections, checksums ok\n",
                 codec::kContainerVersion, file.sections().sections.size());
-    std::printf("codec       %s\n", std::string(codec::codecName(info.codec)).c_str());
+    const codec::Codec* c = codec::findCodec(info.codec);
+    if (c)
+      std::printf("codec       %s\n", std::string(c->name()).c_str());
+    else  // a file of a later voxwall: what the container says is still worth showing
+      std::printf("codec       id %u, not in this build (it has: %s)\n", unsigned(info.codec),
+                  codec::codecNames().c_str());
     printVolumeLines(info.dims, info.type, info.spacing, info.valueMin, info.valueMax);
     std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
                 (unsigned long long)file.fileBytes());
     std::printf("bits/voxel  %.3f\n", 8.0 * double(file.fileBytes()) / double(info.voxelCount()));
     std::printf("ratio       %.3f : 1 (uncompressed %s)\n", rawBytes / double(file.fileBytes()),
                 humanBytes(rawBytes).c_str());
-    if (const codec::Codec* c = codec::findCodec(info.codec))
+    if (c)
       for (const auto& [label, text] : c->describe(info, file.sections()))
         std::printf("%-12s%s\n", label.c_str(), text.c_str());
-    else
-      std::printf("sections    not readable by this build (it has: %s)\n",
-                  codec::codecNames().c_str());
     return;
   }
   codec::Volume v = loadVolume(o.input, o.raw.layout());

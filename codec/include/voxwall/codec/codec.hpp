@@ -68,8 +68,10 @@ struct ViewList {};
 class Codec {
  public:
   virtual ~Codec() = default;
+  // The id files of this codec store and its name on the command line: the codec's registry
+  // entry's `kId` and `kName`.
   virtual CodecId id() const = 0;
-  std::string_view name() const { return codecName(id()); }
+  virtual std::string_view name() const = 0;
   // One sentence for `compress --help` and `voxwall codecs`: what it does, which data it takes.
   virtual std::string_view summary() const = 0;
   virtual std::vector<CodecOption> options() const { return {}; }
@@ -118,9 +120,11 @@ const std::vector<const Codec*>& codecs();
 const Codec* findCodec(CodecId id);
 // The codec with this name; throws std::invalid_argument naming the ones there are.
 const Codec& codecNamed(std::string_view name);
-// The codec of a container's volume; throws FormatError("<source>: codec 'x' ...") when this
-// build does not carry it.
+// The codec of a container's volume; throws FormatError("<source>: unknown codec id N ...") when
+// this build does not carry it.
 const Codec& codecOf(const VolumeInfo& info, const std::string& source);
+// The name of the codec with this id, or "id N" when this build does not carry it.
+std::string codecName(CodecId id);
 // "raw, vq, svmm"
 std::string codecNames();
 

@@ -36,14 +36,14 @@ inline constexpr std::uint32_t kContainerVersion = 1;
 inline constexpr std::uint32_t kMaxSections = 64;
 inline constexpr std::size_t kSectionAlignment = 64;
 
-// Codec ids stored in files: never reuse a value.
-enum class CodecId : std::uint32_t { Raw = 1, Svmm = 2, Vq = 3, SparseCoding = 4, Tvq = 5 };
-std::string_view codecName(CodecId id);
-CodecId parseCodecName(std::string_view name);  // throws std::invalid_argument
+// The codec id a file stores (header offset 16). Each codec owns its value and name
+// (`kId`, `kName` in its registry entry, NAME_codec.hpp); the container knows none of them and
+// accepts any id but 0: registry.hpp's `codecOf` says when this build does not carry the codec.
+enum class CodecId : std::uint32_t {};
 
 // What the fixed header says about the volume.
 struct VolumeInfo {
-  CodecId codec = CodecId::Raw;
+  CodecId codec{1};
   ScalarType type = ScalarType::UInt8;
   glm::ivec3 dims{0, 0, 0};
   glm::dvec3 spacing{1, 1, 1};

@@ -20,7 +20,7 @@
 // [min, max]; integer types round to the nearest integer of the type. Any scalar type is
 // accepted (uint8, uint16, int16, float32).
 //
-// Sections (ids within CodecId::SparseCoding), little-endian:
+// Sections (ids within the codec's own, KsvdCodecEntry::kId), little-endian:
 //   1 params:
 //       u32 M (4, 6, 8)        u32 N (blocks per brick side, 1..8)
 //       u32 K (atoms, 2..2^16) u32 S (pairs per block at most, 1..min(M^3, 255))
@@ -220,6 +220,8 @@ class Layout {
 
 // The codec's registry entry (registry.hpp).
 struct KsvdCodecEntry {
+  static constexpr CodecId kId{4};  // stored in files: never reused
+  static constexpr std::string_view kName = "ksvd";
   using Views = ViewList<kernels::KsvdView4, kernels::KsvdView6, kernels::KsvdView8>;
   static const Codec& instance();
 };

@@ -2,7 +2,7 @@
 // It is the reference every lossy codec is compared with, and what `render` uses for plain
 // volume files.
 //
-// Sections (ids within CodecId::Raw):
+// Sections (ids within the codec's own, RawCodecEntry::kId):
 //   1 params  u32 brickShift (brick = 2^brickShift voxels per side, 2..6),
 //             u32 rangeShift (range cell = 2^rangeShift voxels per side, 1..6)
 //   2 ranges  per range cell, cells x fastest: lo, hi in the volume's scalar type, over the cell
@@ -67,6 +67,8 @@ Volume decode(const VolumeInfo& info, const SectionSet& sections);
 // The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
 // object (src/raw/registration.cpp).
 struct RawCodecEntry {
+  static constexpr CodecId kId{1};  // stored in files: never reused
+  static constexpr std::string_view kName = "raw";
   using Views = ViewList<kernels::RawView<std::uint8_t>, kernels::RawView<std::uint16_t>,
                          kernels::RawView<std::int16_t>, kernels::RawView<float>>;
   static const Codec& instance();

@@ -28,6 +28,14 @@ template <class... A, class... B, class... Rest>
 struct ConcatViews<ViewList<A...>, ViewList<B...>, Rest...>
     : ConcatViews<ViewList<A..., B...>, Rest...> {};
 
+template <class T, std::size_t N>
+constexpr bool distinct(const T (&values)[N]) {
+  for (std::size_t i = 0; i < N; ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (values[i] == values[j]) return false;
+  return true;
+}
+
 template <class... V>
 constexpr bool hasTraversalView(ViewList<V...>) {
   return (requires { V::kTraversal; } || ...);
@@ -36,6 +44,9 @@ constexpr bool hasTraversalView(ViewList<V...>) {
 
 template <class... Codecs>
 struct CodecList {
+  static_assert(detail::distinct({std::uint32_t(Codecs::kId)...}),
+                "two registered codecs have the same id (kId)");
+  static_assert(detail::distinct({Codecs::kName...}), "two registered codecs have the same name");
   // Whether codec `id` has a view that traverses mip levels (kTraversal: --lod, nearest).
   static bool hasMipLevels(CodecId id) {
     return ((Codecs::instance().id() == id && detail::hasTraversalView(typename Codecs::Views{})) ||

@@ -162,6 +162,8 @@ double psnrRgba(const RgbaVolume& a, const RgbaVolume& b);
 // The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
 // object (src/svmm/registration.cpp).
 struct SvmmCodecEntry {
+  static constexpr CodecId kId{2};  // stored in files: never reused
+  static constexpr std::string_view kName = "svmm";
   using Views = ViewList<kernels::SvmmView>;
   static const Codec& instance();
 };

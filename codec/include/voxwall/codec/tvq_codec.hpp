@@ -16,7 +16,7 @@
 // A ZERO-class block whose quantized mean is its sub-volume's most common one is not stored at
 // all: an occupancy bit says so (the MRI's empty space costs 1.5 bits per block).
 //
-// Sections (ids within CodecId::Tvq), little-endian:
+// Sections (ids within the codec's own, TvqCodecEntry::kId), little-endian:
 //   1 params (88 bytes):
 //       u32 transform (1 KLT, 2 DCT)   u32 S (sub-volume side in blocks, 1..256)
 //       u32 dcBits (1..16)             u32 classified (1: the ten classes; 0: every coded block
@@ -219,6 +219,8 @@ class Layout {
 
 // The codec's registry entry (registry.hpp).
 struct TvqCodecEntry {
+  static constexpr CodecId kId{5};  // stored in files: never reused
+  static constexpr std::string_view kName = "tvq";
   using Views = ViewList<kernels::TvqView>;
   static const Codec& instance();
 };

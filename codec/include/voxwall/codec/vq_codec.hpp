@@ -10,7 +10,7 @@
 // uint16 and int16 data are 12-bit when their value range spans fewer than 4096 values, else
 // 16-bit; int16 data is shifted by `bias` (its minimum) to be non-negative. float32 is refused.
 //
-// Sections (ids within CodecId::Vq):
+// Sections (ids within the codec's own, VqCodecEntry::kId):
 //   1 params (little-endian):
 //       u32 bits (8, 12, 16)          i32 bias (added to every decoded value)
 //       u32 flags: bit 0 compressed codebook, bit 1 indirect mapping
@@ -154,6 +154,8 @@ Volume decode(const VolumeInfo& info, const SectionSet& sections);
 // The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
 // object (src/vq/registration.cpp).
 struct VqCodecEntry {
+  static constexpr CodecId kId{3};  // stored in files: never reused
+  static constexpr std::string_view kName = "vq";
   using Views = ViewList<kernels::VqView>;
   static const Codec& instance();
 };
