@@ -8,11 +8,6 @@
 
 #include "cpu_blocks.hpp"
 
-// node/CMakeLists.txt compiles one translation unit per view type (cpu_view.cpp.in).
-static_assert(std::variant_size_v<voxwall::node::ViewVariant> == VOXWALL_VIEW_COUNT,
-              "a view type was added or removed: set VOXWALL_VIEW_COUNT in node/CMakeLists.txt "
-              "to the number of view types of codec::AnyView");
-
 namespace voxwall::node {
 namespace {
 

@@ -1,9 +1,9 @@
 // The CPU backend's per-tile work, split by view type: cpu_backend.cpp dispatches on the volume's
-// view, and each view's raycaster is compiled in a translation unit of its own (CMake writes one
-// per view from cpu_view.cpp.in), so a build spreads the heaviest code over all its cores
-// instead of compiling every view's instantiation in one file. Each of those units compiles the
-// packet raycaster once per SIMD instruction set (cpu_view_targets.hpp) and picks the best the
-// CPU has when it runs.
+// view, and the views' raycasters are compiled in several translation units (CMake writes them
+// from cpu_view.cpp.in; view_units.hpp says which unit compiles which view), so a build spreads
+// the heaviest code over all its cores instead of compiling every view's instantiation in one
+// file. Each of those units compiles the packet raycaster once per SIMD instruction set
+// (cpu_view_targets.hpp) and picks the best the CPU has when it runs.
 #pragma once
 
 #include <cstdint>
@@ -14,70 +14,42 @@
 #include <voxwall/node/page_cache.hpp>
 #include <voxwall/node/renderer.hpp>
 
+#include "view_units.hpp"
+
 namespace voxwall::node::cpu {
 
 inline constexpr int kBlockPixels = 16;
 
-// Views whose full-resolution voxels the packets sample from the backend's decoded pages
-// (node/page_cache.hpp) when it has some: the brick views (vq, tvq), ksvd's level 0 and svmm.
-template <class V>
-inline constexpr bool kKsvd = false;
-template <int S>
-inline constexpr bool kKsvd<codec::kernels::KsvdView<S>> = true;
+// The level of `view` whose full-resolution voxels the packets sample from the backend's decoded
+// pages: the view itself, or what its pagedLevel() names (ksvd's level 0).
+template <class View>
+decltype(auto) pagedLevel(const View& view) {
+  if constexpr (requires { view.pagedLevel(); })
+    return view.pagedLevel();
+  else
+    return (view);
+}
+// Views with such a level (PageableLevel, page_cache.hpp): the brick views (vq, tvq), ksvd, svmm.
 template <class V>
 inline constexpr bool kPaged =
-    kKsvd<V> || codec::kernels::BrickView<V> || std::is_same_v<V, codec::kernels::SvmmView>;
-template <class View>
-auto& pagedLevel(View& view) {
-  if constexpr (kKsvd<std::remove_const_t<View>>)
-    return view.level[0];
-  else
-    return view;
-}
+    PageableLevel<std::remove_cvref_t<decltype(pagedLevel(std::declval<const V&>()))>>;
 
-// Views with coarser levels (ksvd, svmm): under pressure (RenderSettings::lodUnderPressure) the
-// lanes whose full-resolution page is not resident sample level 1 from pages of its own.
+// Views with coarser levels the pages can hold too (ksvd, svmm): under pressure
+// (RenderSettings::lodUnderPressure) the lanes whose full-resolution page is not resident sample
+// level 1 (coarsePages(), each voxel coarseScale() voxels of level 0 a side) from pages of its
+// own. Call them only where view.levels > 1.
 template <class V>
-inline constexpr bool kLevels = kKsvd<V> || std::is_same_v<V, codec::kernels::SvmmView>;
-
-// svmm's level `T` as PageCache takes a level: its grid's size and voxels (looked up through the
-// mip-map, as the view's own samples at that level read them).
-struct SvmmLevelPages {
-  const codec::kernels::SvmmView* view = nullptr;
-  int T = 1;
-  int dimX = 1, dimY = 1, dimZ = 1;
-  float maxX = 0, maxY = 0, maxZ = 0;
-  std::uint64_t cacheId = 0;
-  using RayCache = codec::kernels::SvmmView::RayCache;
-  float voxel(int x, int y, int z, RayCache& rc) const {
-    int stop;
-    return view->scalar(view->lookup(x, y, z, T, rc, stop));
-  }
+inline constexpr bool kLevels = kPaged<V>&& requires(const V& v) {
+  requires PageableLevel<std::remove_cvref_t<decltype(v.coarsePages())>>;
+  { v.coarseScale() } -> std::convertible_to<float>;
 };
-
-// Level 1 of a view with levels (call only where view.levels > 1), and how many full-resolution
-// voxels one of its voxels spans per side.
 template <class View>
 decltype(auto) coarseLevel(const View& view) {
-  if constexpr (kKsvd<View>) {
-    return (view.level[1]);
-  } else {
-    SvmmLevelPages l;
-    l.view = &view;
-    const int sh = view.level[1].shift;
-    l.dimX = ((view.dimX - 1) >> sh) + 1, l.dimY = ((view.dimY - 1) >> sh) + 1;
-    l.dimZ = ((view.dimZ - 1) >> sh) + 1;
-    l.maxX = float(l.dimX - 1), l.maxY = float(l.dimY - 1), l.maxZ = float(l.dimZ - 1);
-    l.cacheId = view.cacheId;
-    return l;
-  }
+  return view.coarsePages();
 }
 template <class View>
 float coarseScale(const View& view) {
-  if constexpr (kKsvd<View>)
-    return 2.0f;
-  else
-    return float(1 << view.level[1].shift);
+  return view.coarseScale();
 }
 
 // One tile's blocks of kBlockPixels x kBlockPixels, rendered by `threads` threads.
@@ -112,10 +84,17 @@ struct ReaderScope {
   PageCache::Reader *previous, *previousCoarse;
 };
 
-// Renders every block of `job` from `view`; returns the samples taken. Defined in
-// cpu_view_targets.hpp, instantiated once per view type.
+// Renders every block of `job` from `*view`, the view of index `viewIndex` in ViewVariant, one of
+// the views unit `Unit` compiles (view_units.hpp); returns the samples taken. Defined in
+// cpu_view_targets.hpp, instantiated once per unit.
+template <std::size_t Unit>
+std::uint64_t renderUnitBlocks(std::size_t viewIndex, const void* view, const TileJob& job);
+
+// Renders every block of `job` from `view`; returns the samples taken.
 template <class View>
-std::uint64_t renderBlocks(const View& view, const TileJob& job);
+std::uint64_t renderBlocks(const View& view, const TileJob& job) {
+  return renderUnitBlocks<kViewUnit<View>>(kViewIndex<View>, &view, job);
+}
 
 // The rays per packet on this CPU (1: no SIMD instruction set the build has), and its name.
 std::size_t packetLanes();

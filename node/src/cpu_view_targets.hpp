@@ -1,4 +1,5 @@
-// The CPU raycaster of one view type (VOXWALL_VIEW_INDEX), once per SIMD target: Highway's
+// The CPU raycaster of the view types of one unit (VOXWALL_VIEW_UNIT, view_units.hpp), once per
+// SIMD target: Highway's
 // foreach_target.h includes this file again for each instruction set the build targets
 // (HWY_TARGETS, set in node/CMakeLists.txt), and HWY_DYNAMIC_DISPATCH calls the best one the CPU
 // running it supports. No include guard, by design.
@@ -605,8 +606,7 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
 }
 #endif  // VOXWALL_PACKETS
 
-using View = std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>;
-
+template <class View>
 std::uint64_t renderViewBlocks(const View& view, const TileJob& job) {
 #if VOXWALL_PACKETS
   if (job.packets) return renderPacketBlocks(view, job);
@@ -614,7 +614,17 @@ std::uint64_t renderViewBlocks(const View& view, const TileJob& job) {
   return renderScalarBlocks(view, job);
 }
 
-#if VOXWALL_VIEW_INDEX == 0
+// The views of this unit, by their index in ViewVariant (static: every unit has one).
+static std::uint64_t renderUnitViews(std::size_t viewIndex, const void* view, const TileJob& job) {
+  std::uint64_t samples = 0;
+  forEachViewOfUnit<VOXWALL_VIEW_UNIT>([&](auto index) {
+    using View = std::variant_alternative_t<decltype(index)::value, ViewVariant>;
+    if (viewIndex == index) samples = renderViewBlocks(*static_cast<const View*>(view), job);
+  });
+  return samples;
+}
+
+#if VOXWALL_VIEW_UNIT == 0
 std::size_t targetLanes() {
 #if VOXWALL_PACKETS
   return HwyLanes::kLanes;
@@ -633,25 +643,22 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace voxwall::node::cpu {
 
-HWY_EXPORT(renderViewBlocks);
+HWY_EXPORT(renderUnitViews);
 
 // What cpu_backend.cpp calls (cpu_blocks.hpp): the best target's raycaster.
-std::uint64_t dispatchBlocks(
-    const std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>& view, const TileJob& job) {
-  return HWY_DYNAMIC_DISPATCH(renderViewBlocks)(view, job);
+template <std::size_t Unit>
+std::uint64_t renderUnitBlocks(std::size_t viewIndex, const void* view, const TileJob& job) {
+  static_assert(Unit == VOXWALL_VIEW_UNIT);
+  return HWY_DYNAMIC_DISPATCH(renderUnitViews)(viewIndex, view, job);
 }
-template <class View>
-std::uint64_t renderBlocks(const View& view, const TileJob& job) {
-  return dispatchBlocks(view, job);
-}
-template std::uint64_t renderBlocks(
-    const std::variant_alternative_t<VOXWALL_VIEW_INDEX, ViewVariant>& view, const TileJob& job);
+template std::uint64_t renderUnitBlocks<VOXWALL_VIEW_UNIT>(std::size_t, const void*,
+                                                           const TileJob&);
 
 }  // namespace voxwall::node::cpu
 
-// The targets, once for the process (in view 0's file; not in cpu_backend.cpp, because Highway's
+// The targets, once for the process (in unit 0's file; not in cpu_backend.cpp, because Highway's
 // headers need this file's HWY_DISABLED_TARGETS).
-#if VOXWALL_VIEW_INDEX == 0
+#if VOXWALL_VIEW_UNIT == 0
 namespace voxwall::node {
 namespace cpu {
 
@@ -687,5 +694,5 @@ void restrictCpuPacketTarget(const std::string& name) {
 }
 
 }  // namespace voxwall::node
-#endif  // VOXWALL_VIEW_INDEX == 0
+#endif  // VOXWALL_VIEW_UNIT == 0
 #endif  // HWY_ONCE

@@ -15,8 +15,6 @@
 #include "cuda_launch.hpp"
 
 // node/CMakeLists.txt compiles one unit per view type (cuda_view.cu.in), as for the CPU.
-static_assert(std::variant_size_v<voxwall::node::ViewVariant> == VOXWALL_VIEW_COUNT,
-              "set VOXWALL_VIEW_COUNT in node/CMakeLists.txt to the number of view types");
 
 #define VOXWALL_CUDA_CHECK(call) ::voxwall::node::cudaCheck((call), #call, __FILE__, __LINE__)
 

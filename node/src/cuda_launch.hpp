@@ -1,7 +1,8 @@
 // The CUDA backend's kernel launch, split by view type like the CPU backend's blocks
-// (cpu_blocks.hpp): cuda_backend.cu dispatches on the volume's device view, and each view's
-// kernel is compiled by nvcc in a translation unit of its own (CMake writes one per view from
-// cuda_view.cu.in), so the build spreads nvcc's work, the longest of the build, over all cores.
+// (cpu_blocks.hpp): cuda_backend.cu dispatches on the volume's device view, and the views'
+// kernels are compiled by nvcc in several translation units (CMake writes them from
+// cuda_view.cu.in; view_units.hpp says which unit compiles which view), so the build spreads
+// nvcc's work, the longest of the build, over all cores.
 // The kernel and its launch stay in the same unit (no relocatable device code needed).
 #pragma once
 
@@ -10,6 +11,8 @@
 #include <cstdint>
 #include <variant>
 #include <voxwall/node/renderer.hpp>
+
+#include "view_units.hpp"
 
 namespace voxwall::node::cuda {
 
@@ -24,9 +27,17 @@ struct Launch {
   unsigned long long* samples = nullptr;  // device, one counter
 };
 
+// Launches the raycast kernel over `launch` for `*view`, the view of index `viewIndex` in
+// ViewVariant, one of those unit `Unit` compiles. Defined in cuda_launch_impl.cuh, instantiated
+// once per unit (cuda_view.cu.in).
+template <std::size_t Unit>
+void launchUnit(std::size_t viewIndex, const void* view, const Launch& launch);
+
 // Launches the raycast kernel over `launch` for `view` (asynchronous; the caller checks
-// cudaGetLastError). Defined in cuda_launch_impl.cuh, instantiated once per view type.
+// cudaGetLastError).
 template <class View>
-void launchRaycast(const View& view, const Launch& launch);
+void launchRaycast(const View& view, const Launch& launch) {
+  launchUnit<kViewUnit<View>>(kViewIndex<View>, &view, launch);
+}
 
 }  // namespace voxwall::node::cuda

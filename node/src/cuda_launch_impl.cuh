@@ -1,4 +1,4 @@
-// The definition of cuda::launchRaycast (cuda_launch.hpp), included by the per-view units only.
+// The definition of cuda::launchUnit (cuda_launch.hpp), included by the units only.
 #pragma once
 
 #include "cuda_launch.hpp"
@@ -24,9 +24,17 @@ __global__ void raycastKernel(View view, kernels::RayFrame frame, kernels::Trans
 }
 
 template <class View>
-void launchRaycast(const View& view, const Launch& a) {
+void launchView(const View& view, const Launch& a) {
   raycastKernel<<<a.grid, a.block>>>(view, a.frame, a.lut, a.skip, a.tileX, a.tileY, a.tileW,
                                      a.tileH, a.out, a.samples);
+}
+
+template <std::size_t Unit>
+void launchUnit(std::size_t viewIndex, const void* view, const Launch& launch) {
+  forEachViewOfUnit<Unit>([&](auto index) {
+    using View = std::variant_alternative_t<decltype(index)::value, ViewVariant>;
+    if (viewIndex == index) launchView(*static_cast<const View*>(view), launch);
+  });
 }
 
 }  // namespace voxwall::node::cuda

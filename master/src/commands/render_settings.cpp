@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <voxwall/codec/registry.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/node/transfer_function.hpp>
 #include <voxwall/walls/wall.hpp>
@@ -438,20 +439,24 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                  "always use samples")
       ->capture_default_str();
   cmd.add_flag("--no-skip", o.noSkip, "Disable empty-space skipping (for measurements)");
+  const std::string levels =
+      "Volumes with mip levels (" + codec::RegisteredCodecs::traversalCodecNames() + ")";
   cmd.add_option("--sampling", o.sampling,
-                 "Volumes with mip levels (svmm, ksvd): trilinear, or nearest (the discrete voxels "
-                 "of the SVMM thesis)")
+                 levels + ": trilinear, or nearest (the discrete voxels of the SVMM thesis)")
       ->capture_default_str();
   cmd.add_flag("--lod", o.lod,
-               "Volumes with mip levels (svmm, ksvd): sample coarser levels where a voxel is "
-               "smaller than the pixel's footprint");
-  cmd.add_flag("--lod-under-pressure", o.lodUnderPressure,
-               "Volumes with mip levels (svmm, ksvd), CPU backend with decoded pages: when "
-               "--decode-cache is full, a sample whose page is not resident reads level 1 (from "
-               "pages of its own, in a quarter of --decode-cache more) instead of evicting a page "
-               "mid-frame; those pages are decoded after the frame (a quarter of the cache at "
-               "most), so later frames sharpen. render -v counts the samples taken from coarser "
-               "levels");
+               levels +
+                   ": sample coarser levels where a voxel is smaller than the pixel's "
+                   "footprint");
+  cmd.add_flag(
+      "--lod-under-pressure", o.lodUnderPressure,
+      levels +
+          ", CPU backend with decoded pages: when --decode-cache is full, a sample whose page is "
+          "not resident reads level 1 (from "
+          "pages of its own, in a quarter of --decode-cache more) instead of evicting a page "
+          "mid-frame; those pages are decoded after the frame (a quarter of the cache at "
+          "most), so later frames sharpen. render -v counts the samples taken from coarser "
+          "levels");
   // Each codec's render flags, each flag once (help texts joined when codecs share one).
   std::map<std::string, CLI::Option*> codecFlags;
   for (const codec::Codec* c : codec::codecs())
@@ -477,8 +482,8 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
       ->capture_default_str();
   cmd.add_option(
          "--decode-cache", o.decodeCache,
-         "CPU backend with --simd on: memory per rank for decoded pages of a vq, svmm, ksvd or "
-         "tvq volume (the data's own scalar type), decoded as rays first reach them, so frames "
+         "CPU backend with --simd on: memory per rank for decoded pages of a compressed volume "
+         "(the data's own scalar type), decoded as rays first reach them, so frames "
          "after the first render at about the speed of raw data; when full, pages no ray has "
          "touched lately are evicted (the same picture whatever the size; render -v counts "
          "hits, misses and evictions). off: no pages, bricks decoded per ray")

@@ -46,6 +46,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -61,6 +62,17 @@
 #include <voxwall/core/parallel.hpp>
 
 namespace voxwall::node {
+
+// A level PageCache can hold pages of: a view (or one level of one) with a cache id unique per
+// opened volume, its grid's size, and its voxels read one at a time through the ray's cache. A
+// codec's view that meets it is paged with no edit outside the codec (node/src/cpu_blocks.hpp).
+template <class L>
+concept PageableLevel = requires(const L& l, typename L::RayCache& rc) {
+  { l.cacheId } -> std::convertible_to<std::uint64_t>;
+  { l.dimX + l.dimY + l.dimZ } -> std::convertible_to<int>;
+  { l.maxX + l.maxY + l.maxZ } -> std::convertible_to<float>;
+  { l.voxel(0, 0, 0, rc) } -> std::convertible_to<float>;
+};
 
 // What a page stores per voxel: the value as float(stored) + bias.
 enum class PageFormat : std::uint8_t { UInt8, UInt16, Float32 };
@@ -104,7 +116,7 @@ class PageCache {
     return f == PageFormat::UInt8 ? 1 : f == PageFormat::UInt16 ? 2 : 4;
   }
 
-  // Pages for `level` (a view with cacheId, dimX..dimZ and voxel(x, y, z, RayCache&)) of a volume
+  // Pages for `level` (a PageableLevel) of a volume
   // of scalar type `type`, in at most `budgetBytes` of decoded voxels, for up to `readers`
   // threads at once.
   template <class Level>

@@ -227,6 +227,12 @@ struct KsvdView {
   }
 
   VOXWALL_HD_INLINE float voxel(int x, int y, int z) const { return level[0].voxel(x, y, z); }
+
+  // What the CPU's decoded pages hold (node/page_cache.hpp): level 0, and under pressure level 1,
+  // whose voxels are 2 of level 0's a side (only where levels > 1).
+  const Level& pagedLevel() const { return level[0]; }
+  const Level& coarsePages() const { return level[1]; }
+  float coarseScale() const { return 2.0f; }
 };
 
 using KsvdView4 = KsvdView<4>;

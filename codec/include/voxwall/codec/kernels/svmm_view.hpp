@@ -84,6 +84,8 @@ VOXWALL_HD_INLINE void svmmPoolBlock(std::uint64_t b, int uLog2, int vLog2, std:
   w = b >> (uLog2 + vLog2);
 }
 
+struct SvmmLevelPages;
+
 struct SvmmView {
   SvmmLevel level[kSvmmMaxLevels];
   int levels = 1;
@@ -350,6 +352,11 @@ struct SvmmView {
         lookup(clampIndex(x, dimX), clampIndex(y, dimY), clampIndex(z, dimZ), 0, rc, stop));
   }
 
+  // Under pressure the CPU's decoded pages (node/page_cache.hpp) also hold level 1 (only where
+  // levels > 1): its grid, looked up through the mip-map. Defined below SvmmLevelPages.
+  SvmmLevelPages coarsePages() const;
+  float coarseScale() const { return float(1 << level[1].shift); }
+
   // The level whose voxels are at most `footprint` voxels wide (0 when footprint < 2).
   VOXWALL_HD_INLINE int lodLevel(float footprint) const {
     int L = 0;
@@ -544,5 +551,30 @@ struct SvmmView {
 };
 
 static_assert(std::is_trivially_copyable_v<SvmmView>);
+
+// svmm's level `T` as the CPU's decoded pages take a level: its grid's size and voxels (looked up
+// through the mip-map, as the view's own samples at that level read them).
+struct SvmmLevelPages {
+  const SvmmView* view = nullptr;
+  int T = 1;
+  int dimX = 1, dimY = 1, dimZ = 1;
+  float maxX = 0, maxY = 0, maxZ = 0;
+  std::uint64_t cacheId = 0;
+  using RayCache = SvmmView::RayCache;
+  float voxel(int x, int y, int z, RayCache& rc) const {
+    int stop;
+    return view->scalar(view->lookup(x, y, z, T, rc, stop));
+  }
+};
+
+inline SvmmLevelPages SvmmView::coarsePages() const {
+  SvmmLevelPages l;
+  l.view = this;
+  const int sh = level[1].shift;
+  l.dimX = ((dimX - 1) >> sh) + 1, l.dimY = ((dimY - 1) >> sh) + 1, l.dimZ = ((dimZ - 1) >> sh) + 1;
+  l.maxX = float(l.dimX - 1), l.maxY = float(l.dimY - 1), l.maxZ = float(l.dimZ - 1);
+  l.cacheId = cacheId;
+  return l;
+}
 
 }  // namespace voxwall::codec::kernels
