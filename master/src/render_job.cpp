@@ -8,8 +8,8 @@
 #include <random>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
+#include <voxwall/master/frame_messages.hpp>
 #include <voxwall/master/render_job.hpp>
-#include <voxwall/net/frame_messages.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/net/wire.hpp>
 
@@ -135,13 +135,14 @@ node::TileStats renderWatched(node::Backend& backend, const node::RenderVolume& 
 // A rank whose pixels nobody gathers renders, encodes and sends a band at a time (bands()), so it
 // holds one band's pixels however much of the screen the balancer gives it. With a `watch`, the
 // frame may be abandoned: the rest is not rendered, and the sink is told.
-net::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
-                            const node::TransferFunction& tf, const node::RenderSettings& render,
-                            const JobSettings& job, net::TileStreamer* streamer,
-                            std::optional<node::FramePlan>& lastPlan, const net::FrameTask& task,
-                            const std::vector<voxwall::Rect>& rects,
-                            const AbandonWatch& watch = {}) {
-  net::RankReport report;
+master::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
+                               const node::TransferFunction& tf, const node::RenderSettings& render,
+                               const JobSettings& job, net::TileStreamer* streamer,
+                               std::optional<node::FramePlan>& lastPlan,
+                               const master::FrameTask& task,
+                               const std::vector<voxwall::Rect>& rects,
+                               const AbandonWatch& watch = {}) {
+  master::RankReport report;
   report.frame = task.frame;
   report.rank = rank;
   report.pixels = !job.outDir.empty();
@@ -252,7 +253,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     // twice as long, so that rank 0's watchdog names the culprit before anyone blames rank 0.
     std::vector<std::byte> bytes;
     comm.broadcast(bytes, 2 * timeoutMs);
-    const auto task = net::decodeFrameTask(bytes, "frame task from rank 0");
+    const auto task = master::decodeFrameTask(bytes, "frame task from rank 0");
     if (task.rects.size() != std::size_t(comm.size()))
       throw FormatError("frame task from rank 0",
                         "has rectangles for " + std::to_string(task.rects.size()) +
@@ -266,7 +267,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
         renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(), plan, task,
                     task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
-    comm.gather(net::encode(report), 2 * timeoutMs);
+    comm.gather(master::encode(report), 2 * timeoutMs);
     if (task.stop) break;
     ++summary.framesRendered;
   }
@@ -445,8 +446,8 @@ class MasterLoop {
     const FrameChoice choice = steering_.next(s.controls, frameStart);
     s.step = choice.step, s.phase = choice.phase;
     s.rects = cut(s.step);
-    net::FrameTask t = task(f, s.rects, choice);
-    auto taskBytes = net::encode(t);
+    master::FrameTask t = task(f, s.rects, choice);
+    auto taskBytes = master::encode(t);
     comm_.broadcast(taskBytes, timeoutMs_);
     // A command from the wall abandons a refining or full frame: every rank hears it at once.
     AbandonWatch watch;
@@ -474,8 +475,8 @@ class MasterLoop {
     for (int i = 0; i < slots_; ++i) {
       const int r = renderers_[std::size_t(i)];
       const std::string source = "report of rank " + std::to_string(r);
-      auto report =
-          r == 0 ? std::move(own) : net::decodeRankReport(reportBytes[std::size_t(r)], t, source);
+      auto report = r == 0 ? std::move(own)
+                           : master::decodeRankReport(reportBytes[std::size_t(r)], t, source);
       take(report, r, t, source, s, image);
       grids[std::size_t(i)] = std::move(report.costs);
     }
@@ -503,21 +504,22 @@ class MasterLoop {
 
   // Stop: every rank answers with its memory and leaves the loop.
   void finish(JobSummary& summary) {
-    net::FrameTask stop;
+    master::FrameTask stop;
     stop.frame = std::uint32_t(job_.frames);
     stop.stop = true;
     stop.screenWidth = job_.width, stop.screenHeight = job_.height;
     stop.cellPixels = job_.balancer.cellPixels;
     stop.rects.resize(std::size_t(comm_.size()));
     stop.watchdogMs = std::uint32_t(timeoutMs_);
-    auto stopBytes = net::encode(stop);
+    auto stopBytes = master::encode(stop);
     comm_.broadcast(stopBytes, timeoutMs_);
     const auto ownLast =
         renderRects(0, backend_, volume_, tf_, render_, job_, nullptr, plan_, stop, {});
     const auto finals = comm_.gather({}, timeoutMs_);
     for (int r = 0; r < comm_.size(); ++r) {
-      const auto rep = r == 0 ? ownLast
-                              : net::decodeRankReport(finals[std::size_t(r)], stop,
+      const auto rep = r == 0
+                           ? ownLast
+                           : master::decodeRankReport(finals[std::size_t(r)], stop,
                                                       "final report of rank " + std::to_string(r));
       summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
     }
@@ -578,10 +580,10 @@ class MasterLoop {
     return slotRects;
   }
 
-  net::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects,
-                      const FrameChoice& choice) const {
+  master::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects,
+                         const FrameChoice& choice) const {
     const int step = choice.step;
-    net::FrameTask t;
+    master::FrameTask t;
     t.frame = std::uint32_t(f);
     t.decidedUnixMicros = net::unixMicrosNow();
     t.jobId = jobId_;
@@ -599,7 +601,7 @@ class MasterLoop {
 
   // Checks rank r's report against the task (every assigned rectangle must come back, or the
   // frame would be shown incomplete), pastes its pixels and adds it to the frame's summary.
-  void take(const net::RankReport& report, int r, const net::FrameTask& t,
+  void take(const master::RankReport& report, int r, const master::FrameTask& t,
             const std::string& source, FrameSummary& s, voxwall::Image& image) const {
     const auto& asked = t.rects[std::size_t(r)];
     if (report.rank != r)

@@ -1,17 +1,17 @@
-// libFuzzer target for the frame-loop messages (net/frame_messages.hpp): the first byte picks
+// libFuzzer target for the frame-loop messages (master/frame_messages.hpp): the first byte picks
 // the decoder, the rest is the message. Decoders must throw FormatError or return a message that
 // keeps every promise (rectangles on the screen, pixel counts matching); anything else is a bug.
 #include <cstdint>
 #include <cstdlib>
 #include <voxwall/core/errors.hpp>
-#include <voxwall/net/frame_messages.hpp>
+#include <voxwall/master/frame_messages.hpp>
 
 using namespace voxwall;
 
 namespace {
 
-net::FrameTask fixedTask() {
-  net::FrameTask t;
+master::FrameTask fixedTask() {
+  master::FrameTask t;
   t.frame = 3;
   t.screenWidth = 40, t.screenHeight = 30;
   t.cellPixels = 8;
@@ -31,7 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     if (data[0] & 1) {
       const auto task = fixedTask();
-      const auto r = net::decodeRankReport(bytes, task, "fuzz");
+      const auto r = master::decodeRankReport(bytes, task, "fuzz");
       for (const auto& t : r.tiles) {
         check(t.rect.x >= 0 && t.rect.y >= 0 && t.rect.x + t.rect.width <= task.screenWidth &&
               t.rect.y + t.rect.height <= task.screenHeight);
@@ -42,13 +42,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
       check(r.costs.seconds.size() == std::size_t(r.costs.cellsX) * std::size_t(r.costs.cellsY));
     } else {
-      const auto t = net::decodeFrameTask(bytes, "fuzz");
+      const auto t = master::decodeFrameTask(bytes, "fuzz");
       for (const auto& rects : t.rects)
         for (const auto& r : rects)
           check(r.width > 0 && r.height > 0 && r.x + r.width <= t.screenWidth &&
                 r.y + r.height <= t.screenHeight);
       // What decodes must encode to the same bytes.
-      const auto again = net::encode(t);
+      const auto again = master::encode(t);
       check(again.size() == bytes.size());
     }
   } catch (const FormatError&) {

@@ -292,7 +292,7 @@ class Report {
     if (o_.verbose) {
       for (std::size_t i = 0; i < f.ranks.size(); ++i) {
         std::printf("  rank %d:%s\n", f.ranks[i], rectList(f.rects[i]).c_str());
-        const net::PageStats& p = f.rankPages[i];
+        const master::PageStats& p = f.rankPages[i];
         if (p.hits + p.missed > 0)
           std::printf(
               "    decoded pages: %.2f%% hits (%llu of %llu samples), %llu decoded, %llu "

@@ -2,7 +2,7 @@
 // every rank renders its rectangles of the virtual screen from its own copy of the volume, and
 // rank 0 assembles the frame, re-balances the cut from the measured costs and writes the frame
 // (in a background thread, so frame f is encoded and written while frame f+1 renders).
-// Message sequence: net/frame_messages.hpp.
+// Message sequence: master/frame_messages.hpp.
 #pragma once
 
 #include <functional>
@@ -11,9 +11,9 @@
 #include <vector>
 #include <voxwall/master/camera_path.hpp>
 #include <voxwall/master/communicator.hpp>
+#include <voxwall/master/frame_messages.hpp>
 #include <voxwall/master/load_balancer.hpp>
 #include <voxwall/master/steering.hpp>
-#include <voxwall/net/frame_messages.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -80,7 +80,7 @@ struct FrameSummary {
   double writeWaitSeconds = 0;  // waiting for the previous frame's write to finish
   std::vector<int> ranks;       // the rendering ranks
   std::vector<double> rankSeconds;
-  std::vector<net::PageStats> rankPages;          // per rendering rank: its decoded pages
+  std::vector<master::PageStats> rankPages;       // per rendering rank: its decoded pages
   std::vector<std::vector<voxwall::Rect>> rects;  // per rendering rank
   double imbalance = 1;                           // max / mean of rankSeconds
   std::uint64_t samples = 0;

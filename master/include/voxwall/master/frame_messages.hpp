@@ -34,7 +34,7 @@
 #include <voxwall/node/camera.hpp>
 #include <voxwall/node/cost_grid.hpp>
 
-namespace voxwall::net {
+namespace voxwall::master {
 
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
@@ -60,7 +60,7 @@ struct FrameTask {
   // 1: a full frame. n > 1: an interactive frame, rendered at 1/n per side: screenWidth and
   // screenHeight (and the rects) are then the reduced screen, ceil(virtual side / n).
   int step = 1;
-  FramePhase phase = FramePhase::Full;            // why it has that step (the sink shows it)
+  net::FramePhase phase = net::FramePhase::Full;  // why it has that step (the sink shows it)
   std::vector<std::vector<voxwall::Rect>> rects;  // per rank (index = rank); may be empty
 };
 
@@ -107,4 +107,4 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
 RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& task,
                             const std::string& source);
 
-}  // namespace voxwall::net
+}  // namespace voxwall::master

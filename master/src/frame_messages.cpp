@@ -3,9 +3,9 @@
 #include <cstring>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
-#include <voxwall/net/frame_messages.hpp>
+#include <voxwall/master/frame_messages.hpp>
 
-namespace voxwall::net {
+namespace voxwall::master {
 namespace {
 
 using voxwall::ByteReader;
@@ -41,9 +41,9 @@ std::vector<std::byte> encode(const FrameTask& t) {
   std::vector<std::byte> out;
   ByteWriter w(out);
   w.put(kFrameTaskMagic), w.put(kFrameMessageVersion);
-  const std::uint32_t phase = t.phase == FramePhase::Interactive ? 2u
-                              : t.phase == FramePhase::Refining  ? 4u
-                                                                 : 0u;
+  const std::uint32_t phase = t.phase == net::FramePhase::Interactive ? 2u
+                              : t.phase == net::FramePhase::Refining  ? 4u
+                                                                      : 0u;
   w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>((t.stop ? 1u : 0u) | phase);
   w.put<std::uint64_t>(t.decidedUnixMicros);
   w.put<std::uint64_t>(t.jobId);
@@ -70,9 +70,9 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   const auto flags = r.get<std::uint32_t>();
   if (flags > 5 || (flags & 6) == 6) r.fail("unknown flags " + std::to_string(flags));
   t.stop = flags & 1;
-  t.phase = flags & 2   ? FramePhase::Interactive
-            : flags & 4 ? FramePhase::Refining
-                        : FramePhase::Full;
+  t.phase = flags & 2   ? net::FramePhase::Interactive
+            : flags & 4 ? net::FramePhase::Refining
+                        : net::FramePhase::Full;
   t.decidedUnixMicros = r.get<std::uint64_t>();
   t.jobId = r.get<std::uint64_t>();
   for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
@@ -224,4 +224,4 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   return rep;
 }
 
-}  // namespace voxwall::net
+}  // namespace voxwall::master

@@ -3,14 +3,14 @@
 #include <cstring>
 #include <random>
 #include <voxwall/core/errors.hpp>
-#include <voxwall/net/frame_messages.hpp>
+#include <voxwall/master/frame_messages.hpp>
 
 using namespace voxwall;
 
 namespace {
 
-net::FrameTask sampleTask() {
-  net::FrameTask t;
+master::FrameTask sampleTask() {
+  master::FrameTask t;
   t.frame = 7;
   t.camera.eye = {1, -2, 3};
   t.camera.fovYDeg = 40;
@@ -24,8 +24,8 @@ net::FrameTask sampleTask() {
   return t;
 }
 
-net::RankReport sampleReport(const net::FrameTask& t) {
-  net::RankReport r;
+master::RankReport sampleReport(const master::FrameTask& t) {
+  master::RankReport r;
   r.frame = t.frame;
   r.rank = 1;
   r.renderSeconds = 0.25;
@@ -33,7 +33,7 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
   r.pages = {1000, 20, 3, 2, 5 << 20, 17};
   for (const auto& rect : t.rects[1]) {
-    net::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
+    master::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
     for (std::size_t i = 0; i < tile.image.pixels.size(); ++i)
       tile.image.pixels[i] = std::uint32_t(i * 2654435761u);
     r.tiles.push_back(tile);
@@ -47,11 +47,11 @@ net::RankReport sampleReport(const net::FrameTask& t) {
   return r;
 }
 
-void expectRejected(std::span<const std::byte> bytes, const net::FrameTask* task) {
+void expectRejected(std::span<const std::byte> bytes, const master::FrameTask* task) {
   if (task)
-    EXPECT_THROW(net::decodeRankReport(bytes, *task, "test"), FormatError);
+    EXPECT_THROW(master::decodeRankReport(bytes, *task, "test"), FormatError);
   else
-    EXPECT_THROW(net::decodeFrameTask(bytes, "test"), FormatError);
+    EXPECT_THROW(master::decodeFrameTask(bytes, "test"), FormatError);
 }
 
 template <typename T>
@@ -63,7 +63,7 @@ void poke(std::vector<std::byte>& bytes, std::size_t offset, T value) {
 
 TEST(FrameTask, RoundTrips) {
   const auto t = sampleTask();
-  const auto back = net::decodeFrameTask(net::encode(t), "test");
+  const auto back = master::decodeFrameTask(master::encode(t), "test");
   EXPECT_EQ(back.frame, 7u);
   EXPECT_FALSE(back.stop);
   EXPECT_EQ(back.camera.eye, t.camera.eye);
@@ -76,18 +76,19 @@ TEST(FrameTask, RoundTrips) {
   EXPECT_EQ(back.rects, t.rects);
   auto steered = t;
   steered.phase = net::FramePhase::Interactive;
-  EXPECT_EQ(net::decodeFrameTask(net::encode(steered), "test").phase, net::FramePhase::Interactive);
-  auto bytes = net::encode(t);
+  EXPECT_EQ(master::decodeFrameTask(master::encode(steered), "test").phase,
+            net::FramePhase::Interactive);
+  auto bytes = master::encode(t);
   poke<std::uint32_t>(bytes, 12, 6u);  // interactive and refining at once
   expectRejected(bytes, nullptr);
 }
 
 TEST(FrameTask, RejectsAStepOutOfRange) {
-  for (const int step : {0, -1, net::kMaxTaskStep + 1}) {
+  for (const int step : {0, -1, master::kMaxTaskStep + 1}) {
     auto t = sampleTask();
     t.step = step;
     try {
-      net::decodeFrameTask(net::encode(t), "task");
+      master::decodeFrameTask(master::encode(t), "task");
       ADD_FAILURE() << "step " << step << " accepted";
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find("step"), std::string::npos) << e.what();
@@ -96,23 +97,24 @@ TEST(FrameTask, RejectsAStepOutOfRange) {
 }
 
 TEST(FrameTask, RejectsEveryTruncation) {
-  const auto bytes = net::encode(sampleTask());
+  const auto bytes = master::encode(sampleTask());
   for (std::size_t n = 0; n < bytes.size(); ++n) expectRejected(std::span(bytes).first(n), nullptr);
 }
 
 TEST(FrameTask, RejectsOtherVersionsAndMagic) {
-  for (std::uint32_t version : {0u, net::kFrameMessageVersion - 1, net::kFrameMessageVersion + 1}) {
-    if (version == net::kFrameMessageVersion) continue;
-    auto bytes = net::encode(sampleTask());
+  for (std::uint32_t version :
+       {0u, master::kFrameMessageVersion - 1, master::kFrameMessageVersion + 1}) {
+    if (version == master::kFrameMessageVersion) continue;
+    auto bytes = master::encode(sampleTask());
     poke(bytes, 4, version);
     try {
-      net::decodeFrameTask(bytes, "rank 0");
+      master::decodeFrameTask(bytes, "rank 0");
       FAIL() << "version " << version << " accepted";
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find("version"), std::string::npos) << e.what();
     }
   }
-  auto bytes = net::encode(sampleTask());
+  auto bytes = master::encode(sampleTask());
   poke(bytes, 0, std::uint32_t(0xdeadbeef));
   expectRejected(bytes, nullptr);
 }
@@ -121,32 +123,32 @@ TEST(FrameTask, RejectsRectanglesOffTheScreenAndHugeCounts) {
   auto t = sampleTask();
   t.rects[0][0].width = 33;  // 32 + 33 > 64
   t.rects[0][0].x = 32;
-  expectRejected(net::encode(t), nullptr);
+  expectRejected(master::encode(t), nullptr);
   t = sampleTask();
   t.rects[0][0].height = 0;
-  expectRejected(net::encode(t), nullptr);
+  expectRejected(master::encode(t), nullptr);
   // Rank count and rect count fields set to huge values.
-  auto bytes = net::encode(sampleTask());
+  auto bytes = master::encode(sampleTask());
   const std::size_t rankCountAt = 4 * 4 + 8 + 10 * 8 + 4 * 2 + 4 * 3;
   poke(bytes, rankCountAt, std::uint32_t(0xffffffff));
   expectRejected(bytes, nullptr);
-  bytes = net::encode(sampleTask());
+  bytes = master::encode(sampleTask());
   poke(bytes, rankCountAt + 4, std::uint32_t(1u << 30));
   expectRejected(bytes, nullptr);
   // A non-finite camera.
   t = sampleTask();
   t.camera.eye.x = std::nan("");
-  expectRejected(net::encode(t), nullptr);
+  expectRejected(master::encode(t), nullptr);
 }
 
 TEST(FrameTask, SurvivesRandomCorruption) {
-  const auto good = net::encode(sampleTask());
+  const auto good = master::encode(sampleTask());
   std::mt19937 rng(7);
   for (int trial = 0; trial < 2000; ++trial) {
     auto bytes = good;
     for (int k = 0; k < 3; ++k) bytes[rng() % bytes.size()] = std::byte(rng());
     try {
-      const auto t = net::decodeFrameTask(bytes, "test");
+      const auto t = master::decodeFrameTask(bytes, "test");
       for (const auto& rects : t.rects)
         for (const auto& r : rects) {
           EXPECT_GE(r.x, 0);
@@ -161,7 +163,7 @@ TEST(FrameTask, SurvivesRandomCorruption) {
 TEST(RankReport, RoundTrips) {
   const auto t = sampleTask();
   const auto r = sampleReport(t);
-  const auto back = net::decodeRankReport(net::encode(r), t, "test");
+  const auto back = master::decodeRankReport(master::encode(r), t, "test");
   EXPECT_EQ(back.rank, 1);
   EXPECT_EQ(back.renderSeconds, 0.25);
   EXPECT_EQ(back.samples, 12345u);
@@ -192,9 +194,9 @@ TEST(RankReport, WithoutPixelsCarriesRectanglesOnly) {
   const auto t = sampleTask();
   auto r = sampleReport(t);
   r.pixels = false, r.streamed = true;
-  const auto bytes = net::encode(r);
-  EXPECT_EQ(bytes.size(), net::encode(sampleReport(t)).size() - 32 * 48 * 4);
-  const auto back = net::decodeRankReport(bytes, t, "test");
+  const auto bytes = master::encode(r);
+  EXPECT_EQ(bytes.size(), master::encode(sampleReport(t)).size() - 32 * 48 * 4);
+  const auto back = master::decodeRankReport(bytes, t, "test");
   EXPECT_FALSE(back.pixels);
   EXPECT_TRUE(back.streamed);
   ASSERT_EQ(back.tiles.size(), r.tiles.size());
@@ -206,7 +208,7 @@ TEST(RankReport, WithoutPixelsCarriesRectanglesOnly) {
 
 TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   const auto t = sampleTask();
-  const auto bytes = net::encode(sampleReport(t));
+  const auto bytes = master::encode(sampleReport(t));
   for (std::size_t n = 0; n < bytes.size(); n += 7) expectRejected(std::span(bytes).first(n), &t);
   auto other = t;
   other.frame = 8;
