@@ -34,8 +34,6 @@ codec::Volume loadVolume(const std::string& spec, const std::optional<codec::Raw
 // Prints a progress bar on stderr when it is a terminal, one line per stage otherwise.
 voxwall::Progress makeProgress(bool quiet);
 
-using codec::humanBytes;  // codec/metrics.hpp
-
 // Thrown by a rank other than rank 0 when the job fails for a reason rank 0 reports: main exits
 // with status 1 without printing, so the user reads one line, not one per rank.
 struct SilentFailure : std::exception {

@@ -8,6 +8,7 @@
 #include <random>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
+#include <voxwall/core/process.hpp>
 #include <voxwall/master/frame_messages.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/tcp.hpp>
@@ -204,7 +205,8 @@ master::RankReport renderRects(int rank, node::Backend& backend, const node::Ren
       report.streamedBytes = streamer->bytesSent() - before;
     }
   }
-  std::tie(report.residentBytes, report.peakResidentBytes) = processMemory();
+  const ProcessMemory memory = processMemory();
+  report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
   return report;
 }
 
@@ -275,20 +277,6 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
 }
 
 }  // namespace
-
-std::pair<std::uint64_t, std::uint64_t> processMemory() {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  std::uint64_t rss = 0, peak = 0;
-  while (std::getline(in, line)) {
-    auto value = [&](const char* key, std::uint64_t& out) {
-      if (line.rfind(key, 0) == 0) out = std::stoull(line.substr(std::strlen(key))) * 1024;
-    };
-    value("VmRSS:", rss);
-    value("VmHWM:", peak);
-  }
-  return {rss, peak};
-}
 
 int bandRows(const JobSettings& job) {
   return job.stream ? job.stream->codec.segmentPixels : net::TileCodecSettings{}.segmentPixels;

@@ -5,6 +5,7 @@
 #include <voxwall/codec/ksvd_codec.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
+#include <voxwall/core/text.hpp>
 
 namespace voxwall::codec::ksvd {
 namespace {

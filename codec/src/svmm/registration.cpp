@@ -8,6 +8,7 @@
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/text.hpp>
 
 namespace voxwall::codec::svmm {
 namespace {

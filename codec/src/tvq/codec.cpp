@@ -16,6 +16,7 @@
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/parallel.hpp>
+#include <voxwall/core/text.hpp>
 
 #include "lbg.hpp"
 

@@ -5,6 +5,7 @@
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/tvq_codec.hpp>
+#include <voxwall/core/text.hpp>
 
 namespace voxwall::codec::tvq {
 namespace {

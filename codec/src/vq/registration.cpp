@@ -6,6 +6,7 @@
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/vq_codec.hpp>
+#include <voxwall/core/text.hpp>
 
 namespace voxwall::codec::vq {
 namespace {

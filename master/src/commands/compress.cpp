@@ -6,6 +6,8 @@
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/registry.hpp>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/process.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/master/render_job.hpp>
 
 #include "../cli_common.hpp"
@@ -75,7 +77,7 @@ void runCompress(const CompressOptions& o) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // The process's peak resident memory (the input, the encoder's work and the output together):
   // VmHWM, which starts over at exec (getrusage's maximum keeps a large parent's pages).
-  const std::uint64_t peak = master::processMemory().second;
+  const std::uint64_t peak = processMemory().peakBytes;
   const codec::Volume v = source->headerVolume();
   std::printf("%s: %dx%dx%d %s, codec %s, %s, %.3f bits/voxel, %.2fs, peak memory %s%s\n",
               o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,

@@ -2,6 +2,7 @@
 #include <memory>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/core/text.hpp>
 
 #include "../cli_common.hpp"
 #include "commands.hpp"

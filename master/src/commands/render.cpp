@@ -8,6 +8,8 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/registry.hpp>
 #include <voxwall/core/parallel.hpp>
+#include <voxwall/core/process.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/master/default_data.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
@@ -126,7 +128,7 @@ std::uint64_t firstFramePageBytes(const Setup& s, master::Communicator& comm) {
 void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, Setup& s) {
   s.job = jobSettings(o);
   s.render = renderSettings(o);
-  const auto baseBytes = master::processMemory().first;
+  const auto baseBytes = processMemory().residentBytes;
   s.input = o.input;
   if (s.input.empty()) {
     s.input = master::defaultVolumeSpec();
@@ -159,7 +161,7 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   s.pageBytes = pages;
   // Loading may have peaked higher than the job will run (a codec holds the file's bytes and the
   // volume it builds from them at once): this rank's measured peak so far counts too.
-  const auto loadPeakBytes = master::processMemory().second;
+  const auto loadPeakBytes = processMemory().peakBytes;
   s.needBytes =
       std::max(loadPeakBytes, estimateRankBytes(s.job, comm.rank(), comm.size(),
                                                 s.volume->storedBytes() + pages, baseBytes));

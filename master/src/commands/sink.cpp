@@ -3,6 +3,7 @@
 #include <iostream>
 #include <memory>
 #include <thread>
+#include <voxwall/core/text.hpp>
 #include <voxwall/walls/sink.hpp>
 
 #include "../cli_common.hpp"

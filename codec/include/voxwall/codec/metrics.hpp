@@ -47,15 +47,4 @@ inline double bitsPerVoxel(std::uint64_t bytes, const Volume& v) {
   return v.voxelCount() ? 8.0 * double(bytes) / double(v.voxelCount()) : 0.0;
 }
 
-// A byte count for people: "512 B", "7.7 MiB".
-std::string humanBytes(double bytes);
-
-// printf-style formatting of a report line (at most 511 characters).
-template <class... Args>
-std::string formatLine(const char* format, Args... args) {
-  char line[512];
-  std::snprintf(line, sizeof line, format, args...);
-  return line;
-}
-
 }  // namespace voxwall::codec

@@ -138,7 +138,4 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
                         const node::RenderSettings& render, const JobSettings& job,
                         const std::function<void(const FrameSummary&)>& onFrame = {});
 
-// This process's resident and peak resident memory in bytes (0 where /proc is missing).
-std::pair<std::uint64_t, std::uint64_t> processMemory();
-
 }  // namespace voxwall::master

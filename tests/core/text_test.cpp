@@ -1,0 +1,25 @@
+#include <gtest/gtest.h>
+
+#include <string>
+#include <voxwall/core/text.hpp>
+
+using voxwall::formatLine;
+using voxwall::humanBytes;
+
+TEST(Text, HumanBytesPicksTheBinaryUnit) {
+  EXPECT_EQ(humanBytes(0), "0 B");
+  EXPECT_EQ(humanBytes(512), "512 B");
+  EXPECT_EQ(humanBytes(1023), "1023 B");
+  EXPECT_EQ(humanBytes(1024), "1.0 KiB");
+  EXPECT_EQ(humanBytes(7.7 * 1024 * 1024), "7.7 MiB");
+  EXPECT_EQ(humanBytes(3.0 * 1024 * 1024 * 1024), "3.0 GiB");
+  EXPECT_EQ(humanBytes(2048.0 * 1024 * 1024 * 1024 * 1024), "2048.0 TiB");  // no unit past TiB
+}
+
+TEST(Text, FormatLineFormatsAndCutsLongLines) {
+  EXPECT_EQ(formatLine("\n  %d atoms, %.2f dB", 64, 41.256), "\n  64 atoms, 41.26 dB");
+  const std::string longText(600, 'x');
+  const std::string line = formatLine("%s", longText.c_str());
+  EXPECT_EQ(line.size(), 511u);
+  EXPECT_EQ(line, longText.substr(0, 511));
+}
