@@ -113,8 +113,8 @@ std::optional<std::string> FrameAssembler::outsideWindow(std::uint64_t frame) co
   return std::nullopt;
 }
 
-std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame, net::TileMessage tile,
-                                                      int rank, const std::string& peer) {
+voxwall::Rect FrameAssembler::screenRect(const net::TileMessage& tile,
+                                         const std::string& peer) const {
   const auto& sent = tile.rect;
   const int step = tile.step;
   if (step < 1 || step > net::kMaxStep)
@@ -130,65 +130,41 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame, net::
                                 std::to_string(screenW) + "x" + std::to_string(screenH) +
                                 (step > 1 ? " reduced screen (step " + std::to_string(step) + ")"
                                           : std::string(" screen")));
-  const voxwall::Rect r = net::fullScreenRect(sent, step, wall_.width, wall_.height);
-  auto it = open_.find(frame);
-  if (it != open_.end() && it->second.info.step != step)
-    throw FormatError(peer, "tile of frame " + std::to_string(frame) + " at step " +
-                                std::to_string(step) + ", its other tiles are at step " +
-                                std::to_string(it->second.info.step));
-  if (it == open_.end()) {
-    if (reported(frame)) return std::nullopt;  // settled; its fate was reported
-    if (const auto why = outsideWindow(frame)) {
-      report(frame, net::FrameStatus::Refused, "frame id " + std::to_string(frame) + " is " + *why);
-      return std::nullopt;
-    }
-  }
-  // Check before touching the frame: a tile whose header disagrees with its rectangle must not
-  // mark any pixel as arrived.
-  net::checkTile(tile.bytes, tile.codec, sent.width, sent.height, peer);
-  // Make room first: what a tile costs is its bytes.
-  const std::uint64_t tileBytes = tile.bytes.size() + sizeof(Segment);
-  const std::uint64_t need = tileBytes + (it == open_.end() ? coverageBytes_ : 0);
+  return net::fullScreenRect(sent, step, wall_.width, wall_.height);
+}
+
+bool FrameAssembler::makeRoom(std::uint64_t frame, std::uint64_t need) {
   while (heldBytes_ + need > limits_.pendingBytes) {
     auto victim = open_.begin();
     if (victim != open_.end() && victim->first == frame) ++victim;
     if (victim == open_.end()) {  // this frame alone holds too much (overlapping tiles)
       drop(frame, "over the sink's memory limit for open frames");
-      return std::nullopt;
+      return false;
     }
     drop(victim->first, "over the sink's memory limit for open frames");
   }
-  if (it == open_.end())
-    while (int(open_.size()) >= limits_.pendingFrames)
-      drop(open_.begin()->first, "too many frames open");
-  it = open_.find(frame);
-  if (it == open_.end()) {
-    it = open_.emplace(frame, Open{}).first;
-    it->second.covered.assign(coverageBytes_ / 8, 0);
-    it->second.heldBytes = coverageBytes_;
-    it->second.info.frame = frame;
-    it->second.info.step = step;
-    it->second.info.phase = tile.phase;
-    heldBytes_ += coverageBytes_;
-  }
-  Open& f = it->second;
-  cover(f, r);
-  f.heldBytes += tileBytes;
-  heldBytes_ += tileBytes;
-  auto& info = f.info;
-  info.bytes += tile.bytes.size();
-  info.segments.push_back({sent, r, tile.codec,
-                           std::make_shared<const std::vector<std::byte>>(std::move(tile.bytes)),
-                           rank});
-  info.rankRenderMicros[rank] = tile.renderMicros;
-  info.decidedUnixMicros = info.decidedUnixMicros
-                               ? std::min(info.decidedUnixMicros, tile.decidedUnixMicros)
-                               : tile.decidedUnixMicros;
-  ++info.tiles;
-  if (f.coveredPixels < neededPixels_) return std::nullopt;
+  return true;
+}
 
-  // Complete: older frames can never be shown now, and frames far ahead are bogus.
+FrameAssembler::Open& FrameAssembler::openFrame(std::uint64_t frame, const net::TileMessage& tile) {
+  auto it = open_.find(frame);
+  if (it != open_.end()) return it->second;
+  while (int(open_.size()) >= limits_.pendingFrames)
+    drop(open_.begin()->first, "too many frames open");
+  it = open_.emplace(frame, Open{}).first;
+  it->second.covered.assign(coverageBytes_ / 8, 0);
+  it->second.heldBytes = coverageBytes_;
+  it->second.info.frame = frame;
+  it->second.info.step = tile.step;
+  it->second.info.phase = tile.phase;
+  heldBytes_ += coverageBytes_;
+  return it->second;
+}
+
+AssembledFrame FrameAssembler::complete(std::uint64_t frame) {
+  // Older frames can never be shown now, and frames far ahead are bogus.
   while (open_.begin()->first != frame) drop(open_.begin()->first, "a newer frame completed");
+  Open& f = open_.begin()->second;
   AssembledFrame done = std::move(f.info);
   heldBytes_ -= f.heldBytes;
   open_.erase(open_.begin());
@@ -197,6 +173,46 @@ std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame, net::
   while (!open_.empty() && open_.rbegin()->first - frame > limits_.frameWindow)
     drop(open_.rbegin()->first, "outside the frame window after frame " + std::to_string(frame));
   return done;
+}
+
+std::optional<AssembledFrame> FrameAssembler::addTile(std::uint64_t frame, net::TileMessage tile,
+                                                      int rank, const std::string& peer) {
+  const voxwall::Rect r = screenRect(tile, peer);
+  const auto it = open_.find(frame);
+  const bool opened = it != open_.end();
+  if (opened && it->second.info.step != tile.step)
+    throw FormatError(peer, "tile of frame " + std::to_string(frame) + " at step " +
+                                std::to_string(tile.step) + ", its other tiles are at step " +
+                                std::to_string(it->second.info.step));
+  if (!opened) {
+    if (reported(frame)) return std::nullopt;  // settled; its fate was reported
+    if (const auto why = outsideWindow(frame)) {
+      report(frame, net::FrameStatus::Refused, "frame id " + std::to_string(frame) + " is " + *why);
+      return std::nullopt;
+    }
+  }
+  // Check before touching the frame: a tile whose header disagrees with its rectangle must not
+  // mark any pixel as arrived.
+  net::checkTile(tile.bytes, tile.codec, tile.rect.width, tile.rect.height, peer);
+  // Make room first: what a tile costs is its bytes.
+  const std::uint64_t tileBytes = tile.bytes.size() + sizeof(Segment);
+  if (!makeRoom(frame, tileBytes + (opened ? 0 : coverageBytes_))) return std::nullopt;
+  Open& f = openFrame(frame, tile);
+  cover(f, r);
+  f.heldBytes += tileBytes;
+  heldBytes_ += tileBytes;
+  auto& info = f.info;
+  info.bytes += tile.bytes.size();
+  info.segments.push_back({tile.rect, r, tile.codec,
+                           std::make_shared<const std::vector<std::byte>>(std::move(tile.bytes)),
+                           rank});
+  info.rankRenderMicros[rank] = tile.renderMicros;
+  info.decidedUnixMicros = info.decidedUnixMicros
+                               ? std::min(info.decidedUnixMicros, tile.decidedUnixMicros)
+                               : tile.decidedUnixMicros;
+  ++info.tiles;
+  if (f.coveredPixels < neededPixels_) return std::nullopt;
+  return complete(frame);
 }
 
 }  // namespace voxwall::walls

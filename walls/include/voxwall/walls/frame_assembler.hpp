@@ -110,6 +110,16 @@ class FrameAssembler {
   void report(std::uint64_t frame, net::FrameStatus status, const std::string& why);
   bool reported(std::uint64_t frame) const { return reported_.count(frame) > 0; }
   std::optional<std::string> outsideWindow(std::uint64_t frame) const;
+  // The full-screen rectangle of a tile's rectangle at its step; throws FormatError for a step or
+  // rectangle off the screen.
+  voxwall::Rect screenRect(const net::TileMessage& tile, const std::string& peer) const;
+  // Drops the oldest other frames until `need` more bytes fit; false when `frame` alone holds too
+  // much (it is dropped too).
+  bool makeRoom(std::uint64_t frame, std::uint64_t need);
+  // The open frame `frame`, opened at this step and phase if it was not.
+  Open& openFrame(std::uint64_t frame, const net::TileMessage& tile);
+  // `frame` has every pixel: the frames before it are dropped, it is reported and handed out.
+  AssembledFrame complete(std::uint64_t frame);
 
   const Wall& wall_;
   AssemblerLimits limits_;
