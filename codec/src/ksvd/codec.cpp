@@ -1,4 +1,5 @@
-// The ksvd codec: encoder, layout and decoder; the byte layout is documented in ksvd_codec.hpp.
+// The ksvd codec's encoder (layout.cpp reads the files back); the byte layout is documented in
+// ksvd_codec.hpp.
 #include <algorithm>
 #include <atomic>
 #include <bit>
@@ -15,47 +16,17 @@
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/core/text.hpp>
 
+#include "format.hpp"
 #include "learning.hpp"
 
 namespace voxwall::codec::ksvd {
 namespace {
 
-constexpr std::uint32_t kConstant = 0xFFFFFFFFu;
 constexpr std::uint64_t kDefaultCoreset = 32768;  // training blocks when --coreset is not given
-constexpr int kMaxAtoms = 1 << 16;
-
-int indexBitsFor(int atoms) { return std::max(1, int(std::bit_width(unsigned(atoms - 1)))); }
 
 double seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
-
-// The bricking of a volume: blocks of M^3 voxels, bricks of N^3 blocks.
-struct Grid {
-  int m = 6, n = 5;
-  glm::ivec3 dims{}, blocks{}, bricks{};
-  Grid(glm::ivec3 d, int side) : m(side), n(ksvd::blocksPerBrick(side)), dims(d) {
-    blocks = (dims + m - 1) / m;
-    bricks = (blocks + n - 1) / n;
-  }
-  std::uint64_t brickCount() const {
-    return std::uint64_t(bricks.x) * std::uint64_t(bricks.y) * std::uint64_t(bricks.z);
-  }
-  std::uint64_t blockCount() const {
-    return std::uint64_t(blocks.x) * std::uint64_t(blocks.y) * std::uint64_t(blocks.z);
-  }
-  int blocksPerBrick() const { return n * n * n; }
-  glm::ivec3 brickCoords(std::uint64_t b) const {
-    return {int(b % std::uint64_t(bricks.x)),
-            int(b / std::uint64_t(bricks.x) % std::uint64_t(bricks.y)),
-            int(b / (std::uint64_t(bricks.x) * std::uint64_t(bricks.y)))};
-  }
-  // Block j (x fastest) of a brick, in block coordinates; may lie outside the block grid.
-  glm::ivec3 blockOf(glm::ivec3 brick, int j) const {
-    return brick * n + glm::ivec3{j % n, (j / n) % n, j / (n * n)};
-  }
-  bool inGrid(glm::ivec3 b) const { return b.x < blocks.x && b.y < blocks.y && b.z < blocks.z; }
-};
 
 // One level of the pyramid: level 0 reads the input, coarser levels their own floats.
 template <class T>
@@ -498,229 +469,6 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   });
   if (statsOut) *statsOut = stats;
   return out;
-}
-
-// ---- reading ------------------------------------------------------------------------------
-
-Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  static std::atomic<std::uint64_t> nextCacheId{1};
-  cacheId_ = nextCacheId.fetch_add(1);
-  const std::string& src = sections.source;
-  ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
-  m_ = int(r.get<std::uint32_t>());
-  n_ = int(r.get<std::uint32_t>());
-  k_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 1u << 30));
-  s_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 1u << 30));
-  indexBits_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64));
-  iterations_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 1u << 30));
-  codedBricks_ = r.get<std::uint64_t>();
-  pairs_ = r.get<std::uint64_t>();
-  coreset_ = r.get<std::uint64_t>();
-  tolerance_ = r.get<double>();
-  psnr_ = r.get<double>();
-  auto fail = [&](const std::string& what) { r.fail(what); };
-  if (m_ != 4 && m_ != 6 && m_ != 8) fail("block side " + std::to_string(m_) + " (4, 6 or 8)");
-  if (n_ != blocksPerBrick(m_))
-    fail("blocks per brick " + std::to_string(n_) + " for block side " + std::to_string(m_));
-  const int m = m_ * m_ * m_;
-  if (k_ < 2 || k_ > kMaxAtoms) fail("atoms " + std::to_string(k_) + " (2..65536)");
-  if (s_ < 1 || s_ > std::min(m, 255)) fail("sparsity " + std::to_string(s_));
-  if (indexBits_ != indexBitsFor(k_))
-    fail("index bits " + std::to_string(indexBits_) + " for " + std::to_string(k_) + " atoms");
-  if (!(tolerance_ >= 0 && tolerance_ < 1)) fail("tolerance out of range");
-  if (std::isnan(psnr_)) fail("PSNR is not a number");
-  // The levels: section 6, or level 0 alone in files from before the pyramid.
-  std::vector<double> levelPsnr{psnr_};
-  if (const auto it = sections.sections.find(kLevels); it != sections.sections.end()) {
-    ByteReader lr(it->second, src, "section 'levels'");
-    const std::uint32_t count = lr.get<std::uint32_t>();
-    if (count < 1 || count > std::uint32_t(kernels::kKsvdMaxLevels))
-      lr.fail("levels " + std::to_string(count) + " (1.." +
-              std::to_string(kernels::kKsvdMaxLevels) + ")");
-    if (lr.remaining() != 8 * std::size_t(count))
-      lr.fail(std::to_string(it->second.size()) + " bytes for " + std::to_string(count) +
-              " levels");
-    levelPsnr.resize(count);
-    for (double& v : levelPsnr)
-      if (std::isnan(v = lr.get<double>())) lr.fail("a level's PSNR is not a number");
-  }
-  std::uint64_t nBricks = 0, nBlocks = 0;
-  std::vector<Grid> grids;
-  for (std::size_t l = 0; l < levelPsnr.size(); ++l) {
-    LevelInfo level;
-    level.dims = (info.dims - 1) / (1 << l) + 1;
-    const Grid& g = grids.emplace_back(level.dims, m_);
-    level.blocks = g.blocks, level.bricks = g.bricks;
-    level.firstBrick = nBricks, level.firstBlock = nBlocks;
-    level.psnr = levelPsnr[l];
-    nBricks += g.brickCount(), nBlocks += g.blockCount();
-    levels_.push_back(level);
-  }
-  const std::uint64_t perBrick = std::uint64_t(grids[0].blocksPerBrick());
-  if (codedBricks_ > nBricks)
-    fail(std::to_string(codedBricks_) + " coded bricks of " + std::to_string(nBricks));
-
-  const auto dictBytes = sections.get(kDictionary, "dictionary");
-  if (dictBytes.size() != std::uint64_t(k_) * std::uint64_t(m) * 2)
-    ByteReader(dictBytes, src, "section 'dictionary'")
-        .fail(std::to_string(dictBytes.size()) + " bytes for " + std::to_string(k_) + " atoms of " +
-              std::to_string(m) + " 16-bit values");
-  const auto brickBytes = sections.get(kBricks, "bricks");
-  ByteReader br(brickBytes, src, "section 'bricks'");
-  if (brickBytes.size() != nBricks * 16)
-    br.fail(std::to_string(brickBytes.size()) + " bytes for " + std::to_string(nBricks) +
-            " bricks of 16 bytes");
-  const auto countBytes = sections.get(kCounts, "counts");
-  ByteReader cr(countBytes, src, "section 'counts'");
-  if (countBytes.size() != codedBricks_ * perBrick)
-    cr.fail(std::to_string(countBytes.size()) + " bytes for " + std::to_string(codedBricks_) +
-            " coded bricks of " + std::to_string(perBrick) + " blocks");
-  const auto pairBytes = sections.get(kPairs, "pairs");
-  ByteReader pr(pairBytes, src, "section 'pairs'");
-  if (pairs_ > pairBytes.size() / 3 || pairBytes.size() != pairs_ * 3)
-    pr.fail(std::to_string(pairBytes.size()) + " bytes for " + std::to_string(pairs_) +
-            " pairs of 3 bytes");
-
-  // The render buffer: float atoms, brick records, block tables, pairs (levels one after the
-  // other in each).
-  auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
-  atomsAt_ = 0;
-  bricksAt_ = align8(std::uint64_t(k_) * std::uint64_t(m) * 4);
-  blocksAt_ = align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick));
-  pairsAt_ = align8(blocksAt_ + nBlocks * 4);
-  render_.assign(pairsAt_ + pairBytes.size() + 8, std::byte{0});
-  auto* atoms = reinterpret_cast<float*>(render_.data() + atomsAt_);
-  for (std::size_t i = 0; i < std::size_t(k_) * std::size_t(m); ++i) {
-    std::int16_t v;
-    std::memcpy(&v, dictBytes.data() + 2 * i, 2);
-    atoms[i] = float(v) / 32767.0f;
-  }
-  auto* brickOut = reinterpret_cast<kernels::KsvdBrick*>(render_.data() + bricksAt_);
-  auto* blockOut = reinterpret_cast<std::uint32_t*>(render_.data() + blocksAt_);
-  const auto* counts = reinterpret_cast<const std::uint8_t*>(countBytes.data());
-  const auto* pairs = reinterpret_cast<const std::uint8_t*>(pairBytes.data());
-  std::uint64_t codedSeen = 0, pairSeen = 0;
-  for (std::size_t l = 0; l < levels_.size(); ++l) {
-    const Grid& g = grids[l];
-    const LevelInfo& level = levels_[l];
-    for (std::uint64_t b = 0; b < g.brickCount(); ++b) {
-      kernels::KsvdBrick& out = brickOut[level.firstBrick + b];
-      out.lo = br.get<float>(), out.hi = br.get<float>(), out.step = br.get<float>();
-      const std::uint32_t index = br.get<std::uint32_t>();
-      auto which = [&] {
-        std::string name = "brick ";
-        name += std::to_string(b);
-        if (l) name += " of level ", name += std::to_string(l);
-        return name;
-      };
-      if (!std::isfinite(out.lo) || !std::isfinite(out.hi) || out.lo > out.hi)
-        br.fail(which() + ": bad value range");
-      if (!std::isfinite(out.step) || out.step < 0) br.fail(which() + ": bad coefficient step");
-      if (out.step == 0) {
-        if (index != kConstant || out.lo != out.hi)
-          br.fail(which() + ": a constant brick must have min == max and no coded index");
-        continue;
-      }
-      if (index != codedSeen)
-        br.fail(which() + ": coded index " + std::to_string(index) + ", expected " +
-                std::to_string(codedSeen));
-      if (codedSeen >= codedBricks_)
-        br.fail("more coded bricks than the header's " + std::to_string(codedBricks_));
-      out.firstPair = pairSeen;
-      const glm::ivec3 bc = g.brickCoords(b);
-      std::uint64_t relative = 0;
-      for (int j = 0; j < int(perBrick); ++j) {
-        const int count = counts[codedSeen * perBrick + std::uint64_t(j)];
-        const glm::ivec3 block = g.blockOf(bc, j);
-        if (!g.inGrid(block)) {
-          if (count != 0) cr.fail(which() + ": a block outside the volume has pairs");
-          continue;
-        }
-        if (count > s_)
-          cr.fail(which() + ": block " + std::to_string(j) + " has " + std::to_string(count) +
-                  " pairs (0.." + std::to_string(s_) + ")");
-        if (pairSeen + std::uint64_t(count) > pairs_)
-          pr.fail("the blocks need more than the header's " + std::to_string(pairs_) + " pairs");
-        for (int p = 0; p < count; ++p) {
-          const std::uint8_t* q = pairs + 3 * (pairSeen + std::uint64_t(p));
-          const int atom =
-              int((std::uint32_t(q[0]) | (std::uint32_t(q[1]) << 8) | (std::uint32_t(q[2]) << 16)) &
-                  ((1u << indexBits_) - 1u));
-          if (atom >= k_)
-            pr.fail("pair " + std::to_string(pairSeen + std::uint64_t(p)) + " names atom " +
-                    std::to_string(atom) + " of " + std::to_string(k_));
-        }
-        blockOut[level.firstBlock +
-                 (std::uint64_t(block.z) * std::uint64_t(g.blocks.y) + std::uint64_t(block.y)) *
-                     std::uint64_t(g.blocks.x) +
-                 std::uint64_t(block.x)] = std::uint32_t(relative) | (std::uint32_t(count) << 24);
-        relative += std::uint64_t(count), pairSeen += std::uint64_t(count);
-      }
-      ++codedSeen;
-    }
-  }
-  if (codedSeen != codedBricks_)
-    br.fail(std::to_string(codedSeen) + " coded bricks, the header says " +
-            std::to_string(codedBricks_));
-  if (pairSeen != pairs_)
-    pr.fail(std::to_string(pairSeen) + " pairs used, the header says " + std::to_string(pairs_));
-  if (!pairBytes.empty())
-    std::memcpy(render_.data() + pairsAt_, pairBytes.data(), pairBytes.size());
-}
-
-std::uint64_t Layout::bricks() const {
-  std::uint64_t n = 0;
-  for (const LevelInfo& l : levels_)
-    n += std::uint64_t(l.bricks.x) * std::uint64_t(l.bricks.y) * std::uint64_t(l.bricks.z);
-  return n;
-}
-
-template <int Side>
-kernels::KsvdView<Side> Layout::view(const std::byte* base) const {
-  if (Side != m_) throw std::logic_error("ksvd view of the wrong block side");
-  kernels::KsvdView<Side> v;
-  v.levels = int(levels_.size());
-  v.dimX = info_.dims.x, v.dimY = info_.dims.y, v.dimZ = info_.dims.z;
-  for (std::size_t l = 0; l < levels_.size(); ++l) {
-    const LevelInfo& level = levels_[l];
-    auto& lv = v.level[l];
-    lv.setDims(level.dims.x, level.dims.y, level.dims.z);
-    lv.cacheId = cacheId_;
-    auto& d = lv.decoder;
-    d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
-    d.atomsAt = atomsAt_, d.pairsAt = pairsAt_;
-    d.bricksAt = bricksAt_ + level.firstBrick * sizeof(kernels::KsvdBrick);
-    d.blocksAt = blocksAt_ + level.firstBlock * 4;
-    d.keyBase = level.firstBlock;
-    d.blocksX = level.blocks.x, d.blocksY = level.blocks.y;
-    d.bricksX = level.bricks.x, d.bricksY = level.bricks.y;
-    d.blocksPerBrick = n_, d.indexBits = indexBits_;
-    d.integral = info_.type != ScalarType::Float32;
-  }
-  return v;
-}
-template kernels::KsvdView<4> Layout::view<4>(const std::byte*) const;
-template kernels::KsvdView<6> Layout::view<6>(const std::byte*) const;
-template kernels::KsvdView<8> Layout::view<8>(const std::byte*) const;
-
-RangeGrid Layout::rangeGrid() const {
-  return withView([](const auto& v) { return brickRangeGrid(v.level[0]); });
-}
-
-Volume Layout::decode() const {
-  return withView(
-      [&](const auto& v) { return decodeBricks(v.level[0], info_.type, info_.spacing); });
-}
-
-Volume Layout::decodeLevel(int level) const {
-  if (level < 0 || level >= levels()) throw std::out_of_range("ksvd level");
-  return withView([&](const auto& v) {
-    return decodeBricks(v.level[level], ScalarType::Float32, info_.spacing * double(1 << level));
-  });
-}
-
-Volume decode(const VolumeInfo& info, const SectionSet& sections) {
-  return Layout(info, sections).decode();
 }
 
 }  // namespace voxwall::codec::ksvd

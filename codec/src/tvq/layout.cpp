@@ -1,0 +1,309 @@
+// The tvq codec's layout: every section checked against the header before anything reads it, the
+// view the raycaster samples, and the decoder. The byte layout is documented in tvq_codec.hpp.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <voxwall/codec/brick_volume.hpp>
+#include <voxwall/codec/tvq_codec.hpp>
+#include <voxwall/core/bytes.hpp>
+#include <voxwall/core/errors.hpp>
+
+#include "format.hpp"
+
+namespace voxwall::codec::tvq {
+
+Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
+  static std::atomic<std::uint64_t> nextCacheId{1};
+  cacheId_ = nextCacheId.fetch_add(kProgressiveLevels);  // one id per progressive level
+  const std::string& src = sections.source;
+  ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
+  if (r.remaining() != kParamsBytes)
+    r.fail(std::to_string(r.remaining()) + " bytes, expected " + std::to_string(kParamsBytes));
+  const std::uint32_t transform = r.get<std::uint32_t>();
+  const std::uint32_t s = r.get<std::uint32_t>();
+  const std::uint32_t dcBits = r.get<std::uint32_t>();
+  const std::uint32_t classified = r.get<std::uint32_t>();
+  const std::uint32_t codeBits = r.get<std::uint32_t>();
+  const std::uint32_t reserved = r.get<std::uint32_t>();
+  fidelity_ = r.get<double>(), dcLo_ = r.get<double>(), dcStep_ = r.get<double>();
+  for (double& v : levelPsnr_) v = r.get<double>();
+  const std::uint64_t subCount = r.get<std::uint64_t>();
+  if (transform != 1 && transform != 2)
+    r.fail("transform " + std::to_string(transform) + " (1 KLT, 2 DCT)");
+  if (s < 1 || s > std::uint32_t(kMaxSubvolumeBlocks))
+    r.fail("sub-volume side " + std::to_string(s) + " blocks (1.." +
+           std::to_string(kMaxSubvolumeBlocks) + ")");
+  if (dcBits < 1 || dcBits > 16) r.fail("mean bits " + std::to_string(dcBits) + " (1..16)");
+  if (classified > 1) r.fail("classified flag " + std::to_string(classified));
+  if (codeBits > std::uint32_t(kMaxCodeBitsTotal)) r.fail("code bits " + std::to_string(codeBits));
+  if (reserved != 0) r.fail("reserved field is not zero");
+  if (!(fidelity_ >= 0 && fidelity_ < 1)) r.fail("fidelity out of range");
+  if (!std::isfinite(dcLo_) || std::abs(dcLo_) > 1e30) r.fail("mean offset is not a finite number");
+  if (!(dcStep_ > 0) || !(dcStep_ * 65536.0 < 1e30)) r.fail("mean step out of range");
+  for (double v : levelPsnr_)
+    if (std::isnan(v)) r.fail("a PSNR is not a number");
+  transform_ = Transform(transform), s_ = int(s), dcBits_ = int(dcBits);
+  classified_ = classified == 1, codeBits_ = int(codeBits);
+  const Grid grid(info.dims, s_);
+  blocks_ = grid.blocks, grid_ = grid.subs;
+  if (subCount != grid.subCount())
+    r.fail(std::to_string(subCount) + " sub-volumes, the grid has " +
+           std::to_string(grid.subCount()));
+
+  // The basis.
+  ByteReader br(sections.get(kBasis, "basis"), src, "section 'basis'");
+  if (br.remaining() != 64 * 64 * 4 + 64)
+    br.fail(std::to_string(br.remaining()) + " bytes, expected " +
+            std::to_string(64 * 64 * 4 + 64));
+  for (float& v : basis_.rows) {
+    v = br.get<float>();
+    if (!(std::abs(v) <= 1.0f)) br.fail("a basis value outside [-1, 1]");
+  }
+  std::array<int, 8> zoneSize{};
+  for (std::uint8_t& z : basis_.zone) {
+    z = br.get<std::uint8_t>();
+    if (z > 7) br.fail("zone " + std::to_string(z) + " (0..7)");
+    ++zoneSize[z];
+  }
+  if (basis_.zone[0] != 0) br.fail("coefficient 0 (the mean) is not in zone 0");
+  for (int z = 0; z < 8; ++z)
+    if (zoneSize[std::size_t(z)] != 8)
+      br.fail("zone " + std::to_string(z) + " holds " + std::to_string(zoneSize[std::size_t(z)]) +
+              " coefficients, not 8");
+  std::array<std::vector<int>, 3> chapterDims;
+  std::array<std::vector<std::vector<int>>, 3> chapterCoefs;
+  for (int p = 0; p < 3; ++p)
+    for (int c = 0; c < chapterCount(p); ++c) {
+      chapterCoefs[std::size_t(p)].push_back(
+          chapterCoefficients(basis_, p, firstChapterClass(p) + c));
+      chapterDims[std::size_t(p)].push_back(int(chapterCoefs[std::size_t(p)].back().size()));
+    }
+
+  // The sub-volume table.
+  ByteReader sr(sections.get(kSubvolumes, "sub-volumes"), src, "section 'sub-volumes'");
+  if (sr.remaining() != subCount * kSubvolumeBytes)
+    sr.fail(std::to_string(sr.remaining()) + " bytes for " + std::to_string(subCount) +
+            " sub-volumes of " + std::to_string(kSubvolumeBytes));
+  std::uint64_t bookValues = 0, words = 0, recordBytes = 0;
+  for (std::uint64_t i = 0; i < subCount; ++i) {
+    Sub sub;
+    const std::string which = "sub-volume " + std::to_string(i);
+    for (int& b : sub.bits) {
+      b = sr.get<std::uint8_t>();
+      if (b > kMaxCodeBits)
+        sr.fail(which + ": " + std::to_string(b) + " code bits (0.." +
+                std::to_string(kMaxCodeBits) + ")");
+    }
+    if (sr.get<std::uint8_t>() != 0) sr.fail(which + ": reserved byte is not zero");
+    sub.background = sr.get<std::uint32_t>();
+    if (sub.background >> dcBits_) sr.fail(which + ": background mean does not fit the mean bits");
+    sub.coded = sr.get<std::uint64_t>();
+    const std::uint64_t local = Grid::volume(grid.extent(i));
+    if (sub.coded > local)
+      sr.fail(which + ": " + std::to_string(sub.coded) + " coded blocks of " +
+              std::to_string(local));
+    for (float& v : sub.scale) {
+      v = sr.get<float>();
+      if (!(v >= 0 && v <= kMaxScale)) sr.fail(which + ": a codebook scale out of range");
+    }
+    for (int p = 0; p < 3; ++p) {
+      std::uint64_t total = 1;
+      sub.codebookAt[std::size_t(p)] = bookValues;
+      for (int c = 0; c < chapterCount(p); ++c) {
+        const std::uint32_t n = sr.get<std::uint32_t>();
+        sub.chapters[std::size_t(p)].push_back(n);
+        total += n;
+        bookValues += std::uint64_t(n) * std::uint64_t(chapterDims[std::size_t(p)][std::size_t(c)]);
+        if (total > (std::uint64_t(1) << sub.bits[std::size_t(p)]))
+          sr.fail(which + ": partition " + std::to_string(p) +
+                  "'s chapters hold more codevectors than its " +
+                  std::to_string(sub.bits[std::size_t(p)]) + " code bits address");
+      }
+      codevectors_[std::size_t(p)] += total - 1;
+    }
+    sub.firstWord = words, sub.firstRecordByte = recordBytes;
+    words += (local + 63) / 64;
+    recordBytes +=
+        (sub.coded * std::uint64_t(dcBits_ + sub.bits[0] + sub.bits[1] + sub.bits[2]) + 7) / 8;
+    coded_ += sub.coded;
+    subvolumes_.push_back(std::move(sub));
+  }
+  codebooks_ = sections.get(kCodebooks, "codebooks");
+  if (codebooks_.size() != bookValues * 2)
+    ByteReader(codebooks_, src, "section 'codebooks'")
+        .fail(std::to_string(codebooks_.size()) + " bytes, the chapters need " +
+              std::to_string(bookValues * 2));
+  const auto occupancy = sections.get(kOccupancy, "occupancy");
+  ByteReader orr(occupancy, src, "section 'occupancy'");
+  if (occupancy.size() != words * 8)
+    orr.fail(std::to_string(occupancy.size()) + " bytes, the sub-volumes need " +
+             std::to_string(words * 8));
+  const auto records = sections.get(kRecords, "records");
+  ByteReader rr(records, src, "section 'records'");
+  if (records.size() != recordBytes)
+    rr.fail(std::to_string(records.size()) + " bytes, the coded blocks need " +
+            std::to_string(recordBytes));
+
+  // The render buffer: the sub-volume table, each sub-volume's associated codebooks (zero
+  // vector first), occupancy words with their ranks, then the records.
+  auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
+  std::uint64_t at = subvolumesAt_ = 0;
+  at += subCount * sizeof(kernels::TvqSubvolume);
+  std::vector<kernels::TvqSubvolume> table(subCount);
+  for (std::uint64_t i = 0; i < subCount; ++i)
+    for (int p = 0; p < 3; ++p) {
+      std::uint64_t n = 1;
+      for (std::uint32_t c : subvolumes_[i].chapters[std::size_t(p)]) n += c;
+      table[i].codebookAt[p] = at = align8(at);
+      at += n * kBlockVoxels * sizeof(float);
+    }
+  const std::uint64_t occupancyAt = at = align8(at);
+  at += words * 8;
+  const std::uint64_t rankAt = at;
+  at += words * 4;
+  const std::uint64_t recordsAt = at = align8(at);
+  at += recordBytes + 8;  // readBits reads 8 bytes past the last record's byte
+  render_.assign(at, std::byte{0});
+  std::memcpy(render_.data() + occupancyAt, occupancy.data(), occupancy.size());
+  if (!records.empty()) std::memcpy(render_.data() + recordsAt, records.data(), records.size());
+  for (std::uint64_t i = 0; i < subCount; ++i) {
+    const Sub& sub = subvolumes_[i];
+    kernels::TvqSubvolume& t = table[i];
+    const glm::ivec3 first = grid.first(i), extent = grid.extent(i);
+    for (int a = 0; a < 3; ++a) t.firstBlock[a] = first[a], t.blocks[a] = extent[a];
+    for (int p = 0; p < 3; ++p) t.codeBits[p] = sub.bits[std::size_t(p)];
+    t.recordBits = dcBits_ + sub.bits[0] + sub.bits[1] + sub.bits[2];
+    t.background = float(dcLo_ + double(sub.background) * dcStep_);
+    t.occupancyAt = occupancyAt + sub.firstWord * 8;
+    t.rankAt = rankAt + sub.firstWord * 4;
+    t.recordsAt = recordsAt + sub.firstRecordByte;
+    // Ranks, and the occupancy's agreement with the table.
+    const std::uint64_t local = Grid::volume(extent);
+    const auto* w = reinterpret_cast<const std::uint64_t*>(render_.data() + t.occupancyAt);
+    auto* rank = reinterpret_cast<std::uint32_t*>(render_.data() + t.rankAt);
+    std::uint64_t seen = 0;
+    for (std::uint64_t j = 0; j < (local + 63) / 64; ++j) {
+      rank[j] = std::uint32_t(seen);
+      std::uint64_t word = w[j];
+      if (j == (local - 1) / 64 && local % 64 && (word >> (local % 64)))
+        orr.fail("sub-volume " + std::to_string(i) + ": bits set past its blocks");
+      seen += std::uint64_t(std::popcount(word));
+    }
+    if (seen != sub.coded)
+      orr.fail("sub-volume " + std::to_string(i) + ": " + std::to_string(seen) +
+               " coded blocks, the table says " + std::to_string(sub.coded));
+    // Associated codebooks: each codevector taken back through the inverse transform (section
+    // 4.3, equation 5), so that decoding never does.
+    const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
+    for (int p = 0; p < 3; ++p) {
+      float* out = reinterpret_cast<float*>(render_.data() + t.codebookAt[p]) + kBlockVoxels;
+      std::uint64_t value = sub.codebookAt[std::size_t(p)];
+      for (int c = 0; c < chapterCount(p); ++c) {
+        const auto& ks = chapterCoefs[std::size_t(p)][std::size_t(c)];
+        for (std::uint32_t v = 0; v < sub.chapters[std::size_t(p)][std::size_t(c)]; ++v) {
+          for (int k : ks) {
+            std::int16_t q;
+            std::memcpy(&q, book + value++, 2);
+            const float coef = float(q) * sub.scale[std::size_t(p)];
+            const float* row = basis_.row(k);
+            for (int j = 0; j < kBlockVoxels; ++j) out[j] += coef * row[j];
+          }
+          out += kBlockVoxels;
+        }
+      }
+    }
+    // Every record's codes name a codevector of its partition.
+    kernels::TvqDecoder d;
+    d.data = reinterpret_cast<const std::uint8_t*>(render_.data());
+    d.dcBits = dcBits_;
+    std::array<std::uint64_t, 3> limit{};
+    for (int p = 0; p < 3; ++p) {
+      limit[std::size_t(p)] = 1;
+      for (std::uint32_t c : sub.chapters[std::size_t(p)]) limit[std::size_t(p)] += c;
+    }
+    for (std::uint64_t j = 0; j < sub.coded; ++j) {
+      std::uint32_t dc, k[3];
+      d.codes(t, j, dc, k);
+      for (int p = 0; p < 3; ++p)
+        if (k[p] >= limit[std::size_t(p)])
+          rr.fail("sub-volume " + std::to_string(i) + ", record " + std::to_string(j) + ": code " +
+                  std::to_string(k[p]) + " of partition " + std::to_string(p) + " has " +
+                  std::to_string(limit[std::size_t(p)]) + " codevectors");
+    }
+  }
+  // The table goes into the render buffer as the kernels read it (memory, not a file format).
+  std::memcpy(render_.data() + subvolumesAt_, table.data(),
+              table.size() * sizeof(kernels::TvqSubvolume));
+}
+
+kernels::TvqView Layout::view(const std::byte* base, int partitions) const {
+  if (partitions < 0 || partitions > 3)
+    throw std::invalid_argument("tvq: progressive level out of range");
+  kernels::TvqView v;
+  v.setDims(info_.dims.x, info_.dims.y, info_.dims.z);
+  v.cacheId = cacheId_ + std::uint64_t(partitions);
+  auto& d = v.decoder;
+  d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
+  d.subvolumesAt = subvolumesAt_;
+  d.subvolumeBlocks = s_;
+  d.subvolumesX = grid_.x, d.subvolumesY = grid_.y;
+  d.dcBits = dcBits_;
+  d.dcLo = float(dcLo_), d.dcStep = float(dcStep_);
+  d.lo = float(info_.valueMin), d.hi = float(info_.valueMax);
+  d.partitions = partitions;
+  d.integral = info_.type != ScalarType::Float32;
+  return v;
+}
+
+bool Layout::coefficients(int bx, int by, int bz, float* c) const {
+  if (bx < 0 || by < 0 || bz < 0 || bx >= blocks_.x || by >= blocks_.y || bz >= blocks_.z)
+    throw std::out_of_range("tvq: block outside the volume");
+  for (int k = 0; k < kBlockVoxels; ++k) c[k] = 0;
+  const kernels::TvqView v = view();
+  const std::uint64_t key = v.decoder.key(bx, by, bz);
+  const std::uint64_t si = key >> 32;
+  const kernels::TvqSubvolume& t = v.decoder.subvolume(si);
+  if ((key & 0xFFFFFFFFull) == kernels::TvqDecoder::kUncoded) {
+    c[0] = 8.0f * t.background;
+    return false;
+  }
+  std::uint32_t dc, k[3];
+  v.decoder.codes(t, key & 0xFFFFFFFFull, dc, k);
+  c[0] = 8.0f * float(dcLo_ + double(dc) * dcStep_);
+  const Sub& sub = subvolumes_[si];
+  const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
+  for (int p = 0; p < 3; ++p) {
+    if (k[p] == 0) continue;  // the zero vector
+    std::uint64_t index = k[p] - 1, value = sub.codebookAt[std::size_t(p)];
+    for (int ch = 0; ch < chapterCount(p); ++ch) {
+      const auto ks = chapterCoefficients(basis_, p, firstChapterClass(p) + ch);
+      const std::uint64_t n = sub.chapters[std::size_t(p)][std::size_t(ch)];
+      if (index < n) {
+        value += index * ks.size();
+        for (int kk : ks) {
+          std::int16_t q;
+          std::memcpy(&q, book + value++, 2);
+          c[kk] = float(q) * sub.scale[std::size_t(p)];
+        }
+        break;
+      }
+      index -= n, value += n * ks.size();
+    }
+  }
+  return true;
+}
+
+RangeGrid Layout::rangeGrid(int partitions) const {
+  return brickRangeGrid(view(nullptr, partitions));
+}
+
+Volume Layout::decode(int partitions) const {
+  return decodeBricks(view(nullptr, partitions), info_.type, info_.spacing);
+}
+
+Volume decode(const VolumeInfo& info, const SectionSet& sections) {
+  return Layout(info, sections).decode();
+}
+
+}  // namespace voxwall::codec::tvq
