@@ -75,6 +75,14 @@ std::string codecNames() {
   return names;
 }
 
+std::string codecsTaking(const std::string& flag, std::vector<CodecOption> (Codec::*list)() const) {
+  std::string owners;
+  for (const Codec* c : codecs())
+    for (const CodecOption& o : (c->*list)())
+      if (o.flag == flag) owners += (owners.empty() ? "" : " or ") + std::string(c->name());
+  return owners;
+}
+
 const Codec& codecNamed(std::string_view name) {
   for (const Codec* c : codecs())
     if (c->name() == name) return *c;

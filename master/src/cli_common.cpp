@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/registry.hpp>
+#include <voxwall/codec/registry.hpp>
 #include <voxwall/core/errors.hpp>
 
 namespace voxwall::cli {
@@ -100,6 +102,28 @@ codec::Volume loadVolume(const std::string& spec, const std::optional<codec::Raw
                                 "generated:shepp-logan:N");
   }
   return codec::readVolume(spec, raw);
+}
+
+void addCodecFlags(CLI::App& cmd, std::vector<codec::CodecOption> (codec::Codec::*list)() const,
+                   std::map<std::string, std::string>& given) {
+  std::map<std::string, CLI::Option*> registered;
+  for (const codec::Codec* c : codec::codecs())
+    for (const codec::CodecOption& spec : (c->*list)()) {
+      if (CLI::Option* known = registered[spec.flag]) {
+        known->description(known->get_description() + "; " + spec.help);
+        continue;
+      }
+      const std::string flag = spec.flag;
+      CLI::Option* opt =
+          spec.isFlag
+              ? cmd.add_flag_callback(
+                    flag, [&given, flag] { given[flag] = "1"; }, spec.help)
+              : cmd.add_option(flag, spec.help)->each([&given, flag](const std::string& value) {
+                  given[flag] = value;
+                });
+      if (!spec.defaultValue.empty()) opt->default_str(spec.defaultValue);
+      registered[flag] = opt;
+    }
 }
 
 voxwall::Progress makeProgress(bool quiet) {

@@ -2,8 +2,10 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <map>
 #include <optional>
 #include <string>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/progress.hpp>
@@ -30,6 +32,12 @@ std::vector<double> parseNumbers(const std::string& text, const std::string& opt
 // Reads a volume named on the command line: a file, a directory of slices, or
 // "generated:<menger|marschner-lobb|shepp-logan>:<size or level>".
 codec::Volume loadVolume(const std::string& spec, const std::optional<codec::RawLayout>& raw);
+
+// Registers on `cmd` the flags every registered codec declares for it (`list`: Codec::options for
+// compress, Codec::renderOptions for render), each flag once (help texts joined where codecs share
+// a flag). `given` receives each flag given, with its value ("1" for a flag that takes none).
+void addCodecFlags(CLI::App& cmd, std::vector<codec::CodecOption> (codec::Codec::*list)() const,
+                   std::map<std::string, std::string>& given);
 
 // Prints a progress bar on stderr when it is a terminal, one line per stage otherwise.
 voxwall::Progress makeProgress(bool quiet);

@@ -34,12 +34,17 @@ RenderVolume RenderVolume::open(const std::string& path, const std::optional<cod
                                 const codec::CodecOptionValues& renderOptions) {
   if ((!raw || raw->dims.x <= 0) && codec::isContainerFile(path))
     return fromContainer(codec::ContainerFile::open(path), renderOptions);
-  if (!renderOptions.flags().empty())
-    throw std::invalid_argument(renderOptions.flags().front() + " needs a .vwz file; " + path +
-                                " is rendered with the raw codec");
+  refuseRenderOptions(renderOptions, path);
   RenderVolume v = fromVolume(codec::readVolume(path, raw));
   v.source_ = path;
   return v;
+}
+
+void RenderVolume::refuseRenderOptions(const codec::CodecOptionValues& renderOptions,
+                                       const std::string& path) {
+  if (!renderOptions.flags().empty())
+    throw std::invalid_argument(renderOptions.flags().front() + " needs a .vwz file; " + path +
+                                " is rendered with the raw codec");
 }
 
 RenderVolume RenderVolume::fromContainer(codec::ContainerFile file,
@@ -76,12 +81,9 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
     bool owned = false;
     for (const codec::CodecOption& o : c.renderOptions()) owned = owned || o.flag == flag;
     if (owned) continue;
-    std::string owners;
-    for (const codec::Codec* other : codec::codecs())
-      for (const codec::CodecOption& o : other->renderOptions())
-        if (o.flag == flag) owners += (owners.empty() ? "" : ", ") + std::string(other->name());
-    throw std::invalid_argument(flag + " needs a file of codec " + owners + "; " + source_ +
-                                " is " + std::string(c.name()));
+    throw std::invalid_argument(flag + " needs a file of codec " +
+                                codec::codecsTaking(flag, &codec::Codec::renderOptions) + "; " +
+                                source_ + " is " + std::string(c.name()));
   }
   payload_ = c.openWith(info_, sections_, renderOptions);
   ranges_ = CellRanges(payload_->rangeGrid(), info_.type);

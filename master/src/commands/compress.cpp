@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -16,36 +17,24 @@
 namespace voxwall::cli {
 namespace {
 
-// A codec option as registered with CLI11: the codecs that declare it and its value.
-struct RegisteredOption {
-  std::vector<const codec::Codec*> owners;
-  CLI::Option* option = nullptr;
-  std::string value;
-  bool set = false;  // flags
-};
-
 struct CompressOptions {
   std::string input, output, codec = "raw";
   int threads = 0;
   bool quiet = false;
   RawInputOptions raw;
-  std::map<std::string, RegisteredOption> codecOptions;  // by flag
+  std::map<std::string, std::string> codecFlags;  // given: flag -> value
 };
 
 // The values of the options given for `chosen`; refuses an option of another codec.
 codec::CodecOptionValues codecOptionValues(const CompressOptions& o, const codec::Codec& chosen) {
   codec::CodecOptionValues values;
   values.threads = o.threads;
-  for (const auto& [flag, reg] : o.codecOptions) {
-    if (reg.option->count() == 0) continue;
-    bool owned = false;
-    std::string owners;
-    for (const codec::Codec* c : reg.owners) {
-      owned |= c == &chosen;
-      owners += (owners.empty() ? "" : " or ") + std::string(c->name());
-    }
-    if (!owned) throw std::invalid_argument(flag + " needs --codec " + owners);
-    values.set(flag, reg.set ? std::string("1") : reg.value);
+  for (const auto& [flag, value] : o.codecFlags) {
+    const auto own = chosen.options();
+    if (std::none_of(own.begin(), own.end(), [&](const auto& spec) { return spec.flag == flag; }))
+      throw std::invalid_argument(flag + " needs --codec " +
+                                  codec::codecsTaking(flag, &codec::Codec::options));
+    values.set(flag, value);
   }
   return values;
 }
@@ -86,25 +75,6 @@ void runCompress(const CompressOptions& o) {
               humanBytes(double(peak)).c_str(), report.c_str());
 }
 
-// Every registered codec's options, each flag once (help texts joined when codecs share one).
-void addCodecOptions(CLI::App& cmd, CompressOptions& o) {
-  for (const codec::Codec* c : codec::codecs())
-    for (const codec::CodecOption& spec : c->options()) {
-      RegisteredOption& reg = o.codecOptions[spec.flag];
-      reg.owners.push_back(c);
-      if (reg.option) {
-        reg.option->description(reg.option->get_description() + "; " + spec.help);
-        continue;
-      }
-      if (spec.isFlag) {
-        reg.option = cmd.add_flag(spec.flag, reg.set, spec.help);
-      } else {
-        reg.option = cmd.add_option(spec.flag, reg.value, spec.help);
-        if (!spec.defaultValue.empty()) reg.option->default_str(spec.defaultValue);
-      }
-    }
-}
-
 }  // namespace
 
 void addCompressCommand(CLI::App& app) {
@@ -121,7 +91,7 @@ void addCompressCommand(CLI::App& app) {
   codecHelp.back() = '.';
   cmd->add_option("--codec", o->codec, codecHelp + " `voxwall codecs` lists them with examples")
       ->capture_default_str();
-  addCodecOptions(*cmd, *o);
+  addCodecFlags(*cmd, &codec::Codec::options, o->codecFlags);
   cmd->add_option("--threads", o->threads, "Encoder threads (0: every usable core)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();

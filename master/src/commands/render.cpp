@@ -71,9 +71,7 @@ node::RenderVolume loadRenderVolume(const RenderOptions& o, const std::string& i
   const auto layout = o.raw.layout();
   if (!layout && codec::isContainerFile(input))
     return node::RenderVolume::open(input, std::nullopt, codecRenderOptions(o));
-  if (!o.codecFlags.empty())
-    throw std::invalid_argument(o.codecFlags.begin()->first + " needs a .vwz file; " + input +
-                                " is rendered with the raw codec");
+  node::RenderVolume::refuseRenderOptions(codecRenderOptions(o), input);
   codec::Volume v = loadVolume(input, layout);
   if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
   return node::RenderVolume::fromVolume(v);

@@ -457,21 +457,7 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
           "mid-frame; those pages are decoded after the frame (a quarter of the cache at "
           "most), so later frames sharpen. render -v counts the samples taken from coarser "
           "levels");
-  // Each codec's render flags, each flag once (help texts joined when codecs share one).
-  std::map<std::string, CLI::Option*> codecFlags;
-  for (const codec::Codec* c : codec::codecs())
-    for (const codec::CodecOption& spec : c->renderOptions()) {
-      if (CLI::Option* known = codecFlags[spec.flag]) {
-        known->description(known->get_description() + "; " + spec.help);
-        continue;
-      }
-      const std::string flag = spec.flag;
-      CLI::Option* opt =
-          spec.isFlag ? cmd.add_flag(flag, spec.help) : cmd.add_option(flag, spec.help);
-      if (!spec.defaultValue.empty()) opt->default_str(spec.defaultValue);
-      opt->each([&o, flag](const std::string& value) { o.codecFlags[flag] = value; });
-      codecFlags[flag] = opt;
-    }
+  addCodecFlags(cmd, &codec::Codec::renderOptions, o.codecFlags);
   cmd.add_option("--backend", o.backend, "cpu or cuda")->capture_default_str();
   cmd.add_option("--threads", o.threads,
                  "CPU backend threads per rank (0 = the host's cores shared by its ranks)")

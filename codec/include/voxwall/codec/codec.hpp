@@ -127,5 +127,8 @@ const Codec& codecOf(const VolumeInfo& info, const std::string& source);
 std::string codecName(CodecId id);
 // "raw, vq, svmm"
 std::string codecNames();
+// The codecs whose `list` (Codec::options for compress, Codec::renderOptions for render) has
+// `flag`: "vq" or "ksvd or tvq".
+std::string codecsTaking(const std::string& flag, std::vector<CodecOption> (Codec::*list)() const);
 
 }  // namespace voxwall::codec

@@ -66,6 +66,10 @@ class RenderVolume {
   static RenderVolume open(const std::string& path,
                            const std::optional<codec::RawLayout>& raw = std::nullopt,
                            const codec::CodecOptionValues& renderOptions = {});
+  // Throws std::invalid_argument ("--progressive needs a .vwz file; <path> is rendered with the
+  // raw codec") when codec render flags are given for a volume that is not a .vwz file.
+  static void refuseRenderOptions(const codec::CodecOptionValues& renderOptions,
+                                  const std::string& path);
   static RenderVolume fromContainer(codec::ContainerFile file,
                                     const codec::CodecOptionValues& renderOptions = {});
   // A compressed volume held in memory (any registered codec).
