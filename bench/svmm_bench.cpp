@@ -1,4 +1,4 @@
-// SVMM benchmark (issue: svmm codec): the thesis's parameter grid (Faas 2016, Table 5.1 and
+// SVMM benchmark: the thesis's parameter grid (Faas 2016, Table 5.1 and
 // Fig. 5.2) on the Menger sponge levels 4-5 (RGBA, coloured by a gradient as in the thesis) and
 // on a real MRI, and raycast time per 1920x1080 frame for raw against SVMM.
 //

@@ -23,7 +23,7 @@ struct RenderSettings {
   // rounding), instead of six trilinear samples per shaded sample (the original, for comparison).
   bool cellGradients = true;
   bool emptySpaceSkipping = true;
-  // Views with mip levels (svmm): nearest-voxel samples instead of trilinear, and coarser levels
+  // Views with mip levels (svmm, ksvd): nearest-voxel samples instead of trilinear, and coarser levels
   // where a voxel is smaller than the pixel's footprint (level of detail).
   bool nearest = false;
   bool levelOfDetail = false;

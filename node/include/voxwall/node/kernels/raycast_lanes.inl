@@ -146,9 +146,9 @@ struct LaneKernels {
     const F step = L::splat(f.stepWorld);
     const I oneI = L::splatI(1), zeroI = L::splatI(0);
     typename L::template Caches<View> cache;  // the view's per-ray state (e.g. the last cell)
-    // Views that traverse a mip hierarchy (svmm) take the sampling mode and the ray's footprint,
-    // and report the region around a sample where every sample has its value (a terminal block):
-    // a transparent one is skipped in one step.
+    // Views that traverse a mip hierarchy (svmm, ksvd) take the sampling mode and the ray's
+    // footprint, and may report the region around a sample where every sample has its value (an
+    // svmm terminal block): a transparent one is skipped in one step.
     constexpr bool traversal = requires { View::kTraversal; };
     static_assert(!traversal || codec::kernels::TraversalView<View>,
                   "a view that declares kTraversal must meet TraversalView: its RayCache needs "
