@@ -8,7 +8,6 @@
 #include <stdexcept>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/registry.hpp>
-#include <voxwall/codec/registry.hpp>
 #include <voxwall/core/errors.hpp>
 
 namespace voxwall::cli {
