@@ -151,6 +151,27 @@ void addPointAsCenter(State& s, std::size_t point) {
   s.setCenterNorm(s.centers.size() - 1);
 }
 
+// Lloyd's loop: the centres move to their members' means, then `reassign(changed)` (which centres
+// moved) assigns the points again, until no centre moves or after maxIterations passes.
+struct Iterated {
+  int iterations = 0;
+  bool converged = false;
+};
+template <class Reassign>
+Iterated iterate(State& s, int maxIterations, Reassign&& reassign) {
+  Iterated r;
+  while (r.iterations < maxIterations) {
+    const std::vector<char> changed = s.updateCenters();
+    if (std::find(changed.begin(), changed.end(), 1) == changed.end()) {
+      r.converged = true;
+      break;
+    }
+    ++r.iterations;
+    reassign(changed);
+  }
+  return r;
+}
+
 KMeansResult finish(State& s, int iterations, bool converged, std::uint64_t computed,
                     std::uint64_t skipped, std::uint64_t plain) {
   KMeansResult r;
@@ -239,15 +260,7 @@ KMeansResult kmeans(std::span<const Point> points, std::span<const std::uint32_t
 
   // ---- Algorithm 4: update centres, then re-check only what a changed centre can affect ----
   progress.begin("k-means: iterations", std::uint64_t(std::max(0, maxIterations)));
-  int iterations = 0;
-  bool converged = false;
-  while (iterations < maxIterations) {
-    const std::vector<char> changed = s.updateCenters();
-    if (std::find(changed.begin(), changed.end(), 1) == changed.end()) {
-      converged = true;
-      break;
-    }
-    ++iterations;
+  const Iterated it = iterate(s, maxIterations, [&](const std::vector<char>& changed) {
     const NormOrder all = NormOrder::make(s, changed, false);
     const NormOrder changedOrder = NormOrder::make(s, changed, true);
     std::fill(perChunk.begin(), perChunk.end(), Counters{});
@@ -297,10 +310,10 @@ KMeansResult kmeans(std::span<const Point> points, std::span<const std::uint32_t
     });
     for (const auto& c : perChunk) computed += c.computed, skipped += c.skipped;
     progress.advance();
-  }
+  });
   progress.end();
-  const std::uint64_t plain = plainPerPass * std::uint64_t(iterations + 1);
-  return finish(s, iterations, converged, computed, skipped, plain);
+  const std::uint64_t plain = plainPerPass * std::uint64_t(it.iterations + 1);
+  return finish(s, it.iterations, it.converged, computed, skipped, plain);
 }
 
 KMeansResult kmeansBruteForce(std::span<const Point> points, std::span<const std::uint32_t> weights,
@@ -330,15 +343,7 @@ KMeansResult kmeansBruteForce(std::span<const Point> points, std::span<const std
     isCenter[far] = 1;
   }
   s.p = minD;
-  int iterations = 0;
-  bool converged = false;
-  while (iterations < maxIterations) {
-    const std::vector<char> changed = s.updateCenters();
-    if (std::find(changed.begin(), changed.end(), 1) == changed.end()) {
-      converged = true;
-      break;
-    }
-    ++iterations;
+  const Iterated it = iterate(s, maxIterations, [&](const std::vector<char>&) {
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t own = s.assignment[i];
       ++computed;
@@ -352,9 +357,9 @@ KMeansResult kmeansBruteForce(std::span<const Point> points, std::span<const std
       }
       s.assignment[i] = bestC;
     }
-  }
-  return finish(s, iterations, converged, computed, 0,
-                std::uint64_t(n) * k * std::uint64_t(iterations + 1));
+  });
+  return finish(s, it.iterations, it.converged, computed, 0,
+                std::uint64_t(n) * k * std::uint64_t(it.iterations + 1));
 }
 
 }  // namespace voxwall::codec::vq
