@@ -165,67 +165,101 @@ std::uint64_t plannedBytes(const std::vector<SubPlan>& plans, int dcBits) {
   return bytes;
 }
 
+// A sub-volume's codebooks and its members' codes.
+struct Coded {
+  std::array<std::vector<std::vector<std::int16_t>>, 3> codebooks;  // [p][chapter]
+  std::array<float, 3> scale{};
+  std::array<std::vector<std::vector<std::uint32_t>>, 3> codes;  // [p][chapter][member]
+};
+
+// The encoder of a volume of scalar type T, stage by stage (run): the transform, the
+// classification and the chapters' statistics, the allocation of code bits, the codebooks, the
+// sections, and the PSNR of every progressive level.
 template <class T>
-CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, Progress& progress,
-                             EncodeStats& stats) {
-  const int workers = resolveThreads(params.threads);
-  if (!volume.finite)
-    throw std::invalid_argument(
-        "the volume holds NaN or infinite values: the tvq codec codes finite numbers only");
-  const auto [lowest, highest] = volume.dataRange();
-  const float vmin = float(lowest), vmax = float(highest);
-  const double range = vmax > vmin ? double(vmax) - double(vmin) : 1.0;
-  const Grid grid(volume.dims, params.subvolumeVoxels / 4);
+class Encoder {
+ public:
+  Encoder(const VolumeSource& volume, const Params& params, Progress& progress, EncodeStats& stats)
+      : volume_(volume),
+        params_(params),
+        progress_(progress),
+        stats_(stats),
+        workers_(resolveThreads(params.threads)),
+        grid_(volume.dims, params.subvolumeVoxels / 4),
+        window_(volume),
+        blockCount_(Grid::volume(grid_.blocks)) {
+    if (!volume.finite)
+      throw std::invalid_argument(
+          "the volume holds NaN or infinite values: the tvq codec codes finite numbers only");
+    const auto [lowest, highest] = volume.dataRange();
+    vmin_ = float(lowest);
+    const float vmax = float(highest);
+    range_ = vmax > vmin_ ? double(vmax) - double(vmin_) : 1.0;
+  }
+
+  CompressedVolume run() {
+    auto t0 = std::chrono::steady_clock::now();
+    transform();
+    stats_.transformSeconds = seconds(t0);
+    t0 = std::chrono::steady_clock::now();
+    classifyAll();
+    allocate();
+    stats_.classifySeconds = seconds(t0);
+    t0 = std::chrono::steady_clock::now();
+    train();
+    stats_.trainSeconds = seconds(t0);
+    CompressedVolume cv = sections();
+    measure(cv);
+    return cv;
+  }
+
+ private:
   // The slices of the blocks at hand: a batch of blocks for the KLT, a row of sub-volumes after.
-  SliceWindow<T> window(volume);
-  auto loadBlockRows = [&](int firstRow, int rows) { window.load(firstRow * 4, rows * 4); };
-  auto blockAt = [&](glm::ivec3 b, float* out) {
+  void loadBlockRows(int firstRow, int rows) { window_.load(firstRow * 4, rows * 4); }
+  void blockAt(glm::ivec3 b, float* out) const {
     for (int z = 0, i = 0; z < 4; ++z)
       for (int y = 0; y < 4; ++y)
         for (int x = 0; x < 4; ++x, ++i) {
-          const int vx = std::min(b.x * 4 + x, volume.dims.x - 1);
-          const int vy = std::min(b.y * 4 + y, volume.dims.y - 1);
-          const int vz = std::min(b.z * 4 + z, volume.dims.z - 1);
-          out[i] = float(window.at(vx, vy, vz));
+          const int vx = std::min(b.x * 4 + x, volume_.dims.x - 1);
+          const int vy = std::min(b.y * 4 + y, volume_.dims.y - 1);
+          const int vz = std::min(b.z * 4 + z, volume_.dims.z - 1);
+          out[i] = float(window_.at(vx, vy, vz));
         }
-  };
-  const std::uint64_t blockCount = Grid::volume(grid.blocks);
-  auto blockOfIndex = [&](std::uint64_t i) {
-    return glm::ivec3{int(i % std::uint64_t(grid.blocks.x)),
-                      int(i / std::uint64_t(grid.blocks.x) % std::uint64_t(grid.blocks.y)),
-                      int(i / (std::uint64_t(grid.blocks.x) * std::uint64_t(grid.blocks.y)))};
-  };
+  }
+  glm::ivec3 blockOfIndex(std::uint64_t i) const {
+    const auto& b = grid_.blocks;
+    return glm::ivec3{int(i % std::uint64_t(b.x)), int(i / std::uint64_t(b.x) % std::uint64_t(b.y)),
+                      int(i / (std::uint64_t(b.x) * std::uint64_t(b.y)))};
+  }
 
-  // 1. The transform.
-  auto t0 = std::chrono::steady_clock::now();
-  const Basis basis =
-      params.transform == Transform::Dct
-          ? dctBasis()
-          : kltBasis(
-                blockCount, [&](std::uint64_t i, float* out) { blockAt(blockOfIndex(i), out); },
-                workers, progress,
-                [&](std::uint64_t first, std::uint64_t end) {
-                  const int a = blockOfIndex(first).z, b = blockOfIndex(end - 1).z;
-                  loadBlockRows(a, b - a + 1);
-                });
-  stats.transformSeconds = seconds(t0);
-
-  const int dcLevels = (1 << params.dcBits) - 1;
-  const double dcLo = vmin, dcStep = range / double(dcLevels);
-  const double maxError2 = std::pow(params.fidelity * range, 2) * kBlockVoxels;
-  std::array<std::vector<std::vector<int>>, 3> coefs;  // [partition][chapter]
-  for (int p = 0; p < 3; ++p)
-    for (int c = 0; c < chapterCount(p); ++c)
-      coefs[std::size_t(p)].push_back(chapterCoefficients(basis, p, firstChapterClass(p) + c));
+  // 1. The transform (KLT learned from the blocks, or the DCT), and what it fixes: the means'
+  // quantization and each chapter's coefficients.
+  void transform() {
+    basis_ =
+        params_.transform == Transform::Dct
+            ? dctBasis()
+            : kltBasis(
+                  blockCount_, [&](std::uint64_t i, float* out) { blockAt(blockOfIndex(i), out); },
+                  workers_, progress_,
+                  [&](std::uint64_t first, std::uint64_t end) {
+                    const int a = blockOfIndex(first).z, b = blockOfIndex(end - 1).z;
+                    loadBlockRows(a, b - a + 1);
+                  });
+    dcLevels_ = (1 << params_.dcBits) - 1;
+    dcLo_ = vmin_, dcStep_ = range_ / double(dcLevels_);
+    maxError2_ = std::pow(params_.fidelity * range_, 2) * kBlockVoxels;
+    for (int p = 0; p < 3; ++p)
+      for (int c = 0; c < chapterCount(p); ++c)
+        coefs_[std::size_t(p)].push_back(chapterCoefficients(basis_, p, firstChapterClass(p) + c));
+  }
 
   // The coefficients of a sub-volume's blocks (local index, x fastest). Computed twice, for the
   // classification and again for training, so that the encoder holds one sub-volume's at a time.
-  auto transformed = [&](const SubPlan& plan,
-                         const std::function<void(std::size_t, const float*)>& each) {
+  std::vector<float> transformed(const SubPlan& plan,
+                                 const std::function<void(std::size_t, const float*)>& each) {
     const std::uint64_t local = Grid::volume(plan.extent);
     loadBlockRows(plan.first.z, plan.extent.z);
     std::vector<float> coefficients(local * kBlockVoxels);
-    parallelFor(local, workers, [&](std::size_t i) {
+    parallelFor(local, workers_, [&](std::size_t i) {
       const glm::ivec3 e = plan.extent;
       const glm::ivec3 b = plan.first + glm::ivec3{int(i % std::size_t(e.x)),
                                                    int(i / std::size_t(e.x) % std::size_t(e.y)),
@@ -233,29 +267,38 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
       float x[kBlockVoxels];
       blockAt(b, x);
       float* c = coefficients.data() + i * kBlockVoxels;
-      basis.forward(x, c);
+      basis_.forward(x, c);
       if (each) each(i, c);
     });
     return coefficients;
-  };
+  }
 
   // 2. Classification and the chapters' statistics, per sub-volume.
-  t0 = std::chrono::steady_clock::now();
-  std::vector<SubPlan> plans(grid.subCount());
-  progress.begin("tvq: classify", plans.size());
-  for (std::uint64_t si = 0; si < plans.size(); ++si) {
-    SubPlan& plan = plans[si];
-    plan.first = grid.first(si), plan.extent = grid.extent(si);
+  void classifyAll() {
+    plans_.assign(grid_.subCount(), SubPlan{});
+    progress_.begin("tvq: classify", plans_.size());
+    for (std::uint64_t si = 0; si < plans_.size(); ++si) {
+      classifySubvolume(si);
+      stats_.coded += plans_[si].coded;
+      progress_.advance();
+    }
+    progress_.end();
+    stats_.blocks = blockCount_;
+  }
+
+  void classifySubvolume(std::uint64_t si) {
+    SubPlan& plan = plans_[si];
+    plan.first = grid_.first(si), plan.extent = grid_.extent(si);
     const std::uint64_t local = Grid::volume(plan.extent);
     plan.cls.assign(local, 0), plan.dc.assign(local, 0);
     const std::vector<float> coefficients = transformed(plan, [&](std::size_t i, const float* c) {
       const double mean = double(c[0]) / 8.0;
       plan.dc[i] =
-          std::uint16_t(std::clamp(std::lround((mean - dcLo) / dcStep), 0L, long(dcLevels)));
-      plan.cls[i] = std::uint8_t(classify(basis, c, maxError2, params.classified));
+          std::uint16_t(std::clamp(std::lround((mean - dcLo_) / dcStep_), 0L, long(dcLevels_)));
+      plan.cls[i] = std::uint8_t(classify(basis_, c, maxError2_, params_.classified));
     });
     // The background: the most common mean of the ZERO blocks.
-    std::vector<std::uint64_t> histogram(std::size_t(dcLevels) + 1, 0);
+    std::vector<std::uint64_t> histogram(std::size_t(dcLevels_) + 1, 0);
     for (std::uint64_t i = 0; i < local; ++i)
       if (plan.cls[i] == kZero) ++histogram[plan.dc[i]];
     plan.background =
@@ -263,14 +306,14 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
     for (int p = 0; p < 3; ++p)
       for (int c = 0; c < chapterCount(p); ++c) {
         Chapter ch;
-        ch.coefs = coefs[std::size_t(p)][std::size_t(c)];
+        ch.coefs = coefs_[std::size_t(p)][std::size_t(c)];
         ch.dims = int(ch.coefs.size());
         ch.sum.assign(std::size_t(ch.dims), 0.0);
         plan.chapters[std::size_t(p)].push_back(std::move(ch));
       }
     for (std::uint64_t i = 0; i < local; ++i) {
       const int cls = plan.cls[i];
-      ++stats.classBlocks[std::size_t(cls)];
+      ++stats_.classBlocks[std::size_t(cls)];
       if (cls == kZero) {
         if (plan.dc[i] == plan.background)
           plan.cls[i] = kUncoded;
@@ -301,30 +344,36 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
       }
       plan.curves[std::size_t(p)] = partitionCurve(plan.chapters[std::size_t(p)]);
     }
-    stats.coded += plan.coded;
-    progress.advance();
   }
-  progress.end();
-  stats.blocks = blockCount;
 
   // 3. The allocation: --codebook-bits split among the partitions, or, for a size target, the
   // Lagrangian trade-off whose file fits it (bisection on lambda).
-  int codeBits = params.codeBits;
-  if (params.targetBitsPerVoxel > 0) {
-    const double target = params.targetBitsPerVoxel * double(volume.voxelCount()) / 8.0;
+  void allocate() {
+    codeBits_ = params_.codeBits;
+    if (params_.targetBitsPerVoxel > 0) {
+      allocateForSize();
+    } else {
+      for (SubPlan& s : plans_) allocateBits(s, codeBits_);
+    }
+    stats_.codeBits = codeBits_;
+    stats_.subvolumes = int(plans_.size());
+  }
+
+  void allocateForSize() {
+    const double target = params_.targetBitsPerVoxel * double(volume_.voxelCount()) / 8.0;
     const std::array<int, 3> most{kMaxCodeBits, kMaxCodeBits, kMaxCodeBits};
     auto bytesAt = [&](double lambda) {
-      for (SubPlan& s : plans) allocate(s, lambda, most);
-      return double(plannedBytes(plans, params.dcBits));
+      for (SubPlan& s : plans_) tvq::allocate(s, lambda, most);
+      return double(plannedBytes(plans_, params_.dcBits));
     };
     if (bytesAt(std::numeric_limits<double>::infinity()) > target) {
       throw std::invalid_argument(formatLine(
           "--bits-per-voxel %g is below the smallest tvq file of this volume (%.3f bits per "
           "voxel with --dc-bits %d: the means and occupancy alone); lower --dc-bits or raise the "
           "target",
-          params.targetBitsPerVoxel,
-          8.0 * bytesAt(std::numeric_limits<double>::infinity()) / double(volume.voxelCount()),
-          params.dcBits));
+          params_.targetBitsPerVoxel,
+          8.0 * bytesAt(std::numeric_limits<double>::infinity()) / double(volume_.voxelCount()),
+          params_.dcBits));
     }
     double lo = -40, hi = 40;  // log2 of lambda, in squared value units per bit
     if (bytesAt(0) <= target) {
@@ -336,143 +385,161 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
       }
     }
     bytesAt(std::exp2(hi));
-    codeBits = 0;
-    for (const SubPlan& s : plans) codeBits = std::max(codeBits, s.bits[0] + s.bits[1] + s.bits[2]);
-  } else {
-    for (SubPlan& s : plans) allocateBits(s, codeBits);
+    codeBits_ = 0;
+    for (const SubPlan& s : plans_)
+      codeBits_ = std::max(codeBits_, s.bits[0] + s.bits[1] + s.bits[2]);
   }
-  stats.codeBits = codeBits;
-  stats.subvolumes = int(plans.size());
 
   // 4. The chapters' codebooks (LBG), quantized to 16 bits per coefficient with a scale per
   // partition, and every member's nearest codevector.
-  stats.classifySeconds = seconds(t0);
-  t0 = std::chrono::steady_clock::now();
-  progress.begin("tvq: train codebooks (LBG)", plans.size() * 3 * 9);
-  struct Coded {
-    std::array<std::vector<std::vector<std::int16_t>>, 3> codebooks;  // [p][chapter]
-    std::array<float, 3> scale{};
-    std::array<std::vector<std::vector<std::uint32_t>>, 3> codes;  // [p][chapter][member]
-  };
-  std::vector<Coded> coded(plans.size());
-  std::mt19937_64 rng(params.seed);
-  for (std::size_t si = 0; si < plans.size(); ++si) {
-    SubPlan& plan = plans[si];
-    Coded& out = coded[si];
-    // The members' vectors, in block order (the order the records take their codes in).
-    {
-      const std::vector<float> coefficients = transformed(plan, {});
-      for (std::size_t i = 0; i < plan.cls.size(); ++i) {
-        const int cls = plan.cls[i];
-        if (cls == kUncoded || cls == kZero) continue;
-        const float* c = coefficients.data() + i * kBlockVoxels;
-        for (int p = 0; p < 3; ++p) {
-          if (cls < firstChapterClass(p)) continue;
-          Chapter& ch = plan.chapters[std::size_t(p)][std::size_t(cls - firstChapterClass(p))];
-          for (int k : ch.coefs) ch.vectors.push_back(c[k]);
-        }
-      }
+  void train() {
+    progress_.begin("tvq: train codebooks (LBG)", plans_.size() * 3 * 9);
+    coded_.assign(plans_.size(), Coded{});
+    std::mt19937_64 rng(params_.seed);
+    for (std::size_t si = 0; si < plans_.size(); ++si) {
+      gatherMembers(plans_[si]);
+      for (int p = 0; p < 3; ++p) trainPartition(plans_[si], p, coded_[si], rng);
     }
-    for (int p = 0; p < 3; ++p) {
-      auto& chapters = plan.chapters[std::size_t(p)];
-      std::vector<std::vector<float>> books(chapters.size());
-      float peak = 0;
-      for (std::size_t c = 0; c < chapters.size(); ++c) {
-        const Chapter& ch = chapters[c];
-        const std::uint64_t size = plan.sizes[std::size_t(p)][c];
-        if (size > 0) {
-          // A random sample of the members beyond trainingVectors.
-          std::vector<float> sample;
-          // At least kTrainingPerCodevector training vectors per codevector (fewer overfit).
-          const std::uint64_t train =
-              std::max<std::uint64_t>(params.trainingVectors, kTrainingPerCodevector * size);
-          if (ch.members > train) {
-            std::vector<std::uint64_t> pick(ch.members);
-            for (std::uint64_t m = 0; m < ch.members; ++m) pick[m] = m;
-            std::shuffle(pick.begin(), pick.end(), rng);
-            pick.resize(train);
-            std::sort(pick.begin(), pick.end());
-            sample.reserve(pick.size() * std::size_t(ch.dims));
-            for (std::uint64_t m : pick)
-              sample.insert(sample.end(),
-                            ch.vectors.begin() + std::ptrdiff_t(m * std::uint64_t(ch.dims)),
-                            ch.vectors.begin() + std::ptrdiff_t((m + 1) * std::uint64_t(ch.dims)));
-          }
-          books[c] = trainLbg(sample.empty() ? std::span<const float>(ch.vectors) : sample, ch.dims,
-                              size, params.iterations, rng(), workers);
-          for (float v : books[c]) peak = std::max(peak, std::abs(v));
-        }
-        progress.advance();
-      }
-      for (std::size_t c = chapters.size(); c < 9; ++c) progress.advance();
-      const float scale = peak > 0 ? peak / 32767.0f : 1.0f;
-      out.scale[std::size_t(p)] = scale;
-      out.codebooks[std::size_t(p)].resize(chapters.size());
-      out.codes[std::size_t(p)].resize(chapters.size());
-      for (std::size_t c = 0; c < chapters.size(); ++c) {
-        std::vector<std::int16_t>& q = out.codebooks[std::size_t(p)][c];
-        std::vector<float> dequantized(books[c].size());
-        q.resize(books[c].size());
-        for (std::size_t i = 0; i < books[c].size(); ++i) {
-          q[i] = std::int16_t(std::clamp(std::lround(books[c][i] / scale), -32767L, 32767L));
-          dequantized[i] = float(q[i]) * scale;
-        }
-        plan.sizes[std::size_t(p)][c] = q.size() / std::size_t(std::max(1, chapters[c].dims));
-        if (!q.empty())
-          out.codes[std::size_t(p)][c] =
-              nearestCodevectors(chapters[c].vectors, chapters[c].dims, dequantized, workers);
-        chapters[c].vectors = {};
-        chapters[c].vectors.shrink_to_fit();
+    progress_.end();
+  }
+
+  // The members' vectors, in block order (the order the records take their codes in).
+  void gatherMembers(SubPlan& plan) {
+    const std::vector<float> coefficients = transformed(plan, {});
+    for (std::size_t i = 0; i < plan.cls.size(); ++i) {
+      const int cls = plan.cls[i];
+      if (cls == kUncoded || cls == kZero) continue;
+      const float* c = coefficients.data() + i * kBlockVoxels;
+      for (int p = 0; p < 3; ++p) {
+        if (cls < firstChapterClass(p)) continue;
+        Chapter& ch = plan.chapters[std::size_t(p)][std::size_t(cls - firstChapterClass(p))];
+        for (int k : ch.coefs) ch.vectors.push_back(c[k]);
       }
     }
   }
-  progress.end();
-  stats.trainSeconds = seconds(t0);
+
+  void trainPartition(SubPlan& plan, int p, Coded& out, std::mt19937_64& rng) {
+    auto& chapters = plan.chapters[std::size_t(p)];
+    std::vector<std::vector<float>> books(chapters.size());
+    float peak = 0;
+    for (std::size_t c = 0; c < chapters.size(); ++c) {
+      const std::uint64_t size = plan.sizes[std::size_t(p)][c];
+      if (size > 0) {
+        books[c] = trainChapter(chapters[c], size, rng);
+        for (float v : books[c]) peak = std::max(peak, std::abs(v));
+      }
+      progress_.advance();
+    }
+    for (std::size_t c = chapters.size(); c < 9; ++c) progress_.advance();
+    const float scale = peak > 0 ? peak / 32767.0f : 1.0f;
+    out.scale[std::size_t(p)] = scale;
+    out.codebooks[std::size_t(p)].resize(chapters.size());
+    out.codes[std::size_t(p)].resize(chapters.size());
+    for (std::size_t c = 0; c < chapters.size(); ++c) {
+      std::vector<std::int16_t>& q = out.codebooks[std::size_t(p)][c];
+      std::vector<float> dequantized(books[c].size());
+      q.resize(books[c].size());
+      for (std::size_t i = 0; i < books[c].size(); ++i) {
+        q[i] = std::int16_t(std::clamp(std::lround(books[c][i] / scale), -32767L, 32767L));
+        dequantized[i] = float(q[i]) * scale;
+      }
+      plan.sizes[std::size_t(p)][c] = q.size() / std::size_t(std::max(1, chapters[c].dims));
+      if (!q.empty())
+        out.codes[std::size_t(p)][c] =
+            nearestCodevectors(chapters[c].vectors, chapters[c].dims, dequantized, workers_);
+      chapters[c].vectors = {};
+      chapters[c].vectors.shrink_to_fit();
+    }
+  }
+
+  // A chapter's codebook of `size` codevectors, trained on a random sample of its members beyond
+  // trainingVectors (at least kTrainingPerCodevector per codevector: fewer overfit).
+  std::vector<float> trainChapter(const Chapter& ch, std::uint64_t size, std::mt19937_64& rng) {
+    std::vector<float> sample;
+    const std::uint64_t train =
+        std::max<std::uint64_t>(params_.trainingVectors, kTrainingPerCodevector * size);
+    if (ch.members > train) {
+      std::vector<std::uint64_t> pick(ch.members);
+      for (std::uint64_t m = 0; m < ch.members; ++m) pick[m] = m;
+      std::shuffle(pick.begin(), pick.end(), rng);
+      pick.resize(train);
+      std::sort(pick.begin(), pick.end());
+      sample.reserve(pick.size() * std::size_t(ch.dims));
+      for (std::uint64_t m : pick)
+        sample.insert(sample.end(), ch.vectors.begin() + std::ptrdiff_t(m * std::uint64_t(ch.dims)),
+                      ch.vectors.begin() + std::ptrdiff_t((m + 1) * std::uint64_t(ch.dims)));
+    }
+    return trainLbg(sample.empty() ? std::span<const float>(ch.vectors) : sample, ch.dims, size,
+                    params_.iterations, rng(), workers_);
+  }
 
   // 5. The sections.
-  CompressedVolume cv;
-  cv.info = volumeInfo(volume.headerVolume(), TvqCodecEntry::kId);
-  std::vector<std::byte> params1, basisBytes, subBytes, bookBytes, occBytes, recBytes;
-  {
-    ByteWriter w(params1);
-    w.put<std::uint32_t>(std::uint32_t(params.transform));
-    w.put<std::uint32_t>(std::uint32_t(grid.s));
-    w.put<std::uint32_t>(std::uint32_t(params.dcBits));
-    w.put<std::uint32_t>(params.classified ? 1u : 0u);
-    w.put<std::uint32_t>(std::uint32_t(codeBits));
-    w.put<std::uint32_t>(0);
-    w.put<double>(params.fidelity);
-    w.put<double>(dcLo);
-    w.put<double>(dcStep);
-    for (int l = 0; l < kProgressiveLevels; ++l) w.put<double>(0.0);  // measured below
-    w.put<std::uint64_t>(plans.size());
-  }
-  {
-    ByteWriter w(basisBytes);
-    for (float v : basis.rows) w.put<float>(v);
-    for (std::uint8_t z : basis.zone) w.put<std::uint8_t>(z);
-  }
-  ByteWriter sw(subBytes), bw(bookBytes), ow(occBytes);
-  std::array<double, 3> bitSum{};
-  for (std::size_t si = 0; si < plans.size(); ++si) {
-    const SubPlan& plan = plans[si];
-    const Coded& out = coded[si];
-    for (int p = 0; p < 3; ++p) sw.put<std::uint8_t>(std::uint8_t(plan.bits[std::size_t(p)]));
-    sw.put<std::uint8_t>(0);
-    sw.put<std::uint32_t>(plan.background);
-    sw.put<std::uint64_t>(plan.coded);
-    for (int p = 0; p < 3; ++p) sw.put<float>(out.scale[std::size_t(p)]);
-    for (int p = 0; p < 3; ++p) {
-      bitSum[std::size_t(p)] += plan.bits[std::size_t(p)];
-      for (std::uint64_t s : plan.sizes[std::size_t(p)]) sw.put<std::uint32_t>(std::uint32_t(s));
+  CompressedVolume sections() {
+    CompressedVolume cv;
+    cv.info = volumeInfo(volume_.headerVolume(), TvqCodecEntry::kId);
+    std::vector<std::byte> basisBytes, subBytes, bookBytes, occBytes, recBytes;
+    {
+      ByteWriter w(basisBytes);
+      for (float v : basis_.rows) w.put<float>(v);
+      for (std::uint8_t z : basis_.zone) w.put<std::uint8_t>(z);
+    }
+    ByteWriter sw(subBytes), bw(bookBytes), ow(occBytes);
+    std::array<double, 3> bitSum{};
+    for (std::size_t si = 0; si < plans_.size(); ++si) {
+      const SubPlan& plan = plans_[si];
+      const Coded& out = coded_[si];
+      for (int p = 0; p < 3; ++p) sw.put<std::uint8_t>(std::uint8_t(plan.bits[std::size_t(p)]));
+      sw.put<std::uint8_t>(0);
+      sw.put<std::uint32_t>(plan.background);
+      sw.put<std::uint64_t>(plan.coded);
+      for (int p = 0; p < 3; ++p) sw.put<float>(out.scale[std::size_t(p)]);
+      for (int p = 0; p < 3; ++p) {
+        bitSum[std::size_t(p)] += plan.bits[std::size_t(p)];
+        for (std::uint64_t s : plan.sizes[std::size_t(p)]) sw.put<std::uint32_t>(std::uint32_t(s));
+      }
+      for (int p = 0; p < 3; ++p)
+        for (const auto& book : out.codebooks[std::size_t(p)])
+          for (std::int16_t v : book) bw.put<std::int16_t>(v);
+      writeRecords(plan, out, ow, recBytes);
     }
     for (int p = 0; p < 3; ++p)
-      for (const auto& book : out.codebooks[std::size_t(p)])
-        for (std::int16_t v : book) bw.put<std::int16_t>(v);
-    // Occupancy and records.
+      stats_.meanCodeBits[std::size_t(p)] =
+          bitSum[std::size_t(p)] / double(std::max<std::size_t>(1, plans_.size()));
+    stats_.codebookBytes = bookBytes.size(), stats_.recordBytes = recBytes.size();
+    stats_.occupancyBytes = occBytes.size();
+    cv.sections.push_back({kParams, paramsSection()});
+    cv.sections.push_back({kBasis, std::move(basisBytes)});
+    cv.sections.push_back({kSubvolumes, std::move(subBytes)});
+    cv.sections.push_back({kCodebooks, std::move(bookBytes)});
+    cv.sections.push_back({kOccupancy, std::move(occBytes)});
+    cv.sections.push_back({kRecords, std::move(recBytes)});
+    return cv;
+  }
+
+  std::vector<std::byte> paramsSection() const {
+    std::vector<std::byte> bytes;
+    ByteWriter w(bytes);
+    w.put<std::uint32_t>(std::uint32_t(params_.transform));
+    w.put<std::uint32_t>(std::uint32_t(grid_.s));
+    w.put<std::uint32_t>(std::uint32_t(params_.dcBits));
+    w.put<std::uint32_t>(params_.classified ? 1u : 0u);
+    w.put<std::uint32_t>(std::uint32_t(codeBits_));
+    w.put<std::uint32_t>(0);
+    w.put<double>(params_.fidelity);
+    w.put<double>(dcLo_);
+    w.put<double>(dcStep_);
+    for (int l = 0; l < kProgressiveLevels; ++l) w.put<double>(0.0);  // measured below
+    w.put<std::uint64_t>(plans_.size());
+    return bytes;
+  }
+
+  // A sub-volume's occupancy words and records: the mean and a code per partition for every
+  // block but the uncoded ones.
+  void writeRecords(const SubPlan& plan, const Coded& out, ByteWriter& ow,
+                    std::vector<std::byte>& recBytes) const {
     const std::uint64_t local = Grid::volume(plan.extent);
     std::vector<std::uint64_t> words((local + 63) / 64, 0);
-    const int recordBits = params.dcBits + plan.bits[0] + plan.bits[1] + plan.bits[2];
+    const int recordBits = params_.dcBits + plan.bits[0] + plan.bits[1] + plan.bits[2];
     std::vector<std::uint8_t> records((plan.coded * std::uint64_t(recordBits) + 7) / 8, 0);
     std::uint64_t bit = 0;
     auto putBits = [&](std::uint64_t value, int bits) {
@@ -491,7 +558,7 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
       const int cls = plan.cls[i];
       if (cls == kUncoded) continue;
       words[i >> 6] |= std::uint64_t(1) << (i & 63);
-      putBits(plan.dc[i], params.dcBits);
+      putBits(plan.dc[i], params_.dcBits);
       for (int p = 0; p < 3; ++p) {
         std::uint64_t k = 0;
         if (cls != kZero && cls >= firstChapterClass(p)) {
@@ -507,34 +574,42 @@ CompressedVolume encodeTyped(const VolumeSource& volume, const Params& params, P
     recBytes.insert(recBytes.end(), reinterpret_cast<const std::byte*>(records.data()),
                     reinterpret_cast<const std::byte*>(records.data() + records.size()));
   }
-  for (int p = 0; p < 3; ++p)
-    stats.meanCodeBits[std::size_t(p)] =
-        bitSum[std::size_t(p)] / double(std::max<std::size_t>(1, plans.size()));
-  stats.codebookBytes = bookBytes.size(), stats.recordBytes = recBytes.size();
-  stats.occupancyBytes = occBytes.size();
-  cv.sections.push_back({kParams, std::move(params1)});
-  cv.sections.push_back({kBasis, std::move(basisBytes)});
-  cv.sections.push_back({kSubvolumes, std::move(subBytes)});
-  cv.sections.push_back({kCodebooks, std::move(bookBytes)});
-  cv.sections.push_back({kOccupancy, std::move(occBytes)});
-  cv.sections.push_back({kRecords, std::move(recBytes)});
 
-  // 6. The PSNR of every progressive level, measured on the decoded volume.
-  progress.begin("tvq: measure PSNR", kProgressiveLevels);
-  {
-    const Layout layout(cv.info, cv.view());
+  // 6. The PSNR of every progressive level, measured on the decoded volume, into the params.
+  void measure(CompressedVolume& cv) {
+    progress_.begin("tvq: measure PSNR", kProgressiveLevels);
+    {
+      const Layout layout(cv.info, cv.view());
+      for (int l = 0; l < kProgressiveLevels; ++l) {
+        stats_.levelPsnr[std::size_t(l)] = brickPsnr(volume_, layout.view(nullptr, l));
+        progress_.advance();
+      }
+    }
+    progress_.end();
     for (int l = 0; l < kProgressiveLevels; ++l) {
-      stats.levelPsnr[std::size_t(l)] = brickPsnr(volume, layout.view(nullptr, l));
-      progress.advance();
+      double v = stats_.levelPsnr[std::size_t(l)];
+      std::memcpy(cv.sections[0].second.data() + 48 + 8 * std::size_t(l), &v, sizeof v);
     }
   }
-  progress.end();
-  for (int l = 0; l < kProgressiveLevels; ++l) {
-    double v = stats.levelPsnr[std::size_t(l)];
-    std::memcpy(cv.sections[0].second.data() + 48 + 8 * std::size_t(l), &v, sizeof v);
-  }
-  return cv;
-}
+
+  const VolumeSource& volume_;
+  const Params& params_;
+  Progress& progress_;
+  EncodeStats& stats_;
+  const int workers_;
+  const Grid grid_;
+  SliceWindow<T> window_;
+  const std::uint64_t blockCount_;
+  float vmin_ = 0;
+  double range_ = 1;
+  Basis basis_;
+  int dcLevels_ = 255;
+  double dcLo_ = 0, dcStep_ = 1, maxError2_ = 0;
+  std::array<std::vector<std::vector<int>>, 3> coefs_;  // [partition][chapter]
+  std::vector<SubPlan> plans_;
+  int codeBits_ = 0;
+  std::vector<Coded> coded_;
+};
 
 }  // namespace
 
@@ -563,7 +638,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   EncodeStats& s = stats ? *stats : local;
   s = EncodeStats{};
   return dispatchScalar(
-      volume.type, [&](auto t) { return encodeTyped<decltype(t)>(volume, params, progress, s); });
+      volume.type, [&](auto t) { return Encoder<decltype(t)>(volume, params, progress, s).run(); });
 }
 
 }  // namespace voxwall::codec::tvq
