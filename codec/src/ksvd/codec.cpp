@@ -86,351 +86,412 @@ struct BrickRecord {
   std::uint32_t coded = kConstant;
 };
 
+// The coded bricks' block codes at one tolerance.
+struct CodedBricks {
+  std::vector<std::vector<std::uint8_t>> counts, pairs;
+  std::vector<float> steps;  // per coded brick, in value units
+  std::uint64_t pairCount = 0;
+};
+
+// The encoder of a volume of scalar type T, stage by stage (run): the pyramid and its bricks, the
+// blocks to code, the dictionary's size and its learning, the coding (at a size target, the
+// tolerance whose file fits), the sections and the PSNR of every level.
 template <class T>
-CompressedVolume encodeTyped(const Volume& volume, const Params& params, Progress& progress,
-                             EncodeStats& stats) {
-  const int m = params.blockSide * params.blockSide * params.blockSide;
-  const int perBrick = Grid(volume.dims, params.blockSide).blocksPerBrick();
-  // The value range: the scale blocks are coded in, and the tolerance's unit.
-  float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
-  for (T v : volume.as<T>()) {
-    if (!std::isfinite(float(v)))
-      throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
-    vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
-  }
-  const float scale = vmax > vmin ? vmax - vmin : 1.0f;
-  const double tolerance = params.tolerance;
-
-  // The pyramid, and the bricking of each level; bricks are numbered across levels.
-  std::vector<Source<T>> src;
-  std::vector<Grid> grids;
-  std::vector<std::uint64_t> firstBrick;
-  const int levels = levelCount(
-      volume.dims, Grid(volume.dims, params.blockSide).n * params.blockSide, params.levels);
-  std::uint64_t nBricks = 0;
-  for (int l = 0; l < levels; ++l) {
-    if (l == 0) {
-      Source<T> base;
-      base.data = volume.as<T>(), base.dims = volume.dims;
-      src.push_back(std::move(base));
-    } else {
-      progress.begin("pyramid level " + std::to_string(l), 1);
-      src.push_back(src.back().halved(volume.spacing * double(1 << l), params.threads));
-      progress.advance();
-      progress.end();
+class Encoder {
+ public:
+  Encoder(const Volume& volume, const Params& params, Progress& progress, EncodeStats& stats)
+      : volume_(volume),
+        params_(params),
+        progress_(progress),
+        stats_(stats),
+        m_(params.blockSide * params.blockSide * params.blockSide),
+        perBrick_(Grid(volume.dims, params.blockSide).blocksPerBrick()) {
+    // The value range: the scale blocks are coded in, and the tolerance's unit.
+    float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
+    for (T v : volume.as<T>()) {
+      if (!std::isfinite(float(v)))
+        throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
+      vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
     }
-    grids.emplace_back(src.back().dims, params.blockSide);
-    firstBrick.push_back(nBricks);
-    nBricks += grids.back().brickCount();
+    scale_ = vmax > vmin ? vmax - vmin : 1.0f;
   }
-  auto levelOf = [&](std::uint64_t b) {
-    int l = levels - 1;
-    while (firstBrick[std::size_t(l)] > b) --l;
-    return l;
-  };
 
-  // Bricks: value ranges; constant bricks keep their mean.
-  std::vector<BrickRecord> bricks(nBricks);
-  progress.begin("bricking", nBricks);
-  parallelFor(std::size_t(nBricks), params.threads, [&](std::size_t b) {
-    const int l = levelOf(b);
-    const Grid& g = grids[std::size_t(l)];
-    const Source<T>& s = src[std::size_t(l)];
-    const glm::ivec3 bc = g.brickCoords(b - firstBrick[std::size_t(l)]);
-    const glm::ivec3 lo = bc * g.n * g.m, hi = glm::min(lo + g.n * g.m, g.dims);
-    float l0 = std::numeric_limits<float>::infinity(), h = -l0;
-    double sum = 0;
-    for (int z = lo.z; z < hi.z; ++z)
-      for (int y = lo.y; y < hi.y; ++y)
-        for (int x = lo.x; x < hi.x; ++x) {
-          const float v = s.at(x, y, z);
-          l0 = std::min(l0, v), h = std::max(h, v), sum += v;
-        }
-    BrickRecord& r = bricks[b];
-    if (double(h) - double(l0) <= tolerance * double(scale)) {
-      const double count = double(hi.x - lo.x) * double(hi.y - lo.y) * double(hi.z - lo.z);
-      r.lo = r.hi = h == l0 ? l0 : float(sum / count);
-    } else {
-      r.lo = l0, r.hi = h;
-    }
-    progress.advance();
-  });
-  progress.end();
-  std::vector<std::uint64_t> coded;  // brick indices of the coded bricks, in level order
-  for (std::uint64_t b = 0; b < nBricks; ++b)
-    if (bricks[b].lo != bricks[b].hi)
-      bricks[b].coded = std::uint32_t(coded.size()), coded.push_back(b);
-  if (coded.size() >= kConstant) throw std::invalid_argument("ksvd codec: too many bricks");
+  CompressedVolume run() {
+    pyramid();
+    brickRanges();
+    findCandidates();
+    chooseSizes();
+    auto start = std::chrono::steady_clock::now();
+    learn();
+    stats_.trainSeconds = seconds(start);
+    start = std::chrono::steady_clock::now();
+    code();
+    stats_.codeSeconds = seconds(start);
+    CompressedVolume out = sections();
+    measure(out);
+    return out;
+  }
+
+ private:
   // A coded brick's level, grid, source and brick coordinates.
   struct Where {
     const Grid* g;
     const Source<T>* s;
     glm::ivec3 brick;
   };
-  auto where = [&](std::uint64_t b) {
+  int levelOf(std::uint64_t b) const {
+    int l = levels_ - 1;
+    while (firstBrick_[std::size_t(l)] > b) --l;
+    return l;
+  }
+  Where where(std::uint64_t b) const {
     const int l = levelOf(b);
-    const Grid& g = grids[std::size_t(l)];
-    return Where{&g, &src[std::size_t(l)], g.brickCoords(b - firstBrick[std::size_t(l)])};
-  };
+    const Grid& g = grids_[std::size_t(l)];
+    return Where{&g, &src_[std::size_t(l)], g.brickCoords(b - firstBrick_[std::size_t(l)])};
+  }
+  double budgetBytes() const {
+    return params_.targetBitsPerVoxel * double(volume_.voxelCount()) / 8.0;
+  }
+
+  // The pyramid, and the bricking of each level; bricks are numbered across levels.
+  void pyramid() {
+    levels_ = levelCount(volume_.dims, Grid(volume_.dims, params_.blockSide).n * params_.blockSide,
+                         params_.levels);
+    for (int l = 0; l < levels_; ++l) {
+      if (l == 0) {
+        Source<T> base;
+        base.data = volume_.as<T>(), base.dims = volume_.dims;
+        src_.push_back(std::move(base));
+      } else {
+        progress_.begin("pyramid level " + std::to_string(l), 1);
+        src_.push_back(src_.back().halved(volume_.spacing * double(1 << l), params_.threads));
+        progress_.advance();
+        progress_.end();
+      }
+      grids_.emplace_back(src_.back().dims, params_.blockSide);
+      firstBrick_.push_back(nBricks_);
+      nBricks_ += grids_.back().brickCount();
+    }
+  }
+
+  // Bricks: value ranges; constant bricks keep their mean. The others are coded, in level order.
+  void brickRanges() {
+    bricks_.assign(nBricks_, BrickRecord{});
+    progress_.begin("bricking", nBricks_);
+    parallelFor(std::size_t(nBricks_), params_.threads, [&](std::size_t b) {
+      const Where w = where(b);
+      const Grid& g = *w.g;
+      const glm::ivec3 lo = w.brick * g.n * g.m, hi = glm::min(lo + g.n * g.m, g.dims);
+      float l0 = std::numeric_limits<float>::infinity(), h = -l0;
+      double sum = 0;
+      for (int z = lo.z; z < hi.z; ++z)
+        for (int y = lo.y; y < hi.y; ++y)
+          for (int x = lo.x; x < hi.x; ++x) {
+            const float v = w.s->at(x, y, z);
+            l0 = std::min(l0, v), h = std::max(h, v), sum += v;
+          }
+      BrickRecord& r = bricks_[b];
+      if (double(h) - double(l0) <= params_.tolerance * double(scale_)) {
+        const double count = double(hi.x - lo.x) * double(hi.y - lo.y) * double(hi.z - lo.z);
+        r.lo = r.hi = h == l0 ? l0 : float(sum / count);
+      } else {
+        r.lo = l0, r.hi = h;
+      }
+      progress_.advance();
+    });
+    progress_.end();
+    for (std::uint64_t b = 0; b < nBricks_; ++b)
+      if (bricks_[b].lo != bricks_[b].hi)
+        bricks_[b].coded = std::uint32_t(coded_.size()), coded_.push_back(b);
+    if (coded_.size() >= kConstant) throw std::invalid_argument("ksvd codec: too many bricks");
+  }
+
   // The blocks to code: every in-grid block of every coded brick of every level, in brick
   // order. The dictionary is learned on level 0's (the first `trainable`): the full resolution
   // is what the file is judged by, and coarse blocks, busier than fine ones, would take a large
   // share of the coreset (on the MRI at 0.5 bits per voxel, 1.4 dB of level 0's PSNR).
-  std::vector<std::uint64_t> candidates;  // coded-brick index * perBrick + j
-  std::uint64_t trainable = 0;
-  for (std::size_t c = 0; c < coded.size(); ++c) {
-    const Where w = where(coded[c]);
-    for (int j = 0; j < perBrick; ++j)
-      if (w.g->inGrid(w.g->blockOf(w.brick, j))) {
-        candidates.push_back(std::uint64_t(c) * perBrick + j);
-        if (coded[c] < grids[0].brickCount()) ++trainable;
-      }
+  void findCandidates() {
+    for (std::size_t c = 0; c < coded_.size(); ++c) {
+      const Where w = where(coded_[c]);
+      for (int j = 0; j < perBrick_; ++j)
+        if (w.g->inGrid(w.g->blockOf(w.brick, j))) {
+          candidates_.push_back(std::uint64_t(c) * perBrick_ + j);
+          if (coded_[c] < grids_[0].brickCount()) ++trainable_;
+        }
+    }
   }
-  auto candidateBlock = [&](std::uint64_t i, float* out) {
-    const std::uint64_t c = candidates[std::size_t(i)] / std::uint64_t(perBrick);
-    const int j = int(candidates[std::size_t(i)] % std::uint64_t(perBrick));
-    const std::uint64_t b = coded[std::size_t(c)];
+  void candidateBlock(std::uint64_t i, float* out) const {
+    const std::uint64_t c = candidates_[std::size_t(i)] / std::uint64_t(perBrick_);
+    const int j = int(candidates_[std::size_t(i)] % std::uint64_t(perBrick_));
+    const std::uint64_t b = coded_[std::size_t(c)];
     const Where w = where(b);
-    w.s->block(w.g->blockOf(w.brick, j), w.g->m, bricks[b].lo, scale, out);
-  };
+    w.s->block(w.g->blockOf(w.brick, j), w.g->m, bricks_[b].lo, scale_, out);
+  }
 
   // Dictionary size, sparsity and training-set size.
-  const std::uint64_t fixedBytes = nBricks * 16 +
-                                   std::uint64_t(coded.size()) * std::uint64_t(perBrick) + 128 + 4 +
-                                   8 * std::uint64_t(levels);
-  int atoms = params.atoms;
-  if (atoms == 0) {  // the default: 1024, at most one atom per 16 coded blocks, at least 16
-    atoms = int(std::clamp<std::uint64_t>(trainable / 16, 16, 1024));
-    if (params.targetBitsPerVoxel > 0) {  // and the dictionary at most a quarter of the file
-      const double budget = params.targetBitsPerVoxel * double(volume.voxelCount()) / 8.0;
-      while (atoms > 16 && double(atoms) * m * 2 > budget / 4) atoms /= 2;
+  void chooseSizes() {
+    fixedBytes_ = nBricks_ * 16 + std::uint64_t(coded_.size()) * std::uint64_t(perBrick_) + 128 +
+                  4 + 8 * std::uint64_t(levels_);
+    atoms_ = params_.atoms;
+    if (atoms_ == 0) {  // the default: 1024, at most one atom per 16 coded blocks, at least 16
+      atoms_ = int(std::clamp<std::uint64_t>(trainable_ / 16, 16, 1024));
+      if (params_.targetBitsPerVoxel > 0)  // and the dictionary at most a quarter of the file
+        while (atoms_ > 16 && double(atoms_) * m_ * 2 > budgetBytes() / 4) atoms_ /= 2;
     }
+    sparsity_ = std::min(params_.sparsity, m_);
+    // Training codes blocks with the sparsity the file will have on average: S, or with a size
+    // target the pairs per block the budget leaves after the dictionary and the tables.
+    trainSparsity_ = sparsity_;
+    if (params_.targetBitsPerVoxel > 0 && !candidates_.empty()) {
+      const double perBlock = (budgetBytes() - double(fixedBytes_) - double(atoms_) * m_ * 2) /
+                              (3.0 * double(candidates_.size()));
+      trainSparsity_ = int(std::clamp(std::lround(perBlock), 1l, long(sparsity_)));
+    }
+    sparsity_ = std::max(1, std::min(sparsity_, 255));
+    coresetSize_ = kDefaultCoreset;
+    if (params_.coreset > 1)
+      coresetSize_ = std::uint64_t(params_.coreset);
+    else if (params_.coreset > 0)
+      coresetSize_ = std::uint64_t(std::ceil(params_.coreset * double(trainable_)));
+    coresetSize_ = std::min<std::uint64_t>(coresetSize_, trainable_);
   }
-  int sparsity = std::min(params.sparsity, m);
-  // Training codes blocks with the sparsity the file will have on average: S, or with a size
-  // target the pairs per block the budget leaves after the dictionary and the tables.
-  int trainSparsity = sparsity;
-  if (params.targetBitsPerVoxel > 0 && !candidates.empty()) {
-    const double budget = params.targetBitsPerVoxel * double(volume.voxelCount()) / 8.0;
-    const double perBlock =
-        (budget - double(fixedBytes) - double(atoms) * m * 2) / (3.0 * double(candidates.size()));
-    trainSparsity = int(std::clamp(std::lround(perBlock), 1l, long(sparsity)));
-  }
-  sparsity = std::max(1, std::min(sparsity, 255));
-  std::uint64_t coresetSize = kDefaultCoreset;
-  if (params.coreset > 1)
-    coresetSize = std::uint64_t(params.coreset);
-  else if (params.coreset > 0)
-    coresetSize = std::uint64_t(std::ceil(params.coreset * double(trainable)));
-  coresetSize = std::min<std::uint64_t>(coresetSize, trainable);
 
-  // Learning.
-  Dictionary dict;
-  dict.m = m;
-  auto start = std::chrono::steady_clock::now();
-  if (trainable > 0) {
-    const TrainingSet set =
-        buildCoreset(trainable, m, candidateBlock, coresetSize, params.seed, progress);
-    atoms = std::max(2, std::min<int>(atoms, int(std::max<std::size_t>(set.count(), 2))));
-    TrainParams tp;
-    tp.atoms = atoms, tp.sparsity = trainSparsity, tp.iterations = params.iterations;
-    tp.threads = params.threads, tp.seed = params.seed;
-    dict = trainDictionary(set, tp, progress, &stats.trainingRmse);
-    stats.coreset = set.count();
-  } else {  // nothing to code: the DC atom and one more, so the file stays well-formed
-    atoms = 2;
-    dict.atoms = 2;
-    dict.values.assign(std::size_t(2 * m), 0.0f);
-    for (int i = 0; i < m; ++i)
-      dict.values[std::size_t(i)] = float(1 / std::sqrt(double(m))),
-      dict.values[std::size_t(m + i)] = float((i & 1 ? 1 : -1) / std::sqrt(double(m)));
+  // Learning, then the 16-bit dictionary the file stores: blocks are coded against exactly that.
+  void learn() {
+    dict_.m = m_;
+    if (trainable_ > 0) {
+      const TrainingSet set = buildCoreset(
+          trainable_, m_, [&](std::uint64_t i, float* out) { candidateBlock(i, out); },
+          coresetSize_, params_.seed, progress_);
+      atoms_ = std::max(2, std::min<int>(atoms_, int(std::max<std::size_t>(set.count(), 2))));
+      TrainParams tp;
+      tp.atoms = atoms_, tp.sparsity = trainSparsity_, tp.iterations = params_.iterations;
+      tp.threads = params_.threads, tp.seed = params_.seed;
+      dict_ = trainDictionary(set, tp, progress_, &stats_.trainingRmse);
+      stats_.coreset = set.count();
+    } else {  // nothing to code: the DC atom and one more, so the file stays well-formed
+      atoms_ = 2;
+      dict_.atoms = 2;
+      dict_.values.assign(std::size_t(2 * m_), 0.0f);
+      for (int i = 0; i < m_; ++i)
+        dict_.values[std::size_t(i)] = float(1 / std::sqrt(double(m_))),
+        dict_.values[std::size_t(m_ + i)] = float((i & 1 ? 1 : -1) / std::sqrt(double(m_)));
+    }
+    stored_.resize(dict_.values.size());
+    for (std::size_t i = 0; i < stored_.size(); ++i)
+      stored_[i] = std::int16_t(std::lround(std::clamp(dict_.values[i], -1.0f, 1.0f) * 32767.0f));
+    for (std::size_t i = 0; i < stored_.size(); ++i) dict_.values[i] = float(stored_[i]) / 32767.0f;
+    indexBits_ = indexBitsFor(atoms_);
+    qmax_ = maxQuantized(indexBits_);
   }
-  stats.trainSeconds = seconds(start);
-  // What the file stores is the 16-bit dictionary; code against exactly that.
-  std::vector<std::int16_t> stored(dict.values.size());
-  for (std::size_t i = 0; i < stored.size(); ++i)
-    stored[i] = std::int16_t(std::lround(std::clamp(dict.values[i], -1.0f, 1.0f) * 32767.0f));
-  for (std::size_t i = 0; i < stored.size(); ++i) dict.values[i] = float(stored[i]) / 32767.0f;
-  const int indexBits = indexBitsFor(atoms);
-  const int qmax = maxQuantized(indexBits);
 
   // Coding: every block of every coded brick, brick by brick, at a per-block tolerance.
-  start = std::chrono::steady_clock::now();
-  const Coder coder(dict);
-  struct Coded {
-    std::vector<std::vector<std::uint8_t>> counts, pairs;
-    std::vector<float> steps;  // per coded brick, in value units
-    std::uint64_t pairCount = 0;
-  };
-  auto codeAt = [&](double blockTolerance, const char* stage) {
-    const double maxResidual2 = blockTolerance * blockTolerance * double(m);
-    Coded out;
-    out.counts.resize(coded.size()), out.pairs.resize(coded.size());
-    out.steps.resize(coded.size());
-    progress.begin(stage, candidates.size());
-    parallelFor(coded.size(), params.threads, [&](std::size_t c) {
-      const std::uint64_t b = coded[c];
-      const Where w = where(b);
-      std::vector<float> y(std::size_t(perBrick) * std::size_t(m));
-      std::vector<int> inGrid;
-      for (int j = 0; j < perBrick; ++j)
-        if (w.g->inGrid(w.g->blockOf(w.brick, j))) {
-          w.s->block(w.g->blockOf(w.brick, j), w.g->m, bricks[b].lo, scale,
-                     y.data() + inGrid.size() * std::size_t(m));
-          inGrid.push_back(j);
-        }
-      std::vector<SparseCode> codes;
-      codeAll(coder, y.data(), inGrid.size(), sparsity, maxResidual2, 1, codes);
-      float maxAbs = 0;
-      for (const SparseCode& code : codes)
-        for (float v : code.coefficients) maxAbs = std::max(maxAbs, std::abs(v));
-      const float step = maxAbs > 0 ? maxAbs / float(qmax) : 1.0f / float(qmax);
-      out.steps[c] = step * scale;
-      std::vector<std::uint8_t>& counts = out.counts[c];
-      std::vector<std::uint8_t>& pairs = out.pairs[c];
-      counts.assign(std::size_t(perBrick), 0);
-      for (std::size_t i = 0; i < inGrid.size(); ++i) {
-        const SparseCode& code = codes[i];
-        int count = 0;
-        for (std::size_t s = 0; s < code.atoms.size(); ++s) {
-          const int q = std::clamp(int(std::lround(code.coefficients[s] / step)), -qmax, qmax);
-          if (q == 0) continue;  // adds nothing: a block equal to its brick's minimum has none
-          const std::uint32_t word = packPair(code.atoms[s], q, indexBits);
-          pairs.push_back(std::uint8_t(word)), pairs.push_back(std::uint8_t(word >> 8));
-          pairs.push_back(std::uint8_t(word >> 16));
-          ++count;
-        }
-        counts[std::size_t(inGrid[i])] = std::uint8_t(count);
-      }
-      progress.advance(inGrid.size());
-    });
-    progress.end();
+  CodedBricks codeAt(const Coder& coder, double blockTolerance, const char* stage) {
+    const double maxResidual2 = blockTolerance * blockTolerance * double(m_);
+    CodedBricks out;
+    out.counts.resize(coded_.size()), out.pairs.resize(coded_.size());
+    out.steps.resize(coded_.size());
+    progress_.begin(stage, candidates_.size());
+    parallelFor(coded_.size(), params_.threads,
+                [&](std::size_t c) { codeBrick(coder, maxResidual2, c, out); });
+    progress_.end();
     for (const auto& p : out.pairs) out.pairCount += p.size() / 3;
     return out;
-  };
-  double blockTolerance = tolerance;
-  Coded result;
-  if (params.targetBitsPerVoxel > 0) {
-    // The smallest tolerance whose file fits: every block gets the pairs its error needs, up to
-    // S (bisection; the size falls as the tolerance grows).
-    const double budget = params.targetBitsPerVoxel * double(volume.voxelCount()) / 8.0;
-    const double fixed = double(fixedBytes) + double(atoms) * m * 2;
-    auto fits = [&](const Coded& c) { return fixed + 3.0 * double(c.pairCount) <= budget; };
-    result = codeAt(0, "sparse coding (rate search)");
-    if (!fits(result)) {
-      double lo = 0, hi = 0.5;
-      Coded loosest = codeAt(hi, "sparse coding (rate search)");
-      if (!fits(loosest))
-        throw std::invalid_argument(formatLine(
-            "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms "
-            "(%.3g bits per voxel)",
-            params.targetBitsPerVoxel, atoms,
-            8.0 * (fixed + 3.0 * double(loosest.pairCount)) / double(volume.voxelCount())));
-      result = std::move(loosest);
-      for (int it = 0; it < 10; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        Coded c = codeAt(mid, "sparse coding (rate search)");
-        if (fits(c))
-          hi = mid, result = std::move(c);
-        else
-          lo = mid;
-      }
-      blockTolerance = hi;
-    }
-  } else {
-    result = codeAt(tolerance, "sparse coding");
   }
-  for (std::size_t c = 0; c < coded.size(); ++c) bricks[coded[c]].step = result.steps[c];
-  const std::vector<std::vector<std::uint8_t>>& brickCounts = result.counts;
-  const std::vector<std::vector<std::uint8_t>>& brickPairs = result.pairs;
-  stats.codeSeconds = seconds(start);
+
+  void codeBrick(const Coder& coder, double maxResidual2, std::size_t c, CodedBricks& out) {
+    const std::uint64_t b = coded_[c];
+    const Where w = where(b);
+    std::vector<float> y(std::size_t(perBrick_) * std::size_t(m_));
+    std::vector<int> inGrid;
+    for (int j = 0; j < perBrick_; ++j)
+      if (w.g->inGrid(w.g->blockOf(w.brick, j))) {
+        w.s->block(w.g->blockOf(w.brick, j), w.g->m, bricks_[b].lo, scale_,
+                   y.data() + inGrid.size() * std::size_t(m_));
+        inGrid.push_back(j);
+      }
+    std::vector<SparseCode> codes;
+    codeAll(coder, y.data(), inGrid.size(), sparsity_, maxResidual2, 1, codes);
+    float maxAbs = 0;
+    for (const SparseCode& code : codes)
+      for (float v : code.coefficients) maxAbs = std::max(maxAbs, std::abs(v));
+    const float step = maxAbs > 0 ? maxAbs / float(qmax_) : 1.0f / float(qmax_);
+    out.steps[c] = step * scale_;
+    std::vector<std::uint8_t>& counts = out.counts[c];
+    std::vector<std::uint8_t>& pairs = out.pairs[c];
+    counts.assign(std::size_t(perBrick_), 0);
+    for (std::size_t i = 0; i < inGrid.size(); ++i) {
+      const SparseCode& code = codes[i];
+      int count = 0;
+      for (std::size_t s = 0; s < code.atoms.size(); ++s) {
+        const int q = std::clamp(int(std::lround(code.coefficients[s] / step)), -qmax_, qmax_);
+        if (q == 0) continue;  // adds nothing: a block equal to its brick's minimum has none
+        const std::uint32_t word = packPair(code.atoms[s], q, indexBits_);
+        pairs.push_back(std::uint8_t(word)), pairs.push_back(std::uint8_t(word >> 8));
+        pairs.push_back(std::uint8_t(word >> 16));
+        ++count;
+      }
+      counts[std::size_t(inGrid[i])] = std::uint8_t(count);
+    }
+    progress_.advance(inGrid.size());
+  }
+
+  void code() {
+    const Coder coder(dict_);
+    blockTolerance_ = params_.tolerance;
+    if (params_.targetBitsPerVoxel > 0)
+      codeForSize(coder);
+    else
+      result_ = codeAt(coder, params_.tolerance, "sparse coding");
+    for (std::size_t c = 0; c < coded_.size(); ++c) bricks_[coded_[c]].step = result_.steps[c];
+  }
+
+  // The smallest tolerance whose file fits: every block gets the pairs its error needs, up to
+  // S (bisection; the size falls as the tolerance grows).
+  void codeForSize(const Coder& coder) {
+    const double fixed = double(fixedBytes_) + double(atoms_) * m_ * 2;
+    auto fits = [&](const CodedBricks& c) {
+      return fixed + 3.0 * double(c.pairCount) <= budgetBytes();
+    };
+    result_ = codeAt(coder, 0, "sparse coding (rate search)");
+    if (fits(result_)) return;
+    double lo = 0, hi = 0.5;
+    CodedBricks loosest = codeAt(coder, hi, "sparse coding (rate search)");
+    if (!fits(loosest))
+      throw std::invalid_argument(formatLine(
+          "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms "
+          "(%.3g bits per voxel)",
+          params_.targetBitsPerVoxel, atoms_,
+          8.0 * (fixed + 3.0 * double(loosest.pairCount)) / double(volume_.voxelCount())));
+    result_ = std::move(loosest);
+    for (int it = 0; it < 10; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      CodedBricks c = codeAt(coder, mid, "sparse coding (rate search)");
+      if (fits(c))
+        hi = mid, result_ = std::move(c);
+      else
+        lo = mid;
+    }
+    blockTolerance_ = hi;
+  }
 
   // The sections.
-  const std::uint64_t pairCount = result.pairCount;
-  CompressedVolume out;
-  out.info = volumeInfo(volume, KsvdCodecEntry::kId);
-  auto writeParams = [&](double psnr) {
+  std::vector<std::byte> paramsSection(double psnr) const {
     std::vector<std::byte> bytes;
     ByteWriter w(bytes);
-    w.put<std::uint32_t>(std::uint32_t(grids[0].m));
-    w.put<std::uint32_t>(std::uint32_t(grids[0].n));
-    w.put<std::uint32_t>(std::uint32_t(atoms));
-    w.put<std::uint32_t>(std::uint32_t(sparsity));
-    w.put<std::uint32_t>(std::uint32_t(indexBits));
-    w.put<std::uint32_t>(std::uint32_t(params.iterations));
-    w.put<std::uint64_t>(coded.size());
-    w.put<std::uint64_t>(pairCount);
-    w.put<std::uint64_t>(stats.coreset);
-    w.put<double>(blockTolerance);
+    w.put<std::uint32_t>(std::uint32_t(grids_[0].m));
+    w.put<std::uint32_t>(std::uint32_t(grids_[0].n));
+    w.put<std::uint32_t>(std::uint32_t(atoms_));
+    w.put<std::uint32_t>(std::uint32_t(sparsity_));
+    w.put<std::uint32_t>(std::uint32_t(indexBits_));
+    w.put<std::uint32_t>(std::uint32_t(params_.iterations));
+    w.put<std::uint64_t>(coded_.size());
+    w.put<std::uint64_t>(result_.pairCount);
+    w.put<std::uint64_t>(stats_.coreset);
+    w.put<double>(blockTolerance_);
     w.put<double>(psnr);
     return bytes;
-  };
-  out.sections.emplace_back(kParams, writeParams(std::numeric_limits<double>::infinity()));
-  {
+  }
+  std::vector<std::byte> levelsSection(const std::vector<double>& psnrs) const {
     std::vector<std::byte> bytes;
     ByteWriter w(bytes);
-    for (std::int16_t v : stored) w.put<std::int16_t>(v);
-    out.sections.emplace_back(kDictionary, std::move(bytes));
-  }
-  {
-    std::vector<std::byte> bytes;
-    ByteWriter w(bytes);
-    for (const BrickRecord& r : bricks) {
-      w.put<float>(r.lo), w.put<float>(r.hi);
-      w.put<float>(r.coded == kConstant ? 0.0f : r.step);
-      w.put<std::uint32_t>(r.coded);
-    }
-    out.sections.emplace_back(kBricks, std::move(bytes));
-  }
-  {
-    std::vector<std::byte> counts, pairs;
-    counts.reserve(coded.size() * std::size_t(perBrick)), pairs.reserve(pairCount * 3);
-    for (std::size_t c = 0; c < coded.size(); ++c) {
-      for (std::uint8_t v : brickCounts[c]) counts.push_back(std::byte(v));
-      for (std::uint8_t v : brickPairs[c]) pairs.push_back(std::byte(v));
-    }
-    out.sections.emplace_back(kCounts, std::move(counts));
-    out.sections.emplace_back(kPairs, std::move(pairs));
-  }
-  auto writeLevels = [&](const std::vector<double>& psnrs) {
-    std::vector<std::byte> bytes;
-    ByteWriter w(bytes);
-    w.put<std::uint32_t>(std::uint32_t(levels));
+    w.put<std::uint32_t>(std::uint32_t(levels_));
     for (double v : psnrs) w.put<double>(v);
     return bytes;
-  };
-  std::vector<double> levelPsnr(std::size_t(levels), std::numeric_limits<double>::infinity());
-  out.sections.emplace_back(kLevels, writeLevels(levelPsnr));
-  stats.bricks = nBricks, stats.constantBricks = nBricks - coded.size();
-  stats.codedBlocks = candidates.size();
-  stats.pairs = pairCount, stats.atoms = atoms, stats.sparsity = sparsity;
-  stats.trainSparsity = trainSparsity;
-  stats.iterations = params.iterations;
-  stats.levels = levels;
-  stats.levelPairs = 0;
-  for (std::size_t c = 0; c < coded.size(); ++c)
-    if (coded[c] >= grids[0].brickCount()) stats.levelPairs += brickPairs[c].size() / 3;
-  stats.dictionaryBytes = out.sections[1].second.size();
-  stats.brickBytes = out.sections[2].second.size() + out.sections[5].second.size();
-  stats.countBytes = out.sections[3].second.size();
-  stats.pairBytes = out.sections[4].second.size();
-  // The quality of what was stored, measured on the decoder's output, level by level.
-  progress.begin("measuring PSNR", std::uint64_t(levels));
-  {
-    const Layout layout(out.info, out.view());
-    stats.psnr = levelPsnr[0] = psnr(volume, layout.decode());
-    progress.advance();
-    for (int l = 1; l < levels; ++l) {
-      levelPsnr[std::size_t(l)] = psnr(src[std::size_t(l)].coarse, layout.decodeLevel(l));
-      progress.advance();
-    }
   }
-  progress.end();
-  stats.levelPsnr = levelPsnr;
-  out.sections[0].second = writeParams(stats.psnr);
-  out.sections[5].second = writeLevels(levelPsnr);
-  return out;
-}
+
+  CompressedVolume sections() {
+    CompressedVolume out;
+    out.info = volumeInfo(volume_, KsvdCodecEntry::kId);
+    out.sections.emplace_back(kParams, paramsSection(std::numeric_limits<double>::infinity()));
+    {
+      std::vector<std::byte> bytes;
+      ByteWriter w(bytes);
+      for (std::int16_t v : stored_) w.put<std::int16_t>(v);
+      out.sections.emplace_back(kDictionary, std::move(bytes));
+    }
+    {
+      std::vector<std::byte> bytes;
+      ByteWriter w(bytes);
+      for (const BrickRecord& r : bricks_) {
+        w.put<float>(r.lo), w.put<float>(r.hi);
+        w.put<float>(r.coded == kConstant ? 0.0f : r.step);
+        w.put<std::uint32_t>(r.coded);
+      }
+      out.sections.emplace_back(kBricks, std::move(bytes));
+    }
+    {
+      std::vector<std::byte> counts, pairs;
+      counts.reserve(coded_.size() * std::size_t(perBrick_)), pairs.reserve(result_.pairCount * 3);
+      for (std::size_t c = 0; c < coded_.size(); ++c) {
+        for (std::uint8_t v : result_.counts[c]) counts.push_back(std::byte(v));
+        for (std::uint8_t v : result_.pairs[c]) pairs.push_back(std::byte(v));
+      }
+      out.sections.emplace_back(kCounts, std::move(counts));
+      out.sections.emplace_back(kPairs, std::move(pairs));
+    }
+    out.sections.emplace_back(
+        kLevels, levelsSection(std::vector<double>(std::size_t(levels_),
+                                                   std::numeric_limits<double>::infinity())));
+    stats_.bricks = nBricks_, stats_.constantBricks = nBricks_ - coded_.size();
+    stats_.codedBlocks = candidates_.size();
+    stats_.pairs = result_.pairCount, stats_.atoms = atoms_, stats_.sparsity = sparsity_;
+    stats_.trainSparsity = trainSparsity_;
+    stats_.iterations = params_.iterations;
+    stats_.levels = levels_;
+    stats_.levelPairs = 0;
+    for (std::size_t c = 0; c < coded_.size(); ++c)
+      if (coded_[c] >= grids_[0].brickCount()) stats_.levelPairs += result_.pairs[c].size() / 3;
+    stats_.dictionaryBytes = out.sections[1].second.size();
+    stats_.brickBytes = out.sections[2].second.size() + out.sections[5].second.size();
+    stats_.countBytes = out.sections[3].second.size();
+    stats_.pairBytes = out.sections[4].second.size();
+    return out;
+  }
+
+  // The quality of what was stored, measured on the decoder's output, level by level.
+  void measure(CompressedVolume& out) {
+    std::vector<double> levelPsnr(std::size_t(levels_), std::numeric_limits<double>::infinity());
+    progress_.begin("measuring PSNR", std::uint64_t(levels_));
+    {
+      const Layout layout(out.info, out.view());
+      stats_.psnr = levelPsnr[0] = psnr(volume_, layout.decode());
+      progress_.advance();
+      for (int l = 1; l < levels_; ++l) {
+        levelPsnr[std::size_t(l)] = psnr(src_[std::size_t(l)].coarse, layout.decodeLevel(l));
+        progress_.advance();
+      }
+    }
+    progress_.end();
+    stats_.levelPsnr = levelPsnr;
+    out.sections[0].second = paramsSection(stats_.psnr);
+    out.sections[5].second = levelsSection(levelPsnr);
+  }
+
+  const Volume& volume_;
+  const Params& params_;
+  Progress& progress_;
+  EncodeStats& stats_;
+  const int m_, perBrick_;
+  float scale_ = 1;
+  std::vector<Source<T>> src_;
+  std::vector<Grid> grids_;
+  std::vector<std::uint64_t> firstBrick_;
+  int levels_ = 1;
+  std::uint64_t nBricks_ = 0;
+  std::vector<BrickRecord> bricks_;
+  std::vector<std::uint64_t> coded_;       // brick indices of the coded bricks, in level order
+  std::vector<std::uint64_t> candidates_;  // coded-brick index * perBrick + j
+  std::uint64_t trainable_ = 0;
+  std::uint64_t fixedBytes_ = 0;
+  int atoms_ = 0, sparsity_ = 1, trainSparsity_ = 1;
+  std::uint64_t coresetSize_ = 0;
+  Dictionary dict_;
+  std::vector<std::int16_t> stored_;
+  int indexBits_ = 1, qmax_ = 1;
+  CodedBricks result_;
+  double blockTolerance_ = 0;
+};
 
 }  // namespace
 
@@ -465,7 +526,7 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
   if (volume.voxelCount() == 0) throw std::invalid_argument("ksvd codec: empty volume");
   EncodeStats stats;
   CompressedVolume out = dispatchScalar(volume.type, [&](auto t) {
-    return encodeTyped<decltype(t)>(volume, params, progress, stats);
+    return Encoder<decltype(t)>(volume, params, progress, stats).run();
   });
   if (statsOut) *statsOut = stats;
   return out;
