@@ -159,6 +159,198 @@ struct Input {
   std::uint32_t (*read)(const void*, std::size_t) = nullptr;
 };
 
+// The mip-map: the grid of every level (0 the input), the block widths and shifts, and, once
+// written, each level's block count and place in the data section.
+struct Levels {
+  std::vector<Grid> grids;
+  std::vector<int> widths, shifts{0};
+  int n = 1;
+  glm::ivec3 rootGrid{};
+  std::vector<std::uint64_t> blocks, offsets, lengths;
+};
+
+// Level after level, until one fits in the root width (the top).
+Levels buildLevels(Input& in, const Params& p, double threshold2, Progress& progress) {
+  Levels lv;
+  lv.grids.resize(1);
+  Grid& base = lv.grids[0];
+  base.logical = in.dims;
+  base.padded = in.dims;
+  base.value = std::move(in.values);
+  base.base = in.base, base.read = in.read;
+  while (maxOf(lv.grids.back().logical) > p.rootWidth) {
+    if (int(lv.grids.size()) == kernels::kSvmmMaxLevels)
+      throw std::invalid_argument("more than 16 mip levels: raise the root width");
+    const int i = int(lv.grids.size()) - 1;
+    const int w = p.stepped ? std::min(2 << i, 256) : p.blockWidth;
+    const glm::ivec3 next = (lv.grids.back().logical + w - 1) / w;
+    progress.begin("svmm: level " + std::to_string(i + 1), std::uint64_t(next.z));
+    lv.grids.push_back(buildLevel(lv.grids.back(), w, in.format, threshold2, p.threads, progress));
+    progress.end();
+    lv.widths.push_back(w);
+    lv.shifts.push_back(lv.shifts.back() + std::countr_zero(unsigned(w)));
+    if (lv.shifts.back() > 30) throw std::invalid_argument("mipmap factor over 2^30");
+  }
+  lv.n = int(lv.grids.size());
+  lv.widths.push_back(0);
+  lv.blocks.assign(std::size_t(lv.n), 0);
+  lv.blocks[std::size_t(lv.n - 1)] = 1;
+  lv.offsets.assign(std::size_t(lv.n), 0), lv.lengths.assign(std::size_t(lv.n), 0);
+  lv.rootGrid = lv.n == 1 ? in.dims : lv.grids.back().padded;
+  return lv;
+}
+
+// One block of level L at `origin` (level-L voxels) of `size` voxels, as words: value, terminal
+// bit and the offset nibble of its children's first block in level L - 1, whose origins are
+// appended to `next`.
+void writeBlock(const Levels& lv, int L, glm::ivec3 origin, glm::ivec3 size, int format,
+                std::vector<glm::ivec3>& next, std::vector<std::uint32_t>& words) {
+  const Grid& G = lv.grids[std::size_t(L)];
+  const int childW = lv.widths[std::size_t(L - 1)];
+  for (int bz = 0; bz < size.z; bz += 2)
+    for (int by = 0; by < size.y; by += 2)
+      for (int bx = 0; bx < size.x; bx += 2) {
+        const std::size_t first = next.size();
+        bool term[8];
+        for (int j = 0; j < 8; ++j) {
+          const glm::ivec3 g = origin + glm::ivec3(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
+          term[j] = G.terminalAt(g);
+          if (!term[j]) next.push_back(g * childW);
+        }
+        if (next.size() > std::numeric_limits<std::uint32_t>::max())
+          throw std::invalid_argument("a level has more than 2^32 blocks");
+        const std::uint32_t off = next.size() > first ? std::uint32_t(first) : 0u;
+        for (int j = 0; j < 8; ++j) {
+          const glm::ivec3 l(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
+          words[(std::size_t(l.z) * std::size_t(size.y) + std::size_t(l.y)) * std::size_t(size.x) +
+                std::size_t(l.x)] =
+              packWord(format, G.valueAt(origin + l), term[j], (off >> (4 * j)) & 15u);
+        }
+      }
+}
+
+// Levels top .. 1, in tree order, into the data section (each 8-byte aligned); returns the
+// origins of the base level's blocks.
+std::vector<glm::ivec3> writeUpperLevels(Levels& lv, int format, std::vector<std::byte>& data,
+                                         Progress& progress) {
+  const int top = lv.n - 1, ws = svmmWordBytes(format);
+  std::vector<std::vector<std::byte>> out(static_cast<std::size_t>(lv.n));
+  std::vector<glm::ivec3> cur{glm::ivec3(0)};  // block origins of level L, in level-L voxels
+  for (int L = top; L >= 1; --L) {
+    const glm::ivec3 size = L == top ? lv.rootGrid : glm::ivec3(lv.widths[std::size_t(L)]);
+    std::vector<glm::ivec3> next;
+    std::vector<std::uint32_t> words(count3(size));
+    auto& o = out[std::size_t(L)];
+    o.reserve(cur.size() * words.size() * std::size_t(ws));
+    for (const glm::ivec3 origin : cur) {
+      writeBlock(lv, L, origin, size, format, next, words);
+      for (const std::uint32_t w : words) putValue(o, w, ws);
+    }
+    lv.blocks[std::size_t(L - 1)] = next.size();
+    cur = std::move(next);
+    progress.advance();
+  }
+  for (int L = top; L >= 1; --L) {
+    while (data.size() % 8) data.push_back(std::byte{0});
+    lv.offsets[std::size_t(L)] = data.size();
+    lv.lengths[std::size_t(L)] = out[std::size_t(L)].size();
+    data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
+    std::vector<std::byte>().swap(out[std::size_t(L)]);
+  }
+  return cur;
+}
+
+// A base block's 2^3 group as stored with --base-compression: a byte of occupancy and the mean of
+// the occupied voxels.
+void writeCompressedGroup(const Grid& G, glm::ivec3 corner, int format, std::vector<std::byte>& o) {
+  const int channels = channelsOf(format);
+  std::uint32_t bitmap = 0;
+  std::uint64_t sum[4] = {0, 0, 0, 0}, cnt = 0;
+  for (int j = 0; j < 8; ++j) {
+    const glm::ivec3 q = corner + glm::ivec3(j & 1, j >> 1 & 1, j >> 2);
+    const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
+    const std::uint32_t v = in ? G.get(G.at(q.x, q.y, q.z)) : 0u;
+    const bool occupied = format == kSvmmRgba32 ? (v >> 24) != 0 : v != 0;
+    if (!occupied) continue;
+    bitmap |= 1u << j;
+    ++cnt;
+    if (channels == 1)
+      sum[0] += v;
+    else
+      for (int c = 0; c < 4; ++c) sum[c] += (v >> (8 * c)) & 255u;
+  }
+  std::uint32_t mean = 0;
+  if (cnt) {
+    if (channels == 1)
+      mean = std::uint32_t((sum[0] + cnt / 2) / cnt);
+    else
+      for (int c = 0; c < 4; ++c) mean |= std::uint32_t((sum[c] + cnt / 2) / cnt) << (8 * c);
+  }
+  o.push_back(std::byte(bitmap));
+  putValue(o, mean, svmmBaseBytes(format));
+}
+
+// The base level, written straight into the data section (it is most of the file: a second copy
+// of it would double the encoder's peak): the whole grid without levels, else its blocks.
+void writeBaseLevel(const Levels& lv, const std::vector<glm::ivec3>& origins, int format,
+                    bool compressBase, std::vector<std::byte>& o) {
+  const Grid& G = lv.grids[0];
+  const int bs = svmmBaseBytes(format);
+  if (lv.n == 1) {
+    const std::size_t voxels = count3(G.padded);
+    o.reserve(o.size() + voxels * std::size_t(bs) + 8);  // + the 8 zero bytes at the end
+    for (std::size_t i = 0; i < voxels; ++i) putValue(o, G.get(i), bs);
+    return;
+  }
+  const int w = lv.widths[0];
+  // The most the base level takes (uncompressed blocks), and the 8 zero bytes at the end: a
+  // reallocation past it would copy the whole section into twice its size.
+  o.reserve(o.size() + origins.size() * std::size_t(w * w * w) * std::size_t(bs) + 8);
+  for (const glm::ivec3 origin : origins) {
+    if (compressBase) {
+      for (int gz = 0; gz < w; gz += 2)
+        for (int gy = 0; gy < w; gy += 2)
+          for (int gx = 0; gx < w; gx += 2)
+            writeCompressedGroup(G, origin + glm::ivec3(gx, gy, gz), format, o);
+      continue;
+    }
+    for (int z = 0; z < w; ++z)
+      for (int y = 0; y < w; ++y)
+        for (int x = 0; x < w; ++x) {
+          const glm::ivec3 q = origin + glm::ivec3(x, y, z);
+          const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
+          putValue(o, in ? G.get(G.at(q.x, q.y, q.z)) : 0u, bs);
+        }
+  }
+}
+
+std::vector<std::byte> paramsSection(const Input& in, const Params& p, const Levels& lv,
+                                     bool compressBase, double delta, double psnrValue) {
+  std::vector<std::byte> params;
+  ByteWriter w(params);
+  w.put<std::uint32_t>(std::uint32_t(in.format));
+  w.put<std::uint32_t>(compressBase ? kBlockCompressed : 0u);
+  w.put<std::int32_t>(in.bias);
+  w.put<std::uint32_t>(std::uint32_t(p.quality));
+  w.put<double>(delta);
+  w.put<double>(in.peak);
+  w.put<std::uint32_t>(std::uint32_t(p.rootWidth));
+  w.put<std::uint32_t>(p.stepped ? 1u : 0u);
+  w.put<std::uint32_t>(std::uint32_t(lv.n));
+  w.put<std::uint32_t>(std::uint32_t(lv.rootGrid.x));
+  w.put<std::uint32_t>(std::uint32_t(lv.rootGrid.y));
+  w.put<std::uint32_t>(std::uint32_t(lv.rootGrid.z));
+  for (int i = 0; i < lv.n; ++i) {
+    w.put<std::uint32_t>(std::uint32_t(lv.widths[std::size_t(i)]));
+    w.put<std::uint32_t>(std::uint32_t(lv.shifts[std::size_t(i)]));
+    w.put<std::uint64_t>(lv.blocks[std::size_t(i)]);
+    w.put<std::uint64_t>(lv.offsets[std::size_t(i)]);
+    w.put<std::uint64_t>(lv.lengths[std::size_t(i)]);
+  }
+  w.put<double>(psnrValue);
+  return params;
+}
+
 CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progress& progress,
                              EncodeStats* stats,
                              const std::function<double(const CompressedVolume&)>& measure) {
@@ -166,195 +358,35 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
   if (!p.stepped &&
       (p.blockWidth < 2 || p.blockWidth > 64 || !std::has_single_bit(unsigned(p.blockWidth))))
     throw std::invalid_argument("block width must be a power of two in 2..64");
-  const int format = in.format;
-  const int channels = channelsOf(format);
-  const double delta = deltaForQuality(p.quality, channels);
+  const double delta = deltaForQuality(p.quality, channelsOf(in.format));
   const double thr = delta * in.peak;
-  const double threshold2 = thr * thr;
+  Levels lv = buildLevels(in, p, thr * thr, progress);
+  const bool compressBase = p.baseCompression && lv.n > 1;
 
-  std::vector<Grid> grids(1);
-  grids[0].logical = in.dims;
-  grids[0].padded = in.dims;
-  grids[0].value = std::move(in.values);
-  grids[0].base = in.base, grids[0].read = in.read;
-  std::vector<int> widths, shifts{0};
-  while (maxOf(grids.back().logical) > p.rootWidth) {
-    if (int(grids.size()) == kernels::kSvmmMaxLevels)
-      throw std::invalid_argument("more than 16 mip levels: raise the root width");
-    const int i = int(grids.size()) - 1;
-    const int w = p.stepped ? std::min(2 << i, 256) : p.blockWidth;
-    const glm::ivec3 next = (grids.back().logical + w - 1) / w;
-    progress.begin("svmm: level " + std::to_string(i + 1), std::uint64_t(next.z));
-    grids.push_back(buildLevel(grids.back(), w, format, threshold2, p.threads, progress));
-    progress.end();
-    widths.push_back(w);
-    shifts.push_back(shifts.back() + std::countr_zero(unsigned(w)));
-    if (shifts.back() > 30) throw std::invalid_argument("mipmap factor over 2^30");
-  }
-  const int n = int(grids.size());
-  const int top = n - 1;
-  widths.push_back(0);
-  const int ws = svmmWordBytes(format), bs = svmmBaseBytes(format);
-  const bool compressBase = p.baseCompression && n > 1;
-  std::vector<std::vector<std::byte>> out(static_cast<std::size_t>(n));
-  std::vector<std::uint64_t> blocks(static_cast<std::size_t>(n), 0);
-  blocks[std::size_t(top)] = 1;
-  glm::ivec3 rootGrid = n == 1 ? in.dims : grids[std::size_t(top)].padded;
-
-  progress.begin("svmm: writing blocks", std::uint64_t(n));
-  std::vector<glm::ivec3> cur{glm::ivec3(0)};  // block origins of level L, in level-L voxels
-  for (int L = top; L >= 1; --L) {
-    const Grid& G = grids[std::size_t(L)];
-    const glm::ivec3 size = L == top ? rootGrid : glm::ivec3(widths[std::size_t(L)]);
-    const int childW = widths[std::size_t(L - 1)];
-    std::vector<glm::ivec3> next;
-    std::vector<std::uint32_t> words(count3(size));
-    auto& o = out[std::size_t(L)];
-    o.reserve(cur.size() * words.size() * std::size_t(ws));
-    for (const glm::ivec3 origin : cur) {
-      for (int bz = 0; bz < size.z; bz += 2)
-        for (int by = 0; by < size.y; by += 2)
-          for (int bx = 0; bx < size.x; bx += 2) {
-            const std::size_t first = next.size();
-            bool term[8];
-            for (int j = 0; j < 8; ++j) {
-              const glm::ivec3 g =
-                  origin + glm::ivec3(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
-              term[j] = G.terminalAt(g);
-              if (!term[j]) next.push_back(g * childW);
-            }
-            if (next.size() > std::numeric_limits<std::uint32_t>::max())
-              throw std::invalid_argument("a level has more than 2^32 blocks");
-            const std::uint32_t off = next.size() > first ? std::uint32_t(first) : 0u;
-            for (int j = 0; j < 8; ++j) {
-              const glm::ivec3 l(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
-              const glm::ivec3 g = origin + l;
-              words[(std::size_t(l.z) * std::size_t(size.y) + std::size_t(l.y)) *
-                        std::size_t(size.x) +
-                    std::size_t(l.x)] =
-                  packWord(format, G.valueAt(g), term[j], (off >> (4 * j)) & 15u);
-            }
-          }
-      for (const std::uint32_t w : words) putValue(o, w, ws);
-    }
-    blocks[std::size_t(L - 1)] = next.size();
-    cur = std::move(next);
-    progress.advance();
-  }
-  // The data section: levels top .. 1, then the base level written straight into it (it is
-  // most of the file: a second copy of it would double the encoder's peak).
+  progress.begin("svmm: writing blocks", std::uint64_t(lv.n));
   std::vector<std::byte> data;
-  std::vector<std::uint64_t> offsets(static_cast<std::size_t>(n)),
-      lengths(static_cast<std::size_t>(n));
-  for (int L = top; L >= 1; --L) {
-    while (data.size() % 8) data.push_back(std::byte{0});
-    offsets[std::size_t(L)] = data.size();
-    lengths[std::size_t(L)] = out[std::size_t(L)].size();
-    data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
-    std::vector<std::byte>().swap(out[std::size_t(L)]);
-  }
+  const std::vector<glm::ivec3> baseBlocks = writeUpperLevels(lv, in.format, data, progress);
   while (data.size() % 8) data.push_back(std::byte{0});
-  offsets[0] = data.size();
-  // Base level.
-  {
-    const Grid& G = grids[0];
-    auto& o = data;
-    if (n == 1) {
-      const std::size_t voxels = count3(G.padded);
-      o.reserve(o.size() + voxels * std::size_t(bs) + 8);  // + the 8 zero bytes at the end
-      for (std::size_t i = 0; i < voxels; ++i) putValue(o, G.get(i), bs);
-    } else {
-      const int w = widths[0];
-      // The most the base level takes (uncompressed blocks), and the 8 zero bytes at the end: a
-      // reallocation past it would copy the whole section into twice its size.
-      o.reserve(o.size() + cur.size() * std::size_t(w * w * w) * std::size_t(bs) + 8);
-      for (const glm::ivec3 origin : cur) {
-        if (!compressBase) {
-          for (int z = 0; z < w; ++z)
-            for (int y = 0; y < w; ++y)
-              for (int x = 0; x < w; ++x) {
-                const glm::ivec3 q = origin + glm::ivec3(x, y, z);
-                const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
-                putValue(o, in ? G.get(G.at(q.x, q.y, q.z)) : 0u, bs);
-              }
-          continue;
-        }
-        for (int gz = 0; gz < w; gz += 2)
-          for (int gy = 0; gy < w; gy += 2)
-            for (int gx = 0; gx < w; gx += 2) {
-              std::uint32_t bitmap = 0;
-              std::uint64_t sum[4] = {0, 0, 0, 0}, cnt = 0;
-              for (int j = 0; j < 8; ++j) {
-                const glm::ivec3 q =
-                    origin + glm::ivec3(gx + (j & 1), gy + (j >> 1 & 1), gz + (j >> 2));
-                const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
-                const std::uint32_t v = in ? G.get(G.at(q.x, q.y, q.z)) : 0u;
-                const bool occupied = format == kSvmmRgba32 ? (v >> 24) != 0 : v != 0;
-                if (!occupied) continue;
-                bitmap |= 1u << j;
-                ++cnt;
-                if (channels == 1)
-                  sum[0] += v;
-                else
-                  for (int c = 0; c < 4; ++c) sum[c] += (v >> (8 * c)) & 255u;
-              }
-              std::uint32_t mean = 0;
-              if (cnt) {
-                if (channels == 1)
-                  mean = std::uint32_t((sum[0] + cnt / 2) / cnt);
-                else
-                  for (int c = 0; c < 4; ++c)
-                    mean |= std::uint32_t((sum[c] + cnt / 2) / cnt) << (8 * c);
-              }
-              o.push_back(std::byte(bitmap));
-              putValue(o, mean, bs);
-            }
-      }
-    }
-    progress.advance();
-  }
+  lv.offsets[0] = data.size();
+  writeBaseLevel(lv, baseBlocks, in.format, compressBase, data);
+  progress.advance();
   progress.end();
-
-  lengths[0] = data.size() - offsets[0];
+  lv.lengths[0] = data.size() - lv.offsets[0];
   for (int i = 0; i < 8; ++i) data.push_back(std::byte{0});
-  auto writeParams = [&](double psnrValue) {
-    std::vector<std::byte> params;
-    ByteWriter w(params);
-    w.put<std::uint32_t>(std::uint32_t(format));
-    w.put<std::uint32_t>(compressBase ? kBlockCompressed : 0u);
-    w.put<std::int32_t>(in.bias);
-    w.put<std::uint32_t>(std::uint32_t(p.quality));
-    w.put<double>(delta);
-    w.put<double>(in.peak);
-    w.put<std::uint32_t>(std::uint32_t(p.rootWidth));
-    w.put<std::uint32_t>(p.stepped ? 1u : 0u);
-    w.put<std::uint32_t>(std::uint32_t(n));
-    w.put<std::uint32_t>(std::uint32_t(rootGrid.x));
-    w.put<std::uint32_t>(std::uint32_t(rootGrid.y));
-    w.put<std::uint32_t>(std::uint32_t(rootGrid.z));
-    for (int i = 0; i < n; ++i) {
-      w.put<std::uint32_t>(std::uint32_t(widths[std::size_t(i)]));
-      w.put<std::uint32_t>(std::uint32_t(shifts[std::size_t(i)]));
-      w.put<std::uint64_t>(blocks[std::size_t(i)]);
-      w.put<std::uint64_t>(offsets[std::size_t(i)]);
-      w.put<std::uint64_t>(lengths[std::size_t(i)]);
-    }
-    w.put<double>(psnrValue);
-    return params;
-  };
+
   CompressedVolume cv;
   cv.info = info;
-  cv.sections.emplace_back(kParams, writeParams(0.0));
+  cv.sections.emplace_back(kParams, paramsSection(in, p, lv, compressBase, delta, 0.0));
   cv.sections.emplace_back(kData, std::move(data));
   progress.begin("svmm: measuring PSNR", 1);
   const double psnrValue = measure(cv);
   progress.advance();
   progress.end();
-  cv.sections[0].second = writeParams(psnrValue);
+  cv.sections[0].second = paramsSection(in, p, lv, compressBase, delta, psnrValue);
   if (stats) {
-    stats->levels = n;
-    stats->blocks = blocks;
-    stats->widths = widths;
+    stats->levels = lv.n;
+    stats->blocks = lv.blocks;
+    stats->widths = lv.widths;
     stats->dataBytes = cv.sections[1].second.size();
     stats->delta = delta;
     stats->psnr = psnrValue;
