@@ -16,6 +16,13 @@ namespace voxwall::codec::tvq {
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
   static std::atomic<std::uint64_t> nextCacheId{1};
   cacheId_ = nextCacheId.fetch_add(kProgressiveLevels);  // one id per progressive level
+  const std::uint64_t subCount = readParams(sections);
+  readBasis(sections);
+  const auto [words, recordBytes] = readSubvolumes(sections, subCount);
+  buildRenderBuffer(sections, words, recordBytes);
+}
+
+std::uint64_t Layout::readParams(const SectionSet& sections) {
   const std::string& src = sections.source;
   ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
   if (r.remaining() != kParamsBytes)
@@ -45,13 +52,16 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     if (std::isnan(v)) r.fail("a PSNR is not a number");
   transform_ = Transform(transform), s_ = int(s), dcBits_ = int(dcBits);
   classified_ = classified == 1, codeBits_ = int(codeBits);
-  const Grid grid(info.dims, s_);
+  const Grid grid(info_.dims, s_);
   blocks_ = grid.blocks, grid_ = grid.subs;
   if (subCount != grid.subCount())
     r.fail(std::to_string(subCount) + " sub-volumes, the grid has " +
            std::to_string(grid.subCount()));
+  return subCount;
+}
 
-  // The basis.
+void Layout::readBasis(const SectionSet& sections) {
+  const std::string& src = sections.source;
   ByteReader br(sections.get(kBasis, "basis"), src, "section 'basis'");
   if (br.remaining() != 64 * 64 * 4 + 64)
     br.fail(std::to_string(br.remaining()) + " bytes, expected " +
@@ -71,16 +81,17 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     if (zoneSize[std::size_t(z)] != 8)
       br.fail("zone " + std::to_string(z) + " holds " + std::to_string(zoneSize[std::size_t(z)]) +
               " coefficients, not 8");
-  std::array<std::vector<int>, 3> chapterDims;
-  std::array<std::vector<std::vector<int>>, 3> chapterCoefs;
-  for (int p = 0; p < 3; ++p)
-    for (int c = 0; c < chapterCount(p); ++c) {
-      chapterCoefs[std::size_t(p)].push_back(
-          chapterCoefficients(basis_, p, firstChapterClass(p) + c));
-      chapterDims[std::size_t(p)].push_back(int(chapterCoefs[std::size_t(p)].back().size()));
-    }
+}
 
-  // The sub-volume table.
+std::pair<std::uint64_t, std::uint64_t> Layout::readSubvolumes(const SectionSet& sections,
+                                                               std::uint64_t subCount) {
+  const std::string& src = sections.source;
+  const Grid grid(info_.dims, s_);
+  std::array<std::vector<int>, 3> chapterDims;
+  for (int p = 0; p < 3; ++p)
+    for (int c = 0; c < chapterCount(p); ++c)
+      chapterDims[std::size_t(p)].push_back(
+          int(chapterCoefficients(basis_, p, firstChapterClass(p) + c).size()));
   ByteReader sr(sections.get(kSubvolumes, "sub-volumes"), src, "section 'sub-volumes'");
   if (sr.remaining() != subCount * kSubvolumeBytes)
     sr.fail(std::to_string(sr.remaining()) + " bytes for " + std::to_string(subCount) +
@@ -134,6 +145,14 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     ByteReader(codebooks_, src, "section 'codebooks'")
         .fail(std::to_string(codebooks_.size()) + " bytes, the chapters need " +
               std::to_string(bookValues * 2));
+  return {words, recordBytes};
+}
+
+void Layout::buildRenderBuffer(const SectionSet& sections, std::uint64_t words,
+                               std::uint64_t recordBytes) {
+  const std::string& src = sections.source;
+  const std::uint64_t subCount = subvolumes_.size();
+  const Grid grid(info_.dims, s_);
   const auto occupancy = sections.get(kOccupancy, "occupancy");
   ByteReader orr(occupancy, src, "section 'occupancy'");
   if (occupancy.size() != words * 8)
@@ -178,63 +197,78 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     t.occupancyAt = occupancyAt + sub.firstWord * 8;
     t.rankAt = rankAt + sub.firstWord * 4;
     t.recordsAt = recordsAt + sub.firstRecordByte;
-    // Ranks, and the occupancy's agreement with the table.
-    const std::uint64_t local = Grid::volume(extent);
-    const auto* w = reinterpret_cast<const std::uint64_t*>(render_.data() + t.occupancyAt);
-    auto* rank = reinterpret_cast<std::uint32_t*>(render_.data() + t.rankAt);
-    std::uint64_t seen = 0;
-    for (std::uint64_t j = 0; j < (local + 63) / 64; ++j) {
-      rank[j] = std::uint32_t(seen);
-      std::uint64_t word = w[j];
-      if (j == (local - 1) / 64 && local % 64 && (word >> (local % 64)))
-        orr.fail("sub-volume " + std::to_string(i) + ": bits set past its blocks");
-      seen += std::uint64_t(std::popcount(word));
-    }
-    if (seen != sub.coded)
-      orr.fail("sub-volume " + std::to_string(i) + ": " + std::to_string(seen) +
-               " coded blocks, the table says " + std::to_string(sub.coded));
+    rankOccupancy(i, t, Grid::volume(extent), orr);
     // Associated codebooks: each codevector taken back through the inverse transform (section
     // 4.3, equation 5), so that decoding never does.
-    const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
-    for (int p = 0; p < 3; ++p) {
-      float* out = reinterpret_cast<float*>(render_.data() + t.codebookAt[p]) + kBlockVoxels;
-      std::uint64_t value = sub.codebookAt[std::size_t(p)];
-      for (int c = 0; c < chapterCount(p); ++c) {
-        const auto& ks = chapterCoefs[std::size_t(p)][std::size_t(c)];
-        for (std::uint32_t v = 0; v < sub.chapters[std::size_t(p)][std::size_t(c)]; ++v) {
-          for (int k : ks) {
-            std::int16_t q;
-            std::memcpy(&q, book + value++, 2);
-            const float coef = float(q) * sub.scale[std::size_t(p)];
-            const float* row = basis_.row(k);
-            for (int j = 0; j < kBlockVoxels; ++j) out[j] += coef * row[j];
-          }
-          out += kBlockVoxels;
-        }
-      }
-    }
-    // Every record's codes name a codevector of its partition.
-    kernels::TvqDecoder d;
-    d.data = reinterpret_cast<const std::uint8_t*>(render_.data());
-    d.dcBits = dcBits_;
-    std::array<std::uint64_t, 3> limit{};
-    for (int p = 0; p < 3; ++p) {
-      limit[std::size_t(p)] = 1;
-      for (std::uint32_t c : sub.chapters[std::size_t(p)]) limit[std::size_t(p)] += c;
-    }
-    for (std::uint64_t j = 0; j < sub.coded; ++j) {
-      std::uint32_t dc, k[3];
-      d.codes(t, j, dc, k);
-      for (int p = 0; p < 3; ++p)
-        if (k[p] >= limit[std::size_t(p)])
-          rr.fail("sub-volume " + std::to_string(i) + ", record " + std::to_string(j) + ": code " +
-                  std::to_string(k[p]) + " of partition " + std::to_string(p) + " has " +
-                  std::to_string(limit[std::size_t(p)]) + " codevectors");
-    }
+    associateCodebooks(sub, t);
+    checkRecords(i, t, rr);
   }
   // The table goes into the render buffer as the kernels read it (memory, not a file format).
   std::memcpy(render_.data() + subvolumesAt_, table.data(),
               table.size() * sizeof(kernels::TvqSubvolume));
+}
+
+// The rank of every occupancy word of sub-volume i (coded blocks before it), checking the words
+// against the sub-volume's size and coded count.
+void Layout::rankOccupancy(std::uint64_t i, const kernels::TvqSubvolume& t, std::uint64_t local,
+                           const ByteReader& orr) {
+  const auto* w = reinterpret_cast<const std::uint64_t*>(render_.data() + t.occupancyAt);
+  auto* rank = reinterpret_cast<std::uint32_t*>(render_.data() + t.rankAt);
+  std::uint64_t seen = 0;
+  for (std::uint64_t j = 0; j < (local + 63) / 64; ++j) {
+    rank[j] = std::uint32_t(seen);
+    std::uint64_t word = w[j];
+    if (j == (local - 1) / 64 && local % 64 && (word >> (local % 64)))
+      orr.fail("sub-volume " + std::to_string(i) + ": bits set past its blocks");
+    seen += std::uint64_t(std::popcount(word));
+  }
+  if (seen != subvolumes_[i].coded)
+    orr.fail("sub-volume " + std::to_string(i) + ": " + std::to_string(seen) +
+             " coded blocks, the table says " + std::to_string(subvolumes_[i].coded));
+}
+
+// Every record's codes name a codevector of its partition.
+void Layout::checkRecords(std::uint64_t i, const kernels::TvqSubvolume& t,
+                          const ByteReader& rr) const {
+  kernels::TvqDecoder d;
+  d.data = reinterpret_cast<const std::uint8_t*>(render_.data());
+  d.dcBits = dcBits_;
+  std::array<std::uint64_t, 3> limit{};
+  for (int p = 0; p < 3; ++p) {
+    limit[std::size_t(p)] = 1;
+    for (std::uint32_t c : subvolumes_[i].chapters[std::size_t(p)]) limit[std::size_t(p)] += c;
+  }
+  for (std::uint64_t j = 0; j < subvolumes_[i].coded; ++j) {
+    std::uint32_t dc, k[3];
+    d.codes(t, j, dc, k);
+    for (int p = 0; p < 3; ++p)
+      if (k[p] >= limit[std::size_t(p)])
+        rr.fail("sub-volume " + std::to_string(i) + ", record " + std::to_string(j) + ": code " +
+                std::to_string(k[p]) + " of partition " + std::to_string(p) + " has " +
+                std::to_string(limit[std::size_t(p)]) + " codevectors");
+  }
+}
+
+// Each codevector of `sub` taken back through the inverse transform into the render buffer.
+void Layout::associateCodebooks(const Sub& sub, const kernels::TvqSubvolume& t) {
+  const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
+  for (int p = 0; p < 3; ++p) {
+    float* out = reinterpret_cast<float*>(render_.data() + t.codebookAt[p]) + kBlockVoxels;
+    std::uint64_t value = sub.codebookAt[std::size_t(p)];
+    for (int c = 0; c < chapterCount(p); ++c) {
+      const auto ks = chapterCoefficients(basis_, p, firstChapterClass(p) + c);
+      for (std::uint32_t v = 0; v < sub.chapters[std::size_t(p)][std::size_t(c)]; ++v) {
+        for (int k : ks) {
+          std::int16_t q;
+          std::memcpy(&q, book + value++, 2);
+          const float coef = float(q) * sub.scale[std::size_t(p)];
+          const float* row = basis_.row(k);
+          for (int j = 0; j < kBlockVoxels; ++j) out[j] += coef * row[j];
+        }
+        out += kBlockVoxels;
+      }
+    }
+  }
 }
 
 kernels::TvqView Layout::view(const std::byte* base, int partitions) const {

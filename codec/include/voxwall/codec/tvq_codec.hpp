@@ -54,6 +54,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/tvq_view.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/bytes.hpp>
 #include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::tvq {
@@ -200,6 +201,19 @@ class Layout {
     std::array<std::vector<std::uint32_t>, 3> chapters;
     std::array<std::uint64_t, 3> codebookAt{};  // into section 4, in i16 values
   };
+  // The constructor's steps: each section checked, then the render buffer built from them.
+  std::uint64_t readParams(const SectionSet& sections);  // returns the sub-volume count
+  void readBasis(const SectionSet& sections);
+  // Returns the occupancy words and record bytes the table needs.
+  std::pair<std::uint64_t, std::uint64_t> readSubvolumes(const SectionSet& sections,
+                                                         std::uint64_t subCount);
+  void buildRenderBuffer(const SectionSet& sections, std::uint64_t words,
+                         std::uint64_t recordBytes);
+  void associateCodebooks(const Sub& sub, const kernels::TvqSubvolume& t);
+  void rankOccupancy(std::uint64_t i, const kernels::TvqSubvolume& t, std::uint64_t local,
+                     const ByteReader& occupancy);
+  void checkRecords(std::uint64_t i, const kernels::TvqSubvolume& t,
+                    const ByteReader& records) const;
   VolumeInfo info_;
   Transform transform_ = Transform::Klt;
   bool classified_ = true;
