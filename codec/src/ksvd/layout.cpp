@@ -14,11 +14,99 @@
 
 namespace voxwall::codec::ksvd {
 
+namespace {
+
+// What reading the brick records, block counts and pairs into the render buffer needs and counts.
+struct BrickTables {
+  ByteReader &bricks, &counts, &pairs;
+  const std::uint8_t* countBytes;
+  const std::uint8_t* pairBytes;
+  kernels::KsvdBrick* brickOut;
+  std::uint32_t* blockOut;
+  std::uint64_t perBrick;
+  int atoms, sparsity, indexBits;
+  std::uint64_t codedBricks, pairCount;
+  std::uint64_t codedSeen = 0, pairSeen = 0;
+};
+
+std::string brickName(std::uint64_t b, std::size_t level) {
+  std::string name = "brick " + std::to_string(b);
+  if (level) name += " of level " + std::to_string(level);
+  return name;
+}
+
+// Block j's pairs: at most S, within the header's count, each naming an atom there is.
+void checkPairs(BrickTables& t, const std::string& which, int j, int count) {
+  if (count > t.sparsity)
+    t.counts.fail(which + ": block " + std::to_string(j) + " has " + std::to_string(count) +
+                  " pairs (0.." + std::to_string(t.sparsity) + ")");
+  if (t.pairSeen + std::uint64_t(count) > t.pairCount)
+    t.pairs.fail("the blocks need more than the header's " + std::to_string(t.pairCount) +
+                 " pairs");
+  for (int p = 0; p < count; ++p) {
+    const std::uint8_t* q = t.pairBytes + 3 * (t.pairSeen + std::uint64_t(p));
+    const int atom =
+        int((std::uint32_t(q[0]) | (std::uint32_t(q[1]) << 8) | (std::uint32_t(q[2]) << 16)) &
+            ((1u << t.indexBits) - 1u));
+    if (atom >= t.atoms)
+      t.pairs.fail("pair " + std::to_string(t.pairSeen + std::uint64_t(p)) + " names atom " +
+                   std::to_string(atom) + " of " + std::to_string(t.atoms));
+  }
+}
+
+// Brick b of a level (grid g, its blocks from firstBlock on): its record, and, coded, its blocks'
+// entries in the block table (first pair relative to the brick's, pair count).
+void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t firstBrick,
+               std::uint64_t firstBlock, std::uint64_t b) {
+  kernels::KsvdBrick& out = t.brickOut[firstBrick + b];
+  out.lo = t.bricks.get<float>(), out.hi = t.bricks.get<float>(), out.step = t.bricks.get<float>();
+  const std::uint32_t index = t.bricks.get<std::uint32_t>();
+  const std::string which = brickName(b, level);
+  if (!std::isfinite(out.lo) || !std::isfinite(out.hi) || out.lo > out.hi)
+    t.bricks.fail(which + ": bad value range");
+  if (!std::isfinite(out.step) || out.step < 0) t.bricks.fail(which + ": bad coefficient step");
+  if (out.step == 0) {
+    if (index != kConstant || out.lo != out.hi)
+      t.bricks.fail(which + ": a constant brick must have min == max and no coded index");
+    return;
+  }
+  if (index != t.codedSeen)
+    t.bricks.fail(which + ": coded index " + std::to_string(index) + ", expected " +
+                  std::to_string(t.codedSeen));
+  if (t.codedSeen >= t.codedBricks)
+    t.bricks.fail("more coded bricks than the header's " + std::to_string(t.codedBricks));
+  out.firstPair = t.pairSeen;
+  const glm::ivec3 bc = g.brickCoords(b);
+  std::uint64_t relative = 0;
+  for (int j = 0; j < int(t.perBrick); ++j) {
+    const int count = t.countBytes[t.codedSeen * t.perBrick + std::uint64_t(j)];
+    const glm::ivec3 block = g.blockOf(bc, j);
+    if (!g.inGrid(block)) {
+      if (count != 0) t.counts.fail(which + ": a block outside the volume has pairs");
+      continue;
+    }
+    checkPairs(t, which, j, count);
+    t.blockOut[firstBlock +
+               (std::uint64_t(block.z) * std::uint64_t(g.blocks.y) + std::uint64_t(block.y)) *
+                   std::uint64_t(g.blocks.x) +
+               std::uint64_t(block.x)] = std::uint32_t(relative) | (std::uint32_t(count) << 24);
+    relative += std::uint64_t(count), t.pairSeen += std::uint64_t(count);
+  }
+  ++t.codedSeen;
+}
+
+}  // namespace
+
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
   static std::atomic<std::uint64_t> nextCacheId{1};
   cacheId_ = nextCacheId.fetch_add(1);
-  const std::string& src = sections.source;
-  ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
+  readParams(sections);
+  readLevels(sections);
+  buildRenderBuffer(sections);
+}
+
+void Layout::readParams(const SectionSet& sections) {
+  ByteReader r(sections.get(kParams, "params"), sections.source, "section 'params'");
   m_ = int(r.get<std::uint32_t>());
   n_ = int(r.get<std::uint32_t>());
   k_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 1u << 30));
@@ -41,10 +129,13 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     fail("index bits " + std::to_string(indexBits_) + " for " + std::to_string(k_) + " atoms");
   if (!(tolerance_ >= 0 && tolerance_ < 1)) fail("tolerance out of range");
   if (std::isnan(psnr_)) fail("PSNR is not a number");
-  // The levels: section 6, or level 0 alone in files from before the pyramid.
+}
+
+// The levels: section 6, or level 0 alone in files from before the pyramid.
+void Layout::readLevels(const SectionSet& sections) {
   std::vector<double> levelPsnr{psnr_};
   if (const auto it = sections.sections.find(kLevels); it != sections.sections.end()) {
-    ByteReader lr(it->second, src, "section 'levels'");
+    ByteReader lr(it->second, sections.source, "section 'levels'");
     const std::uint32_t count = lr.get<std::uint32_t>();
     if (count < 1 || count > std::uint32_t(kernels::kKsvdMaxLevels))
       lr.fail("levels " + std::to_string(count) + " (1.." +
@@ -57,21 +148,30 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
       if (std::isnan(v = lr.get<double>())) lr.fail("a level's PSNR is not a number");
   }
   std::uint64_t nBricks = 0, nBlocks = 0;
-  std::vector<Grid> grids;
   for (std::size_t l = 0; l < levelPsnr.size(); ++l) {
     LevelInfo level;
-    level.dims = (info.dims - 1) / (1 << l) + 1;
-    const Grid& g = grids.emplace_back(level.dims, m_);
+    level.dims = (info_.dims - 1) / (1 << l) + 1;
+    const Grid g(level.dims, m_);
     level.blocks = g.blocks, level.bricks = g.bricks;
     level.firstBrick = nBricks, level.firstBlock = nBlocks;
     level.psnr = levelPsnr[l];
     nBricks += g.brickCount(), nBlocks += g.blockCount();
     levels_.push_back(level);
   }
-  const std::uint64_t perBrick = std::uint64_t(grids[0].blocksPerBrick());
   if (codedBricks_ > nBricks)
-    fail(std::to_string(codedBricks_) + " coded bricks of " + std::to_string(nBricks));
+    ByteReader(sections.get(kParams, "params"), sections.source, "section 'params'")
+        .fail(std::to_string(codedBricks_) + " coded bricks of " + std::to_string(nBricks));
+}
 
+// The render buffer: float atoms, brick records, block tables, pairs (levels one after the
+// other in each), each section's size checked first.
+void Layout::buildRenderBuffer(const SectionSet& sections) {
+  const std::string& src = sections.source;
+  const int m = m_ * m_ * m_;
+  const Grid last(levels_.back().dims, m_);
+  const std::uint64_t nBricks = levels_.back().firstBrick + last.brickCount();
+  const std::uint64_t nBlocks = levels_.back().firstBlock + last.blockCount();
+  const std::uint64_t perBrick = std::uint64_t(last.blocksPerBrick());
   const auto dictBytes = sections.get(kDictionary, "dictionary");
   if (dictBytes.size() != std::uint64_t(k_) * std::uint64_t(m) * 2)
     ByteReader(dictBytes, src, "section 'dictionary'")
@@ -93,8 +193,6 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     pr.fail(std::to_string(pairBytes.size()) + " bytes for " + std::to_string(pairs_) +
             " pairs of 3 bytes");
 
-  // The render buffer: float atoms, brick records, block tables, pairs (levels one after the
-  // other in each).
   auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
   atomsAt_ = 0;
   bricksAt_ = align8(std::uint64_t(k_) * std::uint64_t(m) * 4);
@@ -107,75 +205,29 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     std::memcpy(&v, dictBytes.data() + 2 * i, 2);
     atoms[i] = float(v) / 32767.0f;
   }
-  auto* brickOut = reinterpret_cast<kernels::KsvdBrick*>(render_.data() + bricksAt_);
-  auto* blockOut = reinterpret_cast<std::uint32_t*>(render_.data() + blocksAt_);
-  const auto* counts = reinterpret_cast<const std::uint8_t*>(countBytes.data());
-  const auto* pairs = reinterpret_cast<const std::uint8_t*>(pairBytes.data());
-  std::uint64_t codedSeen = 0, pairSeen = 0;
+  BrickTables t{br,
+                cr,
+                pr,
+                reinterpret_cast<const std::uint8_t*>(countBytes.data()),
+                reinterpret_cast<const std::uint8_t*>(pairBytes.data()),
+                reinterpret_cast<kernels::KsvdBrick*>(render_.data() + bricksAt_),
+                reinterpret_cast<std::uint32_t*>(render_.data() + blocksAt_),
+                perBrick,
+                k_,
+                s_,
+                indexBits_,
+                codedBricks_,
+                pairs_};
   for (std::size_t l = 0; l < levels_.size(); ++l) {
-    const Grid& g = grids[l];
-    const LevelInfo& level = levels_[l];
-    for (std::uint64_t b = 0; b < g.brickCount(); ++b) {
-      kernels::KsvdBrick& out = brickOut[level.firstBrick + b];
-      out.lo = br.get<float>(), out.hi = br.get<float>(), out.step = br.get<float>();
-      const std::uint32_t index = br.get<std::uint32_t>();
-      auto which = [&] {
-        std::string name = "brick ";
-        name += std::to_string(b);
-        if (l) name += " of level ", name += std::to_string(l);
-        return name;
-      };
-      if (!std::isfinite(out.lo) || !std::isfinite(out.hi) || out.lo > out.hi)
-        br.fail(which() + ": bad value range");
-      if (!std::isfinite(out.step) || out.step < 0) br.fail(which() + ": bad coefficient step");
-      if (out.step == 0) {
-        if (index != kConstant || out.lo != out.hi)
-          br.fail(which() + ": a constant brick must have min == max and no coded index");
-        continue;
-      }
-      if (index != codedSeen)
-        br.fail(which() + ": coded index " + std::to_string(index) + ", expected " +
-                std::to_string(codedSeen));
-      if (codedSeen >= codedBricks_)
-        br.fail("more coded bricks than the header's " + std::to_string(codedBricks_));
-      out.firstPair = pairSeen;
-      const glm::ivec3 bc = g.brickCoords(b);
-      std::uint64_t relative = 0;
-      for (int j = 0; j < int(perBrick); ++j) {
-        const int count = counts[codedSeen * perBrick + std::uint64_t(j)];
-        const glm::ivec3 block = g.blockOf(bc, j);
-        if (!g.inGrid(block)) {
-          if (count != 0) cr.fail(which() + ": a block outside the volume has pairs");
-          continue;
-        }
-        if (count > s_)
-          cr.fail(which() + ": block " + std::to_string(j) + " has " + std::to_string(count) +
-                  " pairs (0.." + std::to_string(s_) + ")");
-        if (pairSeen + std::uint64_t(count) > pairs_)
-          pr.fail("the blocks need more than the header's " + std::to_string(pairs_) + " pairs");
-        for (int p = 0; p < count; ++p) {
-          const std::uint8_t* q = pairs + 3 * (pairSeen + std::uint64_t(p));
-          const int atom =
-              int((std::uint32_t(q[0]) | (std::uint32_t(q[1]) << 8) | (std::uint32_t(q[2]) << 16)) &
-                  ((1u << indexBits_) - 1u));
-          if (atom >= k_)
-            pr.fail("pair " + std::to_string(pairSeen + std::uint64_t(p)) + " names atom " +
-                    std::to_string(atom) + " of " + std::to_string(k_));
-        }
-        blockOut[level.firstBlock +
-                 (std::uint64_t(block.z) * std::uint64_t(g.blocks.y) + std::uint64_t(block.y)) *
-                     std::uint64_t(g.blocks.x) +
-                 std::uint64_t(block.x)] = std::uint32_t(relative) | (std::uint32_t(count) << 24);
-        relative += std::uint64_t(count), pairSeen += std::uint64_t(count);
-      }
-      ++codedSeen;
-    }
+    const Grid g(levels_[l].dims, m_);
+    for (std::uint64_t b = 0; b < g.brickCount(); ++b)
+      readBrick(t, g, l, levels_[l].firstBrick, levels_[l].firstBlock, b);
   }
-  if (codedSeen != codedBricks_)
-    br.fail(std::to_string(codedSeen) + " coded bricks, the header says " +
+  if (t.codedSeen != codedBricks_)
+    br.fail(std::to_string(t.codedSeen) + " coded bricks, the header says " +
             std::to_string(codedBricks_));
-  if (pairSeen != pairs_)
-    pr.fail(std::to_string(pairSeen) + " pairs used, the header says " + std::to_string(pairs_));
+  if (t.pairSeen != pairs_)
+    pr.fail(std::to_string(t.pairSeen) + " pairs used, the header says " + std::to_string(pairs_));
   if (!pairBytes.empty())
     std::memcpy(render_.data() + pairsAt_, pairBytes.data(), pairBytes.size());
 }

@@ -23,6 +23,12 @@ using kernels::svmmWordBytes;
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
   static std::atomic<std::uint64_t> nextCacheId{1};
   cacheId_ = nextCacheId.fetch_add(1);
+  readParams(sections);
+  ByteReader data = readData(sections);
+  checkSubBlockOffsets(data);
+}
+
+void Layout::readParams(const SectionSet& sections) {
   const std::string& src = sections.source;
   ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
   auto fail = [&](const std::string& what) { r.fail(what); };
@@ -40,12 +46,12 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   root_.z = int(r.get<std::uint32_t>());
   if (format_ < 1 || format_ > 3) fail("voxel format " + std::to_string(format_));
   if ((format_ == kSvmmDensity16) !=
-          (info.type == ScalarType::UInt16 || info.type == ScalarType::Int16) ||
-      (format_ != kSvmmDensity16 && info.type != ScalarType::UInt8))
+          (info_.type == ScalarType::UInt16 || info_.type == ScalarType::Int16) ||
+      (format_ != kSvmmDensity16 && info_.type != ScalarType::UInt8))
     fail("voxel format " + std::to_string(format_) + " does not match scalar type " +
-         std::string(scalarName(info.type)));
+         std::string(scalarName(info_.type)));
   if (flags_ > 1) fail("flags " + std::to_string(flags_));
-  if (bias_ != (info.type == ScalarType::Int16 ? kInt16Bias : 0))
+  if (bias_ != (info_.type == ScalarType::Int16 ? kInt16Bias : 0))
     fail("bias " + std::to_string(bias_));
   if (quality_ > 100) fail("quality " + std::to_string(quality_));
   if (!(delta_ >= 0 && delta_ <= 2.0) || !(peak_ > 0 && peak_ <= 65535))
@@ -75,8 +81,8 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
     if (shift > 30) fail(lv + "mipmap factor over 2^30");
   }
   psnr_ = r.get<double>();
-  const glm::ivec3 topLogical = logicalDims(info.dims, shifts_[std::size_t(top)]);
-  const glm::ivec3 wantRoot = levels_ == 1 ? info.dims : evenUp(topLogical);
+  const glm::ivec3 topLogical = logicalDims(info_.dims, shifts_[std::size_t(top)]);
+  const glm::ivec3 wantRoot = levels_ == 1 ? info_.dims : evenUp(topLogical);
   if (root_ != wantRoot)
     fail("root grid " + std::to_string(root_.x) + "x" + std::to_string(root_.y) + "x" +
          std::to_string(root_.z) + " does not fit the volume");
@@ -84,9 +90,15 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   // Volume coordinates of every voxel of every level (and one past) must fit in an int.
   if ((std::int64_t(maxOf(root_)) << shifts_[std::size_t(top)]) > std::int64_t(1) << 30)
     fail("mipmap factor too large for the volume");
+}
+
+// The data section: every level's bytes inside it, in order, filled by its blocks.
+ByteReader Layout::readData(const SectionSet& sections) {
+  const std::string& src = sections.source;
   data_ = sections.get(kData, "data");
   ByteReader dr(data_, src, "section 'data'");
   auto dfail = [&](const std::string& what) { dr.fail(what); };
+  const int top = levels_ - 1;
   std::uint64_t end = 0;
   for (int L = top; L >= 0; --L) {
     const std::string lv = "level " + std::to_string(L) + ": ";
@@ -100,6 +112,12 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
             std::to_string(len) + " bytes");
     end = off + len;
   }
+  return dr;
+}
+
+void Layout::checkSubBlockOffsets(const ByteReader& dr) const {
+  auto dfail = [&](const std::string& what) { dr.fail(what); };
+  const int top = levels_ - 1;
   // Every sub-block's offset must be the running count of blocks below: then every child index
   // a view computes is inside its level.
   const kernels::SvmmView v = view();

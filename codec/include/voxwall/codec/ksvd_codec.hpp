@@ -208,6 +208,10 @@ class Layout {
     std::uint64_t firstBrick = 0, firstBlock = 0;  // bricks and blocks of the levels before
     double psnr = 0;
   };
+  // The constructor's steps: the header, the levels, then the render buffer from the sections.
+  void readParams(const SectionSet& sections);
+  void readLevels(const SectionSet& sections);
+  void buildRenderBuffer(const SectionSet& sections);
   VolumeInfo info_;
   int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, iterations_ = 0;
   std::uint64_t codedBricks_ = 0, pairs_ = 0, coreset_ = 0;

@@ -57,6 +57,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/svmm_view.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/core/bytes.hpp>
 #include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::svmm {
@@ -136,6 +137,11 @@ class Layout {
  private:
   // Bytes of one block of level L (the root: the whole root grid).
   std::uint64_t blockBytesOf(int L) const;
+  // The constructor's steps: the params (header fields and the level table), the data section's
+  // level ranges, then every sub-block offset against the running count of blocks below it.
+  void readParams(const SectionSet& sections);
+  ByteReader readData(const SectionSet& sections);
+  void checkSubBlockOffsets(const ByteReader& data) const;
 
   VolumeInfo info_;
   std::uint64_t cacheId_ = 0;  // unique per opened layout: keys the CPU's decoded pages
