@@ -23,8 +23,8 @@ struct RenderSettings {
   // rounding), instead of six trilinear samples per shaded sample (the original, for comparison).
   bool cellGradients = true;
   bool emptySpaceSkipping = true;
-  // Views with mip levels (svmm, ksvd): nearest-voxel samples instead of trilinear, and coarser levels
-  // where a voxel is smaller than the pixel's footprint (level of detail).
+  // Views with mip levels (svmm, ksvd): nearest-voxel samples instead of trilinear, and coarser
+  // levels where a voxel is smaller than the pixel's footprint (level of detail).
   bool nearest = false;
   bool levelOfDetail = false;
   // Views with coarser levels (svmm, ksvd) on the CPU backend's decoded pages: a sample whose page
