@@ -1,5 +1,7 @@
 // Waiting in tests on a condition, never for a fixed time: polls `done` until it holds or the
-// deadline passes (a deadline, not a timing assertion: a busy machine only waits longer).
+// deadline passes (a deadline, not a timing assertion: a busy machine only waits longer). The
+// one poll interval of the tests lives here; a test that waits calls this, not a sleep loop of
+// its own.
 #pragma once
 
 #include <chrono>

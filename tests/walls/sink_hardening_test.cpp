@@ -117,13 +117,14 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   first->send(net::encodeMessage(net::Bye{"done"}));
   first.reset();
   std::unique_ptr<net::Connection> second;
-  for (int i = 0; i < 1000 && !second; ++i) {
+  test::waitUntil([&] {
     try {
       second = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
     } catch (const net::SinkRefused&) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the Bye is still in flight
+      // the Bye is still in flight
     }
-  }
+    return second != nullptr;
+  });
   ASSERT_TRUE(second);
   // Frame 0 of the new job is shown although frame 6 of the old one was.
   second->send(net::encodeMessage(0, wholeScreen()));
@@ -162,10 +163,10 @@ TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
       << sink.log();
   // Rank 0 hears of it too.
   std::vector<std::string> notes;
-  for (int i = 0; i < 1000 && notes.empty(); ++i) {
+  test::waitUntil([&] {
     notes = control.drainNotes();
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
+    return !notes.empty();
+  });
   ASSERT_FALSE(notes.empty());
   EXPECT_NE(notes[0].find("refused"), std::string::npos) << notes[0];
 }

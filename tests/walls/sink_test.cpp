@@ -291,11 +291,11 @@ TEST(Sink, ForwardsCameraCommandsToTheController) {
   sink.sink().sendControl(walls::parseControlLine("rotate 30 -5"));
   sink.sink().sendControl(walls::parseControlLine("zoom 1.5"));
   std::vector<net::Control> got;
-  for (int i = 0; i < 1000 && got.size() < 2; ++i) {
+  test::waitUntil([&] {
     auto more = channel.drain();
     got.insert(got.end(), more.begin(), more.end());
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
+    return got.size() >= 2;
+  });
   ASSERT_EQ(got.size(), 2u);
   EXPECT_EQ(got[0].command, net::ControlCommand::Rotate);
   EXPECT_EQ(got[0].b, -5);

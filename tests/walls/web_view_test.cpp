@@ -112,10 +112,10 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
   EXPECT_EQ(nlohmann::json::parse(v.read())["type"], "auth");
   v.send("rotate 10 -5");
   std::vector<net::Control> got;
-  for (int i = 0; i < 500 && got.empty(); ++i) {
+  test::waitUntil([&] {
     got = control.drain();
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
+    return !got.empty();
+  });
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].command, net::ControlCommand::Rotate);
   EXPECT_DOUBLE_EQ(got[0].a, 10);
