@@ -188,6 +188,9 @@ TEST(Cli, BadArgumentsGiveOneLine) {
                      "voxwall: unknown codec 'nosuch'");
   expectOneLineError(runVoxwall("compress generated:menger:2 --quality 90 -o /tmp/x.vwz"),
                      "voxwall: --quality needs --codec svmm");
+  // A flag two codecs take names both.
+  expectOneLineError(runVoxwall("compress generated:menger:2 --iterations 3 -o /tmp/x.vwz"),
+                     "voxwall: --iterations needs --codec ksvd or tvq");
   expectOneLineError(runVoxwall("compress generated:menger:2 --codec ksvd --block 5 -o /tmp/x.vwz"),
                      "voxwall: --block must be 4, 6 or 8, not 5");
   expectOneLineError(
