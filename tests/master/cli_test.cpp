@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <initializer_list>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/image.hpp>
@@ -161,21 +162,25 @@ TEST(Cli, CorruptVwzFailsWithOneLine) {
 // what the container says and names the id; `decompress` and `render` refuse it with one line.
 TEST(Cli, AnUnknownCodecIdIsNamedNotCrashedOn) {
   test::TempDir dir;
+  std::uint32_t unknown = 1;  // the first id no codec of this build has
+  while (codec::findCodec(codec::CodecId(unknown))) ++unknown;
+  const std::string id = "id " + std::to_string(unknown);
   codec::CompressedVolume c;
-  c.info.codec = codec::CodecId(6);
+  c.info.codec = codec::CodecId(unknown);
   c.info.dims = {4, 4, 4};
   c.sections.push_back({1, std::vector<std::byte>(64)});
   const std::string path = dir.path("future.vwz");
   codec::writeContainer(c, path);
   const auto info = runVoxwall("info " + path);
   EXPECT_EQ(info.status, 0) << info.out;
-  EXPECT_NE(info.out.find("codec       id 6, not in this build (it has: raw, "), std::string::npos)
+  EXPECT_NE(info.out.find("codec       " + id + ", not in this build (it has: raw, "),
+            std::string::npos)
       << info.out;
   EXPECT_NE(info.out.find("dims        4 x 4 x 4"), std::string::npos) << info.out;
   for (const std::string& command : {"decompress " + path + " -o " + dir.path("x.nrrd"),
                                      "render " + path + " --size 8x8 --no-write"})
     expectOneLineError(runVoxwall(command),
-                       "voxwall: " + path + ": unknown codec id 6 (this build has: raw, ");
+                       "voxwall: " + path + ": unknown codec " + id + " (this build has: raw, ");
 }
 
 TEST(Cli, BadArgumentsGiveOneLine) {
