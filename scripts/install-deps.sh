@@ -15,6 +15,8 @@ main=(
   libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libxxhash-dev libpugixml-dev
   libnifti2-dev libteem-dev zlib1g-dev libbz2-dev
+  # the zfp codec
+  libzfp-dev
   libasio-dev
   # the sink's web page: Boost.Beast (header-only)
   libboost-dev
@@ -33,7 +35,7 @@ test=(
 )
 bench=(
   libjpeg-turbo-progs time
-  python3-numpy python3-matplotlib python3-vtk9 xvfb xauth zfp libzfp-dev astcenc
+  python3-numpy python3-matplotlib python3-vtk9 xvfb xauth zfp astcenc
 )
 case $purpose in
   main) packages=("${main[@]}") ;;

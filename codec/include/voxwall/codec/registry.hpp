@@ -11,6 +11,7 @@
 #include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/codec/tvq_codec.hpp>
 #include <voxwall/codec/vq_codec.hpp>
+#include <voxwall/codec/zfp_codec.hpp>
 
 namespace voxwall::codec {
 
@@ -72,7 +73,7 @@ struct CodecList {
 
 // ---- The registration line: add a codec's class here (and include its header above). ----
 using RegisteredCodecs = CodecList<raw::RawCodecEntry, vq::VqCodecEntry, svmm::SvmmCodecEntry,
-                                   ksvd::KsvdCodecEntry, tvq::TvqCodecEntry>;
+                                   ksvd::KsvdCodecEntry, tvq::TvqCodecEntry, zfp::ZfpCodecEntry>;
 
 using AnyView = RegisteredCodecs::AnyView;
 

@@ -1,0 +1,256 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <variant>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/render_payload.hpp>
+#include <voxwall/codec/zfp_codec.hpp>
+#include <voxwall/core/errors.hpp>
+
+#include "support/sections.hpp"
+
+using namespace voxwall;
+using namespace voxwall::codec;
+using voxwall::test::poke;
+using voxwall::test::section;
+
+namespace {
+
+// One volume of every scalar type, of sizes that leave partial bricks at the far faces.
+std::vector<Volume> everyType() {
+  std::vector<Volume> out;
+  out.push_back(generateSheppLogan(37));
+  out.push_back(generateMarschnerLobb(21, ScalarType::UInt16));
+  out.push_back(generateSheppLogan(19, ScalarType::Int16));
+  out.push_back(generateMarschnerLobb(23, ScalarType::Float32));
+  return out;
+}
+
+Volume roundTrip(const Volume& v, const zfp::Params& p, zfp::EncodeStats* stats = nullptr,
+                 CompressedVolume* coded = nullptr) {
+  Progress quiet;
+  CompressedVolume c = zfp::encode(v, p, quiet, stats);
+  Volume out = zfp::decode(c.info, c.view());
+  if (coded) *coded = std::move(c);
+  return out;
+}
+
+double maxError(const Volume& a, const Volume& b) {
+  double e = 0;
+  for (std::size_t i = 0; i < a.voxelCount(); ++i)
+    e = std::max(e, std::abs(a.valueAt(i) - b.valueAt(i)));
+  return e;
+}
+
+Volume noise(glm::ivec3 dims, ScalarType type, unsigned seed) {
+  Volume v = Volume::allocate(dims, type);
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (auto& b : v.data) b = std::byte(byte(rng));
+  if (type == ScalarType::Float32)  // finite values: noise in [-1, 1]
+    for (float& f : v.as<float>()) f = float(byte(rng)) / 127.5f - 1;
+  v.computeRange();
+  return v;
+}
+
+}  // namespace
+
+TEST(ZfpCodec, FixedAccuracyHoldsItsToleranceOnEveryVoxelOfEveryType) {
+  for (const Volume& v : everyType())
+    for (double fraction : {0.001, 0.02, 0.2}) {
+      zfp::Params p;
+      p.tolerance = fraction * (v.valueMax - v.valueMin);
+      zfp::EncodeStats s;
+      const Volume d = roundTrip(v, p, &s);
+      ASSERT_EQ(d.dims, v.dims);
+      ASSERT_EQ(d.type, v.type);
+      const std::string label = std::string(scalarName(v.type)) + " at " + std::to_string(fraction);
+      // Integers are rounded after zfp's error: half a unit more.
+      const double bound = p.tolerance + (v.type == ScalarType::Float32 ? 0 : 0.5);
+      const double e = maxError(v, d);
+      EXPECT_LE(e, bound) << label;
+      EXPECT_NEAR(s.maxError, e, 1e-6 * (1 + e)) << label << ": the report's largest error";
+      const double measured = psnr(v, d);
+      if (std::isinf(measured))
+        EXPECT_TRUE(std::isinf(s.psnr)) << label;
+      else
+        EXPECT_NEAR(s.psnr, measured, 1e-6) << label;
+    }
+}
+
+TEST(ZfpCodec, LosslessIsBitForBitOnEveryType) {
+  for (const Volume& v : everyType()) {
+    zfp::Params p;
+    p.mode = zfp::Mode::Reversible;
+    zfp::EncodeStats s;
+    const Volume d = roundTrip(v, p, &s);
+    EXPECT_EQ(d.data, v.data) << scalarName(v.type);
+    EXPECT_TRUE(std::isinf(s.psnr));
+    EXPECT_EQ(s.maxError, 0);
+  }
+}
+
+TEST(ZfpCodec, MorePrecisionOrRateGivesABetterPicture) {
+  const Volume v = generateMarschnerLobb(40, ScalarType::Float32);
+  double last = 0;
+  for (int planes : {6, 10, 16}) {
+    zfp::Params p;
+    p.mode = zfp::Mode::Precision, p.precision = planes;
+    zfp::EncodeStats s;
+    roundTrip(v, p, &s);
+    EXPECT_GT(s.psnr, last) << planes << " planes";
+    last = s.psnr;
+  }
+  last = 0;
+  for (double rate : {1.0, 4.0, 12.0}) {
+    zfp::Params p;
+    p.mode = zfp::Mode::Rate, p.rate = rate;
+    zfp::EncodeStats s;
+    roundTrip(v, p, &s);
+    EXPECT_GT(s.psnr, last) << rate << " bits";
+    last = s.psnr;
+    // Every block of 64 voxels takes the same bits: the stream is the rate plus the padding of
+    // the partial blocks at the far faces (40 = 2 bricks of 16 and one of 8: no partial block).
+    EXPECT_NEAR(double(s.streamBytes) * 8 / double(v.voxelCount()), rate, 0.01 * rate);
+  }
+}
+
+TEST(ZfpCodec, NoiseIsNeverLargerThanItsVoxels) {
+  for (ScalarType type : {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Float32}) {
+    const Volume v = noise({35, 33, 18}, type, 7);
+    for (zfp::Mode mode : {zfp::Mode::Reversible, zfp::Mode::Accuracy}) {
+      zfp::Params p;
+      p.mode = mode;
+      p.tolerance = 1e-6;  // finer than the data: zfp would expand every brick
+      zfp::EncodeStats s;
+      CompressedVolume c;
+      const Volume d = roundTrip(v, p, &s, &c);
+      const std::uint64_t raw = v.voxelCount() * scalarBytes(type);
+      // The stored bricks are padded to 8 bytes each: 3 x 3 x 2 bricks.
+      EXPECT_LE(s.streamBytes, raw + 18 * 8) << scalarName(type);
+      EXPECT_LE(c.payloadBytes(), raw + 18 * 8 + s.indexBytes + 72) << scalarName(type);
+      EXPECT_GT(s.storedBricks, 0u) << scalarName(type);
+      EXPECT_LE(maxError(v, d), 1e-6) << scalarName(type);
+    }
+  }
+}
+
+TEST(ZfpCodec, ASizeTargetIsMetOrRefusedWithWhatIsReachable) {
+  const Volume v = generateMarschnerLobb(48, ScalarType::Float32);
+  for (double target : {0.5, 1.0, 3.0}) {
+    zfp::Params p;
+    p.targetBitsPerVoxel = target;
+    zfp::EncodeStats s;
+    roundTrip(v, p, &s);
+    // Every brick of a volume this small is in the sample: the file fits exactly.
+    EXPECT_LE(s.bitsPerVoxel, target + 0.01) << target;
+    EXPECT_GT(s.searchSteps, 0);
+  }
+  zfp::Params tiny;
+  tiny.targetBitsPerVoxel = 0.001;
+  Progress quiet;
+  try {
+    zfp::encode(v, tiny, quiet);
+    FAIL() << "a target below the index's own size was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot reach"), std::string::npos) << e.what();
+  }
+  // A target the lossless file meets gives the lossless file.
+  zfp::Params roomy;
+  roomy.targetBitsPerVoxel = 40;
+  zfp::EncodeStats s;
+  const Volume d = roundTrip(v, roomy, &s);
+  EXPECT_EQ(s.mode, zfp::Mode::Reversible);
+  EXPECT_EQ(d.data, v.data);
+}
+
+TEST(ZfpCodec, RefusesNonFiniteFloatsAndBadSettings) {
+  Volume v = generateMarschnerLobb(9, ScalarType::Float32);
+  v.as<float>()[5] = std::nanf("");
+  Progress quiet;
+  EXPECT_THROW(zfp::encode(v, {}, quiet), std::invalid_argument);
+  const Volume ok = generateSheppLogan(9);
+  zfp::Params p;
+  p.mode = zfp::Mode::Precision, p.precision = 0;
+  EXPECT_THROW(zfp::encode(ok, p, quiet), std::invalid_argument);
+  p.mode = zfp::Mode::Rate, p.rate = 0.1;
+  EXPECT_THROW(zfp::encode(ok, p, quiet), std::invalid_argument);
+}
+
+TEST(ZfpCodec, CorruptSectionsAreRefusedWithOneError) {
+  Progress quiet;
+  const CompressedVolume good = zfp::encode(generateSheppLogan(37), {}, quiet);
+  auto refused = [&](const char* what, auto edit) {
+    CompressedVolume c = good;
+    edit(c);
+    EXPECT_THROW(zfp::decode(c.info, c.view()), FormatError) << what;
+  };
+  refused("mode 9", [](CompressedVolume& c) { poke(section(c, zfp::kParams), 0, 9u); });
+  refused("parameters of another mode",
+          [](CompressedVolume& c) { poke(section(c, zfp::kParams), 8, 0u); });
+  refused("params cut short", [](CompressedVolume& c) { section(c, zfp::kParams).resize(40); });
+  refused("a value range that is not finite",
+          [](CompressedVolume& c) { poke(section(c, zfp::kParams), 56, std::nan("")); });
+  refused("an index entry past the stream",
+          [](CompressedVolume& c) { poke(section(c, zfp::kIndex), 8, std::uint64_t(1) << 40); });
+  refused("an index entry not a multiple of 8",
+          [](CompressedVolume& c) { poke(section(c, zfp::kIndex), 8, std::uint64_t(12)); });
+  refused("an index one entry short", [](CompressedVolume& c) {
+    section(c, zfp::kIndex).resize(section(c, zfp::kIndex).size() - 8);
+  });
+  refused("a brick stream cut short", [](CompressedVolume& c) {
+    section(c, zfp::kStream).resize(section(c, zfp::kStream).size() - 8);
+  });
+  refused("a brick marked stored with a zfp stream's length", [](CompressedVolume& c) {
+    std::uint64_t e;
+    std::memcpy(&e, section(c, zfp::kIndex).data() + 8, 8);
+    poke(section(c, zfp::kIndex), 8, e | zfp::kStoredBit);
+  });
+  refused("a missing stream", [](CompressedVolume& c) {
+    std::erase_if(c.sections, [](const auto& s) { return s.first == zfp::kStream; });
+  });
+}
+
+TEST(ZfpCodec, GarbageStreamBytesDecodeInsideTheValueRange) {
+  Progress quiet;
+  const Volume v = generateMarschnerLobb(33, ScalarType::Float32);
+  CompressedVolume c = zfp::encode(v, {}, quiet);
+  std::mt19937 rng(3);
+  for (auto& b : section(c, zfp::kStream)) b = std::byte(rng());
+  const Volume d = zfp::decode(c.info, c.view());
+  for (float f : d.as<float>()) {
+    ASSERT_TRUE(std::isfinite(f));
+    ASSERT_GE(f, float(v.valueMin));
+    ASSERT_LE(f, float(v.valueMax));
+  }
+}
+
+// What a device backend samples (raw's view of the volume decoded once) is the volume the host
+// view samples: checked here on the host, with the "device copy" in host memory.
+TEST(ZfpCodec, TheDeviceViewSamplesTheVolumeTheHostViewSamples) {
+  Progress quiet;
+  for (const Volume& v : everyType()) {
+    zfp::Params p;
+    p.tolerance = 0.05 * (v.valueMax - v.valueMin);
+    const CompressedVolume c = zfp::encode(v, p, quiet);
+    const SectionSet sections = c.view();
+    const auto payload = zfp::ZfpCodecEntry::instance().open(c.info, sections);
+    const auto bytes = payload->bytes();
+    ASSERT_FALSE(bytes.empty());
+    const AnyView host = payload->view(nullptr);
+    const AnyView device = payload->deviceView(bytes.data(), {});
+    ASSERT_TRUE(std::holds_alternative<kernels::ZfpView>(host));
+    ASSERT_FALSE(std::holds_alternative<kernels::ZfpView>(device)) << "libzfp cannot run there";
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> x(-1, float(v.dims.x)), y(-1, float(v.dims.y)),
+        z(-1, float(v.dims.z));
+    for (int i = 0; i < 500; ++i) {
+      const float px = x(rng), py = y(rng), pz = z(rng);
+      const float a = std::visit([&](const auto& view) { return view.sample(px, py, pz); }, host);
+      const float b = std::visit([&](const auto& view) { return view.sample(px, py, pz); }, device);
+      ASSERT_NEAR(a, b, 1e-4f * float(1 + std::abs(v.valueMax))) << scalarName(v.type);
+    }
+  }
+}
