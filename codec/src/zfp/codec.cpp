@@ -20,9 +20,9 @@ namespace {
 // The bricks the size target is searched on: at most this many, spread over the volume.
 constexpr std::uint64_t kSampleBricks = 1024;
 
-// One brick coded: its data (a zfp stream or its voxels as they are) and its decoded voxels.
+// One brick coded: its bits (a zfp stream or its voxels as they are).
 struct CodedBrick {
-  std::vector<std::uint8_t> data;
+  BrickBits bits;
   bool stored = false;
 };
 
@@ -42,13 +42,14 @@ class Encoder {
     out.info = volumeInfo(source_.headerVolume(), ZfpCodecEntry::kId);
     out.sections.push_back({kParams, paramsSection()});
     out.sections.push_back({kIndex, indexSection()});
-    std::vector<std::byte> stream(stream_.size());
-    if (!stream_.empty()) std::memcpy(stream.data(), stream_.data(), stream_.size());
+    std::vector<std::byte> stream(stream_.size() * 8);
+    if (!stream_.empty()) std::memcpy(stream.data(), stream_.data(), stream.size());
     out.sections.push_back({kStream, std::move(stream)});
     if (stats) {
       stats->mode = mode_, stats->setting = setting_;
       stats->bricks = bricks_, stats->storedBricks = stored_;
-      stats->streamBytes = stream_.size(), stats->indexBytes = (bricks_ + 1) * 8;
+      stats->streamBytes = stream_.size() * 8;
+      stats->indexBytes = Index::bytes(rowBases_.size() - 1, bricks_);
       stats->bitsPerVoxel =
           8.0 * double(out.payloadBytes()) / double(std::max<std::size_t>(1, source_.voxelCount()));
       stats->psnr = psnr_, stats->maxError = maxError_;
@@ -107,10 +108,10 @@ class Encoder {
     const double smallest =
         sampleBitsPerVoxel(streamParams(Mode::Accuracy, std::ldexp(1.0, coarse)));
     if (smallest > target)
-      throw std::invalid_argument(formatLine(
-          "zfp cannot reach %.3g bits per voxel on this volume: its smallest file is about %.3g "
-          "(the index alone is %.3g); ask for more, or use --rate",
-          target, smallest, 64.0 * double(bricks_ + 1) / double(source_.voxelCount())));
+      throw std::invalid_argument(
+          formatLine("--bits-per-voxel %g is below the smallest zfp file of this volume, about "
+                     "%.3g bits per voxel (its index alone is %.3g); ask for more, or use --rate",
+                     target, smallest, 32.0 * double(bricks_) / double(source_.voxelCount())));
     int fine = coarse - 60;  // coarse fits, fine (2^-50 of the largest magnitude) need not
     while (coarse - fine > 1) {
       const int mid = (coarse + fine) / 2;
@@ -149,16 +150,15 @@ class Encoder {
 
   double sampleBitsPerVoxel(const kernels::ZfpStreamParams& p) {
     ++searchSteps_;
-    std::vector<std::size_t> bytes(sample_.size());
+    std::vector<std::uint64_t> bits(sample_.size());
     parallelFor(sample_.size(), params_.threads, [&](std::size_t i) {
-      std::vector<std::uint8_t> out;
-      bytes[i] = std::min(compressBrick(p, sample_[i].data(), sampleShapes_[i], out),
-                          storedBytes(source_.type, sampleShapes_[i])) +
-                 8;
+      bits[i] = std::min(compressBrick(p, sample_[i].data(), sampleShapes_[i]).bits,
+                         storedBits(source_.type, sampleShapes_[i])) +
+                32;  // its index entry
     });
     double total = 0;
-    for (std::size_t b : bytes) total += double(b);
-    return 8.0 * total / double(std::max<std::uint64_t>(1, sampleVoxels_));
+    for (std::uint64_t b : bits) total += double(b);
+    return total / double(std::max<std::uint64_t>(1, sampleVoxels_));
   }
 
   void readRow(int bz, std::vector<T>& row) const {
@@ -183,21 +183,16 @@ class Encoder {
   // Codes one brick and writes what a reader decodes from it into decoded[x + 16 (y + 16 z)].
   CodedBrick codeBrick(const float* voxels, const BrickShape& s, float* decoded) const {
     CodedBrick b;
-    const std::size_t stored = storedBytes(source_.type, s);
-    if (compressBrick(zfp_, voxels, s, b.data) >= stored) {
+    b.bits = compressBrick(zfp_, voxels, s);
+    if (b.bits.bits >= storedBits(source_.type, s)) {
       b.stored = true;
-      b.data.assign(stored, 0);
-      std::size_t i = 0;
-      for (int z = 0; z < s.nz; ++z)
-        for (int y = 0; y < s.ny; ++y)
-          for (int x = 0; x < s.nx; ++x, ++i) {
-            const T v = T(voxels[x + kBrick * (y + kBrick * z)]);
-            std::memcpy(b.data.data() + i * sizeof(T), &v, sizeof(T));
-          }
+      b.bits = storeBrick(source_.type, voxels, s);
       std::copy(voxels, voxels + kBrickVoxels, decoded);
       return b;
     }
-    decompressBrick(zfp_, b.data.data(), b.data.size(), s, decoded);
+    decodeBrick(zfp_, source_.type, false,
+                reinterpret_cast<const std::uint8_t*>(b.bits.words.data()), 0, b.bits.bits, s,
+                decoded);
     for (int z = 0; z < s.nz; ++z)
       for (int y = 0; y < s.ny; ++y) {
         float* row = decoded + kBrick * (y + kBrick * z);
@@ -213,7 +208,7 @@ class Encoder {
     std::vector<T> row, decodedRow;
     std::vector<CodedBrick> coded(perRow);
     std::vector<double> rowError(perRow);
-    index_.reserve(bricks_ + 1);
+    entries_.reserve(bricks_);
     progress_.begin("zfp bricks", bricks_);
     for (int bz = 0; bz < grid_.z; ++bz) {
       readRow(bz, row);
@@ -227,15 +222,21 @@ class Encoder {
         progress_.advance();
       });
       for (std::size_t i = 0; i < perRow; ++i) {
-        index_.push_back(std::uint64_t(stream_.size()) | (coded[i].stored ? kStoredBit : 0));
+        if (i % std::size_t(grid_.x) == 0) rowBases_.push_back(streamBits_);
+        const std::uint64_t offset = streamBits_ - rowBases_.back();
+        if (offset > kMaxRowBits)
+          throw std::invalid_argument(
+              "a row of zfp bricks along x is over 2^31 bits: the volume "
+              "is too wide for the zfp codec's index");
+        entries_.push_back(std::uint32_t(offset) | (coded[i].stored ? kStoredFlag : 0));
         stored_ += coded[i].stored ? 1 : 0;
-        stream_.insert(stream_.end(), coded[i].data.begin(), coded[i].data.end());
+        appendBits(stream_, streamBits_, coded[i].bits);
         maxError_ = std::max(maxError_, rowError[i]);
       }
       const int slices = std::min(kBrick, source_.dims.z - bz * kBrick);
       psnr.add(row.data(), decodedRow.data(), std::size_t(slices) * source_.sliceVoxels());
     }
-    index_.push_back(stream_.size());
+    rowBases_.push_back(streamBits_);
     progress_.end();
     psnr_ = psnr.psnr();
   }
@@ -274,7 +275,8 @@ class Encoder {
   std::vector<std::byte> indexSection() const {
     std::vector<std::byte> out;
     ByteWriter w(out);
-    for (std::uint64_t e : index_) w.put(e);
+    for (std::uint64_t base : rowBases_) w.put(base);
+    for (std::uint32_t e : entries_) w.put(e);
     return out;
   }
 
@@ -291,8 +293,9 @@ class Encoder {
   std::vector<BrickShape> sampleShapes_;
   std::uint64_t sampleVoxels_ = 0;
   int searchSteps_ = 0;
-  std::vector<std::uint8_t> stream_;
-  std::vector<std::uint64_t> index_;
+  std::vector<std::uint64_t> stream_, rowBases_;
+  std::uint64_t streamBits_ = 0;
+  std::vector<std::uint32_t> entries_;
   std::uint64_t stored_ = 0;
   double psnr_ = 0, maxError_ = 0;
 };

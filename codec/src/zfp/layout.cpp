@@ -129,51 +129,124 @@ Mode modeOf(const kernels::ZfpStreamParams& p) {
   }
 }
 
-std::size_t maxStreamBytes(const kernels::ZfpStreamParams& p, const BrickShape& shape) {
-  const std::size_t bitsPerBlock = std::max(p.maxbits, p.minbits);
-  return (std::size_t(shape.blocks()) * bitsPerBlock + 63) / 64 * 8 + 16;
+std::uint64_t maxStreamBits(const kernels::ZfpStreamParams& p, const BrickShape& shape) {
+  return std::uint64_t(shape.blocks()) * std::max(p.maxbits, p.minbits);
 }
 
-std::size_t compressBrick(const kernels::ZfpStreamParams& params, const float* in,
-                          const BrickShape& shape, std::vector<std::uint8_t>& out) {
+namespace {
+// Calls f(offset, bx, by, bz) for each 4^3 block of the brick (bx.. its voxels along each axis,
+// 4 but at the brick's far faces), in zfp_compress's order.
+template <class F>
+void forEachBlock(const BrickShape& s, F&& f) {
+  for (int z = 0; z < s.nz; z += 4)
+    for (int y = 0; y < s.ny; y += 4)
+      for (int x = 0; x < s.nx; x += 4)
+        f(x + kBrick * (y + kBrick * z), std::min(4, s.nx - x), std::min(4, s.ny - y),
+          std::min(4, s.nz - z));
+}
+constexpr std::ptrdiff_t kSy = kBrick, kSz = kBrick * kBrick;
+}  // namespace
+
+BrickBits compressBrick(const kernels::ZfpStreamParams& params, const float* in,
+                        const BrickShape& shape) {
+  BrickBits b;
+  b.words.assign(maxStreamBits(params, shape) / 64 + 2, 0);
   Stream s;
   s.set(params);
-  Field f(const_cast<float*>(in), shape);
-  const std::size_t capacity = zfp_stream_maximum_size(s.zfp, f.field);
-  const std::size_t at = out.size();
-  out.resize(at + capacity + 8);
-  s.attach(out.data() + at, capacity + 8);
-  const std::size_t bytes = zfp_compress(s.zfp, f.field);
-  if (bytes == 0) throw std::runtime_error("zfp could not compress a brick");
-  out.resize(at + (bytes + 7) / 8 * 8);
-  return out.size() - at;
+  s.attach(b.words.data(), b.words.size() * 8);
+  forEachBlock(shape, [&](int at, int bx, int by, int bz) {
+    if (bx == 4 && by == 4 && bz == 4)
+      b.bits += zfp_encode_block_strided_float_3(s.zfp, in + at, 1, kSy, kSz);
+    else
+      b.bits += zfp_encode_partial_block_strided_float_3(
+          s.zfp, in + at, std::size_t(bx), std::size_t(by), std::size_t(bz), 1, kSy, kSz);
+  });
+  stream_flush(s.bits);
+  b.words.resize((b.bits + 63) / 64);
+  return b;
 }
 
-void decompressBrick(const kernels::ZfpStreamParams& params, const std::uint8_t* data,
-                     std::size_t bytes, const BrickShape& shape, float* out) {
-  // zfp's bit reader trusts the stream: it reads what each block's bit budget allows, past the
-  // brick's end when the bytes are corrupt. It reads a copy padded with zeros to that bound.
-  thread_local std::vector<std::uint8_t> scratch;
-  const std::size_t bound = maxStreamBytes(params, shape);
-  if (scratch.size() < bound + bytes) scratch.resize(bound + bytes);
-  std::memcpy(scratch.data(), data, bytes);
-  std::memset(scratch.data() + bytes, 0, bound);
+BrickBits storeBrick(ScalarType type, const float* in, const BrickShape& shape) {
+  BrickBits b;
+  b.words.assign((storedBits(type, shape) + 63) / 64 + 1, 0);
+  Stream s;
+  s.attach(b.words.data(), b.words.size() * 8);
+  const int width = int(8 * scalarBytes(type));
+  for (int z = 0; z < shape.nz; ++z)
+    for (int y = 0; y < shape.ny; ++y)
+      for (int x = 0; x < shape.nx; ++x) {
+        const float v = in[x + kBrick * (y + kBrick * z)];
+        std::uint64_t bits = 0;
+        dispatchScalar(type, [&](auto t) {
+          using T = decltype(t);
+          const T value = T(v);
+          std::memcpy(&bits, &value, sizeof(T));
+        });
+        stream_write_bits(s.bits, bits, unsigned(width));
+      }
+  stream_flush(s.bits);
+  b.bits = storedBits(type, shape);
+  b.words.resize((b.bits + 63) / 64);
+  return b;
+}
+
+void appendBits(std::vector<std::uint64_t>& words, std::uint64_t& bits, const BrickBits& b) {
+  const unsigned shift = unsigned(bits % 64);
+  const std::uint64_t first = bits / 64;
+  words.resize((bits + b.bits + 63) / 64, 0);
+  for (std::uint64_t i = 0; i < b.words.size(); ++i) {
+    std::uint64_t v = b.words[i];
+    const std::uint64_t left = b.bits - 64 * i;
+    if (left < 64) v &= (std::uint64_t(1) << left) - 1;
+    words[first + i] |= v << shift;
+    if (shift && first + i + 1 < words.size()) words[first + i + 1] |= v >> (64 - shift);
+  }
+  bits += b.bits;
+}
+
+void decodeBrick(const kernels::ZfpStreamParams& params, ScalarType type, bool stored,
+                 const std::uint8_t* stream, std::uint64_t begin, std::uint64_t end,
+                 const BrickShape& shape, float* out) {
+  // zfp's bit reader trusts its input: on corrupt bits a block reads up to its bit budget, past
+  // the brick's end, and the reader fetches a word ahead. It reads a copy of the brick's words in
+  // a buffer that holds that bound (what lies past the brick's words is whatever an earlier brick
+  // left there: a corrupt brick decodes to wrong values, clamped, never out of bounds).
+  thread_local std::vector<std::uint64_t> scratch;
+  const std::uint64_t firstWord = begin / 64, words = (end + 63) / 64 - firstWord;
+  const std::uint64_t bound =
+      words + (stored ? storedBits(type, shape) : maxStreamBits(params, shape)) / 64 + 3;
+  if (scratch.size() < bound) scratch.resize(bound);
+  std::memcpy(scratch.data(), stream + 8 * firstWord, 8 * words);
+  scratch[words] = scratch[words + 1] = 0;
   Stream s;
   s.set(params);
-  s.attach(scratch.data(), bound + bytes);
-  Field f(out, shape);
-  zfp_decompress(s.zfp, f.field);
+  s.attach(scratch.data(), bound * 8);
+  stream_rseek(s.bits, begin % 64);
+  if (stored) {
+    const unsigned width = unsigned(8 * scalarBytes(type));
+    dispatchScalar(type, [&](auto t) {
+      using T = decltype(t);
+      for (int z = 0; z < shape.nz; ++z)
+        for (int y = 0; y < shape.ny; ++y)
+          for (int x = 0; x < shape.nx; ++x) {
+            const std::uint64_t bits = stream_read_bits(s.bits, width);
+            T value;
+            std::memcpy(&value, &bits, sizeof(T));
+            out[x + kBrick * (y + kBrick * z)] = float(value);
+          }
+    });
+    return;
+  }
+  forEachBlock(shape, [&](int at, int bx, int by, int bz) {
+    if (bx == 4 && by == 4 && bz == 4)
+      zfp_decode_block_strided_float_3(s.zfp, out + at, 1, kSy, kSz);
+    else
+      zfp_decode_partial_block_strided_float_3(s.zfp, out + at, std::size_t(bx), std::size_t(by),
+                                               std::size_t(bz), 1, kSy, kSz);
+  });
 }
 
 // ---- the host view's decoder ------------------------------------------------------------
-
-namespace {
-std::uint64_t indexEntry(const std::uint8_t* index, std::uint64_t i) {
-  std::uint64_t e;
-  std::memcpy(&e, index + 8 * i, 8);
-  return e;
-}
-}  // namespace
 
 }  // namespace voxwall::codec::zfp
 
@@ -181,27 +254,12 @@ namespace voxwall::codec::kernels {
 
 void zfpDecodeBrick(const ZfpDecoder& d, std::uint64_t brick, float* out) {
   using namespace voxwall::codec::zfp;
-  const std::uint64_t e0 = indexEntry(d.index, brick), e1 = indexEntry(d.index, brick + 1);
-  const std::uint64_t at = e0 & ~kStoredBit, bytes = (e1 & ~kStoredBit) - at;
+  const Index index{d.index, d.rows, std::uint64_t(d.bricksX)};
   const BrickShape s = brickShape({d.dimX, d.dimY, d.dimZ}, brick);
   const ScalarType type = ScalarType(d.type);
   std::fill(out, out + kBrickVoxels, 0.0f);
-  const std::uint8_t* data = d.stream + at;
-  if (e0 & kStoredBit) {
-    dispatchScalar(type, [&](auto t) {
-      using T = decltype(t);
-      std::size_t i = 0;
-      for (int z = 0; z < s.nz; ++z)
-        for (int y = 0; y < s.ny; ++y)
-          for (int x = 0; x < s.nx; ++x, ++i) {
-            T v;
-            std::memcpy(&v, data + i * sizeof(T), sizeof(T));
-            out[x + kBrick * (y + kBrick * z)] = float(v);
-          }
-    });
-  } else {
-    decompressBrick(d.zfp, data, std::size_t(bytes), s, out);
-  }
+  decodeBrick(d.zfp, type, index.stored(brick), d.stream, index.begin(brick), index.end(brick), s,
+              out);
   const bool integer = type != ScalarType::Float32;
   for (int z = 0; z < s.nz; ++z)
     for (int y = 0; y < s.ny; ++y) {
@@ -219,9 +277,16 @@ namespace voxwall::codec::zfp {
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
   static std::atomic<std::uint64_t> nextCacheId{1};
   cacheId_ = nextCacheId.fetch_add(1);
-  const std::string& src = sections.source;
+  const glm::ivec3 g = brickGrid(info.dims);
+  bricks_ = std::uint64_t(g.x) * std::uint64_t(g.y) * std::uint64_t(g.z);
+  rows_ = std::uint64_t(g.y) * std::uint64_t(g.z);
+  readParams(sections);
+  checkIndex(sections);
+}
+
+void Layout::readParams(const SectionSet& sections) {
   params_ = sections.get(kParams, "params");
-  ByteReader r(params_, src, "section 'params'");
+  ByteReader r(params_, sections.source, "section 'params'");
   const auto mode = r.get<std::uint32_t>();
   zfp_.minbits = r.get<std::uint32_t>(), zfp_.maxbits = r.get<std::uint32_t>();
   zfp_.maxprec = r.get<std::uint32_t>(), zfp_.minexp = r.get<std::int32_t>();
@@ -243,44 +308,54 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
       std::abs(lo_) > std::numeric_limits<float>::max() ||
       std::abs(hi_) > std::numeric_limits<float>::max())
     fail("value range " + std::to_string(lo_) + ".." + std::to_string(hi_) + " is not finite");
-  const glm::ivec3 g = brickGrid(info.dims);
-  bricks_ = std::uint64_t(g.x) * std::uint64_t(g.y) * std::uint64_t(g.z);
   if (storedBricks_ > bricks_) fail("more stored bricks than bricks");
+}
 
+// Every row's offset and every brick's: in order, inside the stream, each brick exactly its
+// voxels' bits (stored) or at most what zfp writes for its blocks.
+void Layout::checkIndex(const SectionSet& sections) {
   index_ = sections.get(kIndex, "index");
   stream_ = sections.get(kStream, "stream");
-  ByteReader ir(index_, src, "section 'index'");
-  auto ifail = [&](const std::string& what) { ir.fail(what); };
-  if (index_.size() != (bricks_ + 1) * 8)
-    ifail(std::to_string(index_.size()) + " bytes for " + std::to_string(bricks_) + " bricks");
-  const auto* index = reinterpret_cast<const std::uint8_t*>(index_.data());
+  ByteReader r(index_, sections.source, "section 'index'");
+  auto fail = [&](const std::string& what) { r.fail(what); };
+  if (index_.size() != Index::bytes(rows_, bricks_))
+    fail(std::to_string(index_.size()) + " bytes for " + std::to_string(rows_) + " rows and " +
+         std::to_string(bricks_) + " bricks, not " + std::to_string(Index::bytes(rows_, bricks_)));
+  const Index index = this->index();
+  const std::uint64_t streamBits = index.rowBase(rows_);
+  if (index.rowBase(0) != 0) fail("the first row does not start at bit 0");
+  if ((streamBits + 63) / 64 * 8 != stream_.size())
+    fail("the stream ends at bit " + std::to_string(streamBits) + ", not in its last word of " +
+         std::to_string(stream_.size()) + " bytes");
+  for (std::uint64_t row = 0; row < rows_; ++row)
+    if (index.rowBase(row + 1) < index.rowBase(row) ||
+        index.rowBase(row + 1) - index.rowBase(row) > kMaxRowBits)
+      fail("row " + std::to_string(row) + "'s bits are out of order");
   std::uint64_t stored = 0;
   for (std::uint64_t i = 0; i < bricks_; ++i) {
-    const std::uint64_t e0 = indexEntry(index, i), e1 = indexEntry(index, i + 1);
-    const std::uint64_t at = e0 & ~kStoredBit, end = e1 & ~kStoredBit;
+    const std::uint64_t begin = index.begin(i), end = index.end(i);
     const std::string brick = "brick " + std::to_string(i);
-    if (i == 0 && at != 0) ifail("the first brick does not start at 0");
-    if (at % 8) ifail(brick + " starts at " + std::to_string(at) + ", not a multiple of 8");
-    if (end < at || end > stream_.size())
-      ifail(brick + " ends at " + std::to_string(end) + ", outside " + std::to_string(at) + ".." +
-            std::to_string(stream_.size()));
-    const BrickShape s = brickShape(info.dims, i);
-    if (e0 & kStoredBit) {
+    if (i % index.bricksX == 0 && begin != index.rowBase(i / index.bricksX))
+      fail(brick + " does not start its row");
+    if (end < begin) fail(brick + " ends before it starts");
+    const BrickShape s = brickShape(info_.dims, i);
+    if (index.stored(i)) {
       ++stored;
-      if (end - at != storedBytes(info.type, s))
-        ifail(brick + " is stored in " + std::to_string(end - at) + " bytes, not " +
-              std::to_string(storedBytes(info.type, s)));
-    } else if (end - at > maxStreamBytes(zfp_, s)) {
-      ifail(brick + "'s stream of " + std::to_string(end - at) +
-            " bytes is longer than zfp writes");
+      if (end - begin != storedBits(info_.type, s))
+        fail(brick + " is stored in " + std::to_string(end - begin) + " bits, not " +
+             std::to_string(storedBits(info_.type, s)));
+    } else if (end - begin > maxStreamBits(zfp_, s)) {
+      fail(brick + "'s " + std::to_string(end - begin) + " bits are more than zfp writes");
     }
   }
-  if ((indexEntry(index, bricks_) & ~kStoredBit) != stream_.size() ||
-      (indexEntry(index, bricks_) & kStoredBit))
-    ifail("the last entry is not the stream's length " + std::to_string(stream_.size()));
   if (stored != storedBricks_)
-    fail(std::to_string(stored) + " stored bricks in the index, the header says " +
+    fail(std::to_string(stored) + " stored bricks, the params say " +
          std::to_string(storedBricks_));
+}
+
+Index Layout::index() const {
+  return {reinterpret_cast<const std::uint8_t*>(index_.data()), rows_,
+          std::uint64_t(brickGrid(info_.dims).x)};
 }
 
 kernels::ZfpView Layout::view() const {
@@ -288,6 +363,7 @@ kernels::ZfpView Layout::view() const {
   kernels::ZfpDecoder& d = v.decoder;
   d.index = reinterpret_cast<const std::uint8_t*>(index_.data());
   d.stream = reinterpret_cast<const std::uint8_t*>(stream_.data());
+  d.rows = rows_;
   const glm::ivec3 g = brickGrid(info_.dims);
   d.bricksX = g.x, d.bricksY = g.y;
   d.dimX = info_.dims.x, d.dimY = info_.dims.y, d.dimZ = info_.dims.z;

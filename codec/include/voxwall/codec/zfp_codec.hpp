@@ -6,7 +6,8 @@
 // Every scalar type goes through zfp's float path (integers are exact in a float); a decoded value
 // is clamped to the input's value range (lo, hi below) and, for integer types, rounded.
 // A brick whose zfp stream would be larger than its voxels stored as they are is stored as they
-// are: no file is larger than the raw data plus the index (8 bytes per brick) and the headers.
+// are: no file is larger than the raw data plus the index (4 bytes per brick, 8 per row of bricks)
+// and the headers.
 //
 // Sections (ids within the codec's own, ZfpCodecEntry::kId):
 //   1 params (72 bytes, little-endian):
@@ -19,12 +20,15 @@
 //       f64 max error (the largest |decoded - input| over every voxel)
 //       u64 stored bricks (bricks kept as they are)
 //       f64 lo, f64 hi (the input's smallest and largest value: finite, lo <= hi)
-//   2 index: bricks + 1 entries of u64, bricks x fastest: entry i is the byte offset of brick i's
-//       data in `stream` (a multiple of 8), with bit 63 set when the brick is stored as it is;
-//       entry `bricks` is the stream's length. Offsets never decrease.
-//   3 stream: each brick's data, padded to a multiple of 8 bytes: a zfp stream of the brick's
-//       nx x ny x nz voxels (nx = min(16, dimX - 16 bx), ...), or those voxels in the volume's
-//       scalar type, x fastest.
+//   2 index: for the R = bricksY x bricksZ rows of bricks along x, R + 1 u64: the bit at which
+//       each row starts in `stream` (the first 0, the last the stream's length in bits, each at
+//       most 2^31 - 1 bits after the one before); then for each brick (x fastest) a u32: bit 31
+//       set when the brick is stored as it is, bits 0..30 where it starts, in bits after its row.
+//       A brick ends where the next one of its row starts, the last one where the next row does.
+//   3 stream: the bricks' bits back to back, LSB first in little-endian 64-bit words (zfp's bit
+//       stream), padded with zeros to a whole word: each brick either zfp's stream of its
+//       nx x ny x nz voxels (nx = min(16, dimX - 16 bx), ...), its 4^3 blocks in zfp_compress's
+//       order with no padding, or those voxels in the volume's scalar type, x fastest.
 #pragma once
 
 #include <cstdint>
@@ -41,8 +45,6 @@ namespace voxwall::codec::zfp {
 enum SectionId : std::uint32_t { kParams = 1, kIndex = 2, kStream = 3 };
 enum class Mode : std::uint32_t { Accuracy = 1, Precision = 2, Rate = 3, Reversible = 4 };
 std::string_view modeName(Mode mode);  // "fixed accuracy", ...
-
-inline constexpr std::uint64_t kStoredBit = std::uint64_t(1) << 63;
 
 struct Params {
   Mode mode = Mode::Accuracy;
@@ -72,6 +74,8 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
 CompressedVolume encode(const VolumeSource& source, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
 
+struct Index;  // src/zfp/format.hpp
+
 // The sections of a zfp-coded volume, validated against the header: params, every index entry
 // and every brick's length. Throws FormatError naming the source and the section.
 class Layout {
@@ -90,12 +94,16 @@ class Layout {
   std::uint64_t streamBytes() const { return stream_.size(); }
 
  private:
+  void readParams(const SectionSet& sections);
+  void checkIndex(const SectionSet& sections);
+  Index index() const;
+
   VolumeInfo info_;
   std::span<const std::byte> params_, index_, stream_;
   Mode mode_ = Mode::Accuracy;
   kernels::ZfpStreamParams zfp_;
   double setting_ = 0, psnr_ = 0, maxError_ = 0, lo_ = 0, hi_ = 0;
-  std::uint64_t bricks_ = 0, storedBricks_ = 0;
+  std::uint64_t bricks_ = 0, rows_ = 0, storedBricks_ = 0;
   std::uint64_t cacheId_ = 0;  // unique per Layout: keys the views' decoded-brick caches
 };
 

@@ -30,8 +30,9 @@ struct ZfpDecoder {
   static constexpr int kBrickSide = kZfpBrick;
   using Value = float;
 
-  const std::uint8_t* index = nullptr;   // bricks + 1 u64 entries (zfp_codec.hpp)
-  const std::uint8_t* stream = nullptr;  // the bricks' data
+  const std::uint8_t* index = nullptr;   // the index section (zfp_codec.hpp)
+  const std::uint8_t* stream = nullptr;  // the stream section
+  std::uint64_t rows = 0;                // rows of bricks along x: bricksY x bricksZ
   int bricksX = 0, bricksY = 0;
   int dimX = 0, dimY = 0, dimZ = 0;
   std::uint32_t type = 1;  // the volume's ScalarType
