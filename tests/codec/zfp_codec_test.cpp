@@ -220,6 +220,11 @@ TEST(ZfpCodec, CorruptSectionsAreRefusedWithOneError) {
     std::memcpy(&e, section(c, zfp::kIndex).data() + entries, 4);
     poke(section(c, zfp::kIndex), entries, e | (1u << 31));
   });
+  refused("bricks of no bits in an empty stream", [](CompressedVolume& c) {
+    auto& index = section(c, zfp::kIndex);
+    std::fill(index.begin(), index.end(), std::byte{0});
+    section(c, zfp::kStream).clear();
+  });
   refused("a missing stream", [](CompressedVolume& c) {
     std::erase_if(c.sections, [](const auto& s) { return s.first == zfp::kStream; });
   });

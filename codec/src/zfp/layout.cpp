@@ -216,7 +216,7 @@ void decodeBrick(const kernels::ZfpStreamParams& params, ScalarType type, bool s
   const std::uint64_t bound =
       words + (stored ? storedBits(type, shape) : maxStreamBits(params, shape)) / 64 + 3;
   if (scratch.size() < bound) scratch.resize(bound);
-  std::memcpy(scratch.data(), stream + 8 * firstWord, 8 * words);
+  if (words) std::memcpy(scratch.data(), stream + 8 * firstWord, 8 * words);
   scratch[words] = scratch[words + 1] = 0;
   Stream s;
   s.set(params);
@@ -312,7 +312,8 @@ void Layout::readParams(const SectionSet& sections) {
 }
 
 // Every row's offset and every brick's: in order, inside the stream, each brick exactly its
-// voxels' bits (stored) or at most what zfp writes for its blocks.
+// voxels' bits (stored) or between what zfp writes for its blocks at least (minbits, 1 bit at
+// the least) and at most (maxbits).
 void Layout::checkIndex(const SectionSet& sections) {
   index_ = sections.get(kIndex, "index");
   stream_ = sections.get(kStream, "stream");
@@ -344,8 +345,10 @@ void Layout::checkIndex(const SectionSet& sections) {
       if (end - begin != storedBits(info_.type, s))
         fail(brick + " is stored in " + std::to_string(end - begin) + " bits, not " +
              std::to_string(storedBits(info_.type, s)));
-    } else if (end - begin > maxStreamBits(zfp_, s)) {
-      fail(brick + "'s " + std::to_string(end - begin) + " bits are more than zfp writes");
+    } else if (end - begin > maxStreamBits(zfp_, s) ||
+               end - begin < std::uint64_t(s.blocks()) * std::max(1u, zfp_.minbits)) {
+      fail(brick + "'s " + std::to_string(end - begin) + " bits are not what zfp writes for " +
+           std::to_string(s.blocks()) + " blocks");
     }
   }
   if (stored != storedBricks_)
