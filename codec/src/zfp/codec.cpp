@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <string>
 #include <vector>
 #include <voxwall/codec/metrics.hpp>
@@ -193,12 +192,7 @@ class Encoder {
     decodeBrick(zfp_, source_.type, false,
                 reinterpret_cast<const std::uint8_t*>(b.bits.words.data()), 0, b.bits.bits, s,
                 decoded);
-    for (int z = 0; z < s.nz; ++z)
-      for (int y = 0; y < s.ny; ++y) {
-        float* row = decoded + kBrick * (y + kBrick * z);
-        for (int x = 0; x < s.nx; ++x)
-          row[x] = finish(row[x], float(lo_), float(hi_), std::is_integral_v<T>);
-      }
+    finishBrick(decoded, s, float(lo_), float(hi_), std::is_integral_v<T>);
     return b;
   }
 

@@ -89,13 +89,19 @@ void decodeBrick(const kernels::ZfpStreamParams& params, ScalarType type, bool s
                  const std::uint8_t* stream, std::uint64_t begin, std::uint64_t end,
                  const BrickShape& shape, float* out);
 
-// A decoded value as the reader gives it: clamped to [lo, hi] (NaN to lo), rounded for integer
-// types.
-inline float finish(float v, float lo, float hi, bool integer) {
-  if (!(v >= lo)) v = lo;
-  if (v > hi) v = hi;
-  if (integer) v = std::nearbyint(v);
-  return v;
+// A decoded brick's voxels (out[x + 16 (y + 16 z)]) as the reader gives them: clamped to
+// [lo, hi] (NaN to lo), rounded for integer types. The encoder measures the same values.
+inline void finishBrick(float* out, const BrickShape& s, float lo, float hi, bool integer) {
+  for (int z = 0; z < s.nz; ++z)
+    for (int y = 0; y < s.ny; ++y) {
+      float* row = out + kBrick * (y + kBrick * z);
+      for (int x = 0; x < s.nx; ++x) {
+        float v = row[x];
+        if (!(v >= lo)) v = lo;
+        if (v > hi) v = hi;
+        row[x] = integer ? std::nearbyint(v) : v;
+      }
+    }
 }
 
 }  // namespace voxwall::codec::zfp

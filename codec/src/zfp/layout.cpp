@@ -260,12 +260,7 @@ void zfpDecodeBrick(const ZfpDecoder& d, std::uint64_t brick, float* out) {
   std::fill(out, out + kBrickVoxels, 0.0f);
   decodeBrick(d.zfp, type, index.stored(brick), d.stream, index.begin(brick), index.end(brick), s,
               out);
-  const bool integer = type != ScalarType::Float32;
-  for (int z = 0; z < s.nz; ++z)
-    for (int y = 0; y < s.ny; ++y) {
-      float* row = out + kBrick * (y + kBrick * z);
-      for (int x = 0; x < s.nx; ++x) row[x] = finish(row[x], d.lo, d.hi, integer);
-    }
+  finishBrick(out, s, d.lo, d.hi, type != ScalarType::Float32);
 }
 
 }  // namespace voxwall::codec::kernels

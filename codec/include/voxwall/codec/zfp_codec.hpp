@@ -89,7 +89,6 @@ class Layout {
   double setting() const { return setting_; }
   double psnr() const { return psnr_; }
   double maxError() const { return maxError_; }
-  std::uint64_t bricks() const { return bricks_; }
   std::uint64_t storedBricks() const { return storedBricks_; }
   std::uint64_t streamBytes() const { return stream_.size(); }
 
