@@ -228,6 +228,56 @@ TEST(SvmmCodec, BaseBlockCompressionKeepsOccupancyAndShrinks) {
   }
 }
 
+// The encoder reads level 0 a window of slices at a time: windows of one row of blocks give the
+// same file as one window of the whole volume, and the PSNR it sums on the way is the decoded
+// volume's, for every level count (one level, level 1 as the root, more), block width, base
+// compression and scalar type.
+TEST(SvmmCodec, WindowsOfOneRowWriteTheSameFileAndItsPsnr) {
+  struct Case {
+    Volume v;
+    svmm::Params p;
+    const char* what;
+  };
+  const auto withWindow = [](svmm::Params p, std::size_t bytes) {
+    p.windowBytes = bytes;
+    return p;
+  };
+  std::vector<Case> cases;
+  cases.push_back({mixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(4, 8, 100), "u8 w4"});
+  cases.push_back({mixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(4, 8, 70), "u8 w4 q70"});
+  cases.push_back(
+      {mixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(2, 4, 90, true), "u8 stepped q90"});
+  cases.push_back({mixed<std::uint8_t>({40, 36, 34}, 0, 255, 5), params(4, 4, 100, false, true),
+                   "u8 w4 base compression"});
+  cases.push_back({mixed<std::uint16_t>({33, 27, 31}, 0, 4095, 7), params(8, 4, 85), "u16 w8 q85"});
+  cases.push_back(
+      {mixed<std::int16_t>({30, 31, 26}, -1024, 3071, 9), params(4, 16, 95), "i16 level 1 root"});
+  cases.push_back({mixed<std::uint8_t>({12, 9, 7}, 0, 255, 1), params(4, 32), "u8 one level"});
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    Progress quiet;
+    svmm::EncodeStats whole, rows;
+    const auto a = svmm::encode(c.v, withWindow(c.p, std::size_t(1) << 30), quiet, &whole);
+    const auto b = svmm::encode(c.v, withWindow(c.p, 1), quiet, &rows);
+    ASSERT_EQ(a.sections.size(), b.sections.size());
+    for (std::size_t i = 0; i < a.sections.size(); ++i)
+      EXPECT_TRUE(a.sections[i] == b.sections[i]) << "section " << i;
+    const double measured = psnr(c.v, svmm::decode(b.info, b.view()));
+    if (std::isinf(measured)) {
+      EXPECT_TRUE(std::isinf(rows.psnr));
+    } else {
+      EXPECT_NEAR(rows.psnr, measured, 1e-9 * measured);
+    }
+  }
+  // The cases reach what they name.
+  svmm::EncodeStats s;
+  Progress quiet;
+  svmm::encode(cases[5].v, cases[5].p, quiet, &s);
+  EXPECT_EQ(s.levels, 2);
+  svmm::encode(cases[6].v, cases[6].p, quiet, &s);
+  EXPECT_EQ(s.levels, 1);
+}
+
 TEST(SvmmCodec, RefusesFloatAndBadParameters) {
   Progress quiet;
   const Volume f = Volume::allocate({8, 8, 8}, ScalarType::Float32);

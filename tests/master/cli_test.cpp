@@ -97,9 +97,9 @@ TEST(Cli, CompressReadsRawInputWithItsLayout) {
                      "voxwall: " + dir.path("v.raw") + ": truncated");
 }
 
-// `compress` reads raw, NRRD and NIfTI inputs a slab at a time: vq compresses a volume larger
-// than the memory it may use, and gives back every voxel. The raw codec, whose output alone is
-// larger than the limit, fails with one line and leaves no file. The limit is RLIMIT_DATA
+// `compress` reads raw, NRRD and NIfTI inputs a slab at a time: vq and svmm compress a volume
+// larger than the memory it may use, and give back every voxel. The raw codec, whose output alone
+// is larger than the limit, fails with one line and leaves no file. The limit is RLIMIT_DATA
 // (prlimit --data: the process's private writable memory, about 100 MiB of which are the
 // libraries' and threads' own before any voxel), not the address space, which the mapped
 // libraries fill.
@@ -119,6 +119,13 @@ TEST(Cli, CompressStreamsAVolumeLargerThanItsMemoryLimit) {
       runLimited(limited, "compress " + input + layout + " --codec vq -o " + dir.path("big.vwz"));
   ASSERT_EQ(vq.status, 0) << vq.out;
   ASSERT_EQ(runVoxwall("decompress " + dir.path("big.vwz") + " -o " + dir.path("back.raw")).status,
+            0);
+  EXPECT_EQ(std::system(("cmp -s " + input + " " + dir.path("back.raw")).c_str()), 0);
+  // svmm builds its levels from windows of slices and writes its base level from a second pass.
+  const CliRun svmm = runLimited(
+      limited, "compress " + input + layout + " --codec svmm -o " + dir.path("svmm.vwz"));
+  ASSERT_EQ(svmm.status, 0) << svmm.out;
+  ASSERT_EQ(runVoxwall("decompress " + dir.path("svmm.vwz") + " -o " + dir.path("back.raw")).status,
             0);
   EXPECT_EQ(std::system(("cmp -s " + input + " " + dir.path("back.raw")).c_str()), 0);
 

@@ -10,6 +10,7 @@
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/parallel.hpp>
@@ -72,11 +73,13 @@ struct Grid {
   std::vector<std::uint8_t> terminal;  // empty: every voxel is terminal (level 0)
   // Level 0 of a scalar volume is read from the volume's own voxels through `read` (no copy of
   // 4 bytes per voxel); `value` is then empty.
+  // A window of level 0 holds slices z0 .. of it (at() takes volume coordinates).
   const void* base = nullptr;
   std::uint32_t (*read)(const void*, std::size_t) = nullptr;
+  int z0 = 0;
   std::uint32_t get(std::size_t i) const { return base ? read(base, i) : value[i]; }
   std::size_t at(int x, int y, int z) const {
-    return (std::size_t(z) * std::size_t(padded.y) + std::size_t(y)) * std::size_t(padded.x) +
+    return (std::size_t(z - z0) * std::size_t(padded.y) + std::size_t(y)) * std::size_t(padded.x) +
            std::size_t(x);
   }
   bool inside(glm::ivec3 g) const { return g.x < padded.x && g.y < padded.y && g.z < padded.z; }
@@ -86,17 +89,23 @@ struct Grid {
   }
 };
 
-// Level i + 1 from level i (blocks of w^3).
-Grid buildLevel(const Grid& fine, int w, int format, double threshold2, int threads,
-                Progress& progress) {
+// Level i + 1 over level i's `logical` voxels (blocks of w^3), every voxel terminal and zero.
+Grid emptyLevel(glm::ivec3 fineLogical, int w) {
   Grid g;
-  g.logical = (fine.logical + w - 1) / w;
+  g.logical = (fineLogical + w - 1) / w;
   g.padded = evenUp(g.logical);
   g.value.assign(count3(g.padded), 0);
   g.terminal.assign(count3(g.padded), 1);
+  return g;
+}
+
+// Rows zBegin .. zEnd - 1 of level i + 1 (`g`) from level i (`fine`, which holds at least the
+// slices under those rows).
+void buildRows(const Grid& fine, Grid& g, int w, int format, double threshold2, int zBegin,
+               int zEnd, int threads, Progress& progress) {
   const int channels = channelsOf(format);
-  parallelFor(std::size_t(g.logical.z), threads, [&](std::size_t zi) {
-    const int z = int(zi);
+  parallelFor(std::size_t(zEnd - zBegin), threads, [&](std::size_t zi) {
+    const int z = zBegin + int(zi);
     for (int y = 0; y < g.logical.y; ++y)
       for (int x = 0; x < g.logical.x; ++x) {
         const glm::ivec3 lo(x * w, y * w, z * w);
@@ -137,7 +146,6 @@ Grid buildLevel(const Grid& fine, int w, int format, double threshold2, int thre
       }
     progress.advance();
   });
-  return g;
 }
 
 void putValue(std::vector<std::byte>& out, std::uint32_t v, int bytes) {
@@ -149,18 +157,32 @@ std::uint32_t readBiased(const void* voxels, std::size_t i) {
   return std::uint32_t(int(static_cast<const T*>(voxels)[i]) + Bias);
 }
 
+std::uint32_t readWord(const void* voxels, std::size_t i) {
+  return static_cast<const std::uint32_t*>(voxels)[i];
+}
+
+// Level 0, a slab of z-slices at a time: window(z0, count, buffer) gives slices z0 ..
+// z0 + count - 1 (inside the volume) as a Grid, read into `buffer` where they are not in memory.
 struct Input {
   glm::ivec3 dims;
   int format;
   int bias;
   double peak;
-  std::vector<std::uint32_t> values;  // x fastest (RGBA)
-  const void* base = nullptr;         // or the scalar voxels, read through `read`
-  std::uint32_t (*read)(const void*, std::size_t) = nullptr;
+  std::function<Grid(int z0, int count, std::vector<std::byte>& buffer)> window;
+  std::size_t sliceBytes = 0;  // of the window's storage
+  bool scalar = true;          // the PSNR of scalar data is summed while the base is written
 };
 
-// The mip-map: the grid of every level (0 the input), the block widths and shifts, and, once
-// written, each level's block count and place in the data section.
+// How many rows of a level built from level 0 (blocks w wide) to read at once: a window of
+// about `windowBytes`, at least one row.
+int rowsPerWindow(const Input& in, int w, std::size_t windowBytes) {
+  const std::size_t row = std::max<std::size_t>(1, in.sliceBytes * std::size_t(w));
+  return int(std::clamp<std::size_t>(windowBytes / row, 1, 1 << 20));
+}
+
+// The mip-map: the grid of every level (0: only its size; the input is read a slab at a time),
+// the block widths and shifts, and, once written, each level's block count and place in the data
+// section.
 struct Levels {
   std::vector<Grid> grids;
   std::vector<int> widths, shifts{0};
@@ -169,15 +191,25 @@ struct Levels {
   std::vector<std::uint64_t> blocks, offsets, lengths;
 };
 
+// Level 1 from the input, a window of slices at a time.
+Grid buildLevelOne(const Input& in, int w, double threshold2, const Params& p, Progress& progress) {
+  Grid g = emptyLevel(in.dims, w);
+  const int step = rowsPerWindow(in, w, p.windowBytes);
+  std::vector<std::byte> buffer;
+  for (int r0 = 0; r0 < g.logical.z; r0 += step) {
+    const int r1 = std::min(g.logical.z, r0 + step);
+    const int z0 = r0 * w;
+    const Grid fine = in.window(z0, std::min(in.dims.z, r1 * w) - z0, buffer);
+    buildRows(fine, g, w, in.format, threshold2, r0, r1, p.threads, progress);
+  }
+  return g;
+}
+
 // Level after level, until one fits in the root width (the top).
-Levels buildLevels(Input& in, const Params& p, double threshold2, Progress& progress) {
+Levels buildLevels(const Input& in, const Params& p, double threshold2, Progress& progress) {
   Levels lv;
   lv.grids.resize(1);
-  Grid& base = lv.grids[0];
-  base.logical = in.dims;
-  base.padded = in.dims;
-  base.value = std::move(in.values);
-  base.base = in.base, base.read = in.read;
+  lv.grids[0].logical = lv.grids[0].padded = in.dims;
   while (maxOf(lv.grids.back().logical) > p.rootWidth) {
     if (int(lv.grids.size()) == kernels::kSvmmMaxLevels)
       throw std::invalid_argument("more than 16 mip levels: raise the root width");
@@ -185,7 +217,13 @@ Levels buildLevels(Input& in, const Params& p, double threshold2, Progress& prog
     const int w = p.stepped ? std::min(2 << i, 256) : p.blockWidth;
     const glm::ivec3 next = (lv.grids.back().logical + w - 1) / w;
     progress.begin("svmm: level " + std::to_string(i + 1), std::uint64_t(next.z));
-    lv.grids.push_back(buildLevel(lv.grids.back(), w, in.format, threshold2, p.threads, progress));
+    if (i == 0) {
+      lv.grids.push_back(buildLevelOne(in, w, threshold2, p, progress));
+    } else {
+      Grid g = emptyLevel(lv.grids.back().logical, w);
+      buildRows(lv.grids.back(), g, w, in.format, threshold2, 0, g.logical.z, p.threads, progress);
+      lv.grids.push_back(std::move(g));
+    }
     progress.end();
     lv.widths.push_back(w);
     lv.shifts.push_back(lv.shifts.back() + std::countr_zero(unsigned(w)));
@@ -200,26 +238,37 @@ Levels buildLevels(Input& in, const Params& p, double threshold2, Progress& prog
   return lv;
 }
 
+// Where the children of a level's blocks go: their origins (for the next level to write), or,
+// for the base level's blocks, only their count.
+struct Children {
+  std::vector<glm::ivec3>* origins = nullptr;
+  std::uint64_t count = 0;
+  void add(glm::ivec3 origin) {
+    if (origins) origins->push_back(origin);
+    ++count;
+  }
+};
+
 // One block of level L at `origin` (level-L voxels) of `size` voxels, as words: value, terminal
-// bit and the offset nibble of its children's first block in level L - 1, whose origins are
-// appended to `next`.
+// bit and the offset nibble of its children's first block in level L - 1, which are added to
+// `next`.
 void writeBlock(const Levels& lv, int L, glm::ivec3 origin, glm::ivec3 size, int format,
-                std::vector<glm::ivec3>& next, std::vector<std::uint32_t>& words) {
+                Children& next, std::vector<std::uint32_t>& words) {
   const Grid& G = lv.grids[std::size_t(L)];
   const int childW = lv.widths[std::size_t(L - 1)];
   for (int bz = 0; bz < size.z; bz += 2)
     for (int by = 0; by < size.y; by += 2)
       for (int bx = 0; bx < size.x; bx += 2) {
-        const std::size_t first = next.size();
+        const std::uint64_t first = next.count;
         bool term[8];
         for (int j = 0; j < 8; ++j) {
           const glm::ivec3 g = origin + glm::ivec3(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
           term[j] = G.terminalAt(g);
-          if (!term[j]) next.push_back(g * childW);
+          if (!term[j]) next.add(g * childW);
         }
-        if (next.size() > std::numeric_limits<std::uint32_t>::max())
+        if (next.count > std::numeric_limits<std::uint32_t>::max())
           throw std::invalid_argument("a level has more than 2^32 blocks");
-        const std::uint32_t off = next.size() > first ? std::uint32_t(first) : 0u;
+        const std::uint32_t off = next.count > first ? std::uint32_t(first) : 0u;
         for (int j = 0; j < 8; ++j) {
           const glm::ivec3 l(bx + (j & 1), by + (j >> 1 & 1), bz + (j >> 2));
           words[(std::size_t(l.z) * std::size_t(size.y) + std::size_t(l.y)) * std::size_t(size.x) +
@@ -229,25 +278,48 @@ void writeBlock(const Levels& lv, int L, glm::ivec3 origin, glm::ivec3 size, int
       }
 }
 
-// Levels top .. 1, in tree order, into the data section (each 8-byte aligned); returns the
-// origins of the base level's blocks.
-std::vector<glm::ivec3> writeUpperLevels(Levels& lv, int format, std::vector<std::byte>& data,
-                                         Progress& progress) {
+// Level 1's blocks: the root grid when level 1 is the top, else one block under each level-2
+// voxel; and, once level 1 is written, the index of each one's first child in the base level.
+struct LevelOneBlocks {
+  glm::ivec3 size{0}, grid{1};  // block size in level-1 voxels; blocks per axis
+  std::vector<std::uint64_t> firstChild;
+  explicit LevelOneBlocks(const Levels& lv) {
+    if (lv.n == 2) {
+      size = lv.rootGrid;
+    } else {
+      size = glm::ivec3(lv.widths[1]);
+      grid = lv.grids[2].padded;
+    }
+    firstChild.assign(count3(grid), 0);
+  }
+  std::size_t index(glm::ivec3 b) const {
+    return (std::size_t(b.z) * std::size_t(grid.y) + std::size_t(b.y)) * std::size_t(grid.x) +
+           std::size_t(b.x);
+  }
+};
+
+// Levels top .. 1, in tree order, into the data section (each 8-byte aligned); records where
+// each level-1 block's children start in the base level.
+void writeUpperLevels(Levels& lv, int format, LevelOneBlocks& one, std::vector<std::byte>& data,
+                      Progress& progress) {
   const int top = lv.n - 1, ws = svmmWordBytes(format);
   std::vector<std::vector<std::byte>> out(static_cast<std::size_t>(lv.n));
   std::vector<glm::ivec3> cur{glm::ivec3(0)};  // block origins of level L, in level-L voxels
   for (int L = top; L >= 1; --L) {
     const glm::ivec3 size = L == top ? lv.rootGrid : glm::ivec3(lv.widths[std::size_t(L)]);
-    std::vector<glm::ivec3> next;
+    std::vector<glm::ivec3> nextOrigins;
+    Children next;
+    if (L > 1) next.origins = &nextOrigins;
     std::vector<std::uint32_t> words(count3(size));
     auto& o = out[std::size_t(L)];
     o.reserve(cur.size() * words.size() * std::size_t(ws));
     for (const glm::ivec3 origin : cur) {
+      if (L == 1) one.firstChild[one.index(origin / one.size)] = next.count;
       writeBlock(lv, L, origin, size, format, next, words);
       for (const std::uint32_t w : words) putValue(o, w, ws);
     }
-    lv.blocks[std::size_t(L - 1)] = next.size();
-    cur = std::move(next);
+    lv.blocks[std::size_t(L - 1)] = next.count;
+    cur = std::move(nextOrigins);
     progress.advance();
   }
   for (int L = top; L >= 1; --L) {
@@ -257,14 +329,18 @@ std::vector<glm::ivec3> writeUpperLevels(Levels& lv, int format, std::vector<std
     data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
     std::vector<std::byte>().swap(out[std::size_t(L)]);
   }
-  return cur;
+}
+
+void storeValue(std::byte* o, std::uint32_t v, int bytes) {
+  for (int b = 0; b < bytes; ++b) o[b] = std::byte((v >> (8 * b)) & 255u);
 }
 
 // A base block's 2^3 group as stored with --base-compression: a byte of occupancy and the mean of
-// the occupied voxels.
-void writeCompressedGroup(const Grid& G, glm::ivec3 corner, int format, std::vector<std::byte>& o) {
+// the occupied voxels. Returns the squared error of the occupied voxels (unoccupied ones decode
+// to their zero).
+double writeCompressedGroup(const Grid& G, glm::ivec3 corner, int format, std::byte* o) {
   const int channels = channelsOf(format);
-  std::uint32_t bitmap = 0;
+  std::uint32_t bitmap = 0, values[8] = {};
   std::uint64_t sum[4] = {0, 0, 0, 0}, cnt = 0;
   for (int j = 0; j < 8; ++j) {
     const glm::ivec3 q = corner + glm::ivec3(j & 1, j >> 1 & 1, j >> 2);
@@ -273,7 +349,7 @@ void writeCompressedGroup(const Grid& G, glm::ivec3 corner, int format, std::vec
     const bool occupied = format == kSvmmRgba32 ? (v >> 24) != 0 : v != 0;
     if (!occupied) continue;
     bitmap |= 1u << j;
-    ++cnt;
+    values[cnt++] = v;
     if (channels == 1)
       sum[0] += v;
     else
@@ -286,42 +362,124 @@ void writeCompressedGroup(const Grid& G, glm::ivec3 corner, int format, std::vec
     else
       for (int c = 0; c < 4; ++c) mean |= std::uint32_t((sum[c] + cnt / 2) / cnt) << (8 * c);
   }
-  o.push_back(std::byte(bitmap));
-  putValue(o, mean, svmmBaseBytes(format));
+  o[0] = std::byte(bitmap);
+  storeValue(o + 1, mean, svmmBaseBytes(format));
+  double squares = 0;
+  for (std::uint64_t i = 0; channels == 1 && i < cnt; ++i) {
+    const double d = double(values[i]) - double(mean);
+    squares += d * d;
+  }
+  return squares;
 }
 
-// The base level, written straight into the data section (it is most of the file: a second copy
-// of it would double the encoder's peak): the whole grid without levels, else its blocks.
-void writeBaseLevel(const Levels& lv, const std::vector<glm::ivec3>& origins, int format,
-                    bool compressBase, std::vector<std::byte>& o) {
-  const Grid& G = lv.grids[0];
-  const int bs = svmmBaseBytes(format);
-  if (lv.n == 1) {
-    const std::size_t voxels = count3(G.padded);
-    o.reserve(o.size() + voxels * std::size_t(bs) + 8);  // + the 8 zero bytes at the end
-    for (std::size_t i = 0; i < voxels; ++i) putValue(o, G.get(i), bs);
-    return;
+// The base level without levels above it: the whole grid, x fastest, a window at a time.
+void writeWholeBase(const Input& in, std::size_t windowBytes, std::vector<std::byte>& data,
+                    Progress& progress) {
+  const int bs = svmmBaseBytes(in.format);
+  const std::size_t slice = std::size_t(in.dims.x) * std::size_t(in.dims.y);
+  const int step = rowsPerWindow(in, 1, windowBytes);
+  data.reserve(data.size() + count3(in.dims) * std::size_t(bs) + 8);  // + the 8 zero bytes
+  std::vector<std::byte> buffer;
+  for (int z0 = 0; z0 < in.dims.z; z0 += step) {
+    const int count = std::min(step, in.dims.z - z0);
+    const Grid G = in.window(z0, count, buffer);
+    for (std::size_t i = 0; i < slice * std::size_t(count); ++i) putValue(data, G.get(i), bs);
+    progress.advance(std::uint64_t(count));
   }
+}
+
+// Bytes of a base block w wide: its voxels, or its groups' bitmaps and values.
+std::size_t baseBlockBytes(int w, int format, bool compressBase) {
+  const std::size_t bs = std::size_t(svmmBaseBytes(format));
+  const std::size_t side = std::size_t(compressBase ? w / 2 : w);
+  return side * side * side * (compressBase ? 1 + bs : bs);
+}
+
+// The squared error of the voxels under the terminal level-1 voxel c (the window G holds them):
+// they decode to the value of c's highest terminal ancestor.
+double leafSquares(const Levels& lv, const Grid& G, glm::ivec3 c) {
   const int w = lv.widths[0];
-  // The most the base level takes (uncompressed blocks), and the 8 zero bytes at the end: a
-  // reallocation past it would copy the whole section into twice its size.
-  o.reserve(o.size() + origins.size() * std::size_t(w * w * w) * std::size_t(bs) + 8);
-  for (const glm::ivec3 origin : origins) {
-    if (compressBase) {
-      for (int gz = 0; gz < w; gz += 2)
-        for (int gy = 0; gy < w; gy += 2)
-          for (int gx = 0; gx < w; gx += 2)
-            writeCompressedGroup(G, origin + glm::ivec3(gx, gy, gz), format, o);
-      continue;
-    }
-    for (int z = 0; z < w; ++z)
-      for (int y = 0; y < w; ++y)
-        for (int x = 0; x < w; ++x) {
-          const glm::ivec3 q = origin + glm::ivec3(x, y, z);
-          const bool in = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
-          putValue(o, in ? G.get(G.at(q.x, q.y, q.z)) : 0u, bs);
-        }
+  const glm::ivec3 v = c * w, end = glm::min(v + w, G.logical);
+  int L = 1;
+  while (L + 1 < lv.n && lv.grids[std::size_t(L + 1)].terminalAt(c / lv.widths[std::size_t(L)])) {
+    c /= lv.widths[std::size_t(L)];
+    ++L;
   }
+  const double value = double(lv.grids[std::size_t(L)].valueAt(c));
+  double squares = 0;
+  for (int z = v.z; z < end.z; ++z)
+    for (int y = v.y; y < end.y; ++y)
+      for (int x = v.x; x < end.x; ++x) {
+        const double d = double(G.get(G.at(x, y, z))) - value;
+        squares += d * d;
+      }
+  return squares;
+}
+
+// The base block w wide at voxel v (the window G holds it) into `o`; its squared error.
+double writeBaseBlock(const Grid& G, glm::ivec3 v, int w, int format, bool compressBase,
+                      std::byte* o) {
+  const int bs = svmmBaseBytes(format);
+  double squares = 0;
+  if (compressBase) {
+    for (int gz = 0; gz < w; gz += 2)
+      for (int gy = 0; gy < w; gy += 2)
+        for (int gx = 0; gx < w; gx += 2, o += 1 + bs)
+          squares += writeCompressedGroup(G, v + glm::ivec3(gx, gy, gz), format, o);
+    return squares;
+  }
+  for (int z = 0; z < w; ++z)
+    for (int y = 0; y < w; ++y)
+      for (int x = 0; x < w; ++x, o += bs) {
+        const glm::ivec3 q = v + glm::ivec3(x, y, z);
+        const bool inside = q.x < G.logical.x && q.y < G.logical.y && q.z < G.logical.z;
+        storeValue(o, inside ? G.get(G.at(q.x, q.y, q.z)) : 0u, bs);
+      }
+  return squares;
+}
+
+// The base level's blocks: the children of level 1's non-terminal voxels, in tree order. A block's
+// place follows from its level-1 block's first child and the non-terminal voxels before it in
+// that block, which are walked a 2-voxel layer (z) at a time: so the input is read once, a slab of
+// 2 w0 slices at a time, and every block is written where it belongs. Returns the squared error
+// of the decoded voxels against the input (scalar data; 0 for RGBA).
+double writeBlockedBase(const Input& in, const Levels& lv, const LevelOneBlocks& one,
+                        bool compressBase, std::byte* base, int threads, Progress& progress) {
+  const Grid& G1 = lv.grids[1];
+  const int w = lv.widths[0];
+  const std::size_t blockBytes = baseBlockBytes(w, in.format, compressBase);
+  const std::size_t blocksPerLayer = std::size_t(one.grid.x) * std::size_t(one.grid.y);
+  std::vector<std::uint64_t> nextChild(blocksPerLayer);
+  std::vector<double> squares(blocksPerLayer);
+  std::vector<std::byte> buffer;
+  double total = 0;
+  for (int z1 = 0; z1 < G1.logical.z; z1 += 2) {
+    const int bz = z1 / one.size.z, lz = z1 % one.size.z;
+    const Grid G = in.window(z1 * w, std::min(in.dims.z, (z1 + 2) * w) - z1 * w, buffer);
+    parallelFor(blocksPerLayer, threads, [&](std::size_t b) {
+      const glm::ivec3 block(int(b % std::size_t(one.grid.x)), int(b / std::size_t(one.grid.x)),
+                             bz);
+      const glm::ivec3 origin = block * one.size;
+      if (lz == 0) nextChild[b] = one.firstChild[one.index(block)];
+      double sq = 0;
+      for (int by = 0; by < one.size.y; by += 2)
+        for (int bx = 0; bx < one.size.x; bx += 2)
+          for (int j = 0; j < 8; ++j) {
+            const glm::ivec3 c =
+                origin + glm::ivec3(bx + (j & 1), by + (j >> 1 & 1), lz + (j >> 2));
+            if (c.x >= G1.logical.x || c.y >= G1.logical.y || c.z >= G1.logical.z) continue;
+            if (!G1.terminalAt(c))
+              sq += writeBaseBlock(G, c * w, w, in.format, compressBase,
+                                   base + nextChild[b]++ * blockBytes);
+            else if (in.scalar)
+              sq += leafSquares(lv, G, c);
+          }
+      squares[b] = sq;
+    });
+    for (const double sq : squares) total += sq;  // in block order: the same sum on any threads
+    progress.advance();
+  }
+  return in.scalar ? total : 0.0;
 }
 
 std::vector<std::byte> paramsSection(const Input& in, const Params& p, const Levels& lv,
@@ -351,8 +509,10 @@ std::vector<std::byte> paramsSection(const Input& in, const Params& p, const Lev
   return params;
 }
 
-CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progress& progress,
-                             EncodeStats* stats,
+// `measure` gives the PSNR of a non-scalar (RGBA) file; a scalar file's comes from the squared
+// errors summed while its base level is written (`reference` gives its peak).
+CompressedVolume encodeInput(const Input& in, VolumeInfo info, const Params& p, Progress& progress,
+                             EncodeStats* stats, const Volume& reference,
                              const std::function<double(const CompressedVolume&)>& measure) {
   if (p.rootWidth < 2) throw std::invalid_argument("root width must be at least 2");
   if (!p.stepped &&
@@ -363,13 +523,25 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
   Levels lv = buildLevels(in, p, thr * thr, progress);
   const bool compressBase = p.baseCompression && lv.n > 1;
 
-  progress.begin("svmm: writing blocks", std::uint64_t(lv.n));
   std::vector<std::byte> data;
-  const std::vector<glm::ivec3> baseBlocks = writeUpperLevels(lv, in.format, data, progress);
-  while (data.size() % 8) data.push_back(std::byte{0});
-  lv.offsets[0] = data.size();
-  writeBaseLevel(lv, baseBlocks, in.format, compressBase, data);
-  progress.advance();
+  double squares = 0;
+  if (lv.n == 1) {
+    progress.begin("svmm: writing the base level", std::uint64_t(in.dims.z));
+    writeWholeBase(in, p.windowBytes, data, progress);
+  } else {
+    progress.begin("svmm: writing levels", std::uint64_t(lv.n - 1));
+    LevelOneBlocks one(lv);
+    writeUpperLevels(lv, in.format, one, data, progress);
+    progress.end();
+    while (data.size() % 8) data.push_back(std::byte{0});
+    lv.offsets[0] = data.size();
+    const std::size_t blockBytes = baseBlockBytes(lv.widths[0], in.format, compressBase);
+    data.reserve(lv.offsets[0] + lv.blocks[0] * blockBytes + 8);  // + the 8 zero bytes at the end
+    data.resize(lv.offsets[0] + lv.blocks[0] * blockBytes);
+    progress.begin("svmm: writing the base level", std::uint64_t(lv.grids[1].logical.z + 1) / 2);
+    squares = writeBlockedBase(in, lv, one, compressBase, data.data() + lv.offsets[0], p.threads,
+                               progress);
+  }
   progress.end();
   lv.lengths[0] = data.size() - lv.offsets[0];
   for (int i = 0; i < 8; ++i) data.push_back(std::byte{0});
@@ -378,10 +550,17 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
   cv.info = info;
   cv.sections.emplace_back(kParams, paramsSection(in, p, lv, compressBase, delta, 0.0));
   cv.sections.emplace_back(kData, std::move(data));
-  progress.begin("svmm: measuring PSNR", 1);
-  const double psnrValue = measure(cv);
-  progress.advance();
-  progress.end();
+  double psnrValue = 0;
+  if (in.scalar) {
+    PsnrSum sum(reference);
+    sum.addSquares(squares, count3(in.dims));
+    psnrValue = sum.psnr();
+  } else {
+    progress.begin("svmm: measuring PSNR", 1);
+    psnrValue = measure(cv);
+    progress.advance();
+    progress.end();
+  }
   cv.sections[0].second = paramsSection(in, p, lv, compressBase, delta, psnrValue);
   if (stats) {
     stats->levels = lv.n;
@@ -396,12 +575,12 @@ CompressedVolume encodeInput(Input in, VolumeInfo info, const Params& p, Progres
 
 }  // namespace
 
-CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+CompressedVolume encode(const VolumeSource& source, const Params& params, Progress& progress,
                         EncodeStats* stats) {
   Input in;
-  in.dims = volume.dims;
+  in.dims = source.dims;
   in.bias = 0;
-  switch (volume.type) {
+  switch (source.type) {
     case ScalarType::UInt8:
       in.format = kSvmmDensity8;
       break;
@@ -414,39 +593,36 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
       break;
     default:
       throw std::invalid_argument("svmm codes uint8, uint16 and int16 volumes, not " +
-                                  std::string(scalarName(volume.type)));
+                                  std::string(scalarName(source.type)));
   }
-  in.peak = volume.valueMax - volume.valueMin;
+  in.peak = source.valueMax - source.valueMin;
   if (!(in.peak > 0)) in.peak = 1;
-  in.base = volume.data.data();
-  in.read = volume.type == ScalarType::UInt8    ? &readBiased<std::uint8_t, 0>
-            : volume.type == ScalarType::UInt16 ? &readBiased<std::uint16_t, 0>
-                                                : &readBiased<std::int16_t, kInt16Bias>;
-  const VolumeInfo info = volumeInfo(volume, SvmmCodecEntry::kId);
-  // PSNR from the stored tree's leaves against the volume, leaf by leaf (no decoded copy).
-  return encodeInput(std::move(in), info, params, progress, stats, [&](const CompressedVolume& cv) {
-    const Layout layout(cv.info, cv.view());
-    const int bias = layout.view().bias;
-    PsnrSum sum(volume);
-    dispatchScalar(volume.type, [&](auto t) {
-      using T = decltype(t);
-      const T* src = volume.as<T>().data();
-      layout.forEachLeaf(
-          [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {
-            const double v = double(T(int(value) - bias));
-            const glm::ivec3 b = glm::min(glm::ivec3(x0, y0, z0) + size, volume.dims);
-            if (b.x <= x0) return;
-            for (int z = z0; z < b.z; ++z)
-              for (int y = y0; y < b.y; ++y)
-                sum.addConstant(src + volume.index(x0, y, z), v, std::size_t(b.x - x0));
-          },
-          [&](int x, int y, int z, std::uint32_t value) {
-            const double v = double(T(int(value) - bias));
-            sum.addConstant(src + volume.index(x, y, z), v, 1);
-          });
-    });
-    return sum.psnr();
-  });
+  in.sliceBytes = source.sliceBytes();
+  const auto read = source.type == ScalarType::UInt8    ? &readBiased<std::uint8_t, 0>
+                    : source.type == ScalarType::UInt16 ? &readBiased<std::uint16_t, 0>
+                                                        : &readBiased<std::int16_t, kInt16Bias>;
+  const Volume* whole = source.inMemory();
+  in.window = [&source, whole, read](int z0, int count, std::vector<std::byte>& buffer) {
+    Grid g;
+    g.logical = g.padded = source.dims;
+    g.read = read, g.z0 = z0;
+    if (whole) {
+      g.base = whole->data.data() + std::size_t(z0) * source.sliceBytes();
+    } else {
+      buffer.resize(std::size_t(count) * source.sliceBytes());
+      source.readSlices(z0, count, buffer);
+      g.base = buffer.data();
+    }
+    return g;
+  };
+  const Volume header = source.headerVolume();
+  return encodeInput(in, volumeInfo(header, SvmmCodecEntry::kId), params, progress, stats, header,
+                     nullptr);
+}
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* stats) {
+  return encode(*memorySource(volume), params, progress, stats);
 }
 
 CompressedVolume encodeRgba(const RgbaVolume& volume, const Params& params, Progress& progress,
@@ -459,14 +635,23 @@ CompressedVolume encodeRgba(const RgbaVolume& volume, const Params& params, Prog
   in.format = kSvmmRgba32;
   in.bias = 0;
   in.peak = 255;
-  in.values = volume.rgba;
+  in.scalar = false;
+  in.sliceBytes = std::size_t(volume.dims.x) * std::size_t(volume.dims.y) * 4;
+  in.window = [&volume](int z0, int, std::vector<std::byte>&) {
+    Grid g;
+    g.logical = g.padded = volume.dims;
+    g.read = &readWord, g.z0 = z0;
+    g.base = volume.rgba.data() +
+             std::size_t(z0) * std::size_t(volume.dims.x) * std::size_t(volume.dims.y);
+    return g;
+  };
   VolumeInfo info;
   info.codec = SvmmCodecEntry::kId;
   info.type = ScalarType::UInt8;
   info.dims = volume.dims;
   info.spacing = volume.spacing;
   info.valueMin = 0, info.valueMax = 255;
-  return encodeInput(std::move(in), info, params, progress, stats, [&](const CompressedVolume& cv) {
+  return encodeInput(in, info, params, progress, stats, Volume{}, [&](const CompressedVolume& cv) {
     return psnrRgba(volume, decodeRgba(cv.info, cv.view()));
   });
 }

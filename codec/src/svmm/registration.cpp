@@ -110,6 +110,12 @@ class SvmmCodec final : public Codec {
 
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string& report) const override {
+    return encodeSource(*memorySource(volume), options, progress, report);
+  }
+
+  // Streams: level 1 from windows of slices, the base level from slabs of 2 w0 slices.
+  CompressedVolume encodeSource(const VolumeSource& source, const CodecOptionValues& options,
+                                Progress& progress, std::string& report) const override {
     Params p;
     p.quality = options.integer("--quality", p.quality, 0, 100);
     p.rootWidth = options.integer("--root-width", p.rootWidth, 2, 1 << 20);
@@ -126,7 +132,7 @@ class SvmmCodec final : public Codec {
       p.blockWidth = w;
     }
     EncodeStats s;
-    CompressedVolume out = svmm::encode(volume, p, progress, &s);
+    CompressedVolume out = svmm::encode(source, p, progress, &s);
     const auto [widths, blocks] = levelLists(s.levels, s.widths, s.blocks);
     report = formatLine(
         "\n  %d levels (block widths %s; blocks per level from the base: %s)%s"

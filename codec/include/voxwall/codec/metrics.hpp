@@ -35,6 +35,11 @@ class PsnrSum {
     }
     count_ += n;
   }
+  // A sum of squared differences over n voxels, found elsewhere.
+  void addSquares(double squares, std::size_t n) {
+    sum_ += squares;
+    count_ += n;
+  }
   double psnr() const;
 
  private:

@@ -57,6 +57,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/svmm_view.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/progress.hpp>
 
@@ -72,6 +73,9 @@ struct Params {
   int rootWidth = 32;    // stop when a level is at most this wide (>= 2)
   bool baseCompression = false;
   int threads = 0;  // 0: every usable core
+  // Level 1 is built from windows of about this many bytes of the input (at least one row of
+  // blocks); the base level is written from slabs of 2 w0 slices whatever this says.
+  std::size_t windowBytes = std::size_t(64) << 20;
 };
 
 // delta for a quality and a channel count (see the file comment).
@@ -93,6 +97,11 @@ struct RgbaVolume {
 };
 
 // uint8 -> DENSITY8, uint16 / int16 -> DENSITY16; float32 is refused (std::invalid_argument).
+// Streams: level 1 is built from a window of slices at a time, the base level is written from a
+// second pass of slabs of 2 w0 slices straight to its blocks' places, and the PSNR is summed on
+// the way; the encoder holds the file, levels 1 and up and one window.
+CompressedVolume encode(const VolumeSource& source, const Params& params, Progress& progress,
+                        EncodeStats* stats = nullptr);
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
 // RGBA32 (stored with scalar type uint8 and value range 0..255 in the header).
