@@ -85,8 +85,8 @@ void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
   // The value ranges are those of their cell dilated by one voxel, exactly: what
   // computeRangeGrid takes from the decoded volume.
   const RangeGrid g = brickRangeGrid(view);
-  // One cell per brick, or cells of 8 voxels when the side is not a power of two.
-  EXPECT_EQ(g.cellVoxels, (Side & (Side - 1)) == 0 ? Side : 8);
+  // Cells of 4 voxels, or of 2 in bricks of 2.
+  EXPECT_EQ(g.cellVoxels, Side == 2 ? 2 : 4);
   Volume dense = Volume::allocate(dims, ScalarType::Float32);
   for (int z = 0; z < dims.z; ++z)
     for (int y = 0; y < dims.y; ++y)

@@ -41,13 +41,12 @@ class Encoder {
     out.info = volumeInfo(source_.headerVolume(), ZfpCodecEntry::kId);
     out.sections.push_back({kParams, paramsSection()});
     out.sections.push_back({kIndex, indexSection()});
-    std::vector<std::byte> stream(stream_.size() * 8);
-    if (!stream_.empty()) std::memcpy(stream.data(), stream_.data(), stream.size());
-    out.sections.push_back({kStream, std::move(stream)});
+    const std::uint64_t streamBytes = stream_.size();
+    out.sections.push_back({kStream, std::move(stream_)});
     if (stats) {
       stats->mode = mode_, stats->setting = setting_;
       stats->bricks = bricks_, stats->storedBricks = stored_;
-      stats->streamBytes = stream_.size() * 8;
+      stats->streamBytes = streamBytes;
       stats->indexBytes = Index::bytes(rowBases_.size() - 1, bricks_);
       stats->bitsPerVoxel =
           8.0 * double(out.payloadBytes()) / double(std::max<std::size_t>(1, source_.voxelCount()));
@@ -203,6 +202,9 @@ class Encoder {
     std::vector<CodedBrick> coded(perRow);
     std::vector<double> rowError(perRow);
     entries_.reserve(bricks_);
+    // At most the voxels' own bits (a brick zfp would make larger is stored): reserved, the stream
+    // never moves, and only what it holds becomes resident.
+    stream_.reserve((source_.voxelCount() * scalarBytes(source_.type) + 7) / 8 * 8 + 8);
     progress_.begin("zfp bricks", bricks_);
     for (int bz = 0; bz < grid_.z; ++bz) {
       readRow(bz, row);
@@ -287,7 +289,8 @@ class Encoder {
   std::vector<BrickShape> sampleShapes_;
   std::uint64_t sampleVoxels_ = 0;
   int searchSteps_ = 0;
-  std::vector<std::uint64_t> stream_, rowBases_;
+  std::vector<std::byte> stream_;
+  std::vector<std::uint64_t> rowBases_;
   std::uint64_t streamBits_ = 0;
   std::vector<std::uint32_t> entries_;
   std::uint64_t stored_ = 0;

@@ -79,8 +79,9 @@ BrickBits compressBrick(const kernels::ZfpStreamParams& params, const float* in,
                         const BrickShape& shape);
 // The brick's voxels in `type`, x fastest.
 BrickBits storeBrick(ScalarType type, const float* in, const BrickShape& shape);
-// Appends `b` to the stream `words` whose length is `bits` (and adds b.bits to it).
-void appendBits(std::vector<std::uint64_t>& words, std::uint64_t& bits, const BrickBits& b);
+// Appends `b` to `stream` (bytes of 64-bit little-endian words) whose length is `bits` (and adds
+// b.bits to it). The stream grows by whole words; reserve it beforehand to keep it in place.
+void appendBits(std::vector<std::byte>& stream, std::uint64_t& bits, const BrickBits& b);
 
 // Decodes bits [begin, end) of `stream` (the stream section, `streamBytes` long, a multiple of 8
 // bytes holding `end`) into out[x + 16 (y + 16 z)] (other entries left alone). Reads no byte

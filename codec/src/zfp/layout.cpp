@@ -162,7 +162,9 @@ BrickBits compressBrick(const kernels::ZfpStreamParams& params, const float* in,
           s.zfp, in + at, std::size_t(bx), std::size_t(by), std::size_t(bz), 1, kSy, kSz);
   });
   stream_flush(s.bits);
+  // Its words only: the encoder holds a row of bricks, each allocated for zfp's largest block.
   b.words.resize((b.bits + 63) / 64);
+  b.words.shrink_to_fit();
   return b;
 }
 
@@ -190,16 +192,22 @@ BrickBits storeBrick(ScalarType type, const float* in, const BrickShape& shape) 
   return b;
 }
 
-void appendBits(std::vector<std::uint64_t>& words, std::uint64_t& bits, const BrickBits& b) {
+void appendBits(std::vector<std::byte>& stream, std::uint64_t& bits, const BrickBits& b) {
   const unsigned shift = unsigned(bits % 64);
-  const std::uint64_t first = bits / 64;
-  words.resize((bits + b.bits + 63) / 64, 0);
+  const std::uint64_t first = bits / 64, words = (bits + b.bits + 63) / 64;
+  stream.resize(words * 8, std::byte{0});
+  const auto orWord = [&](std::uint64_t at, std::uint64_t v) {
+    std::uint64_t w;  // a little-endian host (core/bytes.hpp)
+    std::memcpy(&w, stream.data() + 8 * at, 8);
+    w |= v;
+    std::memcpy(stream.data() + 8 * at, &w, 8);
+  };
   for (std::uint64_t i = 0; i < b.words.size(); ++i) {
     std::uint64_t v = b.words[i];
     const std::uint64_t left = b.bits - 64 * i;
     if (left < 64) v &= (std::uint64_t(1) << left) - 1;
-    words[first + i] |= v << shift;
-    if (shift && first + i + 1 < words.size()) words[first + i + 1] |= v >> (64 - shift);
+    orWord(first + i, v << shift);
+    if (shift && first + i + 1 < words) orWord(first + i + 1, v >> (64 - shift));
   }
   bits += b.bits;
 }
