@@ -41,7 +41,7 @@ PAGES = re.compile(r"decoded pages: ([0-9.]+)% hits \((\d+) of (\d+) samples\), 
 RESIDENT = re.compile(r"^rank (\d+) on \S+: resident ([0-9.]+ [KMGT]?i?B|\d+ B), peak "
                       r"([0-9.]+ [KMGT]?i?B|\d+ B)", re.M)
 UNITS = {"B": 1, "KiB": 1 << 10, "MiB": 1 << 20, "GiB": 1 << 30, "TiB": 1 << 40}
-OPTIONS = {"raw": [], "vq": [], "svmm": ["--quality", "100"], "ksvd": [], "tvq": []}
+OPTIONS = {"raw": [], "vq": [], "svmm": ["--quality", "100"], "ksvd": [], "tvq": [], "zfp": []}
 
 
 def run(cmd, env=None):
@@ -202,8 +202,8 @@ def pressure_table(args, files, raw_ms):
 
 
 def limit_table(args, work):
-    """A generated volume --limit-size^3 compressed with vq under a data limit of a third of its
-    size (prlimit --data), and with raw, whose output alone is over the limit."""
+    """A generated volume --limit-size^3 compressed with vq and svmm under a data limit of a third
+    of its size (prlimit --data), and with raw, whose output alone is over the limit."""
     n = args.limit_size
     if n ** 3 // 3 < 256 << 20:
         sys.exit("--limit-size %d is too small: a third of it must leave room for the ~100 MiB of "
@@ -216,7 +216,7 @@ def limit_table(args, work):
           "of the input)\n" % (n, mib(input_bytes), mib(limit)))
     print("| codec | result | compress peak | peak / input |")
     print("|---|---|---|---|")
-    for c in ("vq", "raw"):
+    for c in ("vq", "svmm", "raw"):
         cmd = ["/usr/bin/time", "-v", "prlimit", "--data=%d" % limit, args.voxwall, "compress",
                source, "--dims", "%d,%d,%d" % (n, n, n), "--type", "uint8", "--codec", c, "-q",
                "-o", os.path.join(work, "limit.vwz")]
@@ -237,7 +237,7 @@ def main():
     ap.add_argument("--voxwall", default="build/master/voxwall")
     ap.add_argument("--scale", type=int, default=3)
     ap.add_argument("--size", default="1920x1080")
-    ap.add_argument("--codecs", default="raw,vq,svmm,ksvd,tvq")
+    ap.add_argument("--codecs", default="raw,vq,svmm,ksvd,tvq,zfp")
     ap.add_argument("--rank-codecs", default="raw,vq,ksvd")
     ap.add_argument("--budget-codecs", default="vq,ksvd")
     ap.add_argument("--budgets", default="32M,128M,512M,64G")
@@ -259,7 +259,7 @@ def main():
     codecs = args.codecs.split(",")
     for c in codecs:
         if c not in OPTIONS:
-            sys.exit("unknown codec %s (expected raw, vq, svmm, ksvd or tvq)" % c)
+            sys.exit("unknown codec %s (expected one of %s)" % (c, ", ".join(OPTIONS)))
     if "raw" not in codecs:
         sys.exit("--codecs must include raw: every frame time is compared with raw's")
     if args.reuse and not args.keep:
