@@ -71,9 +71,8 @@ struct Grid {
   glm::ivec3 logical{0}, padded{0};
   std::vector<std::uint32_t> value;
   std::vector<std::uint8_t> terminal;  // empty: every voxel is terminal (level 0)
-  // Level 0 of a scalar volume is read from the volume's own voxels through `read` (no copy of
-  // 4 bytes per voxel); `value` is then empty.
-  // A window of level 0 holds slices z0 .. of it (at() takes volume coordinates).
+  // Level 0 is a window of slices z0 .. of the input, read from its own storage through `read`
+  // (no copy of 4 bytes per voxel; at() takes volume coordinates); `value` is then empty.
   const void* base = nullptr;
   std::uint32_t (*read)(const void*, std::size_t) = nullptr;
   int z0 = 0;
@@ -148,8 +147,14 @@ void buildRows(const Grid& fine, Grid& g, int w, int format, double threshold2, 
   });
 }
 
+// v's low `bytes` bytes, little-endian, at o.
+void storeValue(std::byte* o, std::uint32_t v, int bytes) {
+  for (int b = 0; b < bytes; ++b) o[b] = std::byte((v >> (8 * b)) & 255u);
+}
+
 void putValue(std::vector<std::byte>& out, std::uint32_t v, int bytes) {
-  for (int b = 0; b < bytes; ++b) out.push_back(std::byte((v >> (8 * b)) & 255u));
+  out.resize(out.size() + std::size_t(bytes));
+  storeValue(out.data() + out.size() - std::size_t(bytes), v, bytes);
 }
 
 template <class T, int Bias>
@@ -329,10 +334,6 @@ void writeUpperLevels(Levels& lv, int format, LevelOneBlocks& one, std::vector<s
     data.insert(data.end(), out[std::size_t(L)].begin(), out[std::size_t(L)].end());
     std::vector<std::byte>().swap(out[std::size_t(L)]);
   }
-}
-
-void storeValue(std::byte* o, std::uint32_t v, int bytes) {
-  for (int b = 0; b < bytes; ++b) o[b] = std::byte((v >> (8 * b)) & 255u);
 }
 
 // A base block's 2^3 group as stored with --base-compression: a byte of occupancy and the mean of

@@ -3,7 +3,6 @@
 // back to measure, and appended. A brick zfp would enlarge is stored as it is.
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <string>
 #include <vector>
 #include <voxwall/codec/metrics.hpp>
