@@ -17,6 +17,8 @@ main=(
   libnifti2-dev libteem-dev zlib1g-dev libbz2-dev
   # the zfp codec
   libzfp-dev
+  # DICOM series
+  libgdcm-dev
   libasio-dev
   # the sink's web page: Boost.Beast (header-only)
   libboost-dev

@@ -30,6 +30,6 @@ CCACHE_BASEDIR=$PWD cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXWALL_BUILD_FUZZERS=ON -DVOXWALL_CUDA=OFF \
   -DVOXWALL_BUILD_BENCH=OFF -DVOXWALL_SIMD_DISPATCH=OFF "${launcher[@]}"
 CCACHE_BASEDIR=$PWD cmake --build build-fuzz -j "$(nproc)" --target vwz_reader_fuzz vwz_make_seeds frame_messages_fuzz wire_fuzz make_wire_seeds \
-  sink_fuzz make_sink_seeds config_files_fuzz make_config_seeds
+  sink_fuzz make_sink_seeds config_files_fuzz make_config_seeds dicom_reader_fuzz make_dicom_seeds
 ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp \
   ctest --test-dir build-fuzz --output-on-failure -L fuzz

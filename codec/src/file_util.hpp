@@ -12,4 +12,9 @@ std::string extensionOf(const std::string& path);
 // Refuses a raw file that does not hold exactly the voxels `layout` states (before any is read).
 void checkRawFile(const std::string& path, const RawLayout& layout);
 
+// A DICOMDIR, or a file with DICOM's "DICM" after its 128-byte preamble (io/dicom.cpp).
+bool isDicomFile(const std::string& path);
+// A folder holding such a file (among its first 256 files, sub-folders included).
+bool isDicomFolder(const std::string& path);
+
 }  // namespace voxwall::codec

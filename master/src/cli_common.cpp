@@ -20,6 +20,19 @@ void RawInputOptions::addTo(CLI::App& app) {
                  "Voxel spacing X,Y,Z in world units (mm); overrides the file's for any input");
   app.add_flag("--big-endian", bigEndian, "Raw input only: multi-byte values are big-endian");
   app.add_option("--header-bytes", headerBytes, "Raw input only: bytes to skip before the voxels");
+  app.add_option("--series", series,
+                 "DICOM input only: the Series Instance UID to read when the folder holds several "
+                 "(without it such a folder is refused with a list of its series)");
+  app.add_flag("--resample-tilt", resampleTilt,
+               "DICOM input only: resample a series acquired with a gantry tilt (its slices "
+               "sheared) onto a box, instead of refusing it");
+}
+
+codec::ReadOptions RawInputOptions::readOptions() const {
+  codec::ReadOptions options(layout());
+  options.dicom.series = series;
+  options.dicom.resampleTilt = resampleTilt;
+  return options;
 }
 
 std::optional<codec::RawLayout> RawInputOptions::layout() const {
@@ -81,7 +94,7 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& option
   return {w, h};
 }
 
-codec::Volume loadVolume(const std::string& spec, const std::optional<codec::RawLayout>& raw) {
+codec::Volume loadVolume(const std::string& spec, const codec::ReadOptions& options) {
   if (spec.rfind("generated:", 0) == 0) {
     std::stringstream ss(spec.substr(10));
     std::string kind, param;
@@ -100,7 +113,7 @@ codec::Volume loadVolume(const std::string& spec, const std::optional<codec::Raw
                                 "': expected generated:menger:LEVEL, generated:marschner-lobb:N or "
                                 "generated:shepp-logan:N");
   }
-  return codec::readVolume(spec, raw);
+  return codec::readVolume(spec, options);
 }
 
 void addCodecFlags(CLI::App& cmd, std::vector<codec::CodecOption> (codec::Codec::*list)() const,

@@ -12,14 +12,19 @@
 
 namespace voxwall::cli {
 
-// Options that describe a headerless raw input file, attached to any command that reads volumes.
+// Options that say what an input file does not say about itself (the layout of a headerless raw
+// file, the series of a DICOM folder), attached to any command that reads volumes.
 struct RawInputOptions {
   std::string dims, type = "uint8", spacing;
   bool bigEndian = false;
   std::uint64_t headerBytes = 0;
+  std::string series;
+  bool resampleTilt = false;
   void addTo(CLI::App& app);
   // The layout when --dims was given; throws std::invalid_argument on malformed values.
   std::optional<codec::RawLayout> layout() const;
+  // The layout and the DICOM options together.
+  codec::ReadOptions readOptions() const;
 };
 
 // "X,Y,Z" with positive integers / positive reals; "WxH". Throw std::invalid_argument naming
@@ -31,7 +36,7 @@ std::vector<double> parseNumbers(const std::string& text, const std::string& opt
 
 // Reads a volume named on the command line: a file, a directory of slices, or
 // "generated:<menger|marschner-lobb|shepp-logan>:<size or level>".
-codec::Volume loadVolume(const std::string& spec, const std::optional<codec::RawLayout>& raw);
+codec::Volume loadVolume(const std::string& spec, const codec::ReadOptions& options);
 
 // Registers on `cmd` the flags every registered codec declares for it (`list`: Codec::options for
 // compress, Codec::renderOptions for render), each flag once (help texts joined where codecs share

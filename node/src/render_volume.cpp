@@ -30,12 +30,12 @@ CellRanges::CellRanges(const codec::RangeGrid& grid, codec::ScalarType type)
   });
 }
 
-RenderVolume RenderVolume::open(const std::string& path, const std::optional<codec::RawLayout>& raw,
+RenderVolume RenderVolume::open(const std::string& path, const codec::ReadOptions& options,
                                 const codec::CodecOptionValues& renderOptions) {
-  if ((!raw || raw->dims.x <= 0) && codec::isContainerFile(path))
+  if (!options.isRaw() && codec::isContainerFile(path))
     return fromContainer(codec::ContainerFile::open(path), renderOptions);
   refuseRenderOptions(renderOptions, path);
-  RenderVolume v = fromVolume(codec::readVolume(path, raw));
+  RenderVolume v = fromVolume(codec::readVolume(path, options));
   v.source_ = path;
   return v;
 }

@@ -14,6 +14,7 @@
 #include <voxwall/core/image.hpp>
 #include <voxwall/node/renderer.hpp>
 
+#include "support/dicom_writer.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
@@ -711,4 +712,44 @@ TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
                   .maxAbs,
               1)
         << cache;
+}
+
+// A DICOM folder as a CT user has it: info, compress and render read it; a folder of two series
+// is refused in one line naming them, and --series picks one.
+TEST(Cli, DicomSeriesAreReadAndChosenBySeriesUid) {
+  test::TempDir dir;
+  auto writeSeries = [&](const std::string& sub, const std::string& uid, int depth) {
+    std::filesystem::create_directories(dir.root() / sub);
+    for (int k = 0; k < depth; ++k) {
+      test::DicomSlice s;
+      s.columns = 16, s.rows = 12, s.isUnsigned = true, s.intercept = -1024;
+      for (int i = 0; i < 16 * 12; ++i) s.pixels.push_back(std::int16_t(i * 10 + k));
+      s.position = {0, 0, -1.25 * k};
+      s.seriesUid = uid, s.description = sub;
+      writeDicom(dir.path(sub + "/slice" + std::to_string((k * 5) % depth)), s);
+    }
+  };
+  writeSeries("ct", "1.2.3.4.1", 8);
+  const CliRun info = runVoxwall("info " + dir.path("ct"));
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("16 x 12 x 8"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("int16"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("1 x 1 x 1.25"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("-1024 .. 893"), std::string::npos) << info.out;
+  const CliRun c = runVoxwall("compress " + dir.path("ct") + " -o " + dir.path("ct.vwz") + " -q");
+  EXPECT_EQ(c.status, 0) << c.out;
+  const CliRun r = runVoxwall("render " + dir.path("ct") + " --size 32x32 --frames 1 --out " +
+                              dir.path("frames") + " -q");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(dir.path("frames/frame_00000.png"))) << r.out;
+
+  writeSeries("ct/scout", "1.2.3.4.2", 3);
+  const CliRun two = runVoxwall("info " + dir.path("ct"));
+  expectOneLineError(two,
+                     "voxwall: " + dir.path("ct") + ": holds 2 series; choose one with --series");
+  EXPECT_NE(two.out.find("1.2.3.4.2 \"ct/scout\" (CT, 3 files, 16x12)"), std::string::npos)
+      << two.out;
+  const CliRun picked = runVoxwall("info " + dir.path("ct") + " --series 1.2.3.4.2");
+  ASSERT_EQ(picked.status, 0) << picked.out;
+  EXPECT_NE(picked.out.find("16 x 12 x 3"), std::string::npos) << picked.out;
 }

@@ -158,9 +158,9 @@ std::unique_ptr<VolumeSource> memorySource(Volume&& volume) {
   return std::make_unique<MemorySource>(nullptr, std::move(volume));
 }
 
-std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path,
-                                               const std::optional<RawLayout>& raw,
+std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path, const ReadOptions& options,
                                                Progress& progress) {
+  const std::optional<RawLayout>& raw = options.raw;
   std::optional<SlabLayout> slab;
   std::error_code ec;
   const bool regular = std::filesystem::is_regular_file(path, ec);
@@ -182,7 +182,7 @@ std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path,
       throw FormatError(path, "not enough memory to read it");
     }
   }
-  return memorySource(readVolume(path, raw));
+  return memorySource(readVolume(path, options));
 }
 
 }  // namespace voxwall::codec

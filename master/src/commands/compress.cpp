@@ -48,8 +48,8 @@ void runCompress(const CompressOptions& o) {
   // that stream; anything else is read whole first.
   const std::unique_ptr<codec::VolumeSource> source =
       o.input.rfind("generated:", 0) == 0
-          ? codec::memorySource(loadVolume(o.input, o.raw.layout()))
-          : codec::openVolumeSource(o.input, o.raw.layout(), progress);
+          ? codec::memorySource(loadVolume(o.input, o.raw.readOptions()))
+          : codec::openVolumeSource(o.input, o.raw.readOptions(), progress);
   if (!o.raw.spacing.empty()) source->setSpacing(parseSpacing(o.raw.spacing, "--spacing"));
   std::string report;
   std::uint64_t fileBytes = 0;

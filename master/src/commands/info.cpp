@@ -49,7 +49,7 @@ void runInfo(const InfoOptions& o) {
         std::printf("%-12s%s\n", label.c_str(), text.c_str());
     return;
   }
-  codec::Volume v = loadVolume(o.input, o.raw.layout());
+  codec::Volume v = loadVolume(o.input, o.raw.readOptions());
   if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
   std::printf("file        %s\n", o.input.c_str());
   printVolumeLines(v.dims, v.type, v.spacing, v.valueMin, v.valueMax);

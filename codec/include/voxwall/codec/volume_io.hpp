@@ -3,10 +3,12 @@
 //   .nrrd .nhdr         NRRD, attached or detached header, any teem encoding (teem)
 //   .raw (and anything with RawLayout given)  headerless voxels
 //   a directory, or a multi-page .tif/.tiff   stack of 2D slices (OpenImageIO)
+//   a directory holding DICOM files, a DICOMDIR, or one DICOM file   DICOM (GDCM): docs/dicom.md
 #pragma once
 
 #include <optional>
 #include <string>
+#include <vector>
 #include <voxwall/codec/volume.hpp>
 
 namespace voxwall::codec {
@@ -20,22 +22,59 @@ struct RawLayout {
   std::uint64_t headerBytes = 0;  // bytes to skip before the first voxel
 };
 
-enum class VolumeFormat { Raw, Nifti, Nrrd, SliceStack };
+// Which DICOM series to read, and how.
+struct DicomOptions {
+  std::string series;         // its Series Instance UID; empty: the only series there is
+  bool resampleTilt = false;  // resample a gantry-tilted series onto a box instead of refusing it
+};
 
-// Guesses the format from the path (extension, or a directory for slices); throws FormatError
-// for an extension we cannot read.
+// What a file does not say about itself: the layout of a raw file, the series of a DICOM folder.
+struct ReadOptions {
+  std::optional<RawLayout> raw;  // read as a headerless raw file with this layout
+  DicomOptions dicom;
+  ReadOptions() = default;
+  ReadOptions(std::nullopt_t) {}
+  ReadOptions(std::optional<RawLayout> layout) : raw(std::move(layout)) {}
+  ReadOptions(const RawLayout& layout) : raw(layout) {}
+  bool isRaw() const { return raw && raw->dims.x > 0; }
+};
+
+enum class VolumeFormat { Raw, Nifti, Nrrd, SliceStack, Dicom };
+
+// Guesses the format from the path (extension; a directory holding DICOM files or a DICOMDIR, or
+// a file that starts as DICOM does, is DICOM; any other directory is a stack of slices); throws
+// FormatError for an extension we cannot read.
 VolumeFormat volumeFormatOf(const std::string& path);
 
-// Reads any supported volume file. `raw` is needed (and only used) for raw files.
-// Types other than uint8/uint16/int16/float32 are converted: int8 -> int16,
-// int32/uint32/float64 -> float32 (a NIfTI scl_slope other than 1 also gives float32).
+// Reads any supported volume file. `options.raw` is needed (and only used) for raw files,
+// `options.dicom` for DICOM. Types other than uint8/uint16/int16/float32 are converted: int8 ->
+// int16, int32/uint32/float64 -> float32 (a NIfTI scl_slope other than 1 also gives float32).
 // Throws FormatError("<path>: <what>") for unreadable, truncated or unsupported files.
-Volume readVolume(const std::string& path, const std::optional<RawLayout>& raw = std::nullopt);
+Volume readVolume(const std::string& path, const ReadOptions& options = {});
 
 Volume readRaw(const std::string& path, const RawLayout& layout);
 Volume readNifti(const std::string& path);
 Volume readNrrd(const std::string& path);
 Volume readSliceStack(const std::string& path);
+
+// A DICOM series: from a folder (searched with its sub-folders), the folder of a DICOMDIR, or one
+// (multi-frame) file. Voxels stay in the order DICOM stores them: columns (x), rows (y), then the
+// slices sorted by their position along the slice normal. Rescale Slope/Intercept are applied:
+// int16 when every slice's rescale is integral and the values fit, float32 otherwise; unscaled
+// uint8/uint16/int16 keep their type. Refuses, in one line naming the file or the series: several
+// series without `options.series`, slices of different sizes or orientations, two slices at one
+// position, a missing slice or unequal gaps, a gantry tilt (unless options.resampleTilt), colour
+// images, and files GDCM cannot decode.
+Volume readDicom(const std::string& path, const DicomOptions& options = {});
+
+// One series of a DICOM folder, as listed when the folder holds several.
+struct DicomSeriesInfo {
+  std::string uid, description, modality;
+  int files = 0;
+  int columns = 0, rows = 0;
+};
+// The series under `path` (a folder, a DICOMDIR or one file), in the order of their UIDs.
+std::vector<DicomSeriesInfo> listDicomSeries(const std::string& path);
 
 // Writes by extension: .raw (voxels in their own type, x fastest, little endian), .nrrd
 // (attached, gzip), .nhdr (+ .raw.gz beside it), .nii or .nii.gz. Writes to a temporary name

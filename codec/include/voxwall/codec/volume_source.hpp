@@ -95,11 +95,11 @@ struct SlabLayout {
 std::optional<SlabLayout> nrrdSlabLayout(const std::string& path);
 std::optional<SlabLayout> niftiSlabLayout(const std::string& path);
 
-// The source for `path`: read in slabs where the format allows (raw with `raw` given, NRRD and
-// NIfTI as above), else read whole with readVolume(). Opening a file source reads the file once
-// to find its value range, reporting on `progress`. Throws FormatError like readVolume().
-std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path,
-                                               const std::optional<RawLayout>& raw,
+// The source for `path`: read in slabs where the format allows (raw with `options.raw` given,
+// NRRD and NIfTI as above), else read whole with readVolume() (DICOM among them). Opening a file
+// source reads the file once to find its value range, reporting on `progress`. Throws
+// FormatError like readVolume().
+std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path, const ReadOptions& options,
                                                Progress& progress);
 
 }  // namespace voxwall::codec

@@ -63,8 +63,7 @@ class RenderVolume {
   // the raw codec. `renderOptions` are the codec's render flags (Codec::renderOptions; a flag
   // the volume's codec does not own is refused with std::invalid_argument). Throws
   // FormatError("<path>: ...").
-  static RenderVolume open(const std::string& path,
-                           const std::optional<codec::RawLayout>& raw = std::nullopt,
+  static RenderVolume open(const std::string& path, const codec::ReadOptions& options = {},
                            const codec::CodecOptionValues& renderOptions = {});
   // Throws std::invalid_argument ("--progressive needs a .vwz file; <path> is rendered with the
   // raw codec") when codec render flags are given for a volume that is not a .vwz file.

@@ -1,0 +1,333 @@
+// The DICOM reader on series written here with GDCM from a phantom in Hounsfield units: slice
+// order from positions, rescaling, spacing, series selection, compressed transfer syntaxes, and
+// every refusal (each one line naming the file or the series).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <numeric>
+#include <random>
+#include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/errors.hpp>
+
+#include "support/dicom_writer.hpp"
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+using namespace voxwall::codec;
+using voxwall::test::DicomSlice;
+using voxwall::test::DicomSyntax;
+using voxwall::test::TempDir;
+using voxwall::test::writeDicom;
+
+namespace {
+
+constexpr int kW = 24, kH = 20, kD = 9;
+
+// A head-like phantom in HU: air, a soft-tissue ellipse with a bone shell, and a bright marker
+// at (3, 4, 2) so that any mirroring or slice reordering shows.
+std::int16_t phantom(int x, int y, int z) {
+  if (x == 3 && y == 4 && z == 2) return 2500;
+  const double dx = (x - 11.5) / 10.0, dy = (y - 9.5) / 8.0;
+  const double r = dx * dx + dy * dy;
+  if (r > 1) return -1000;
+  if (r > 0.7) return std::int16_t(900 + 10 * z);
+  return std::int16_t(40 + x - y + 3 * z);
+}
+
+struct Series {
+  glm::dvec3 origin{-12.0, 30.0, 100.0};
+  glm::dvec3 step{0, 0, -2.5};  // position of slice k: origin + k * step (feet first: z falls)
+  std::array<double, 6> orientation{1, 0, 0, 0, 1, 0};
+  double slope = 2, intercept = -1024;
+  bool isUnsigned = true;
+  std::string uid = "1.2.826.0.1.3680043.2.1125.7";
+  std::string description = "head CT";
+  DicomSyntax syntax = DicomSyntax::ExplicitLittle;
+  int depth = kD;
+  glm::ivec2 shiftPerSlice{0, 0};  // stored slice k holds the phantom moved by -k * this
+};
+
+// Writes a series of `s.depth` slices under `dir` with shuffled file names and instance
+// numbers; slice k holds phantom z = k, stored as (HU - intercept) / slope.
+std::vector<std::string> writeSeries(const std::filesystem::path& dir, const Series& s,
+                                     unsigned seed = 7) {
+  std::filesystem::create_directories(dir);
+  std::vector<int> order(std::size_t(s.depth));
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937(seed));
+  std::vector<std::string> files;
+  for (int k = 0; k < s.depth; ++k) {
+    DicomSlice slice;
+    slice.columns = kW, slice.rows = kH;
+    slice.isUnsigned = s.isUnsigned;
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        const int px = x + k * s.shiftPerSlice.x, py = y + k * s.shiftPerSlice.y;
+        const int hu = px < kW && py < kH ? phantom(px, py, k) : -1000;
+        slice.pixels.push_back(std::int16_t(std::lround((hu - s.intercept) / s.slope)));
+      }
+    slice.position = s.origin + double(k) * s.step;
+    slice.orientation = s.orientation;
+    slice.pixelSpacing = {0.7, 0.6};
+    slice.slope = s.slope, slice.intercept = s.intercept;
+    slice.seriesUid = s.uid, slice.description = s.description;
+    slice.instance = order[std::size_t(k)] + 1;
+    slice.syntax = s.syntax;
+    const auto file = (dir / ("IM" + std::to_string(order[std::size_t(k)] * 37 % 101))).string();
+    writeDicom(file, slice);
+    files.push_back(file);
+  }
+  return files;
+}
+
+// Expects f() to throw one FormatError line that starts with `file` and holds `fragment`.
+template <class F>
+void expectRefused(F&& f, const std::string& file, const std::string& fragment) {
+  try {
+    f();
+    ADD_FAILURE() << "no error for " << file;
+  } catch (const FormatError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(file + ": ", 0), 0u) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_NE(what.find(fragment), std::string::npos) << what;
+  }
+}
+
+// The phantom's HU at voxel (x, y, z) of a volume read back (slices ascending along the normal:
+// for the default series, which steps down in z, slice z of the volume is phantom slice D-1-z).
+double valueAt(const Volume& v, int x, int y, int z) { return v.valueAt(v.index(x, y, z)); }
+
+}  // namespace
+
+TEST(Dicom, SortsShuffledSlicesByPositionAndAppliesTheRescale) {
+  TempDir dir;
+  writeSeries(dir.root() / "ct", Series{});
+  EXPECT_EQ(volumeFormatOf(dir.path("ct")), VolumeFormat::Dicom);
+  const Volume v = readVolume(dir.path("ct"));
+  ASSERT_EQ(v.dims, glm::ivec3(kW, kH, kD));
+  EXPECT_EQ(v.type, ScalarType::Int16);  // uint16 stored, slope 2, intercept -1024: HU in int16
+  EXPECT_DOUBLE_EQ(v.spacing.x, 0.7);
+  EXPECT_DOUBLE_EQ(v.spacing.y, 0.6);
+  EXPECT_NEAR(v.spacing.z, 2.5, 1e-9);  // from the positions
+  int wrong = 0;
+  for (int z = 0; z < kD; ++z)
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        // The series steps down in z, its normal points up: ascending order reverses it.
+        const int hu = phantom(x, y, kD - 1 - z);
+        // Stored values were rounded to the slope of 2.
+        wrong += std::abs(valueAt(v, x, y, z) - hu) > 1;
+      }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_NEAR(valueAt(v, 3, 4, kD - 1 - 2), 2500, 1);
+  EXPECT_NEAR(v.valueMin, -1000, 1);
+}
+
+TEST(Dicom, AFractionalRescaleGivesFloatAndSignedStorageStaysExact) {
+  TempDir dir;
+  Series s;
+  s.slope = 0.5, s.intercept = -1000.25, s.isUnsigned = false;
+  writeSeries(dir.root() / "f", s);
+  const Volume f = readVolume(dir.path("f"));
+  EXPECT_EQ(f.type, ScalarType::Float32);
+  // Stored values are round((hu + 1000.25) / 0.5): every HU comes back to within 0.25.
+  EXPECT_NEAR(valueAt(f, 3, 4, kD - 1 - 2), 2500, 0.25);
+  EXPECT_NEAR(valueAt(f, 12, 10, 0), phantom(12, 10, kD - 1), 0.25);
+
+  Series plain;
+  plain.slope = 1, plain.intercept = 0, plain.isUnsigned = false;
+  writeSeries(dir.root() / "p", plain);
+  const Volume p = readVolume(dir.path("p"));
+  EXPECT_EQ(p.type, ScalarType::Int16);
+  EXPECT_EQ(valueAt(p, 3, 4, kD - 1 - 2), 2500);
+}
+
+TEST(Dicom, AnObliqueSeriesIsSortedAlongItsOwnNormal) {
+  TempDir dir;
+  Series s;
+  // Rows along (cos 30, sin 30, 0), columns along z: the normal is (sin 30, -cos 30, 0) ...
+  const double c = std::cos(M_PI / 6), sn = std::sin(M_PI / 6);
+  s.orientation = {c, sn, 0, 0, 0, 1};
+  // ... and the slices step backwards along it, 1.5 mm apart.
+  s.step = -1.5 * glm::dvec3(sn, -c, 0);
+  writeSeries(dir.root() / "o", s);
+  const Volume v = readVolume(dir.path("o"));
+  EXPECT_NEAR(v.spacing.z, 1.5, 1e-3);
+  EXPECT_NEAR(valueAt(v, 3, 4, kD - 1 - 2), 2500, 1);
+}
+
+TEST(Dicom, CompressedTransferSyntaxesDecodeToTheSameVoxels) {
+  TempDir dir;
+  writeSeries(dir.root() / "plain", Series{});
+  const Volume plain = readVolume(dir.path("plain"));
+  for (DicomSyntax syntax : {DicomSyntax::Rle, DicomSyntax::JpegLs, DicomSyntax::JpegLossless,
+                             DicomSyntax::ImplicitLittle}) {
+    Series s;
+    s.syntax = syntax;
+    const auto sub = dir.root() / ("syntax" + std::to_string(int(syntax)));
+    writeSeries(sub, s);
+    const Volume v = readVolume(sub.string());
+    EXPECT_EQ(v.data, plain.data) << "transfer syntax " << int(syntax);
+  }
+}
+
+TEST(Dicom, SeveralSeriesAreListedAndOneIsPickedByUid) {
+  TempDir dir;
+  writeSeries(dir.root() / "mixed", Series{});
+  Series scout;
+  scout.uid = "1.2.826.0.1.3680043.2.1125.9";
+  scout.description = "scout";
+  scout.depth = 3;
+  writeSeries(dir.root() / "mixed" / "scout", scout);
+  expectRefused([&] { readVolume(dir.path("mixed")); }, dir.path("mixed"), "holds 2 series");
+  expectRefused([&] { readVolume(dir.path("mixed")); }, dir.path("mixed"),
+                "1.2.826.0.1.3680043.2.1125.9 \"scout\" (CT, 3 files, 24x20)");
+  const auto list = listDicomSeries(dir.path("mixed"));
+  ASSERT_EQ(list.size(), 2u);
+  EXPECT_EQ(list[0].files, kD);
+  ReadOptions pick;
+  pick.dicom.series = scout.uid;
+  EXPECT_EQ(readVolume(dir.path("mixed"), pick).dims, glm::ivec3(kW, kH, 3));
+  pick.dicom.series = "1.2.3";
+  expectRefused([&] { readVolume(dir.path("mixed"), pick); }, dir.path("mixed"),
+                "holds no series 1.2.3");
+}
+
+TEST(Dicom, AMissingSliceUnequalGapsAndDuplicatesAreNamed) {
+  TempDir dir;
+  auto files = writeSeries(dir.root() / "missing", Series{});
+  std::filesystem::remove(files[4]);
+  expectRefused([&] { readVolume(dir.path("missing")); }, dir.path("missing"),
+                "1 slice is missing");
+
+  Series uneven;
+  uneven.step = {0, 0, 2.0};
+  files = writeSeries(dir.root() / "uneven", uneven);
+  DicomSlice odd;
+  odd.columns = kW, odd.rows = kH, odd.pixels.assign(kW * kH, 0);
+  odd.seriesUid = uneven.uid;
+  odd.position = uneven.origin + glm::dvec3(0, 0, 2.0 * kD + 0.7);  // 2.7 mm after the last
+  odd.pixelSpacing = {0.7, 0.6};
+  writeDicom(dir.path("uneven/odd"), odd);
+  expectRefused([&] { readVolume(dir.path("uneven")); }, dir.path("uneven"), "unequal gaps");
+
+  odd.position = uneven.origin;  // where the first slice already is
+  writeDicom(dir.path("uneven/odd"), odd);
+  expectRefused([&] { readVolume(dir.path("uneven")); }, dir.path("uneven"),
+                "lie at the same position");
+}
+
+TEST(Dicom, MixedSizesAndOrientationsNameTheFile) {
+  TempDir dir;
+  Series s;
+  writeSeries(dir.root() / "sizes", s);
+  DicomSlice small;
+  small.columns = 8, small.rows = 8, small.pixels.assign(64, 0);
+  small.seriesUid = s.uid;
+  small.position = s.origin + double(kD) * s.step;
+  writeDicom(dir.path("sizes/small"), small);
+  expectRefused([&] { readVolume(dir.path("sizes")); }, dir.path("sizes/small"), "is 8x8");
+
+  writeSeries(dir.root() / "turned", s);
+  DicomSlice turned;
+  turned.columns = kW, turned.rows = kH, turned.pixels.assign(kW * kH, 0);
+  turned.seriesUid = s.uid;
+  turned.position = s.origin + double(kD) * s.step;
+  turned.orientation = {0, 1, 0, 1, 0, 0};
+  writeDicom(dir.path("turned/turned"), turned);
+  expectRefused([&] { readVolume(dir.path("turned")); }, dir.path("turned/turned"),
+                "oriented differently");
+}
+
+TEST(Dicom, AGantryTiltIsRefusedOrResampledOntoABox) {
+  TempDir dir;
+  Series s;
+  s.step = {0, 0.6, 2.5};    // each slice moves one row (0.6 mm) along y: a 13.5 degree tilt
+  s.shiftPerSlice = {0, 1};  // and holds the phantom moved back by one row per slice
+  s.step.z = 2.5;
+  writeSeries(dir.root() / "tilt", s);
+  expectRefused([&] { readVolume(dir.path("tilt")); }, dir.path("tilt"), "gantry tilt of 13.5");
+  ReadOptions resample;
+  resample.dicom.resampleTilt = true;
+  const Volume v = readVolume(dir.path("tilt"), resample);
+  ASSERT_EQ(v.dims, glm::ivec3(kW, kH, kD));
+  // Slice z (ascending z here) was stored moved by z rows; resampled, it is the phantom again
+  // wherever the stored slice covered it.
+  int wrong = 0, checked = 0;
+  for (int z = 0; z < kD; ++z)
+    for (int y = z; y < kH; ++y)
+      for (int x = 0; x < kW; ++x, ++checked)
+        wrong += std::abs(valueAt(v, x, y, z) - phantom(x, y, z)) > 1;
+  EXPECT_EQ(wrong, 0) << "of " << checked;
+  EXPECT_NEAR(valueAt(v, 3, 4, 2), 2500, 1);
+}
+
+TEST(Dicom, AMultiFrameFileIsOneVolume) {
+  TempDir dir;
+  DicomSlice m;
+  m.columns = kW, m.rows = kH, m.frames = 4;
+  m.isUnsigned = true, m.intercept = -1000;
+  for (int z = 0; z < 4; ++z)
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) m.pixels.push_back(std::int16_t(phantom(x, y, z) + 1000));
+  m.pixelSpacing = {0.5, 0.5};
+  m.sliceSpacing = 1.25;
+  writeDicom(dir.path("multi.dcm"), m);
+  const Volume v = readVolume(dir.path("multi.dcm"));
+  ASSERT_EQ(v.dims, glm::ivec3(kW, kH, 4));
+  EXPECT_EQ(valueAt(v, 3, 4, 2), 2500);
+  EXPECT_EQ(valueAt(v, 12, 10, 3), phantom(12, 10, 3));
+  EXPECT_DOUBLE_EQ(v.spacing.x, 0.5);
+}
+
+TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {
+  TempDir dir;
+  auto files = writeSeries(dir.root() / "cut", Series{});
+  const std::string whole = voxwall::test::readFile(files[3]);
+  voxwall::test::writeFile(files[3], whole.substr(0, whole.size() - 300));
+  expectRefused([&] { readVolume(dir.path("cut")); }, files[3], "");
+
+  // The pixel data element says fewer bytes than the image needs.
+  files = writeSeries(dir.root() / "short", Series{});
+  std::string bytes = voxwall::test::readFile(files[5]);
+  const std::string pixelTag("\xe0\x7f\x10\x00OW\x00\x00", 8);
+  const auto at = bytes.rfind(pixelTag);
+  ASSERT_NE(at, std::string::npos);
+  const std::uint32_t shorter = kW * kH * 2 - 40;
+  std::memcpy(&bytes[at + 8], &shorter, 4);
+  bytes.resize(at + 12 + shorter);
+  voxwall::test::writeFile(files[5], bytes);
+  expectRefused([&] { readVolume(dir.path("short")); }, files[5], "");
+
+  // A private element that claims more bytes than the file has: refused, not allocated.
+  files = writeSeries(dir.root() / "bomb", Series{});
+  bytes = voxwall::test::readFile(files[1]);
+  const auto pixels = bytes.rfind(pixelTag);
+  ASSERT_NE(pixels, std::string::npos);
+  std::string bomb("\xd1\x7f\x10\x10UN\x00\x00", 8);
+  const std::uint32_t huge = 0xfffffff0u;
+  bomb.append(reinterpret_cast<const char*>(&huge), 4);
+  bomb += "0123";
+  voxwall::test::writeFile(files[1], bytes.substr(0, pixels) + bomb + bytes.substr(pixels));
+  expectRefused([&] { readVolume(dir.path("bomb")); }, files[1], "");
+
+  // Not a DICOM file at all, named .dcm.
+  voxwall::test::writeFile(dir.path("junk.dcm"), std::string(200, 'x'));
+  expectRefused([&] { readVolume(dir.path("junk.dcm")); }, dir.path("junk.dcm"), "");
+}
+
+TEST(Dicom, AFolderOfImagesIsStillASliceStackAndAnEmptyOneIsRefused) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.root() / "empty");
+  EXPECT_EQ(volumeFormatOf(dir.path("empty")), VolumeFormat::SliceStack);
+  writeSeries(dir.root() / "ct" / "nested" / "deeper", Series{});
+  voxwall::test::writeFile(dir.path("ct/DICOMDIR"), "");
+  voxwall::test::writeFile(dir.path("ct/README.txt"), "not DICOM");
+  EXPECT_EQ(volumeFormatOf(dir.path("ct")), VolumeFormat::Dicom);
+  // A DICOMDIR stands for the folder it lies in; files without 'DICM' are left out.
+  EXPECT_EQ(readVolume(dir.path("ct/DICOMDIR")).dims, glm::ivec3(kW, kH, kD));
+}
