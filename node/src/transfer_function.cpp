@@ -17,6 +17,7 @@ struct Preset {
   std::vector<ColorPoint> colors;
   std::vector<OpacityPoint> opacities;
   ColorSpace space = ColorSpace::Rgb;
+  bool hounsfield = false;  // points in Hounsfield units, applied as they are
 };
 
 const std::vector<Preset>& presets() {
@@ -37,6 +38,38 @@ const std::vector<Preset>& presets() {
        {{0, 0.231373, 0.298039, 0.752941}, {1, 0.705882, 0.0156863, 0.14902}},
        {{0, 0}, {1, 0.5}},
        ColorSpace::Diverging},
+      // On Hounsfield units (CT), whatever the data's range: air -1000, lung -900..-500, fat
+      // -100..-50, water 0, soft tissue 20..80, contrast-filled vessels 150..500, cancellous bone
+      // 300..700, cortical bone 700..1900.
+      {"hu-bone",
+       {{-1000, 0, 0, 0}, {150, 0.55, 0.25, 0.15}, {400, 0.88, 0.6, 0.29}, {1500, 1, 0.94, 0.95}},
+       {{-1000, 0}, {150, 0}, {300, 0.35}, {700, 0.7}, {1500, 0.9}, {3071, 0.9}},
+       ColorSpace::Rgb,
+       true},
+      {"hu-soft-tissue",
+       {{-1000, 0, 0, 0},
+        {-100, 0.9, 0.8, 0.45},
+        {40, 0.73, 0.25, 0.30},
+        {300, 0.95, 0.9, 0.8},
+        {1000, 1, 1, 1}},
+       {{-1000, 0}, {-200, 0}, {-100, 0.05}, {40, 0.2}, {80, 0.3}, {300, 0.6}, {3071, 0.8}},
+       ColorSpace::Rgb,
+       true},
+      {"hu-lung",
+       {{-1000, 0, 0, 0}, {-900, 0.75, 0.45, 0.45}, {-500, 0.95, 0.75, 0.7}, {0, 1, 0.9, 0.85}},
+       {{-1000, 0}, {-950, 0}, {-850, 0.04}, {-500, 0.25}, {-300, 0}, {3071, 0}},
+       ColorSpace::Rgb,
+       true},
+      {"hu-angio",
+       {{-1000, 0, 0, 0}, {100, 0.6, 0.05, 0.05}, {300, 0.95, 0.2, 0.15}, {700, 1, 0.95, 0.9}},
+       {{-1000, 0}, {100, 0}, {180, 0.5}, {450, 0.8}, {700, 0.2}, {3071, 0.3}},
+       ColorSpace::Rgb,
+       true},
+      {"hu-skin",
+       {{-1000, 0, 0, 0}, {-500, 0.8, 0.55, 0.45}, {0, 0.95, 0.75, 0.62}, {3071, 1, 0.9, 0.8}},
+       {{-1000, 0}, {-500, 0}, {-300, 0.6}, {-100, 0.95}, {3071, 0.95}},
+       ColorSpace::Rgb,
+       true},
   };
   return kPresets;
 }
@@ -100,7 +133,8 @@ TransferFunction TransferFunction::preset(const std::string& name) {
       tf.colors = p.colors;
       tf.opacities = p.opacities;
       tf.colorSpace = p.space;
-      tf.normalized = true;
+      tf.normalized = !p.hounsfield;
+      tf.hounsfield = p.hounsfield;
       return tf;
     }
   std::string list;
@@ -269,6 +303,8 @@ std::string TransferFunction::placeOnData(double dataLo, double dataHi,
     *this = rescaled(dataLo, dataHi);
     std::snprintf(line, sizeof line, "'%s' is normalized: stretched over the data range %g..%g",
                   name.c_str(), dataLo, dataHi);
+  } else if (hounsfield) {
+    std::snprintf(line, sizeof line, "'%s' is in Hounsfield units: applied as it is", name.c_str());
   } else {
     std::snprintf(line, sizeof line, "'%s' is in data values (%g..%g): applied as it is",
                   name.c_str(), domainMin(), domainMax());

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -752,4 +753,76 @@ TEST(Cli, DicomSeriesAreReadAndChosenBySeriesUid) {
   const CliRun picked = runVoxwall("info " + dir.path("ct") + " --series 1.2.3.4.2");
   ASSERT_EQ(picked.status, 0) << picked.out;
   EXPECT_NE(picked.out.find("16 x 12 x 3"), std::string::npos) << picked.out;
+}
+
+// The hu-* presets are on Hounsfield units whatever the data's range: a CT stored with an offset
+// and --rescale gives the picture of the same CT in HU, without --rescale it gets a note; --window
+// is the radiologist's level/width.
+TEST(Cli, HounsfieldPresetsMeetHuThroughRescaleAndWindow) {
+  test::TempDir dir;
+  // A 24^3 ball: soft tissue (40 HU) inside a bone shell (1200 HU), in air.
+  auto writeBall = [&](const std::string& sub, double intercept) {
+    std::filesystem::create_directories(dir.root() / sub);
+    for (int z = 0; z < 24; ++z) {
+      test::DicomSlice s;
+      s.columns = 24, s.rows = 24, s.isUnsigned = true, s.intercept = intercept;
+      for (int y = 0; y < 24; ++y)
+        for (int x = 0; x < 24; ++x) {
+          const double r = std::hypot(x - 11.5, y - 11.5, z - 11.5) / 10.0;
+          const int hu = r > 1 ? -1000 : r > 0.8 ? 1200 : 40;
+          s.pixels.push_back(std::int16_t(hu + 1024));
+        }
+      s.position = {0, 0, double(z)};
+      writeDicom(dir.path(sub + "/" + std::to_string(z)), s);
+    }
+  };
+  writeBall("hu", -1024);  // read as int16 HU
+  writeBall("offset", 0);  // read as uint16 HU + 1024
+  const std::string render = " --size 48x48 --frames 1 --camera 30,20,2.6 --out ";
+  const CliRun hu =
+      runVoxwall("render " + dir.path("hu") + " --tf hu-bone -q" + render + dir.path("a"));
+  ASSERT_EQ(hu.status, 0) << hu.out;
+  const CliRun rescaled = runVoxwall("render " + dir.path("offset") +
+                                     " --tf hu-bone --rescale 1,-1024 -q" + render + dir.path("b"));
+  ASSERT_EQ(rescaled.status, 0) << rescaled.out;
+  const auto a = voxwall::readImage(dir.path("a/frame_00000.png"));
+  const auto b = voxwall::readImage(dir.path("b/frame_00000.png"));
+  ASSERT_EQ(a.pixels.size(), b.pixels.size());
+  int worst = 0, lit = 0;
+  for (std::size_t i = 0; i < a.pixels.size(); ++i) {
+    for (int c = 0; c < 32; c += 8)
+      worst =
+          std::max(worst, std::abs(int((a.pixels[i] >> c) & 255) - int((b.pixels[i] >> c) & 255)));
+    lit += (a.pixels[i] & 255) > 40;
+  }
+  EXPECT_LE(worst, 2);
+  EXPECT_GT(lit, 200);  // the bone shell shows
+
+  // Without --rescale the offset volume holds no air in HU terms: said once.
+  const CliRun noted =
+      runVoxwall("render " + dir.path("offset") + " --tf hu-bone --no-write --size 16x16");
+  ASSERT_EQ(noted.status, 0) << noted.out;
+  EXPECT_NE(noted.out.find("'hu-bone' is on Hounsfield units, but this volume's values 24..2224 "
+                           "reach no air"),
+            std::string::npos)
+      << noted.out;
+
+  // --window CENTER,WIDTH is --tf-range CENTER-WIDTH/2,CENTER+WIDTH/2.
+  ASSERT_EQ(runVoxwall("render " + dir.path("hu") + " --tf grey --window 40,400 -q" + render +
+                       dir.path("w"))
+                .status,
+            0);
+  ASSERT_EQ(runVoxwall("render " + dir.path("hu") + " --tf grey --tf-range -160,240 -q" + render +
+                       dir.path("r"))
+                .status,
+            0);
+  EXPECT_EQ(voxwall::readImage(dir.path("w/frame_00000.png")).pixels,
+            voxwall::readImage(dir.path("r/frame_00000.png")).pixels);
+  EXPECT_NE(
+      runVoxwall("render " + dir.path("hu") + " --no-write --window 40,400 --tf-range 1,2").status,
+      0);
+  expectOneLineError(runVoxwall("render " + dir.path("hu") + " --no-write --window 40,-5"),
+                     "voxwall: --window");
+  expectOneLineError(runVoxwall("render " + dir.path("hu") + " --no-write --rescale 0,5"),
+                     "voxwall: --rescale");
 }

@@ -102,6 +102,32 @@ TEST(TransferFunction, PresetsRescaleOntoTheData) {
   EXPECT_THROW(TransferFunction::preset("nope"), std::invalid_argument);
 }
 
+// The hu-* presets stay on Hounsfield units whatever the data's range: bone is opaque at 1000 HU
+// and air and soft tissue are not, on a CT of -1024..3071 as on one cropped to 0..2000.
+TEST(TransferFunction, HounsfieldPresetsStayOnHounsfieldUnits) {
+  for (const char* name : {"hu-bone", "hu-soft-tissue", "hu-lung", "hu-angio", "hu-skin"}) {
+    auto tf = TransferFunction::preset(name);
+    EXPECT_TRUE(tf.hounsfield) << name;
+    EXPECT_FALSE(tf.normalized) << name;
+    const double lo = tf.domainMin(), hi = tf.domainMax();
+    EXPECT_NE(tf.placeOnData(0, 2000, std::nullopt).find("Hounsfield units"), std::string::npos);
+    EXPECT_EQ(tf.domainMin(), lo) << name;
+    EXPECT_EQ(tf.domainMax(), hi) << name;
+  }
+  auto bone = TransferFunction::preset("hu-bone");
+  bone.placeOnData(-1024, 3071, std::nullopt);
+  double air[4], soft[4], cortical[4];
+  bone.evaluate(-1000, air), bone.evaluate(40, soft), bone.evaluate(1000, cortical);
+  EXPECT_EQ(air[3], 0);
+  EXPECT_EQ(soft[3], 0);
+  EXPECT_GT(cortical[3], 0.7);
+  auto lung = TransferFunction::preset("hu-lung");
+  double parenchyma[4], muscle[4];
+  lung.evaluate(-700, parenchyma), lung.evaluate(40, muscle);
+  EXPECT_GT(parenchyma[3], 0.1);
+  EXPECT_EQ(muscle[3], 0);
+}
+
 // VTK's vtkColorTransferFunction (what ParaView applies) at 20 points of maps in every colour
 // space, computed by tests/tools/vtk_colormap_oracle.py with Debian's python3-vtk9.
 TEST(TransferFunction, ColourSpacesMatchVtk) {

@@ -36,14 +36,29 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
       throw std::invalid_argument("--tf-range: expected LO,HI with LO < HI");
     range = std::pair{r[0], r[1]};
   }
+  if (!o.window.empty()) {
+    const auto w = parseNumbers(o.window, "--window");
+    if (w.size() != 2 || !(w[1] > 0))
+      throw std::invalid_argument("--window: expected CENTER,WIDTH with WIDTH > 0");
+    range = std::pair{w[0] - w[1] / 2, w[0] + w[1] / 2};
+  }
+  // Everything above is in the map's units; --rescale says how stored values reach them.
+  double slope = 1, intercept = 0;
+  if (!o.rescale.empty()) {
+    const auto r = parseNumbers(o.rescale, "--rescale");
+    if (r.size() != 2 || !(r[0] > 0))
+      throw std::invalid_argument("--rescale: expected SLOPE,INTERCEPT with SLOPE > 0");
+    slope = r[0], intercept = r[1];
+  }
+  const double lo = info.valueMin * slope + intercept, hi = info.valueMax * slope + intercept;
   node::TransferFunction tf = node::TransferFunction::load(o.tf);
-  const std::string placed = tf.placeOnData(info.valueMin, info.valueMax, range);
+  const std::string placed = tf.placeOnData(lo, hi, range);
   if (!o.opacity.empty()) {
     // The opacity curve of another map, put on the data by the same rule.
     node::TransferFunction other = node::TransferFunction::load(o.opacity);
     if (!other.ownOpacity)
       throw std::invalid_argument("--opacity " + o.opacity + ": it has no opacity 'Points'");
-    const std::string otherPlaced = other.placeOnData(info.valueMin, info.valueMax, range);
+    const std::string otherPlaced = other.placeOnData(lo, hi, range);
     tf.takeOpacityFrom(other);
     notes = tf.warnings;
     notes.push_back("opacity from " + otherPlaced);
@@ -52,6 +67,18 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
   }
   // Built-in presets need no note on their range; files get one.
   if (!node::TransferFunction::splitSpec(o.tf).file.empty()) notes.push_back(placed);
+  if (tf.hounsfield && !range && (lo > -500 || hi < 0)) {
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "'%s' is on Hounsfield units, but this volume's values %g..%g reach no air "
+                  "(about -1000) or no tissue: if it is a CT stored with an offset, give "
+                  "--rescale SLOPE,INTERCEPT (often 1,-1024)",
+                  o.tf.c_str(), lo, hi);
+    notes.push_back(line);
+  }
+  // From the map's units back to stored values: x -> (x - intercept) / slope.
+  if (slope != 1 || intercept != 0)
+    tf = tf.rescaled((tf.domainMin() - intercept) / slope, (tf.domainMax() - intercept) / slope);
   return tf;
 }
 

@@ -292,6 +292,8 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["zoom_to"] = o.zoomTo;
   m["tf"] = o.tf;
   m["tf_range"] = o.tfRange;
+  m["window"] = o.window;
+  m["rescale"] = o.rescale;
   m["opacity"] = o.opacity;
   m["step"] = render.stepVoxels;
   m["shading"] = render.shading;
@@ -418,16 +420,28 @@ void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
 // Transfer function, sampling and the backend.
 void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--tf", o.tf,
-                 "Transfer function: a built-in preset (mri, grey, ct-bone, ct-soft, hot, "
-                 "cool-warm), a ParaView preset or transfer-function .json, or FILE:NAME for one "
-                 "map of a file with several (`voxwall tf list FILE` names them). Presets on "
-                 "[0,1] or [-1,1] are stretched over the data range as ParaView does; other "
-                 "files are in data values")
+                 "Transfer function: a built-in preset stretched over the data range (mri, grey, "
+                 "ct-bone, ct-soft, hot, cool-warm), a built-in preset on Hounsfield units for CT "
+                 "(hu-bone, hu-soft-tissue, hu-lung, hu-angio, hu-skin: applied as they are, "
+                 "whatever the data's range), a ParaView preset or transfer-function .json, or "
+                 "FILE:NAME for one map of a file with several (`voxwall tf list FILE` names "
+                 "them). Presets on [0,1] or [-1,1] are stretched over the data range as ParaView "
+                 "does; other files are in data values")
       ->capture_default_str();
   cmd.add_option("--opacity", o.opacity,
                  "Take the opacity curve from this preset or file (FILE, FILE:NAME) and the "
                  "colours from --tf");
   cmd.add_option("--tf-range", o.tfRange, "Stretch the transfer function over data values LO,HI");
+  cmd.add_option("--window", o.window,
+                 "Window as radiologists set it, CENTER,WIDTH (level/width, e.g. 400,1800 for "
+                 "bone, 40,400 for soft tissue): the transfer function is stretched over "
+                 "CENTER-WIDTH/2 .. CENTER+WIDTH/2 (not with --tf-range)")
+      ->excludes("--tf-range");
+  cmd.add_option("--rescale", o.rescale,
+                 "SLOPE,INTERCEPT: the volume's stored values v are SLOPE*v+INTERCEPT in the units "
+                 "of the transfer function, --tf-range and --window (e.g. 1,-1024 for a CT stored "
+                 "with an offset, so hu-* presets meet Hounsfield units). DICOM series are "
+                 "rescaled when read and need none");
   cmd.add_option("--step", o.step, "Ray step in voxels (of the smallest spacing)")
       ->capture_default_str();
   cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");

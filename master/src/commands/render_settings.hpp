@@ -24,6 +24,8 @@ struct RenderOptions {
   std::string sink, token, wall, subsampling = "420", tileCodec = "jpeg";
   int surface = 0;      // of a multi-surface Tide configuration
   std::string opacity;  // --opacity: the opacity curve of another map
+  std::string window;   // --window CENTER,WIDTH (level/width)
+  std::string rescale;  // --rescale SLOPE,INTERCEPT: stored values to the map's units
   int jpegQuality = 90;
   int interactiveStep = 4;       // --interactive-step
   std::string refine = "4,2,1";  // --refine

@@ -31,15 +31,18 @@ class TransferFunction {
   // Points on [0, 1] (or [-1, 1]) that ParaView stretches over the data when it applies the map:
   // the built-in presets and ParaView's bundled presets. False: points are data values.
   bool normalized = false;
+  // A built-in preset on Hounsfield units (hu-bone, ...): points are data values in HU.
+  bool hounsfield = false;
   // False when the file had no opacity "Points" and the default below was put in.
   bool ownOpacity = true;
   // What the reader approximated or filled in, for the program to say once.
   std::vector<std::string> warnings;
 
-  // Names of the built-in presets: "mri", "ct-bone", "ct-soft", "grey", "hot", "cool-warm".
+  // Names of the built-in presets: "mri", "grey", "ct-bone", "ct-soft", "hot", "cool-warm" on
+  // [0, 1], and "hu-bone", "hu-soft-tissue", "hu-lung", "hu-angio", "hu-skin" on Hounsfield units.
   static std::vector<std::string> presetNames();
-  // A built-in preset over the domain [0, 1] (rescale() it to the data). Throws
-  // std::invalid_argument listing the names for an unknown one.
+  // A built-in preset: over the domain [0, 1] (rescale() it to the data), or in Hounsfield units
+  // for the hu-* presets. Throws std::invalid_argument listing the names for an unknown one.
   static TransferFunction preset(const std::string& name);
   // Reads a ParaView preset file: one preset object, or a list of them (ParaView's preset list and
   // "Export" form), each with "RGBPoints" and optionally "Points", "ColorSpace", "Name"; or a
