@@ -231,6 +231,27 @@ SteeringSettings steeringSettings(const JobSettings& job) {
   return s;
 }
 
+void CameraOffset::take(const net::Control& c, const node::Orbit& path) {
+  switch (c.command) {
+    case net::ControlCommand::Rotate:
+      azimuthDeg = std::remainder(azimuthDeg + c.a, 360.0);
+      if (azimuthDeg >= 180) azimuthDeg -= 360;
+      elevationDeg =
+          std::clamp(elevationDeg + c.b, -89.0 - path.elevationDeg, 89.0 - path.elevationDeg);
+      break;
+    case net::ControlCommand::Zoom:
+      zoom = std::clamp(zoom / c.a, 0.05, 20.0);
+      break;
+    case net::ControlCommand::Pan:
+      panX = std::clamp(panX + c.a, -kMaxPan, kMaxPan);
+      panY = std::clamp(panY + c.b, -kMaxPan, kMaxPan);
+      break;
+    case net::ControlCommand::Reset:
+      *this = {};
+      break;
+  }
+}
+
 node::Orbit CameraOffset::apply(node::Orbit orbit) const {
   orbit.azimuthDeg += azimuthDeg;
   orbit.elevationDeg = std::clamp(orbit.elevationDeg + elevationDeg, -89.0, 89.0);
@@ -527,20 +548,7 @@ class MasterLoop {
     s.sinkNotes = control_->drainNotes();
     for (const auto& c : control_->drain()) {
       ++s.controls;
-      switch (c.command) {
-        case net::ControlCommand::Rotate:
-          offset_.azimuthDeg += c.a, offset_.elevationDeg += c.b;
-          break;
-        case net::ControlCommand::Zoom:
-          offset_.zoom = std::clamp(offset_.zoom / c.a, 0.05, 20.0);
-          break;
-        case net::ControlCommand::Pan:
-          offset_.panX += c.a, offset_.panY += c.b;
-          break;
-        case net::ControlCommand::Reset:
-          offset_ = {};
-          break;
-      }
+      offset_.take(c, job_.path.at(f));
     }
   }
 

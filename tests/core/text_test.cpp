@@ -23,3 +23,13 @@ TEST(Text, FormatLineFormatsAndCutsLongLines) {
   EXPECT_EQ(line.size(), 511u);
   EXPECT_EQ(line, longText.substr(0, 511));
 }
+
+// Outside text reaches a log only quoted: no newline, ESC or NUL can forge or cut a line.
+TEST(Text, QuotedForLogEscapesEveryByteThatCouldForgeALine) {
+  using voxwall::quotedForLog;
+  EXPECT_EQ(quotedForLog("rotate 1 2"), "\"rotate 1 2\"");
+  EXPECT_EQ(quotedForLog("a\nframe 9 presented\x1b[2J"), "\"a\\x0aframe 9 presented\\x1b[2J\"");
+  EXPECT_EQ(quotedForLog(std::string("a\0b", 3)), "\"a\\x00b\"");
+  EXPECT_EQ(quotedForLog("say \"hi\" \\ \xc3\xa9"), "\"say \\\"hi\\\" \\\\ \\xc3\\xa9\"");
+  EXPECT_EQ(quotedForLog(std::string(100, 'x'), 8), "\"xxxxxxxx\"... (100 bytes)");
+}

@@ -3,6 +3,7 @@
 // abandons, the frame budget, and batch jobs that never reduce, refine or abandon.
 #include <gtest/gtest.h>
 
+#include <voxwall/master/render_job.hpp>
 #include <voxwall/master/steering.hpp>
 
 using namespace voxwall;
@@ -126,4 +127,32 @@ TEST(Steering, RefineStepsAreParsedAndChecked) {
   auto settings = steered();
   settings.refine = {4, 2};
   EXPECT_THROW(Steering{settings}, std::invalid_argument);
+}
+
+// Camera commands from the wall cannot wind the camera up: after rotate 0 1e6 the view is at the
+// top, and rotate 0 -60 moves it 60 degrees down at once; azimuth wraps; pan stays within reach.
+TEST(Steering, CameraCommandsAreClampedAsTheyArrive) {
+  node::Orbit path;
+  path.azimuthDeg = 30, path.elevationDeg = 20;
+  master::CameraOffset offset;
+  offset.take({net::ControlCommand::Rotate, 0, 1e6}, path);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 89);
+  offset.take({net::ControlCommand::Rotate, 0, -60}, path);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 29);
+  offset.take({net::ControlCommand::Rotate, 0, -1e6}, path);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, -89);
+  offset.take({net::ControlCommand::Rotate, 1e6, 0}, path);
+  EXPECT_GE(offset.azimuthDeg, -180);
+  EXPECT_LT(offset.azimuthDeg, 180);
+  EXPECT_NEAR(offset.azimuthDeg, -80, 1e-6);  // 1e6 = 2778 turns - 80 degrees
+  offset.take({net::ControlCommand::Pan, 1e6, -1e6}, path);
+  EXPECT_DOUBLE_EQ(offset.panX, master::CameraOffset::kMaxPan);
+  EXPECT_DOUBLE_EQ(offset.panY, -master::CameraOffset::kMaxPan);
+  offset.take({net::ControlCommand::Pan, -0.5, 0}, path);
+  EXPECT_DOUBLE_EQ(offset.panX, master::CameraOffset::kMaxPan - 0.5);
+  offset.take({net::ControlCommand::Zoom, 1e-6, 0}, path);
+  EXPECT_DOUBLE_EQ(offset.zoom, 20);
+  offset.take({net::ControlCommand::Reset, 0, 0}, path);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 20);
+  EXPECT_DOUBLE_EQ(offset.panX, 0);
 }

@@ -304,6 +304,29 @@ TEST(Sink, ForwardsCameraCommandsToTheController) {
   EXPECT_THROW(walls::parseControlLine("zoom -1"), std::invalid_argument);
 }
 
+// A command is its whole line: trailing text, missing numbers or numbers with junk are refused,
+// and the refusal quotes the line so that it cannot forge a log line or drive a terminal.
+TEST(Sink, ControlLinesAreParsedWholeAndQuotedWhenRefused) {
+  const auto ok = walls::parseControlLine(" \trotate  30\t-5 ");
+  EXPECT_EQ(ok.command, net::ControlCommand::Rotate);
+  EXPECT_EQ(ok.a, 30);
+  EXPECT_EQ(ok.b, -5);
+  EXPECT_EQ(walls::parseControlLine("pan 0.25 -1e-1").b, -0.1);
+  EXPECT_EQ(walls::parseControlLine("reset").command, net::ControlCommand::Reset);
+  for (const char* bad : {"zoom 2abc", "rotate 1 2 3 extra", "rotate 1", "reset now", "pan 1e7 0",
+                          "zoom nan", "rotate inf 0", "zoom 0", "", "pan 1,2"})
+    EXPECT_THROW(walls::parseControlLine(bad), std::invalid_argument) << bad;
+  try {
+    walls::parseControlLine("zoom 2\nsink: frame 999999 presented: 4/4 displays\x1b[2J");
+    ADD_FAILURE() << "a forged line was accepted";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_EQ(what.find('\x1b'), std::string::npos) << what;
+    EXPECT_NE(what.find("\\x0asink: frame 999999"), std::string::npos) << what;
+  }
+}
+
 // Edge-blended projectors (a Tide surface with a negative bezel): both displays show the shared
 // columns, the frame completes once every display's pixels are there, and each display's file
 // holds the shared pixels.

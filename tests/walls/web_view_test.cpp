@@ -178,9 +178,11 @@ TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
   const std::pair<std::string, std::string> cases[] = {
       {"binary", "binary messages are not taken"},
       {"oversized", ""},
-      {"fly to the moon", "'fly to the moon': commands"},
-      {"zoom -1", "'zoom -1': commands"},
-      {"rotate 1e308 1e308", "values out of range"},
+      {"fly to the moon", "\"fly to the moon\": commands"},
+      {"zoom -1", "\"zoom -1\": zoom takes a factor above 0"},
+      {"rotate 1e308 1e308", "\"1e308\" is not a number within +-1e6"},
+      {"zoom 2abc", "\"2abc\" is not a number"},
+      {"rotate 1 2 3", "rotate takes 2 numbers"},
       {std::string("rotate \0\xff 1", 11), ""},
       {"auth", "commands"},
   };

@@ -11,7 +11,9 @@
 #include <filesystem>
 #include <optional>
 #include <sstream>
+#include <vector>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/net/asio.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
@@ -204,26 +206,52 @@ void Sink::sendControl(const net::Control& control) {
 SinkStats Sink::stats() const { return impl_->core->stats(); }
 
 net::Control parseControlLine(const std::string& line) {
-  std::istringstream in(line);
+  // The whole line, word by word (spaces or tabs between them): a command and exactly its numbers.
+  std::vector<std::string> words;
   std::string word;
-  in >> word;
-  net::Control c;
-  double a = 0, b = 0;
-  const std::string usage = "commands: rotate DAZ DEL | zoom FACTOR | pan DX DY | reset";
-  if (word == "rotate" && (in >> a >> b)) {
-    c.command = net::ControlCommand::Rotate;
-  } else if (word == "zoom" && (in >> a) && a > 0) {
-    c.command = net::ControlCommand::Zoom;
-  } else if (word == "pan" && (in >> a >> b)) {
-    c.command = net::ControlCommand::Pan;
-  } else if (word == "reset") {
-    c.command = net::ControlCommand::Reset;
-  } else {
-    throw std::invalid_argument("'" + line + "': " + usage);
+  for (const char ch : line) {
+    if (ch == ' ' || ch == '\t') {
+      if (!word.empty()) words.push_back(std::move(word)), word.clear();
+    } else {
+      word += ch;
+    }
   }
-  if (!std::isfinite(a) || !std::isfinite(b) || std::abs(a) > 1e6 || std::abs(b) > 1e6)
-    throw std::invalid_argument("'" + line + "': values out of range");
-  c.a = a, c.b = b;
+  if (!word.empty()) words.push_back(std::move(word));
+  const std::string usage = "commands: rotate DAZ DEL | zoom FACTOR | pan DX DY | reset";
+  const std::string quoted = quotedForLog(line);
+  auto number = [&](const std::string& text) {
+    std::size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != text.size() || !std::isfinite(v) || std::abs(v) > 1e6)
+      throw std::invalid_argument(quoted + ": " + quotedForLog(text, 24) +
+                                  " is not a number within +-1e6 (" + usage + ")");
+    return v;
+  };
+  net::Control c;
+  const std::string name = words.empty() ? "" : words[0];
+  const std::size_t args = name == "rotate" || name == "pan" ? 2 : name == "zoom" ? 1 : 0;
+  if (name == "rotate")
+    c.command = net::ControlCommand::Rotate;
+  else if (name == "pan")
+    c.command = net::ControlCommand::Pan;
+  else if (name == "zoom")
+    c.command = net::ControlCommand::Zoom;
+  else if (name == "reset")
+    c.command = net::ControlCommand::Reset;
+  else
+    throw std::invalid_argument(quoted + ": " + usage);
+  if (words.size() != args + 1)
+    throw std::invalid_argument(quoted + ": " + name + " takes " + std::to_string(args) +
+                                (args == 1 ? " number" : " numbers") + " (" + usage + ")");
+  if (args >= 1) c.a = number(words[1]);
+  if (args >= 2) c.b = number(words[2]);
+  if (c.command == net::ControlCommand::Zoom && !(c.a > 0))
+    throw std::invalid_argument(quoted + ": zoom takes a factor above 0");
   return c;
 }
 

@@ -1,6 +1,7 @@
 #include <cstdio>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
 namespace voxwall::walls {
@@ -98,8 +99,8 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   }
   const Wall& wall = settings_.wall;
   if (!hello.wallId.empty() && hello.wallId != wall.id) {
-    refuse(peer, peer.name() + ": renders for wall '" + hello.wallId + "', this sink shows '" +
-                     wall.id + "'");
+    refuse(peer, peer.name() + ": renders for wall " + quotedForLog(hello.wallId, 64) +
+                     ", this sink shows '" + wall.id + "'");
     return false;
   }
   if (endedJobs_.count(hello.jobId)) {

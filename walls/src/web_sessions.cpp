@@ -4,6 +4,8 @@
 // clang-format off
 #include <utility>
 // clang-format on
+#include <voxwall/core/text.hpp>
+
 #include "web_messages.hpp"
 #include "web_view_impl.hpp"
 
@@ -303,7 +305,7 @@ void HttpSession::serve(http::request<http::empty_body> req) {
   const std::string target(req.target());
   const std::string host(req[http::field::host]);
   if (!view->hostAllowed(host)) {
-    view->say("sink: refused a request for Host '" + host.substr(0, 100) + "'");
+    view->say("sink: refused a request for Host " + quotedForLog(host, 100));
     return reply(http::status::forbidden, "this Host is not served here\n", "text/plain");
   }
   if (websocket::is_upgrade(req)) return upgrade(std::move(req), target, host);

@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <string>
+#include <string_view>
 
 namespace voxwall {
 
@@ -17,5 +18,11 @@ std::string formatLine(const char* format, Args... args) {
   std::snprintf(line, sizeof line, format, args...);
   return line;
 }
+
+// Text from outside (a peer's wall id, a viewer's command, a Host header) made safe for a log line
+// or a terminal: in double quotes, printable ASCII kept, a quote or backslash escaped, any other
+// byte (newline, ESC, NUL, 8-bit) written as \xNN, and cut after `maxChars` input bytes with
+// "..." and the full length. Nothing from outside reaches a log any other way.
+std::string quotedForLog(std::string_view text, std::size_t maxChars = 80);
 
 }  // namespace voxwall

@@ -35,6 +35,12 @@ struct StreamSettings {
 struct CameraOffset {
   double azimuthDeg = 0, elevationDeg = 0, zoom = 1, panX = 0, panY = 0;
   node::Orbit apply(node::Orbit orbit) const;
+  // Adds a command, kept within reach so that no command winds the camera up: the azimuth
+  // offset modulo 360 (in [-180, 180)), the elevation so that `path`'s elevation plus the offset
+  // stays within +-89 degrees, the zoom factor within 0.05..20, the pan within +-kMaxPan
+  // bounding radii (the volume stays on the screen). Reset clears it.
+  void take(const net::Control& command, const node::Orbit& path);
+  static constexpr double kMaxPan = 1.5;
 };
 
 struct JobSettings {
