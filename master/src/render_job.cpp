@@ -9,6 +9,7 @@
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
 #include <voxwall/core/process.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/master/frame_messages.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/tcp.hpp>
@@ -662,6 +663,12 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   const auto jobStart = Clock::now();
   MasterLoop loop(comm, backend, volume, tf, render, job);
   JobSummary summary;
+  // Since when no frame's tiles reached the wall sink, whether one ever did, and the last reason.
+  std::optional<Clock::time_point> unreachedSince;
+  bool reached = false;
+  std::string missed;
+  const std::string sinkName =
+      job.stream ? "wall sink " + job.stream->host + ":" + std::to_string(job.stream->port) : "";
   for (int f = 0; f < job.frames; ++f) {
     if (loop.done(f)) {
       ++summary.framesSkipped;
@@ -670,8 +677,23 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     const FrameSummary s = loop.frame(f);
     ++summary.framesRendered;
     if (onFrame) onFrame(s);
+    if (!job.stream) continue;
+    if (s.streamError.empty()) {
+      unreachedSince.reset();
+      reached = true;
+      continue;
+    }
+    missed = s.streamError;
+    if (!unreachedSince) unreachedSince = Clock::now();
+    if (since(*unreachedSince) > job.stream->deadlineSeconds)
+      throw net::NetError(sinkName + ": no tiles reached it for " +
+                          formatLine("%g", job.stream->deadlineSeconds) + " s (" + missed +
+                          "); the job stops rather than render for nobody");
   }
   loop.finish(summary);
+  if (job.stream && summary.framesRendered > 0 && !reached)
+    throw net::NetError(sinkName + ": none of the " + std::to_string(summary.framesRendered) +
+                        " frame(s) reached it (" + missed + ")");
   summary.seconds = since(jobStart);
   return summary;
 }

@@ -826,3 +826,17 @@ TEST(Cli, HounsfieldPresetsMeetHuThroughRescaleAndWindow) {
   expectOneLineError(runVoxwall("render " + dir.path("hu") + " --no-write --rescale 0,5"),
                      "voxwall: --rescale");
 }
+
+// A job whose tiles never reach the wall fails with one line instead of exiting 0: at the end
+// of a short job, and within --sink-deadline of a long one. Port 1 has no sink (refused at once).
+TEST(Cli, AStreamingJobWhoseTilesNeverReachTheWallFails) {
+  const std::string wall = std::string(VOXWALL_WALLS_DIR) + "/ci-2x2.json";
+  const std::string render =
+      "render generated:menger:2 --wall " + wall + " --sink 127.0.0.1:1 --threads 1 -q ";
+  expectOneLineError(runVoxwall(render + "--frames 3"),
+                     "voxwall: wall sink 127.0.0.1:1: none of the 3 frame(s) reached it (rank 0: ");
+  expectOneLineError(runVoxwall(render + "--frames 1000000 --sink-deadline 0.5"),
+                     "voxwall: wall sink 127.0.0.1:1: no tiles reached it for 0.5 s (rank 0: ");
+  expectOneLineError(runVoxwall(render + "--frames 1 --sink-deadline 0"),
+                     "voxwall: --sink-deadline must be a positive number of seconds");
+}

@@ -150,6 +150,9 @@ std::optional<master::StreamSettings> streamSettings(const RenderOptions& o,
   std::tie(st.host, st.port) = net::parseEndpoint(o.sink, "--sink");
   st.token = o.token;
   st.wallId = wall->id;
+  if (!(o.sinkDeadline > 0) || !std::isfinite(o.sinkDeadline))
+    throw std::invalid_argument("--sink-deadline must be a positive number of seconds");
+  st.deadlineSeconds = o.sinkDeadline;
   st.background = wall->background;
   st.codec.codec = choose<net::TileCodec>(o.tileCodec, "--tile-codec",
                                           {{"jpeg", net::TileCodec::Jpeg},
@@ -338,6 +341,11 @@ void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
                  "Stream every rank's tiles to the wall sink at HOST:PORT (voxwall sink); needs "
                  "--wall. Frames are then written by rank 0 only if --out is given too");
   cmd.add_option("--token", o.token, "Token the sink asks for");
+  cmd.add_option("--sink-deadline", o.sinkDeadline,
+                 "Seconds the job goes on while no frame's tiles reach the sink (it is down, "
+                 "restarting, or its port is full) before it fails; a job that ends without one "
+                 "frame having reached the sink fails too")
+      ->capture_default_str();
   cmd.add_option("--tile-codec", o.tileCodec,
                  "How tiles travel to the sink: jpeg, raw (exact) or deflate (exact, zlib)")
       ->capture_default_str();

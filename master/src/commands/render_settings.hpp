@@ -31,6 +31,7 @@ struct RenderOptions {
   std::string refine = "4,2,1";  // --refine
   double frameBudgetMs = 0;      // --frame-budget
   double settle = 0.5;           // --settle, seconds
+  double sinkDeadline = 30;      // --sink-deadline, seconds
   bool sizeGiven = false, outGiven = false;
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;

@@ -29,6 +29,10 @@ struct StreamSettings {
   std::string token, wallId;
   glm::dvec3 background{0.0};  // JPEG has no alpha: tiles are composited onto this
   net::TileCodecSettings codec;
+  // A job whose tiles have not reached the sink (from every rank that had tiles) for this long
+  // fails with NetError, and so does a job that ends without one frame having reached it: a wall
+  // that shows nothing is never a success.
+  double deadlineSeconds = 30;
 };
 
 // Camera changes from the wall, added to the camera path from the frame after they arrive.
