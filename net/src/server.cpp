@@ -58,8 +58,17 @@ struct Server::Impl {
                 : "peer " + ep.address().to_string() + ":" + std::to_string(ep.port());
     }
 
+    static std::string addressOf(tcp::socket& socket) {
+      asio::error_code ec;
+      const auto ep = socket.remote_endpoint(ec);
+      return ec ? std::string() : ep.address().to_string();
+    }
+
     Session(Impl& s, tcp::socket sock)
-        : Peer(nameOf(sock)), server(s), socket(std::move(sock)), helloDeadline(s.io) {}
+        : Peer(nameOf(sock), addressOf(sock)),
+          server(s),
+          socket(std::move(sock)),
+          helloDeadline(s.io) {}
 
     void start() {
       server.handler.attach(*this);

@@ -327,6 +327,42 @@ TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
   EXPECT_EQ(sink.sink().stats().peersRefused, refusedBefore);  // no second attempt
 }
 
+// Guessing the token gains nothing from speed: after a wrong token the address is refused unheard
+// (even with the right token) for a back-off that doubles, and the log counts the guesses instead
+// of a line each; once the back-off passed, the right token is accepted.
+TEST(SinkHardening, WrongTokensBackOffPerAddressAndAreCountedNotLoggedEach) {
+  auto s = settings();
+  s.token = "right";
+  test::SinkRunner sink(s);
+  auto bad = renderer(0, 1);
+  bad.token = "wrong";
+  for (int i = 0; i < 40; ++i) {
+    net::TileStreamer streamer("127.0.0.1", sink.port(), bad);
+    EXPECT_FALSE(streamer.sendFrame(0, {}, 0));
+    EXPECT_NE(streamer.refused().find("wrong token"), std::string::npos) << streamer.refused();
+  }
+  EXPECT_GE(sink.sink().stats().peersRefused, 40);
+  const std::string log = sink.log();
+  int lines = 0;
+  for (std::size_t at = log.find("wrong token ("); at != std::string::npos;
+       at = log.find("wrong token (", at + 1))
+    ++lines;
+  EXPECT_GE(lines, 1) << log;
+  EXPECT_LE(lines, 4) << log;
+  auto good = renderer(0, 1);
+  good.token = "right";
+  {
+    net::TileStreamer early("127.0.0.1", sink.port(), good);
+    EXPECT_FALSE(early.sendFrame(0, {}, 0));
+    EXPECT_NE(early.refused().find("too many wrong tokens from 127.0.0.1"), std::string::npos)
+        << early.refused();
+  }
+  EXPECT_TRUE(test::waitUntil([&] {
+    net::TileStreamer later("127.0.0.1", sink.port(), good);
+    return later.sendFrame(0, {}, 0);
+  })) << sink.log();
+}
+
 // Defect 7: frames appear whole (marker last); what a killed sink left is cleared at start.
 TEST(SinkHardening, FrameFilesAppearWholeAndLeftoversAreCleared) {
   test::TempDir dir;

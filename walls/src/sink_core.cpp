@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstdio>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/files.hpp>
@@ -48,11 +49,57 @@ std::uint32_t SinkCore::payloadLimit(const net::Peer& peer) const {
 }
 
 void SinkCore::refuse(net::Peer& peer, const std::string& reason) {
-  updateStats([](SinkStats& s) { ++s.peersRefused; });
   say("sink: refused " + reason);
+  refuseQuietly(peer, reason);
+}
+
+void SinkCore::refuseQuietly(net::Peer& peer, const std::string& reason) {
+  updateStats([](SinkStats& s) { ++s.peersRefused; });
   peer.send(net::encodeMessage(net::Bye{reason.substr(0, net::kMaxString)}));
   peer.hangUp();
   detach(peer);
+}
+
+bool SinkCore::tokenAccepted(net::Peer& peer, const net::Hello& hello) {
+  if (settings_.token.empty()) return true;
+  using Clock = std::chrono::steady_clock;
+  const auto now = Clock::now();
+  const std::string& from = peer.address();
+  auto it = guesses_.find(from);
+  const bool right = sameSecret(hello.token, settings_.token);
+  if (it != guesses_.end() && now < it->second.until) {
+    // Backing off: not even a right token is looked at, so guessing gains nothing from speed.
+    ++it->second.untold;
+    refuseQuietly(peer, peer.name() + ": too many wrong tokens from " + from +
+                            "; try again in a few seconds");
+    return false;
+  }
+  if (right) {
+    if (it != guesses_.end()) guesses_.erase(it);
+    return true;
+  }
+  // A bounded table: forget addresses whose back-off has passed, then the oldest entry.
+  if (it == guesses_.end() && guesses_.size() >= 4096) {
+    std::erase_if(guesses_, [&](const auto& g) { return g.second.until < now; });
+    if (guesses_.size() >= 4096) guesses_.erase(guesses_.begin());
+  }
+  Guesses& g = guesses_[from];
+  ++g.wrong;
+  const auto backoff = std::min<Clock::duration>(
+      kFirstTokenBackoff * (std::int64_t(1) << std::min(g.wrong - 1, 20)), kMaxTokenBackoff);
+  g.until = now + backoff;
+  // One line for the first wrong tokens, then at most one every 10 s with the count since.
+  if (g.wrong <= 3 || now - g.told >= std::chrono::seconds(10)) {
+    const double seconds = std::chrono::duration<double>(backoff).count();
+    refuse(peer, peer.name() + ": wrong token (" + std::to_string(g.wrong) + " from " + from +
+                     (g.untold ? ", " + std::to_string(g.untold) + " more refused unheard" : "") +
+                     "; refused unheard for " + formatLine("%.1f", seconds) + " s)");
+    g.told = now, g.untold = 0;
+  } else {
+    ++g.untold;
+    refuseQuietly(peer, peer.name() + ": wrong token");
+  }
+  return false;
 }
 
 void SinkCore::dropped(net::Peer& peer, const std::string& why) {
@@ -93,10 +140,7 @@ SinkStats SinkCore::stats() const {
 
 bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   const net::Hello hello = net::decodeHello(payload, peer.name());
-  if (!settings_.token.empty() && !sameSecret(hello.token, settings_.token)) {
-    refuse(peer, peer.name() + ": wrong token");
-    return false;
-  }
+  if (!tokenAccepted(peer, hello)) return false;
   const Wall& wall = settings_.wall;
   if (!hello.wallId.empty() && hello.wallId != wall.id) {
     refuse(peer, peer.name() + ": renders for wall " + quotedForLog(hello.wallId, 64) +

@@ -25,13 +25,16 @@ namespace voxwall::net {
 // and fuzz targets implement them over memory.
 class Peer {
  public:
-  explicit Peer(std::string name) : name_(std::move(name)) {}
+  explicit Peer(std::string name, std::string address = "")
+      : name_(std::move(name)), address_(std::move(address)) {}
   virtual ~Peer() = default;
   // Queues a whole message to the peer.
   virtual void send(std::vector<std::byte> bytes) = 0;
   // Closes the connection once what is queued was sent.
   virtual void hangUp() = 0;
   const std::string& name() const { return name_; }
+  // The remote address without its port ("127.0.0.1"; empty for peers that are not sockets).
+  const std::string& address() const { return address_; }
   // Whether the handler accepted this peer's Hello (the server's Hello deadline ends then).
   bool greeted() const { return greeted_; }
   const Hello& hello() const { return hello_; }
@@ -44,6 +47,7 @@ class Peer {
 
  private:
   std::string name_;
+  std::string address_;
   bool greeted_ = false;
   Hello hello_;
 };

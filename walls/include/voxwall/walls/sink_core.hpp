@@ -11,8 +11,10 @@
 // never mistaken for an old frame.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -48,6 +50,10 @@ class SinkCore {
               std::span<const std::byte> payload);
   // Sends Bye with the reason, counts and logs the refusal, hangs up.
   void refuse(net::Peer& peer, const std::string& reason);
+  // How long an address that sent a wrong token is refused without its token being looked at:
+  // 0.1 s after the first, doubling with each wrong one up to kMaxTokenBackoff.
+  static constexpr std::chrono::milliseconds kFirstTokenBackoff{100};
+  static constexpr std::chrono::seconds kMaxTokenBackoff{30};
   // Counts and logs a peer dropped for `why` (empty: it simply closed).
   void dropped(net::Peer& peer, const std::string& why);
   // The presenter's word on a complete frame (presented, skipped, not written), told to the
@@ -68,6 +74,9 @@ class SinkCore {
 
  private:
   bool greet(net::Peer& peer, std::span<const std::byte> payload);
+  // The token check with its per-address back-off; false when the peer was refused.
+  bool tokenAccepted(net::Peer& peer, const net::Hello& hello);
+  void refuseQuietly(net::Peer& peer, const std::string& reason);
   void onEvent(const FrameEvent& event);
   void say(const std::string& line) {
     if (log_) log_(line);
@@ -81,6 +90,13 @@ class SinkCore {
   net::Peer* controller_ = nullptr;
   std::optional<std::uint64_t> job_;
   std::set<std::uint64_t> endedJobs_;
+  // Wrong tokens per remote address: how many, until when the address is refused unheard, how
+  // many refusals the log has not told yet, and when it last told one.
+  struct Guesses {
+    int wrong = 0, untold = 0;
+    std::chrono::steady_clock::time_point until{}, told{};
+  };
+  std::map<std::string, Guesses> guesses_;
   mutable std::mutex statsMutex_;
   SinkStats stats_;
 };
