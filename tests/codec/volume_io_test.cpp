@@ -13,6 +13,7 @@
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/errors.hpp>
 
+#include "support/format_error_expect.hpp"
 #include "support/patterned_volume.hpp"
 #include "support/temp_dir.hpp"
 
@@ -32,21 +33,7 @@ void expectSameVoxels(const Volume& a, const Volume& b) {
   EXPECT_EQ(a.valueMax, b.valueMax);
 }
 
-// Expects f() to throw FormatError whose message starts with the file name and has one line.
-template <class F>
-void expectFormatError(F&& f, const std::string& file, const std::string& fragment = "") {
-  try {
-    f();
-    ADD_FAILURE() << "no error for " << file;
-  } catch (const FormatError& e) {
-    const std::string what = e.what();
-    EXPECT_EQ(what.rfind(file + ": ", 0), 0u) << what;
-    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
-    if (!fragment.empty()) {
-      EXPECT_NE(what.find(fragment), std::string::npos) << what;
-    }
-  }
-}
+using voxwall::test::expectFormatError;
 
 const ScalarType kTypes[] = {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Int16,
                              ScalarType::Float32};
