@@ -92,6 +92,51 @@ bool startsAsDicom(const fs::path& file) {
   return in.read(head, sizeof head) && std::memcmp(head + 128, "DICM", 4) == 0;
 }
 
+// Debian's GDCM is built with its assertions on, and its reader of the File Meta Information
+// (group 0002, always explicit VR little endian) asserts, aborting the program, on a sequence, an
+// undefined length or a value cut short there. Those elements are walked here first (only their
+// lengths, not their meaning) so that such a file is refused instead.
+void checkMetaGroup(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(file, ec);
+  if (ec || !in) throw FormatError(file, "cannot read it");
+  std::uint64_t at = 132;  // after the preamble and "DICM"
+  auto bytes = [&](std::uint64_t offset, std::size_t n, unsigned char* out) {
+    if (offset + n > size) return false;
+    in.seekg(std::streamoff(offset));
+    return bool(in.read(reinterpret_cast<char*>(out), std::streamsize(n)));
+  };
+  for (int elements = 0; elements < 1000; ++elements) {
+    unsigned char head[8];
+    if (!bytes(at, 2, head) || (head[0] | head[1] << 8) != 0x0002) return;  // the meta group ended
+    if (!bytes(at, 8, head)) throw FormatError(file, "its File Meta Information is cut short");
+    const char vr[3] = {char(head[4]), char(head[5]), 0};
+    const std::string v(vr);
+    const bool long32 = v == "OB" || v == "OW" || v == "OF" || v == "OD" || v == "OL" ||
+                        v == "OV" || v == "SQ" || v == "UN" || v == "UT" || v == "UC" ||
+                        v == "UR" || v == "SV" || v == "UV";
+    std::uint64_t length = 0, header = 8;
+    if (long32) {
+      unsigned char l[4];
+      if (!bytes(at + 8, 4, l)) throw FormatError(file, "its File Meta Information is cut short");
+      length = std::uint64_t(l[0]) | std::uint64_t(l[1]) << 8 | std::uint64_t(l[2]) << 16 |
+               std::uint64_t(l[3]) << 24;
+      header = 12;
+    } else {
+      length = std::uint64_t(head[6]) | std::uint64_t(head[7]) << 8;
+    }
+    if (v == "SQ" || length == 0xffffffffu)
+      throw FormatError(file, "its File Meta Information holds a sequence or an undefined length");
+    if (at + header + length > size)
+      throw FormatError(file,
+                        "an element of its File Meta Information runs past the end of the "
+                        "file");
+    at += header + length;
+  }
+  throw FormatError(file, "its File Meta Information holds more than 1000 elements");
+}
+
 bool isDicomDirName(const fs::path& p) {
   std::string name = p.filename().string();
   std::transform(name.begin(), name.end(), name.begin(),
@@ -104,7 +149,11 @@ bool isDicomDirName(const fs::path& p) {
 std::vector<std::string> dicomFilesOf(const std::string& path) {
   fs::path root(path);
   std::error_code ec;
-  if (fs::is_regular_file(root, ec) && !isDicomDirName(root)) return {path};
+  if (fs::is_regular_file(root, ec) && !isDicomDirName(root)) {
+    if (!startsAsDicom(root))
+      throw FormatError(path, "not a DICOM Part 10 file (no 'DICM' after a 128-byte preamble)");
+    return {path};
+  }
   if (isDicomDirName(root)) root = root.parent_path().empty() ? fs::path(".") : root.parent_path();
   std::vector<std::string> files;
   std::size_t seen = 0;
@@ -142,6 +191,7 @@ struct Series {
 std::map<std::string, Series> scanSeries(const std::string& path) {
   quietGdcm();
   const std::vector<std::string> files = dicomFilesOf(path);
+  for (const std::string& f : files) checkMetaGroup(f);
   gdcm::Scanner scanner;
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kRows, kColumns, kPosition,
                              kOrientation, kFrames, kSamples})
