@@ -317,6 +317,28 @@ TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {
   const std::string undefined("\x02\x00\x01\x00OB\x00\x00\xff\xff\xff\xff", 12);
   voxwall::test::writeFile(files[2], bytes.substr(0, 132) + undefined + bytes.substr(132));
   expectFormatError([&] { readVolume(dir.path("meta")); }, files[2], "undefined length");
+
+  // RLE pixel data whose first fragment does not start with a segment count of 1 to 15 (GDCM's
+  // decoders were handed such fragments and spent gigabytes): refused before any decoding.
+  Series rle;
+  rle.syntax = DicomSyntax::Rle;
+  files = writeSeries(dir.root() / "rle", rle);
+  bytes = voxwall::test::readFile(files[4]);
+  const std::string encapsulated("\xe0\x7f\x10\x00OB\x00\x00\xff\xff\xff\xff", 12);
+  const std::string item("\xfe\xff\x00\xe0", 4);
+  const auto pixelAt = bytes.rfind(encapsulated);
+  ASSERT_NE(pixelAt, std::string::npos);
+  // The basic offset table's item, then the first fragment's item: its data follows its length.
+  const auto table = bytes.find(item, pixelAt + 12);
+  std::uint32_t tableBytes = 0;
+  std::memcpy(&tableBytes, &bytes[table + 4], 4);
+  const auto fragment = table + 8 + tableBytes;
+  ASSERT_EQ(bytes.compare(fragment, 4, item), 0);
+  bytes[fragment + 8] = char(0);  // segment count 0
+  voxwall::test::writeFile(files[4], bytes);
+  expectFormatError([&] { readVolume(dir.path("rle")); }, files[4],
+                    "its compressed pixel data does not start as transfer syntax "
+                    "1.2.840.10008.1.2.5 does");
 }
 
 TEST(Dicom, AFolderOfImagesIsStillASliceStackAndAnEmptyOneIsRefused) {

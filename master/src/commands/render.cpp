@@ -67,15 +67,12 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
   }
   // Built-in presets need no note on their range; files get one.
   if (!node::TransferFunction::splitSpec(o.tf).file.empty()) notes.push_back(placed);
-  if (tf.hounsfield && !range && (lo > -500 || hi < 0)) {
-    char line[320];
-    std::snprintf(line, sizeof line,
-                  "'%s' is on Hounsfield units, but this volume's values %g..%g reach no air "
-                  "(about -1000) or no tissue: if it is a CT stored with an offset, give "
-                  "--rescale SLOPE,INTERCEPT (often 1,-1024)",
-                  o.tf.c_str(), lo, hi);
-    notes.push_back(line);
-  }
+  if (tf.hounsfield && !range && (lo > -500 || hi < 0))
+    notes.push_back(formatLine(
+        "'%s' is on Hounsfield units, but this volume's values %g..%g reach no air (about -1000) "
+        "or no tissue: if it is a CT stored with an offset, give --rescale SLOPE,INTERCEPT (often "
+        "1,-1024)",
+        o.tf.c_str(), lo, hi));
   // From the map's units back to stored values: x -> (x - intercept) / slope.
   if (slope != 1 || intercept != 0)
     tf = tf.rescaled((tf.domainMin() - intercept) / slope, (tf.domainMax() - intercept) / slope);
