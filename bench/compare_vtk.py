@@ -47,8 +47,10 @@ def parse_args():
 
 
 def run_voxwall(args, threads, shading, out_dir):
+    # VTK's reader leaves the NIfTI's orientation aside and renders the voxel axes; voxwall is
+    # told to do the same (--orientation LPS: x, y, z as stored), so both draw one picture.
     base = [args.voxwall, "render", args.volume, "--size", args.size, "--tf", TF_FILE,
-            "--camera", "30,20,2.6", "--fov", "30", "--orbit-deg", "5",
+            "--orientation", "LPS", "--camera", "30,20,2.6", "--fov", "30", "--orbit-deg", "5",
             "--threads", str(threads), "--step", "0.25", "--background", "black"]
     if shading:
         base.append("--shading")

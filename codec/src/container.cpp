@@ -64,6 +64,7 @@ VolumeInfo volumeInfo(const Volume& volume, CodecId codec) {
   info.type = volume.type;
   info.dims = volume.dims;
   info.spacing = volume.spacing;
+  info.orientation = volume.orientation;
   info.valueMin = volume.valueMin;
   info.valueMax = volume.valueMax;
   return info;
@@ -92,25 +93,62 @@ std::uint64_t CompressedVolume::payloadBytes() const {
 
 namespace {
 
-// The header and section table of `volume`'s file, and where each section starts.
+constexpr std::size_t kOrientationBytes = 12 * 8;
+
+std::vector<std::byte> orientationSection(const Orientation& o) {
+  std::vector<std::byte> out;
+  ByteWriter w(out);
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) w.put<double>(o.direction[c][r]);
+  for (int i = 0; i < 3; ++i) w.put<double>(o.origin[i]);
+  return out;
+}
+
+Orientation parseOrientation(std::span<const std::byte> bytes, const std::string& source) {
+  if (bytes.size() != kOrientationBytes)
+    throw FormatError(source, "orientation section has " + std::to_string(bytes.size()) +
+                                  " bytes, not " + std::to_string(kOrientationBytes));
+  ByteReader r(bytes, source, "orientation section");
+  Orientation o;
+  for (int c = 0; c < 3; ++c)
+    for (int row = 0; row < 3; ++row) o.direction[c][row] = r.get<double>();
+  for (int i = 0; i < 3; ++i) o.origin[i] = r.get<double>();
+  if (const std::string problem = orientationProblem(o.direction); !problem.empty())
+    throw FormatError(source, "invalid orientation: " + problem);
+  if (!std::isfinite(o.origin.x) || !std::isfinite(o.origin.y) || !std::isfinite(o.origin.z))
+    throw FormatError(source, "invalid orientation: its origin is not finite");
+  return o;
+}
+
+// The header and section table of `volume`'s file, and where each section starts. `sections`
+// are the codec's followed by the container's own orientation section.
 struct ContainerHead {
   std::vector<std::byte> bytes;
+  std::vector<std::byte> orientation;
+  std::vector<std::pair<std::uint32_t, std::span<const std::byte>>> sections;
   std::vector<std::size_t> offsets;
   std::size_t fileBytes = 0;
 };
 
 ContainerHead containerHead(const CompressedVolume& volume) {
-  if (volume.sections.size() > kMaxSections)
+  if (volume.sections.size() + 1 > kMaxSections)
     throw std::invalid_argument("too many sections for a .vwz file");
   ContainerHead head;
+  head.orientation = orientationSection(volume.info.orientation);
+  for (auto& [id, bytes] : volume.sections) {
+    if (id >= kContainerSectionIds)
+      throw std::invalid_argument("section id " + std::to_string(id) +
+                                  " is one of the container's own");
+    head.sections.emplace_back(id, bytes);
+  }
+  head.sections.emplace_back(kOrientationSectionId, head.orientation);
   // Lay out the sections first so the header can state the file size.
-  std::size_t end = alignUp(kHeaderBytes + kTableEntryBytes * volume.sections.size());
-  for (auto& s : volume.sections) {
+  std::size_t end = alignUp(kHeaderBytes + kTableEntryBytes * head.sections.size());
+  for (auto& s : head.sections) {
     head.offsets.push_back(end);
     end = alignUp(end + s.second.size());
   }
-  head.fileBytes =
-      volume.sections.empty() ? end : head.offsets.back() + volume.sections.back().second.size();
+  head.fileBytes = head.offsets.back() + head.sections.back().second.size();
 
   std::vector<std::byte>& out = head.bytes;
   ByteWriter w(out);
@@ -120,7 +158,7 @@ ContainerHead containerHead(const CompressedVolume& volume) {
   w.put<std::uint32_t>(std::uint32_t(volume.info.codec));
   w.put<std::uint32_t>(std::uint32_t(volume.info.type));
   for (int i = 0; i < 3; ++i) w.put<std::uint32_t>(std::uint32_t(volume.info.dims[i]));
-  w.put<std::uint32_t>(std::uint32_t(volume.sections.size()));
+  w.put<std::uint32_t>(std::uint32_t(head.sections.size()));
   for (int i = 0; i < 3; ++i) w.put<double>(volume.info.spacing[i]);
   w.put<double>(volume.info.valueMin);
   w.put<double>(volume.info.valueMax);
@@ -128,8 +166,8 @@ ContainerHead containerHead(const CompressedVolume& volume) {
   // The table comes after the header but its hash sits in it: write the table aside first.
   std::vector<std::byte> table;
   ByteWriter tw(table);
-  for (std::size_t i = 0; i < volume.sections.size(); ++i) {
-    auto& [id, bytes] = volume.sections[i];
+  for (std::size_t i = 0; i < head.sections.size(); ++i) {
+    auto& [id, bytes] = head.sections[i];
     tw.put<std::uint32_t>(id);
     tw.put<std::uint32_t>(0);
     tw.put<std::uint64_t>(head.offsets[i]);
@@ -149,9 +187,9 @@ std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
   ContainerHead head = containerHead(volume);
   std::vector<std::byte> out = std::move(head.bytes);
   out.reserve(head.fileBytes);
-  for (std::size_t i = 0; i < volume.sections.size(); ++i) {
+  for (std::size_t i = 0; i < head.sections.size(); ++i) {
     out.resize(head.offsets[i]);
-    out.insert(out.end(), volume.sections[i].second.begin(), volume.sections[i].second.end());
+    out.insert(out.end(), head.sections[i].second.begin(), head.sections[i].second.end());
   }
   out.resize(head.fileBytes);
   return out;
@@ -164,10 +202,10 @@ std::uint64_t writeContainer(const CompressedVolume& volume, const std::string& 
   static constexpr std::byte kZeros[kSectionAlignment] = {};
   std::vector<std::span<const std::byte>> pieces{head.bytes};
   std::size_t at = head.bytes.size();
-  for (std::size_t i = 0; i < volume.sections.size(); ++i) {
+  for (std::size_t i = 0; i < head.sections.size(); ++i) {
     pieces.emplace_back(kZeros, head.offsets[i] - at);
-    pieces.emplace_back(volume.sections[i].second);
-    at = head.offsets[i] + volume.sections[i].second.size();
+    pieces.emplace_back(head.sections[i].second);
+    at = head.offsets[i] + head.sections[i].second.size();
   }
   commitTemporary(writeTemporary(path, pieces), path);
   return head.fileBytes;
@@ -228,9 +266,10 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   ByteReader r(bytes.first(kHeaderBytes), source, "header");
   r.skip(8);
   const auto version = r.get<std::uint32_t>();
-  if (version != kContainerVersion)
-    fail("unsupported .vwz format version " + std::to_string(version) + " (this build reads " +
+  if (version < 1 || version > kContainerVersion)
+    fail("unsupported .vwz format version " + std::to_string(version) + " (this build reads 1 to " +
          std::to_string(kContainerVersion) + ")");
+  file.version_ = version;
   const auto headerBytes = r.get<std::uint32_t>();
   if (headerBytes != kHeaderBytes) fail("header size " + std::to_string(headerBytes) + " is wrong");
   const auto storedHeaderHash = [&] {
@@ -297,6 +336,17 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     if (!file.sections_.sections.emplace(id, data).second) fail(name + ": duplicate section id");
     previousEnd = offset + length;
   }
+  // Version 1 files predate orientation: their voxels are taken as LPS, as they were rendered.
+  auto& sections = file.sections_.sections;
+  if (version >= 2) {
+    const auto it = sections.find(kOrientationSectionId);
+    if (it == sections.end()) fail("the orientation section is missing");
+    info.orientation = parseOrientation(it->second, source);
+    sections.erase(it);
+  }
+  for (const auto& [id, data] : sections)
+    if (id >= kContainerSectionIds)
+      fail("section id " + std::to_string(id) + " is reserved for the container and unknown");
   return file;
 }
 

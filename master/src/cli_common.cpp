@@ -18,6 +18,10 @@ void RawInputOptions::addTo(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--spacing", spacing,
                  "Voxel spacing X,Y,Z in world units (mm); overrides the file's for any input");
+  app.add_option("--orientation", orientation,
+                 "Where the x, y and z axes point in the patient, as three letters of R/L, A/P, "
+                 "S/I (e.g. RAS: x to the right, y anterior, z superior); overrides the file's "
+                 "orientation for any input (raw files and slice stacks have none: LPS)");
   app.add_flag("--big-endian", bigEndian, "Raw input only: multi-byte values are big-endian");
   app.add_option("--header-bytes", headerBytes, "Raw input only: bytes to skip before the voxels");
   app.add_option("--series", series,
@@ -35,12 +39,28 @@ codec::ReadOptions RawInputOptions::readOptions() const {
   return options;
 }
 
+void RawInputOptions::applyOverrides(codec::Volume& volume) const {
+  if (!spacing.empty()) volume.spacing = parseSpacing(spacing, "--spacing");
+  if (!orientation.empty())
+    volume.orientation.direction = codec::parseOrientationLetters(orientation);
+}
+
+void RawInputOptions::applyOverrides(codec::VolumeSource& source) const {
+  if (!spacing.empty()) source.setSpacing(parseSpacing(spacing, "--spacing"));
+  if (!orientation.empty()) {
+    codec::Orientation o = source.orientation;
+    o.direction = codec::parseOrientationLetters(orientation);
+    source.setOrientation(o);
+  }
+}
+
 std::optional<codec::RawLayout> RawInputOptions::layout() const {
   if (dims.empty()) return std::nullopt;
   codec::RawLayout l;
   l.dims = parseDims(dims, "--dims");
   l.type = codec::parseScalarType(type);
   if (!spacing.empty()) l.spacing = parseSpacing(spacing, "--spacing");
+  if (!orientation.empty()) l.orientation.direction = codec::parseOrientationLetters(orientation);
   l.bigEndian = bigEndian;
   l.headerBytes = headerBytes;
   return l;

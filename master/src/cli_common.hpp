@@ -8,6 +8,7 @@
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/volume_io.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/progress.hpp>
 
 namespace voxwall::cli {
@@ -20,11 +21,16 @@ struct RawInputOptions {
   std::uint64_t headerBytes = 0;
   std::string series;
   bool resampleTilt = false;
+  std::string orientation;  // --orientation letters, e.g. "RAS"
   void addTo(CLI::App& app);
   // The layout when --dims was given; throws std::invalid_argument on malformed values.
   std::optional<codec::RawLayout> layout() const;
   // The layout and the DICOM options together.
   codec::ReadOptions readOptions() const;
+  // Applies --spacing and --orientation, which override what the file says; throws
+  // std::invalid_argument on malformed values.
+  void applyOverrides(codec::Volume& volume) const;
+  void applyOverrides(codec::VolumeSource& source) const;
 };
 
 // "X,Y,Z" with positive integers / positive reals; "WxH". Throw std::invalid_argument naming

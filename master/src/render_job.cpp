@@ -238,7 +238,7 @@ void CameraOffset::take(const net::Control& c, const node::Orbit& path) {
       azimuthDeg = std::remainder(azimuthDeg + c.a, 360.0);
       if (azimuthDeg >= 180) azimuthDeg -= 360;
       elevationDeg =
-          std::clamp(elevationDeg + c.b, -89.0 - path.elevationDeg, 89.0 - path.elevationDeg);
+          std::clamp(elevationDeg + c.b, -90.0 - path.elevationDeg, 90.0 - path.elevationDeg);
       break;
     case net::ControlCommand::Zoom:
       zoom = std::clamp(zoom / c.a, 0.05, 20.0);
@@ -255,7 +255,7 @@ void CameraOffset::take(const net::Control& c, const node::Orbit& path) {
 
 node::Orbit CameraOffset::apply(node::Orbit orbit) const {
   orbit.azimuthDeg += azimuthDeg;
-  orbit.elevationDeg = std::clamp(orbit.elevationDeg + elevationDeg, -89.0, 89.0);
+  orbit.elevationDeg = std::clamp(orbit.elevationDeg + elevationDeg, -90.0, 90.0);
   orbit.distance *= zoom;
   orbit.panX += panX;
   orbit.panY += panY;

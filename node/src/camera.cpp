@@ -28,6 +28,29 @@ Camera orbitCamera(const Orbit& orbit, double boundingRadius) {
   return c;
 }
 
+namespace {
+struct NamedView {
+  const char* name;
+  ViewAngles angles;
+};
+constexpr NamedView kViews[] = {
+    {"anterior", {-90, 0}}, {"posterior", {90, 0}}, {"left", {0, 0}},
+    {"right", {180, 0}},    {"superior", {90, 90}}, {"inferior", {90, -90}},
+};
+}  // namespace
+
+std::optional<ViewAngles> anatomicalView(std::string_view name) {
+  for (const NamedView& v : kViews)
+    if (name == v.name) return v.angles;
+  return std::nullopt;
+}
+
+std::string anatomicalViewNames() {
+  std::string out;
+  for (const NamedView& v : kViews) out += (out.empty() ? "" : ", ") + std::string(v.name);
+  return out;
+}
+
 Frustum tileFrustum(const Camera& camera, int screenWidth, int screenHeight, const Rect& tile,
                     double nearDist, double farDist) {
   if (tile.width <= 0 || tile.height <= 0 || screenWidth <= 0 || screenHeight <= 0)

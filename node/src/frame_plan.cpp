@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
 #include <numbers>
 #include <stdexcept>
 #include <voxwall/node/renderer.hpp>
@@ -24,10 +25,15 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
   const glm::dvec3 up = glm::cross(right, forward);
   const double tanY = std::tan(camera.fovYDeg * std::numbers::pi / 360.0);
   const double tanX = tanY * double(screenWidth) / double(screenHeight);
-  r.eyeWorld = glm::vec3(camera.eye);
-  r.forward = glm::vec3(forward);
-  r.right = glm::vec3(right * tanX);
-  r.up = glm::vec3(up * tanY);
+  // The camera lives in patient space (LPS axes, origin at the volume's centre); the rays are
+  // cast in the grid's own axes. The direction matrix is orthonormal (a rotation, perhaps with a
+  // mirror), so its transpose takes patient vectors to grid vectors; the screen's right and up
+  // are mapped as they are, not recomputed, so a mirrored grid renders unmirrored.
+  const glm::dmat3 toGrid = glm::transpose(info.orientation.direction);
+  r.eyeWorld = glm::vec3(toGrid * camera.eye);
+  r.forward = glm::vec3(toGrid * forward);
+  r.right = glm::vec3(toGrid * (right * tanX));
+  r.up = glm::vec3(toGrid * (up * tanY));
   r.screen = {screenWidth, screenHeight};
   r.invSpacing = glm::vec3(1.0 / info.spacing);
   r.centerIndex = glm::vec3((glm::dvec3(info.dims) - 1.0) * 0.5);

@@ -104,6 +104,7 @@ std::uint64_t RenderVolume::fingerprint() const {
   add(info_.codec), add(info_.type), add(info_.dims.x), add(info_.dims.y), add(info_.dims.z);
   add(info_.spacing.x), add(info_.spacing.y), add(info_.spacing.z);
   add(info_.valueMin), add(info_.valueMax);
+  add(info_.orientation.direction), add(info_.orientation.origin);
   for (const auto& [id, bytes] : sections_.sections) {
     add(id);
     const std::uint64_t size = bytes.size();

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 #include <xxhash.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <voxwall/codec/container.hpp>
@@ -114,7 +115,11 @@ TEST(Container, DetectsAFlippedByteAnywhere) {
   const auto good = serializeContainer(sample());
   // Every byte of the header and table, and a byte in every section.
   std::vector<std::size_t> positions;
-  for (std::size_t i = 0; i < 128 + 32 * 3; ++i) positions.push_back(i);
+  for (std::size_t i = 0; i < 128 + 32 * 4; ++i) positions.push_back(i);
+  // The container's own orientation section (the last entry) too.
+  std::uint64_t orientationAt = 0;
+  std::memcpy(&orientationAt, good.data() + 128 + 32 * 3 + 8, 8);
+  for (std::size_t i = 0; i < 96; i += 8) positions.push_back(std::size_t(orientationAt) + i);
   const auto file = ContainerFile::parse(good, "mem");
   for (auto& [id, span] : file.sections().sections) {
     const std::size_t off = std::size_t(span.data() - good.data());
@@ -182,6 +187,61 @@ TEST(Container, RefusesOverlappingAndMisalignedSections) {
   EXPECT_NE(parseError(many).find("section count"), std::string::npos) << parseError(many);
 }
 
+// The orientation goes through the file as it is, mirror and origin included.
+TEST(Container, OrientationRoundTrips) {
+  auto c = sample();
+  c.info.orientation.direction = glm::dmat3(glm::dvec3(0, -1, 0), glm::dvec3(0, 0, -1),
+                                            glm::dvec3(-1, 0, 0));  // x to A, y to I, z to R
+  c.info.orientation.origin = {12.5, -40, 7.25};
+  const auto bytes = serializeContainer(c);
+  const auto file = ContainerFile::parse(bytes, "mem");
+  EXPECT_EQ(file.version(), kContainerVersion);
+  EXPECT_EQ(file.info().orientation, c.info.orientation);
+  EXPECT_EQ(orientationLetters(file.info().orientation.direction), "AIR");
+  // The codec sees only its own sections.
+  EXPECT_EQ(file.sections().sections.size(), c.sections.size());
+}
+
+TEST(Container, RefusesADirectionThatIsNotARotation) {
+  auto c = sample();
+  c.info.orientation.direction[1] = glm::dvec3(0.5, 0.5, 0);  // not unit, not orthogonal to x
+  EXPECT_NE(parseError(serializeContainer(c)).find("invalid orientation"), std::string::npos)
+      << parseError(serializeContainer(c));
+  c = sample();
+  c.info.orientation.origin.x = std::nan("");
+  EXPECT_NE(parseError(serializeContainer(c)).find("origin is not finite"), std::string::npos);
+}
+
+// A file of format version 1 (before orientation) still opens, as LPS; a version 2 file without
+// its orientation section does not.
+TEST(Container, VersionOneFilesOpenWithTheIdentityOrientation) {
+  auto c = sample();
+  c.info.orientation.origin = {1, 2, 3};
+  const auto v2 = serializeContainer(c);
+  std::uint64_t orientationAt = 0;
+  std::memcpy(&orientationAt, v2.data() + 128 + 32 * 3 + 8, 8);
+  // Version 1: three sections, the file ending where the codec's last section ends.
+  std::vector<std::byte> v1(v2.begin(), v2.begin() + std::ptrdiff_t(7198));
+  const std::uint32_t one = 1, three = 3;
+  const std::uint64_t size = v1.size();
+  std::memcpy(v1.data() + 8, &one, 4);
+  std::memcpy(v1.data() + 36, &three, 4);
+  std::memcpy(v1.data() + 80, &size, 8);
+  reseal(v1);
+  const auto file = ContainerFile::parse(v1, "old.vwz");
+  EXPECT_EQ(file.version(), 1u);
+  EXPECT_EQ(file.info().orientation, Orientation{});
+  EXPECT_EQ(file.sections().sections.size(), 3u);
+  EXPECT_EQ(orientationAt, 7232u);  // the orientation section follows the codec's, aligned
+
+  auto stripped = v1;
+  const std::uint32_t two = 2;
+  std::memcpy(stripped.data() + 8, &two, 4);
+  reseal(stripped);
+  EXPECT_NE(parseError(stripped).find("orientation section is missing"), std::string::npos)
+      << parseError(stripped);
+}
+
 TEST(Container, MissingFileGivesOneLine) {
   try {
     ContainerFile::open("/nonexistent/x.vwz");
@@ -195,9 +255,10 @@ TEST(Container, MissingFileGivesOneLine) {
 // (bump kContainerVersion and update this checksum).
 TEST(Container, GoldenChecksumOfASmallFile) {
   const auto bytes = serializeContainer(sample());
-  // 128-byte header + 3 table entries -> 256; params (8) -> 320; 27 range cells of two uint16
-  // (108) -> 448; 27 bricks of 4^3 uint16 stored with their apron as 5^3 (6750) -> 7198.
-  EXPECT_EQ(bytes.size(), 7198u);
-  EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0xa3ec4ec40b41e2c2ull)
+  // 128-byte header + 4 table entries -> 256; params (8) -> 320; 27 range cells of two uint16
+  // (108) -> 448; 27 bricks of 4^3 uint16 stored with their apron as 5^3 (6750) -> 7198;
+  // the orientation (96) at 7232 -> 7328.
+  EXPECT_EQ(bytes.size(), 7328u);
+  EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0x26e1c353ba24dd46ull)
       << std::hex << XXH64(bytes.data(), bytes.size(), 0);
 }

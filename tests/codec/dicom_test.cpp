@@ -113,6 +113,12 @@ TEST(Dicom, SortsShuffledSlicesByPositionAndAppliesTheRescale) {
   EXPECT_EQ(wrong, 0);
   EXPECT_NEAR(valueAt(v, 3, 4, kD - 1 - 2), 2500, 1);
   EXPECT_NEAR(v.valueMin, -1000, 1);
+  // Voxels stay as stored (columns, rows, slices up the normal); the matrix places them: rows
+  // along +x (L), columns along +y (P), slices up +z (S), from the lowest slice's position.
+  EXPECT_EQ(orientationLetters(v.orientation.direction), "LPS");
+  const Series s;
+  const glm::dvec3 lowest = s.origin + double(kD - 1) * s.step;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(v.orientation.origin[i], lowest[i], 1e-9);
 }
 
 TEST(Dicom, AFractionalRescaleGivesFloatAndSignedStorageStaysExact) {
@@ -146,6 +152,15 @@ TEST(Dicom, AnObliqueSeriesIsSortedAlongItsOwnNormal) {
   const Volume v = readVolume(dir.path("o"));
   EXPECT_NEAR(v.spacing.z, 1.5, 1e-3);
   EXPECT_NEAR(valueAt(v, 3, 4, kD - 1 - 2), 2500, 1);
+  // The matrix is the series' own: rows, columns, and the normal the slices were sorted along.
+  const glm::dvec3 row(c, sn, 0), column(0, 0, 1), normal(sn, -c, 0);
+  for (int r = 0; r < 3; ++r) {
+    EXPECT_NEAR(v.orientation.direction[0][r], row[r], 1e-6);
+    EXPECT_NEAR(v.orientation.direction[1][r], column[r], 1e-6);
+    EXPECT_NEAR(v.orientation.direction[2][r], normal[r], 1e-6);
+  }
+  const glm::dvec3 first = s.origin + double(kD - 1) * s.step;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(v.orientation.origin[i], first[i], 1e-6);
 }
 
 TEST(Dicom, CompressedTransferSyntaxesDecodeToTheSameVoxels) {

@@ -840,3 +840,61 @@ TEST(Cli, AStreamingJobWhoseTilesNeverReachTheWallFails) {
   expectOneLineError(runVoxwall(render + "--frames 1 --sink-deadline 0"),
                      "voxwall: --sink-deadline must be a positive number of seconds");
 }
+
+// The orientation goes from the file through `compress` into the .vwz and back out of
+// `decompress`; `info` prints it; `--orientation` overrides it; `--view` names the camera.
+TEST(Cli, OrientationIsPrintedKeptAndOverridden) {
+  test::TempDir dir;
+  codec::Volume v = codec::Volume::allocate({6, 5, 4}, codec::ScalarType::UInt8, {0.5, 1, 2});
+  for (std::size_t i = 0; i < v.data.size(); ++i) v.data[i] = std::byte(i % 200);
+  v.computeRange();
+  v.orientation.direction = codec::parseOrientationLetters("RAS");
+  v.orientation.origin = {-90, 126, -72};
+  codec::writeVolume(v, dir.path("ras.nii"));
+  const CliRun info = runVoxwall("info " + dir.path("ras.nii"));
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("orientation RAS"), std::string::npos) << info.out;
+  // The voxel-to-patient matrix in LPS: x steps 0.5 mm to the right (-x), y 1 mm anterior.
+  EXPECT_NE(info.out.find("   -0.5000     0.0000     0.0000     -90.0000"), std::string::npos)
+      << info.out;
+
+  ASSERT_EQ(runVoxwall("compress " + dir.path("ras.nii") + " -q -o " + dir.path("ras.vwz")).status,
+            0);
+  const CliRun vwz = runVoxwall("info " + dir.path("ras.vwz"));
+  EXPECT_NE(vwz.out.find("orientation RAS"), std::string::npos) << vwz.out;
+  EXPECT_NE(vwz.out.find(".vwz version 2"), std::string::npos) << vwz.out;
+  ASSERT_EQ(runVoxwall("decompress " + dir.path("ras.vwz") + " -o " + dir.path("back.nrrd")).status,
+            0);
+  const codec::Volume back = codec::readVolume(dir.path("back.nrrd"));
+  EXPECT_EQ(codec::orientationLetters(back.orientation.direction), "RAS");
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(back.orientation.origin[i], v.orientation.origin[i], 1e-9);
+  EXPECT_EQ(back.data, v.data);
+
+  // Overridden for a file, and for raw input that has none.
+  const CliRun over = runVoxwall("compress " + dir.path("ras.nii") + " --orientation lpi -q -o " +
+                                 dir.path("lpi.vwz"));
+  ASSERT_EQ(over.status, 0) << over.out;
+  EXPECT_NE(runVoxwall("info " + dir.path("lpi.vwz")).out.find("orientation LPI"),
+            std::string::npos);
+  codec::writeVolume(v, dir.path("v.raw"));
+  EXPECT_NE(runVoxwall("info " + dir.path("v.raw") + " --dims 6,5,4").out.find("orientation LPS"),
+            std::string::npos);
+  EXPECT_NE(runVoxwall("info " + dir.path("v.raw") + " --dims 6,5,4 --orientation AIR")
+                .out.find("orientation AIR"),
+            std::string::npos);
+  expectOneLineError(runVoxwall("info " + dir.path("ras.nii") + " --orientation RAR"),
+                     "voxwall: orientation 'RAR' is not three letters");
+
+  const CliRun anterior =
+      runVoxwall("render " + dir.path("ras.vwz") + " --view anterior --size 16x16 --out " +
+                 dir.path("f") + " -q");
+  EXPECT_EQ(anterior.status, 0) << anterior.out;
+  expectOneLineError(runVoxwall("render " + dir.path("ras.vwz") + " --view front --size 16x16 -q"),
+                     "voxwall: --view: 'front' is not one of anterior, posterior, left, right, "
+                     "superior, inferior");
+  const CliRun both =
+      runVoxwall("render " + dir.path("ras.vwz") + " --view left --camera 0,0 --size 16x16 -q");
+  EXPECT_NE(both.status, 0);
+  EXPECT_NE(both.out.find("excludes"), std::string::npos) << both.out;
+}

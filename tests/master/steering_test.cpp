@@ -136,11 +136,11 @@ TEST(Steering, CameraCommandsAreClampedAsTheyArrive) {
   path.azimuthDeg = 30, path.elevationDeg = 20;
   master::CameraOffset offset;
   offset.take({net::ControlCommand::Rotate, 0, 1e6}, path);
-  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 89);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 90);
   offset.take({net::ControlCommand::Rotate, 0, -60}, path);
-  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 29);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 30);
   offset.take({net::ControlCommand::Rotate, 0, -1e6}, path);
-  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, -89);
+  EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, -90);
   offset.take({net::ControlCommand::Rotate, 1e6, 0}, path);
   EXPECT_GE(offset.azimuthDeg, -180);
   EXPECT_LT(offset.azimuthDeg, 180);

@@ -315,7 +315,25 @@ struct Decoded {
   double slope = 1, intercept = 0;
   glm::dvec3 spacing{1, 1, 1};
   unsigned dims[3] = {1, 1, 1};
+  double cosines[6] = {1, 0, 0, 0, 1, 0};  // GDCM's direction cosines (row, then column)
+  double origin[3] = {0, 0, 0};            // and origin (the first frame's position)
 };
+
+// The orientation of an image from its row and column direction cosines and its position: the
+// identity when the cosines are not two perpendicular unit vectors.
+Orientation orientationOf(const double* cosines, const double* position) {
+  Orientation o;
+  const glm::dvec3 row(cosines[0], cosines[1], cosines[2]),
+      column(cosines[3], cosines[4], cosines[5]);
+  const glm::dmat3 m(row, column, glm::cross(row, column));
+  const glm::dvec3 origin(position[0], position[1], position[2]);
+  if (!orientationProblem(m).empty() || !std::isfinite(origin.x) || !std::isfinite(origin.y) ||
+      !std::isfinite(origin.z))
+    return o;
+  o.direction = m;
+  o.origin = origin;
+  return o;
+}
 
 // Where the file's Pixel Data ends, found by walking its elements without reading their values
 // (GDCM allocates what an element claims when it reads one: a corrupt length would cost
@@ -411,6 +429,9 @@ Decoded decode(const std::string& file, std::vector<std::byte>& buffer, std::siz
   const unsigned n = image.GetNumberOfDimensions();
   for (unsigned i = 0; i < std::min(n, 3u); ++i) d.dims[i] = dims[i];
   for (int i = 0; i < 3; ++i) d.spacing[i] = image.GetSpacing(unsigned(i));
+  if (const double* cosines = image.GetDirectionCosines())
+    std::copy(cosines, cosines + 6, d.cosines);
+  if (const double* origin = image.GetOrigin()) std::copy(origin, origin + 3, d.origin);
   d.slope = image.GetSlope(), d.intercept = image.GetIntercept();
   if (!std::isfinite(d.slope) || !std::isfinite(d.intercept) || d.slope == 0)
     throw FormatError(file, "Rescale Slope " + fixed(d.slope, 6) + " / Intercept " +
@@ -548,7 +569,9 @@ Volume readMultiFrame(const SliceHeader& h) {
   glm::dvec3 spacing = d.spacing;
   for (int i = 0; i < 3; ++i)
     if (!(spacing[i] > 0) || !std::isfinite(spacing[i])) spacing[i] = 1;
-  return rescaled(std::move(stored), d.stored, dims, spacing, {d});
+  Volume v = rescaled(std::move(stored), d.stored, dims, spacing, {d});
+  v.orientation = orientationOf(d.cosines, d.origin);
+  return v;
 }
 
 }  // namespace
@@ -695,6 +718,14 @@ Volume readDicom(const std::string& path, const DicomOptions& options) {
     spacing.z = 1;
 
   Volume v = rescaled(std::move(stored), decoded.front().stored, dims, spacing, decoded);
+  // Voxels stay in stored order; the orientation says where they lie (DICOM's patient space is
+  // voxwall's LPS): rows, columns, then the normal the slices were sorted along.
+  if (slices.size() > 1) {
+    v.orientation.direction = glm::dmat3(row, column, normal);
+    v.orientation.origin = slices.front().ipp;
+  } else if (first.orientation.size() == 6 && first.position.size() == 3) {
+    v.orientation = orientationOf(first.orientation.data(), first.position.data());
+  }
 
   // A gantry tilt: each slice's position moves in the slice's plane as well as along its normal.
   if (slices.size() > 1) {

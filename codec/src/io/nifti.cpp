@@ -1,4 +1,5 @@
-// NIfTI-1 through nifticlib. Orientation (qform/sform) is not applied: voxels keep file order.
+// NIfTI-1 through nifticlib. Voxels keep file order; the sform (else the qform) becomes the
+// volume's Orientation, converted from NIfTI's RAS to voxwall's LPS.
 #include <nifti1_io.h>
 #include <zlib.h>
 
@@ -7,7 +8,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <glm/geometric.hpp>
 #include <memory>
+#include <optional>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/errors.hpp>
@@ -132,6 +135,50 @@ glm::dvec3 spacingOf(const nifti_image& nim) {
   return spacing;
 }
 
+struct Geometry {
+  glm::dvec3 spacing;
+  Orientation orientation;
+};
+
+// The spacing and orientation one of the header's index-to-RAS matrices gives, converted to LPS;
+// nullopt when its columns are not finite and non-zero, or (unless `orthonormalize`) when they
+// are not orthogonal.
+std::optional<Geometry> geometryOf(const mat44& m, bool orthonormalize) {
+  Geometry g;
+  glm::dmat3 columns;
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) columns[c][r] = double(m.m[r][c]) * (r < 2 ? -1.0 : 1.0);
+  for (int r = 0; r < 3; ++r) g.orientation.origin[r] = double(m.m[r][3]) * (r < 2 ? -1.0 : 1.0);
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(g.orientation.origin[i])) return std::nullopt;
+  for (int c = 0; c < 3; ++c) {
+    const double length = glm::length(columns[c]);
+    if (!(length > 0) || !std::isfinite(length)) return std::nullopt;
+    g.spacing[c] = length;
+    columns[c] /= length;
+  }
+  if (orientationProblem(columns).empty())
+    g.orientation.direction = columns;
+  else if (orthonormalize)
+    g.orientation.direction = orthonormalized(columns);
+  else
+    return std::nullopt;
+  return g;
+}
+
+// Where the voxels lie: the sform when its code is set and its axes are orthogonal, else the
+// qform when its code is set, else a sheared sform's nearest rotation, else the identity (LPS,
+// the file order, as voxwall rendered NIfTI before it read orientation) with pixdim's spacing.
+Geometry geometryOf(const nifti_image& nim) {
+  if (nim.sform_code > 0)
+    if (auto g = geometryOf(nim.sto_xyz, false)) return *g;
+  if (nim.qform_code > 0)
+    if (auto g = geometryOf(nim.qto_xyz, false)) return *g;
+  if (nim.sform_code > 0)
+    if (auto g = geometryOf(nim.sto_xyz, true)) return *g;
+  return {spacingOf(nim), Orientation{}};
+}
+
 }  // namespace
 
 std::optional<SlabLayout> niftiSlabLayout(const std::string& path) {
@@ -159,7 +206,9 @@ std::optional<SlabLayout> niftiSlabLayout(const std::string& path) {
   }
   slab.file = header->iname;
   l.dims = glm::ivec3(int(header->nx), int(header->ny), int(header->nz));
-  l.spacing = spacingOf(*header);
+  const Geometry geometry = geometryOf(*header);
+  l.spacing = geometry.spacing;
+  l.orientation = geometry.orientation;
   l.headerBytes = std::uint64_t(std::max(0, header->iname_offset));
   l.bigEndian = scalarBytes(l.type) > 1 && header->byteorder != nifti_short_order();
   std::error_code ec;
@@ -177,7 +226,8 @@ Volume readNifti(const std::string& path) {
   NiftiPtr nim(nifti_image_read(path.c_str(), 1));
   if (!nim || !nim->data)
     throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
-  const glm::dvec3 spacing = spacingOf(*nim);
+  const Geometry geometry = geometryOf(*nim);
+  const glm::dvec3 spacing = geometry.spacing;
   const glm::ivec3 dims(int(nim->nx), int(nim->ny), int(nim->nz));
   const auto [slope, inter] = scalingOf(*nim);
   const bool scaled = slope != 1.0 || inter != 0.0;
@@ -225,6 +275,7 @@ Volume readNifti(const std::string& path) {
       throw FormatError(
           path, std::string("unsupported NIfTI datatype ") + nifti_datatype_string(nim->datatype));
   }
+  v.orientation = geometry.orientation;
   v.computeRange();
   return v;
 }
@@ -252,6 +303,24 @@ void writeNifti(const Volume& volume, const std::string& path) {
   nim->dx = nim->pixdim[1] = float(volume.spacing.x);
   nim->dy = nim->pixdim[2] = float(volume.spacing.y);
   nim->dz = nim->pixdim[3] = float(volume.spacing.z);
+  // The orientation as both sform and qform (scanner anatomical), in NIfTI's RAS.
+  mat44 m{};
+  for (int r = 0; r < 3; ++r) {
+    const double flip = r < 2 ? -1.0 : 1.0;
+    for (int c = 0; c < 3; ++c)
+      m.m[r][c] = float(flip * volume.orientation.direction[c][r] * volume.spacing[c]);
+    m.m[r][3] = float(flip * volume.orientation.origin[r]);
+  }
+  m.m[3][3] = 1.0f;
+  nim->sform_code = nim->qform_code = NIFTI_XFORM_SCANNER_ANAT;
+  nim->sto_xyz = m;
+  nim->sto_ijk = nifti_mat44_inverse(m);
+  nifti_mat44_to_quatern(m, &nim->quatern_b, &nim->quatern_c, &nim->quatern_d, &nim->qoffset_x,
+                         &nim->qoffset_y, &nim->qoffset_z, nullptr, nullptr, nullptr, &nim->qfac);
+  nim->qto_xyz =
+      nifti_quatern_to_mat44(nim->quatern_b, nim->quatern_c, nim->quatern_d, nim->qoffset_x,
+                             nim->qoffset_y, nim->qoffset_z, nim->dx, nim->dy, nim->dz, nim->qfac);
+  nim->qto_ijk = nifti_mat44_inverse(nim->qto_xyz);
   nim->nifti_type = NIFTI_FTYPE_NIFTI1_1;
   // The temporary keeps the extension so nifticlib picks the same (gzip or not) encoding.
   const bool gz = extensionOf(path).ends_with(".gz");

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <glm/geometric.hpp>
 #include <memory>
 #include <sstream>
 #include <string_view>
@@ -174,6 +175,42 @@ glm::dvec3 spacingOf(Nrrd* nin, unsigned first) {
   return spacing;
 }
 
+// Where the voxels of axes first .. first+2 lie: from `space directions` and `space origin` when
+// every axis has a direction, converted from the header's `space` to LPS (scanner-xyz is LPS;
+// spaces without anatomical names are taken as LPS); directions that are not orthogonal become
+// their nearest rotation. The identity otherwise.
+Orientation orientationOf(Nrrd* nin, unsigned first) {
+  Orientation o;
+  if (nin->spaceDim < 3) return o;
+  glm::dvec3 flip(1.0);
+  switch (nin->space) {
+    case nrrdSpaceRightAnteriorSuperior:
+    case nrrdSpaceRightAnteriorSuperiorTime:
+      flip = {-1, -1, 1};
+      break;
+    case nrrdSpaceLeftAnteriorSuperior:
+    case nrrdSpaceLeftAnteriorSuperiorTime:
+      flip = {1, -1, 1};
+      break;
+    default:
+      break;
+  }
+  glm::dmat3 columns;
+  for (int i = 0; i < 3; ++i) {
+    double s = 0, dir[NRRD_SPACE_DIM_MAX] = {};
+    if (nrrdSpacingCalculate(nin, first + unsigned(i), &s, dir) != nrrdSpacingStatusDirection)
+      return o;
+    for (int r = 0; r < 3; ++r) columns[i][r] = dir[r] * flip[r];
+    const double length = glm::length(columns[i]);
+    if (!(length > 0) || !std::isfinite(length)) return o;
+    columns[i] /= length;
+  }
+  o.direction = orientationProblem(columns).empty() ? columns : orthonormalized(columns);
+  for (int r = 0; r < 3; ++r)
+    if (std::isfinite(nin->spaceOrigin[r])) o.origin[r] = nin->spaceOrigin[r] * flip[r];
+  return o;
+}
+
 }  // namespace
 
 std::optional<SlabLayout> nrrdSlabLayout(const std::string& path) {
@@ -208,6 +245,7 @@ std::optional<SlabLayout> nrrdSlabLayout(const std::string& path) {
                       int(header->axis[first + 2].size));
   checkDims(l.dims, path);
   l.spacing = spacingOf(header.get(), first);
+  l.orientation = orientationOf(header.get(), first);
   l.bigEndian = scalarBytes(l.type) > 1 && io->endian == airEndianBig;
   namespace fs = std::filesystem;
   std::uint64_t start = 0;
@@ -286,6 +324,7 @@ Volume readNrrd(const std::string& path) {
     default:
       throw FormatError(path, "unsupported NRRD type " + std::to_string(nin->type));
   }
+  v.orientation = orientationOf(nin.get(), first);
   v.computeRange();
   return v;
 }
@@ -311,8 +350,18 @@ void writeNrrd(const Volume& volume, const std::string& path) {
                           std::size_t(volume.dims.z)};
   if (nrrdWrap_nva(nout.get(), const_cast<std::byte*>(volume.data.data()), type, 3, sizes))
     throw FormatError(path, teemError());
-  double spacings[3] = {volume.spacing.x, volume.spacing.y, volume.spacing.z};
-  nrrdAxisInfoSet_nva(nout.get(), nrrdAxisInfoSpacing, spacings);
+  // The orientation as an LPS space with a direction (spacing included) and an origin.
+  double directions[3][NRRD_SPACE_DIM_MAX] = {};
+  double origin[NRRD_SPACE_DIM_MAX] = {};
+  for (int a = 0; a < 3; ++a) {
+    for (int r = 0; r < 3; ++r)
+      directions[a][r] = volume.orientation.direction[a][r] * volume.spacing[a];
+    origin[a] = volume.orientation.origin[a];
+  }
+  if (nrrdSpaceSet(nout.get(), nrrdSpaceLeftPosteriorSuperior) ||
+      nrrdSpaceOriginSet(nout.get(), origin))
+    throw FormatError(path, teemError());
+  nrrdAxisInfoSet_nva(nout.get(), nrrdAxisInfoSpaceDirection, directions);
   std::unique_ptr<NrrdIoState, IoStateDeleter> io(nrrdIoStateNew());
   if (nrrdEncodingGzip->available()) io->encoding = nrrdEncodingGzip;
   // A detached header names its data file, so it is written in place; an attached .nrrd goes

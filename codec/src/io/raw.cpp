@@ -40,6 +40,7 @@ void checkRawFile(const std::string& path, const RawLayout& layout) {
 Volume readRaw(const std::string& path, const RawLayout& layout) {
   checkRawFile(path, layout);
   Volume v = Volume::allocate(layout.dims, layout.type, layout.spacing);
+  v.orientation = layout.orientation;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FormatError(path, std::strerror(errno));
   in.seekg(std::streamoff(layout.headerBytes));

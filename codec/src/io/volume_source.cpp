@@ -29,6 +29,7 @@ void VolumeSource::readSlices(int z0, int count, std::span<std::byte> out) const
 Volume VolumeSource::headerVolume() const {
   Volume v;
   v.dims = dims, v.spacing = spacing, v.type = type;
+  v.orientation = orientation;
   v.valueMin = valueMin, v.valueMax = valueMax;
   return v;
 }
@@ -46,6 +47,7 @@ std::pair<double, double> VolumeSource::dataRange() const {
 
 Volume VolumeSource::readAll() const {
   Volume v = Volume::allocate(dims, type, spacing);
+  v.orientation = orientation;
   v.valueMin = valueMin, v.valueMax = valueMax;
   read(0, dims.z, v.data.data());
   return v;
@@ -58,6 +60,7 @@ class MemorySource final : public VolumeSource {
   MemorySource(const Volume* volume, Volume owned) : owned_(std::move(owned)) {
     volume_ = volume ? volume : &owned_;
     dims = volume_->dims, spacing = volume_->spacing, type = volume_->type;
+    orientation = volume_->orientation;
     valueMin = volume_->valueMin, valueMax = volume_->valueMax;
     if (type == ScalarType::Float32)
       for (const float f : volume_->as<float>()) finite = finite && std::isfinite(f);
@@ -67,6 +70,10 @@ class MemorySource final : public VolumeSource {
   void setSpacing(glm::dvec3 s) override {
     if (volume_ != &owned_) throw std::logic_error("setSpacing on a borrowed volume");
     spacing = owned_.spacing = s;
+  }
+  void setOrientation(const Orientation& o) override {
+    if (volume_ != &owned_) throw std::logic_error("setOrientation on a borrowed volume");
+    orientation = owned_.orientation = o;
   }
 
  protected:
@@ -89,6 +96,7 @@ class FileSource final : public VolumeSource {
         offset_(slab.layout.headerBytes),
         bigEndian_(slab.layout.bigEndian) {
     dims = slab.layout.dims, type = slab.layout.type, spacing = slab.layout.spacing;
+    orientation = slab.layout.orientation;
     fd_ = ::open(file_.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd_ < 0) throw FormatError(path_, std::strerror(errno));
     findRange(progress);

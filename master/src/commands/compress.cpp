@@ -50,7 +50,7 @@ void runCompress(const CompressOptions& o) {
       o.input.rfind("generated:", 0) == 0
           ? codec::memorySource(loadVolume(o.input, o.raw.readOptions()))
           : codec::openVolumeSource(o.input, o.raw.readOptions(), progress);
-  if (!o.raw.spacing.empty()) source->setSpacing(parseSpacing(o.raw.spacing, "--spacing"));
+  o.raw.applyOverrides(*source);
   std::string report;
   std::uint64_t fileBytes = 0;
   try {

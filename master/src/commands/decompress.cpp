@@ -16,7 +16,8 @@ struct DecompressOptions {
 
 void runDecompress(const DecompressOptions& o) {
   const auto file = codec::ContainerFile::open(o.input);
-  const codec::Volume v = codec::codecOf(file.info(), o.input).decode(file.info(), file.sections());
+  codec::Volume v = codec::codecOf(file.info(), o.input).decode(file.info(), file.sections());
+  v.orientation = file.info().orientation;
   codec::writeVolume(v, o.output);
   std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
               std::string(codec::scalarName(v.type)).c_str());

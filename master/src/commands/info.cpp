@@ -15,12 +15,21 @@ struct InfoOptions {
   RawInputOptions raw;
 };
 
-void printVolumeLines(glm::ivec3 dims, codec::ScalarType type, glm::dvec3 spacing, double lo,
-                      double hi) {
+void printVolumeLines(glm::ivec3 dims, codec::ScalarType type, glm::dvec3 spacing,
+                      const codec::Orientation& orientation, double lo, double hi) {
   std::printf("dims        %d x %d x %d (%zu voxels)\n", dims.x, dims.y, dims.z,
               std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z));
   std::printf("type        %s\n", std::string(codec::scalarName(type)).c_str());
   std::printf("spacing     %g x %g x %g\n", spacing.x, spacing.y, spacing.z);
+  const glm::dmat3& d = orientation.direction;
+  std::printf("orientation %s (the patient directions of the x, y and z axes)\n",
+              codec::orientationLetters(d).c_str());
+  // The voxel-to-patient matrix (LPS, millimetres), row by row: index (i, j, k, 1) to x, y, z
+  // (+ 0.0 prints -0 as 0).
+  std::printf("to patient  LPS mm = M * (i, j, k, 1), M =\n");
+  for (int r = 0; r < 3; ++r)
+    std::printf("            %10.4f %10.4f %10.4f %12.4f\n", d[0][r] * spacing.x + 0.0,
+                d[1][r] * spacing.y + 0.0, d[2][r] * spacing.z + 0.0, orientation.origin[r] + 0.0);
   std::printf("values      %g .. %g\n", lo, hi);
 }
 
@@ -30,15 +39,16 @@ void runInfo(const InfoOptions& o) {
     const auto& info = file.info();
     const double rawBytes = double(info.voxelCount()) * double(codec::scalarBytes(info.type));
     std::printf("file        %s\n", o.input.c_str());
-    std::printf("container   .vwz version %u, %zu sections, checksums ok\n",
-                codec::kContainerVersion, file.sections().sections.size());
+    std::printf("container   .vwz version %u, %zu sections, checksums ok\n", file.version(),
+                file.sections().sections.size());
     const codec::Codec* c = codec::findCodec(info.codec);
     if (c)
       std::printf("codec       %s\n", std::string(c->name()).c_str());
     else  // a file of a later voxwall: what the container says is still worth showing
       std::printf("codec       id %u, not in this build (it has: %s)\n", unsigned(info.codec),
                   codec::codecNames().c_str());
-    printVolumeLines(info.dims, info.type, info.spacing, info.valueMin, info.valueMax);
+    printVolumeLines(info.dims, info.type, info.spacing, info.orientation, info.valueMin,
+                     info.valueMax);
     std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
                 (unsigned long long)file.fileBytes());
     std::printf("bits/voxel  %.3f\n", 8.0 * double(file.fileBytes()) / double(info.voxelCount()));
@@ -50,9 +60,9 @@ void runInfo(const InfoOptions& o) {
     return;
   }
   codec::Volume v = loadVolume(o.input, o.raw.readOptions());
-  if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
+  o.raw.applyOverrides(v);
   std::printf("file        %s\n", o.input.c_str());
-  printVolumeLines(v.dims, v.type, v.spacing, v.valueMin, v.valueMax);
+  printVolumeLines(v.dims, v.type, v.spacing, v.orientation, v.valueMin, v.valueMax);
   std::printf("size        %s uncompressed\n", humanBytes(double(v.data.size())).c_str());
 }
 

@@ -97,7 +97,7 @@ node::RenderVolume loadRenderVolume(const RenderOptions& o, const std::string& i
     return node::RenderVolume::open(input, std::nullopt, codecRenderOptions(o));
   node::RenderVolume::refuseRenderOptions(codecRenderOptions(o), input);
   codec::Volume v = loadVolume(input, o.raw.readOptions());
-  if (!o.raw.spacing.empty()) v.spacing = parseSpacing(o.raw.spacing, "--spacing");
+  o.raw.applyOverrides(v);
   return node::RenderVolume::fromVolume(v);
 }
 

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <voxwall/codec/registry.hpp>
 #include <voxwall/net/tcp.hpp>
+#include <voxwall/node/camera.hpp>
 #include <voxwall/node/transfer_function.hpp>
 #include <voxwall/walls/wall.hpp>
 
@@ -177,6 +178,13 @@ master::CameraPath cameraPath(const RenderOptions& o) {
   orbit.azimuthDeg = cam[0];
   orbit.elevationDeg = cam[1];
   if (cam.size() == 3) orbit.distance = cam[2];
+  if (!o.view.empty()) {
+    const auto view = node::anatomicalView(o.view);
+    if (!view)
+      throw std::invalid_argument("--view: '" + o.view + "' is not one of " +
+                                  node::anatomicalViewNames());
+    orbit.azimuthDeg = view->azimuthDeg, orbit.elevationDeg = view->elevationDeg;
+  }
   if (!(orbit.distance > 0)) throw std::invalid_argument("--camera: distance must be positive");
   if (!(o.fov > 0 && o.fov < 180)) throw std::invalid_argument("--fov must be in (0, 180) degrees");
   orbit.fovYDeg = o.fov;
@@ -289,6 +297,7 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["frames"] = job.frames;
   m["path"] = o.path;
   m["camera"] = o.camera;
+  m["view"] = o.view;
   m["fov"] = o.fov;
   m["pan"] = o.pan;
   m["orbit_deg"] = o.orbitDeg;
@@ -412,10 +421,18 @@ void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
       ->capture_default_str();
   cmd.add_option("--zoom-to", o.zoomTo, "orbit-zoom: final camera distance in bounding radii")
       ->capture_default_str();
-  cmd.add_option("--camera", o.camera,
-                 "Orbit camera of frame 0: AZIMUTH,ELEVATION[,DISTANCE] in degrees around +z and "
-                 "multiples of the volume's bounding radius")
-      ->capture_default_str();
+  auto* camera =
+      cmd.add_option("--camera", o.camera,
+                     "Orbit camera of frame 0: AZIMUTH,ELEVATION[,DISTANCE] in degrees around the "
+                     "patient's superior axis from its left (azimuth -90 looks at the face) and "
+                     "multiples of the volume's bounding radius")
+          ->capture_default_str();
+  cmd.add_option("--view", o.view,
+                 "Start from an anatomical view instead of --camera (at its default distance): "
+                 "anterior (patient's left on the picture's right), posterior, left, "
+                 "right, superior, inferior (from the feet, anterior up, as radiologists read "
+                 "axial slices)")
+      ->excludes(camera);
   cmd.add_option("--pan", o.pan,
                  "Slide the camera across the view by X,Y bounding radii (the volume moves the "
                  "other way on the screen)");

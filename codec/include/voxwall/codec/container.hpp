@@ -18,8 +18,14 @@
 //      128  32n  section table, one entry per section:
 //                  u32 section id, u32 reserved (0), u64 offset, u64 length, u64 xxHash64
 //   then the sections, each starting at a multiple of 64 bytes, in table order, not overlapping.
-// Section ids are the codec's (each codec documents its own); readers refuse a file whose
-// lengths or offsets do not fit in the file before they touch any section data.
+// Section ids below 0x80000000 are the codec's (each codec documents its own); the container owns
+// the ids above:
+//   0x80000001  orientation, 96 bytes: f64 direction matrix, column by column (the patient LPS
+//               direction of the x, then y, then z axis), then f64 origin x, y, z (millimetres,
+//               the centre of voxel 0): see Orientation in volume.hpp.
+// Readers refuse a file whose lengths or offsets do not fit in the file before they touch any
+// section data.
+// Versions: 1 had no orientation section (read as the identity, LPS); 2 always has one.
 #pragma once
 
 #include <cstdint>
@@ -32,7 +38,9 @@
 
 namespace voxwall::codec {
 
-inline constexpr std::uint32_t kContainerVersion = 1;
+inline constexpr std::uint32_t kContainerVersion = 2;
+inline constexpr std::uint32_t kContainerSectionIds = 0x80000000u;  // ids from here: container's
+inline constexpr std::uint32_t kOrientationSectionId = 0x80000001u;
 inline constexpr std::uint32_t kMaxSections = 64;
 inline constexpr std::size_t kSectionAlignment = 64;
 
@@ -47,13 +55,15 @@ struct VolumeInfo {
   ScalarType type = ScalarType::UInt8;
   glm::ivec3 dims{0, 0, 0};
   glm::dvec3 spacing{1, 1, 1};
+  Orientation orientation{};
   double valueMin = 0, valueMax = 0;
   std::size_t voxelCount() const {
     return std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z);
   }
 };
 
-// The header description of `volume` coded with `codec` (what every encoder stores).
+// The header description of `volume` (with its orientation) coded with `codec` (what every encoder
+// stores).
 VolumeInfo volumeInfo(const Volume& volume, CodecId codec);
 
 // Read-only access to a codec's sections by id, wherever they live (a mapped file or memory).
@@ -89,6 +99,7 @@ class ContainerFile {
   static ContainerFile parse(std::span<const std::byte> bytes, const std::string& source);
 
   const VolumeInfo& info() const { return info_; }
+  std::uint32_t version() const { return version_; }  // the file's format version
   const SectionSet& sections() const { return sections_; }
   std::uint64_t fileBytes() const { return bytes_.size(); }
   const std::string& path() const { return sections_.source; }
@@ -103,6 +114,7 @@ class ContainerFile {
   std::shared_ptr<Mapping> mapping_;
   std::span<const std::byte> bytes_;
   VolumeInfo info_;
+  std::uint32_t version_ = kContainerVersion;
   SectionSet sections_;
 };
 

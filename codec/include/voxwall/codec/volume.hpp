@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 #include <span>
 #include <stdexcept>
@@ -29,12 +30,40 @@ ScalarType parseScalarType(std::string_view name);
 template <class F>
 decltype(auto) dispatchScalar(ScalarType type, F&& f);
 
+// Where the voxels lie in the patient (or the scanner, or the world). voxwall's one convention is
+// DICOM's LPS: patient x grows to the patient's Left, y to Posterior, z to Superior, in
+// millimetres. A voxel's centre at index (i, j, k) lies at
+//   origin + direction * (spacing * (i, j, k))
+// with `direction`'s columns the unit patient directions of the x, y and z index axes. Readers
+// convert what their format says (NIfTI's RAS, NRRD's `space`) to it; voxels stay in file order.
+struct Orientation {
+  glm::dmat3 direction{1.0};  // orthonormal (a rotation, or a rotation and a mirror)
+  glm::dvec3 origin{0.0};     // the centre of voxel (0, 0, 0)
+  bool operator==(const Orientation&) const = default;
+};
+
+// The patient direction each index axis points closest to, one letter per axis from its largest
+// component: "LPS" for the identity, "RAS" for diag(-1, -1, 1), "LIP", ... Oblique axes get the
+// letter of their largest component (as ITK and nibabel print them).
+std::string orientationLetters(const glm::dmat3& direction);
+// The direction matrix of three letters naming distinct axes, each of R/L, A/P, S/I (any case),
+// e.g. "RAS"; throws std::invalid_argument naming the accepted letters.
+glm::dmat3 parseOrientationLetters(std::string_view letters);
+// Empty when `direction` is finite, its columns unit length and orthogonal (within 1e-4);
+// otherwise what is wrong with it, for an error message.
+std::string orientationProblem(const glm::dmat3& direction);
+// The nearest rotation-or-mirror to `m`'s columns (Gram-Schmidt in x, y, z order), for a matrix
+// with shear or unequal column lengths; the spacing is the columns' lengths.
+glm::dmat3 orthonormalized(const glm::dmat3& m);
+
 // A dense volume. dims in voxels, spacing in world units (millimetres for medical data) per
 // voxel, data holds dims.x*dims.y*dims.z scalars of `type`, x fastest, native (little) endian.
-// valueMin/valueMax are the range of the stored values (computeRange() fills them).
+// valueMin/valueMax are the range of the stored values (computeRange() fills them);
+// `orientation` places the voxels in the patient (identity: x, y, z are L, P, S).
 struct Volume {
   glm::ivec3 dims{0, 0, 0};
   glm::dvec3 spacing{1.0, 1.0, 1.0};
+  Orientation orientation{};
   ScalarType type = ScalarType::UInt8;
   double valueMin = 0.0;
   double valueMax = 0.0;

@@ -20,6 +20,7 @@ struct RawLayout {
   glm::dvec3 spacing{1, 1, 1};
   bool bigEndian = false;
   std::uint64_t headerBytes = 0;  // bytes to skip before the first voxel
+  Orientation orientation{};      // where the voxels lie in the patient (identity: LPS)
 };
 
 // Which DICOM series to read, and how.

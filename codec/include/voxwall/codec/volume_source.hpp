@@ -23,6 +23,7 @@ class VolumeSource {
 
   glm::ivec3 dims{0, 0, 0};
   glm::dvec3 spacing{1, 1, 1};  // change it with setSpacing()
+  Orientation orientation{};    // change it with setOrientation()
   ScalarType type = ScalarType::UInt8;
   double valueMin = 0, valueMax = 0;  // of every voxel (a first pass over a file finds them)
   bool finite = true;                 // false when float data holds NaN or infinities
@@ -47,7 +48,10 @@ class VolumeSource {
   // Overrides the file's spacing (`compress --spacing`), also in the volume inMemory() gives
   // when the source owns it; throws std::logic_error for a source that borrows its volume.
   virtual void setSpacing(glm::dvec3 s) { spacing = s; }
-  // The header of a volume with this source's dims, type, spacing and range, and no data.
+  // Overrides the file's orientation (`compress --orientation`), the same way.
+  virtual void setOrientation(const Orientation& o) { orientation = o; }
+  // The header of a volume with this source's dims, type, spacing, orientation and range, and
+  // no data.
   Volume headerVolume() const;
 
  protected:

@@ -41,8 +41,8 @@ struct CameraOffset {
   node::Orbit apply(node::Orbit orbit) const;
   // Adds a command, kept within reach so that no command winds the camera up: the azimuth
   // offset modulo 360 (in [-180, 180)), the elevation so that `path`'s elevation plus the offset
-  // stays within +-89 degrees, the zoom factor within 0.05..20, the pan within +-kMaxPan
-  // bounding radii (the volume stays on the screen). Reset clears it.
+  // stays within +-90 degrees (straight down or up), the zoom factor within 0.05..20, the pan
+  // within +-kMaxPan bounding radii (the volume stays on the screen). Reset clears it.
   void take(const net::Control& command, const node::Orbit& path);
   static constexpr double kMaxPan = 1.5;
 };
