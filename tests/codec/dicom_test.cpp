@@ -318,7 +318,21 @@ TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {
   bomb += "0123";
   voxwall::test::writeFile(files[1], bytes.substr(0, pixels) + bomb + bytes.substr(pixels));
   expectFormatError([&] { readVolume(dir.path("bomb")); }, files[1],
-                    "claims more bytes than the file holds");
+                    "has an element (7FD1,1010) at byte 912 that claims 4294967280 bytes past the "
+                    "end of the file");
+
+  // Rows claiming 53,250 bytes: GDCM's scanner, reading past the end, fell back to other
+  // encodings on a failed stream and aborted the program on an assertion (found by the DICOM
+  // fuzz target). The elements' lengths are walked before GDCM reads them.
+  files = writeSeries(dir.root() / "rows", Series{});
+  bytes = voxwall::test::readFile(files[6]);
+  const auto rows = bytes.find(std::string("\x28\x00\x10\x00US\x02\x00", 8));
+  ASSERT_NE(rows, std::string::npos);
+  bytes[rows + 6] = char(0x02), bytes[rows + 7] = char(0xd0);
+  voxwall::test::writeFile(files[6], bytes);
+  expectFormatError([&] { readVolume(dir.path("rows")); }, files[6],
+                    "has an element (0028,0010) at byte " + std::to_string(rows) +
+                        " that claims 53250 bytes past the end of the file");
 
   // Not a DICOM file at all, named .dcm.
   voxwall::test::writeFile(dir.path("junk.dcm"), std::string(200, 'x'));
@@ -354,6 +368,23 @@ TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {
   expectFormatError([&] { readVolume(dir.path("rle")); }, files[4],
                     "its compressed pixel data does not start as transfer syntax "
                     "1.2.840.10008.1.2.5 does");
+
+  // A fragment claiming 4 GiB in a file of a few KiB: GDCM would allocate it (12.7 GB and 142 s
+  // for one such file, which it then accepted); the items are walked first and it is refused.
+  bytes = voxwall::test::readFile(files[4]);
+  const std::uint32_t claim = 0xfffffff0u;
+  std::memcpy(&bytes[fragment + 4], &claim, 4);
+  voxwall::test::writeFile(files[4], bytes);
+  expectFormatError([&] { readVolume(dir.path("rle")); }, files[4],
+                    "fragment 1 of its compressed pixel data claims 4294967280 bytes");
+  // The sequence delimiter missing: the items run to the end of the file.
+  bytes = voxwall::test::readFile(files[3]);
+  const auto delimiter = bytes.rfind(std::string("\xfe\xff\xdd\xe0", 4));
+  ASSERT_NE(delimiter, std::string::npos);
+  writeSeries(dir.root() / "rle", rle);  // the other slices whole again, files[4] too
+  voxwall::test::writeFile(files[3], bytes.substr(0, delimiter));
+  expectFormatError([&] { readVolume(dir.path("rle")); }, files[3],
+                    "before its sequence delimiter");
 }
 
 TEST(Dicom, AFolderOfImagesIsStillASliceStackAndAnEmptyOneIsRefused) {
