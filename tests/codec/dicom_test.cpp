@@ -387,6 +387,29 @@ TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {
                     "before its sequence delimiter");
 }
 
+// The element walk that guards GDCM steps over what real files hold: an icon image sequence of
+// undefined length whose pixel data is compressed fragments (bytes that are not elements).
+TEST(Dicom, AnIconWithCompressedFragmentsInASequenceIsRead) {
+  TempDir dir;
+  const auto files = writeSeries(dir.root() / "icon", Series{});
+  std::string bytes = voxwall::test::readFile(files[0]);
+  const auto pixels = bytes.rfind(std::string("\xe0\x7f\x10\x00OW\x00\x00", 8));
+  ASSERT_NE(pixels, std::string::npos);
+  const std::string undefined("\xff\xff\xff\xff", 4), zero("\x00\x00\x00\x00", 4);
+  const std::string icon = std::string("\x88\x00\x00\x02SQ\x00\x00", 8) + undefined +  // sequence
+                           std::string("\xfe\xff\x00\xe0", 4) + undefined +            // item
+                           std::string("\xe0\x7f\x10\x00OB\x00\x00", 8) + undefined +  // pixels
+                           std::string("\xfe\xff\x00\xe0", 4) + zero +                 // offsets
+                           std::string("\xfe\xff\x00\xe0\x04\x00\x00\x00\xfe\xff\x00\xe0", 12) +
+                           std::string("\xfe\xff\xdd\xe0", 4) + zero +  // fragments end
+                           std::string("\xfe\xff\x0d\xe0", 4) + zero +  // item end
+                           std::string("\xfe\xff\xdd\xe0", 4) + zero;   // sequence end
+  voxwall::test::writeFile(files[0], bytes.substr(0, pixels) + icon + bytes.substr(pixels));
+  const Volume v = readVolume(dir.path("icon"));
+  EXPECT_EQ(v.dims, glm::ivec3(kW, kH, kD));
+  EXPECT_NEAR(valueAt(v, 3, 4, kD - 1 - 2), 2500, 1);
+}
+
 TEST(Dicom, AFolderOfImagesIsStillASliceStackAndAnEmptyOneIsRefused) {
   TempDir dir;
   std::filesystem::create_directories(dir.root() / "empty");

@@ -95,10 +95,6 @@ bool startsAsDicom(const fs::path& file) {
   return in.read(head, sizeof head) && std::memcmp(head + 128, "DICM", 4) == 0;
 }
 
-// Debian's GDCM is built with its assertions on, and its reader of the File Meta Information
-// (group 0002, always explicit VR little endian) asserts, aborting the program, on a sequence, an
-// undefined length or a value cut short there. Those elements are walked here first (only their
-// lengths, not their meaning) so that such a file is refused instead.
 // Whether `vr` is a value representation DICOM defines (PS3.5 6.2).
 bool isDicomVr(const std::string& vr) {
   static const std::string kVrs =
@@ -108,7 +104,11 @@ bool isDicomVr(const std::string& vr) {
   return vr.size() == 2 && at != std::string::npos && at % 3 == 0;
 }
 
-// Returns where the data set starts; `transferSyntax` receives the UID of (0002,0010).
+// Debian's GDCM is built with its assertions on, and its reader of the File Meta Information
+// (group 0002, always explicit VR little endian) asserts, aborting the program, on a sequence, an
+// undefined length or a value cut short there. Those elements are walked here first (only their
+// lengths, not their meaning) so that such a file is refused instead. Returns where the data set
+// starts; `transferSyntax` receives the UID of (0002,0010).
 std::uint64_t checkMetaGroup(const std::string& file, std::string& transferSyntax) {
   std::ifstream in(file, std::ios::binary);
   std::error_code ec;
@@ -216,10 +216,10 @@ struct Series {
   std::vector<SliceHeader> slices;
 };
 
-// The image files under `path` grouped by series (files without Rows/Columns, such as reports
-// and presentation states, are not images and are left out).
 std::uint64_t walkToPixelData(const std::string& file, std::string* transferSyntax = nullptr);
 
+// The image files under `path` grouped by series (files without Rows/Columns, such as reports
+// and presentation states, are not images and are left out).
 std::map<std::string, Series> scanSeries(const std::string& path) {
   quietGdcm();
   const std::vector<std::string> files = dicomFilesOf(path);
@@ -396,7 +396,10 @@ class ElementWalk {
       unsigned char h[12];
       read(at, h, 8, end);
       const std::uint32_t tag = std::uint32_t(le16(h)) << 16 | le16(h + 2);
-      if (tag == 0xfffee00du && delimited) return at + 8;  // the item's end
+      if (tag == 0xfffee00du && delimited) {  // the item's end
+        if (le32(h + 4) != 0) fail(at, delimiterError(at));
+        return at + 8;
+      }
       if ((tag >> 16) == 0xfffe) fail(at, "has a misplaced item or delimiter");
       // Elements past `stop` (a file without Pixel Data) are checked like the others: GDCM's
       // scanner reads the first element past the tags it looks for.
@@ -434,10 +437,14 @@ class ElementWalk {
         sequence = dictionaryVr(tag) == gdcm::VR::SQ;
       }
       if (length == 0xffffffffu) {
-        // An undefined-length UN holds implicit VR little endian elements (PS3.5 6.2.2).
+        // An undefined-length UN holds implicit VR little endian elements (PS3.5 6.2.2); an
+        // undefined-length OB or OW (pixel data, such as an icon's) holds fragments, whose
+        // bytes are not elements.
         const bool saved = explicit_;
+        const bool fragments =
+            explicit_ ? !sequence && !(h[4] == 'U' && h[5] == 'N') : tag == 0x7fe00010u;
         if (explicit_ && h[4] == 'U' && h[5] == 'N') explicit_ = false;
-        at = items(at + header, end, depth, true);
+        at = items(at + header, end, depth, true, fragments);
         explicit_ = saved;
         continue;
       }
@@ -445,7 +452,7 @@ class ElementWalk {
         fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
                      " that claims " + std::to_string(length) +
                      " bytes past the end of the file (" + std::to_string(size_) + " bytes)");
-      if (sequence) items(at + header, at + header + length, depth, false);
+      if (sequence) items(at + header, at + header + length, depth, false, false);
       at += header + length;
     }
     if (delimited) fail(at, "ends inside a sequence (cut short)");
@@ -454,22 +461,27 @@ class ElementWalk {
 
  private:
   // The items of a sequence from `at`: up to `end`, or (undefined length) up to its delimiter.
-  std::uint64_t items(std::uint64_t at, std::uint64_t end, int depth, bool delimited) {
+  // The elements in each item are walked too, unless the items are `fragments` of pixel data.
+  std::uint64_t items(std::uint64_t at, std::uint64_t end, int depth, bool delimited,
+                      bool fragments) {
     while (at < end) {
       unsigned char h[8];
       read(at, h, 8, end);
       const std::uint32_t tag = std::uint32_t(le16(h)) << 16 | le16(h + 2);
       const std::uint32_t length = le32(h + 4);
-      if (tag == 0xfffee0ddu && delimited) return at + 8;
-      // Encapsulated pixel data in a sequence (icons) holds fragments: items of defined length.
+      if (tag == 0xfffee0ddu && delimited) {
+        if (length != 0) fail(at, delimiterError(at));
+        return at + 8;
+      }
       if (tag != 0xfffee000u) fail(at, "has something other than an item in a sequence");
       if (length == 0xffffffffu) {
+        if (fragments) fail(at, "has a pixel data fragment of undefined length");
         at = list(at + 8, end, depth + 1, true, 0);
       } else {
         if (at + 8 + length > end)
           fail(at, "has a sequence item at byte " + std::to_string(at) + " that claims " +
                        std::to_string(length) + " bytes past its end");
-        list(at + 8, at + 8 + length, depth + 1, false, 0);
+        if (!fragments) list(at + 8, at + 8 + length, depth + 1, false, 0);
         at += 8 + length;
       }
     }
@@ -483,6 +495,11 @@ class ElementWalk {
       fail(at, "is cut short inside an element's header at byte " + std::to_string(at));
   }
   [[noreturn]] void fail(std::uint64_t, const std::string& what) { throw FormatError(file_, what); }
+  static std::string delimiterError(std::uint64_t at) {
+    return "has a delimiter at byte " + std::to_string(at) +
+           " with a length where it must have "
+           "none";
+  }
   static unsigned le16(const unsigned char* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; }
   static std::uint32_t le32(const unsigned char* b) {
     return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
@@ -494,7 +511,9 @@ class ElementWalk {
     return text;
   }
 
+  // The public dictionary's VR of `tag`; INVALID for private and unknown tags.
   static gdcm::VR dictionaryVr(std::uint32_t tag) {
+    if ((tag >> 16) & 1) return gdcm::VR::INVALID;
     return gdcm::Global::GetInstance()
         .GetDicts()
         .GetPublicDict()
@@ -594,7 +613,15 @@ std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
                                   " before its sequence delimiter (cut short)");
     const unsigned group = le16(b), element = le16(b + 2);
     const std::uint32_t length = le32(b + 4);
-    if (group == 0xfffe && element == 0xe0dd) return at + 8;
+    // A delimiter's length must be 0: GDCM allocated 3.3 GB for one claiming 0xc4000000 bytes
+    // (found by the DICOM fuzz target).
+    if (group == 0xfffe && element == 0xe0dd) {
+      if (length != 0)
+        throw FormatError(file, "the sequence delimiter of its pixel data at byte " +
+                                    std::to_string(at) + " has a length (" +
+                                    std::to_string(length) + ") where it must have none");
+      return at + 8;
+    }
     if (group != 0xfffe || element != 0xe000)
       throw FormatError(file,
                         "its compressed pixel data holds something other than an item "
@@ -647,26 +674,42 @@ void checkStreamGeometry(const std::string& file, const std::string& ts, const g
       precision = (b[at + 40] & 0x7f) + 1;
     }
   } else if (ts.rfind("1.2.840.10008.1.2.4.", 0) == 0) {
-    // JPEG and JPEG-LS: marker segments after SOI up to the frame header.
+    // JPEG and JPEG-LS: the marker segments after SOI, each where the previous one ends, up to
+    // the first scan (SOS). libjpeg warns of bytes between them, and GDCM asserts on any
+    // warning while it reads a JPEG header (found by the DICOM fuzz target).
     std::size_t at = 2;
+    bool scan = false;
     while (at + 4 <= n && b[at] == 0xff) {
       const int marker = b[at + 1];
+      if (marker == 0xff) {  // a fill byte
+        ++at;
+        continue;
+      }
+      if ((marker >= 0xd0 && marker <= 0xd7) || marker == 0x01) {
+        at += 2;
+        continue;
+      }
+      const int length = be16(at + 2);
+      if (length < 2 || at + 2 + std::size_t(length) > n) break;
       const bool frame = (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 &&
                           marker != 0xcc) ||
                          marker == 0xf7;
-      if (frame) {
-        if (at + 10 <= n) {
-          precision = b[at + 4];
-          height = be16(at + 5);
-          width = be16(at + 7);
-          components = b[at + 9];
-        }
+      if (frame && length >= 8 && precision < 0) {
+        precision = b[at + 4];
+        height = be16(at + 5);
+        width = be16(at + 7);
+        components = b[at + 9];
+      }
+      if (marker == 0xda) {
+        scan = true;
         break;
       }
-      const int length = be16(at + 2);
-      if (length < 2) break;
       at += 2 + std::size_t(length);
     }
+    if (!scan)
+      throw FormatError(file,
+                        "its JPEG stream's markers do not lead to a scan in its first "
+                        "fragment (corrupt)");
   } else {
     return;  // RLE: GDCM decodes it to the header's size
   }
@@ -720,10 +763,53 @@ void checkCompressedStart(const std::string& file, std::istream* stream) {
   checkStreamGeometry(file, ts, ds, b, n);
 }
 
+// Whether an enhanced multi-frame file names its orientation where GDCM looks for it (the
+// first item of the shared, then the per-frame functional groups' Plane Orientation, then the
+// top level), as six numbers. GDCM's image reader asserts, aborting the program, when it finds
+// none (found by the DICOM fuzz target).
+bool hasFrameOrientation(const gdcm::DataSet& ds) {
+  const auto sixNumbers = [](const gdcm::DataSet& set) {
+    const gdcm::Tag iop(0x0020, 0x0037);
+    if (!set.FindDataElement(iop)) return false;
+    const gdcm::ByteValue* bv = set.GetDataElement(iop).GetByteValue();
+    return bv && numbersOf(std::string(bv->GetPointer(), bv->GetLength())).size() == 6;
+  };
+  for (const gdcm::Tag groups : {gdcm::Tag(0x5200, 0x9229), gdcm::Tag(0x5200, 0x9230)}) {
+    if (!ds.FindDataElement(groups)) continue;
+    const auto items = ds.GetDataElement(groups).GetValueAsSQ();
+    if (!items || items->GetNumberOfItems() == 0) continue;
+    const gdcm::DataSet& first = items->GetItem(1).GetNestedDataSet();
+    const gdcm::Tag plane(0x0020, 0x9116);
+    if (!first.FindDataElement(plane)) continue;
+    const auto planes = first.GetDataElement(plane).GetValueAsSQ();
+    if (planes && planes->GetNumberOfItems() > 0 &&
+        sixNumbers(planes->GetItem(1).GetNestedDataSet()))
+      return true;
+  }
+  return sixNumbers(ds);
+}
+
+// An image with functional groups (enhanced, usually multi-frame) must name its orientation
+// where GDCM looks for it; call after pixelDataEnd() checked the file.
+void checkFunctionalGroups(const std::string& file) {
+  gdcm::Reader head;
+  head.SetFileName(file.c_str());
+  if (!head.ReadUpToTag(kPixelData, {kPixelData}))
+    throw FormatError(file, "GDCM cannot read it as DICOM (corrupt header)");
+  const gdcm::DataSet& ds = head.GetFile().GetDataSet();
+  if ((ds.FindDataElement(gdcm::Tag(0x5200, 0x9229)) ||
+       ds.FindDataElement(gdcm::Tag(0x5200, 0x9230))) &&
+      !hasFrameOrientation(ds))
+    throw FormatError(file,
+                      "has functional groups but no Image Orientation (Patient) of six numbers "
+                      "in them");
+}
+
 Decoded decode(const std::string& file, std::vector<std::byte>& buffer, std::size_t offset,
                std::size_t expectBytes) {
   bool encapsulated = false;
   const std::size_t end = pixelDataEnd(file, encapsulated);
+  checkFunctionalGroups(file);
   gdcm::ImageReader reader;
   // Elements after the pixels (padding, signatures) are not needed and could claim any length:
   // GDCM reads the file only up to the end of its pixel data.
@@ -887,46 +973,7 @@ void shiftSlice(Volume& v, int z, double dx, double dy) {
   });
 }
 
-// Whether an enhanced multi-frame file names its orientation where GDCM looks for it (the
-// first item of the shared, then the per-frame functional groups' Plane Orientation, then the
-// top level), as six numbers. GDCM's image reader asserts, aborting the program, when it finds
-// none (found by the DICOM fuzz target).
-bool hasFrameOrientation(const gdcm::DataSet& ds) {
-  const auto sixNumbers = [](const gdcm::DataSet& set) {
-    const gdcm::Tag iop(0x0020, 0x0037);
-    if (!set.FindDataElement(iop)) return false;
-    const gdcm::ByteValue* bv = set.GetDataElement(iop).GetByteValue();
-    return bv && numbersOf(std::string(bv->GetPointer(), bv->GetLength())).size() == 6;
-  };
-  for (const gdcm::Tag groups : {gdcm::Tag(0x5200, 0x9229), gdcm::Tag(0x5200, 0x9230)}) {
-    if (!ds.FindDataElement(groups)) continue;
-    const auto items = ds.GetDataElement(groups).GetValueAsSQ();
-    if (!items || items->GetNumberOfItems() == 0) continue;
-    const gdcm::DataSet& first = items->GetItem(1).GetNestedDataSet();
-    const gdcm::Tag plane(0x0020, 0x9116);
-    if (!first.FindDataElement(plane)) continue;
-    const auto planes = first.GetDataElement(plane).GetValueAsSQ();
-    if (planes && planes->GetNumberOfItems() > 0 &&
-        sixNumbers(planes->GetItem(1).GetNestedDataSet()))
-      return true;
-  }
-  return sixNumbers(ds);
-}
-
 Volume readMultiFrame(const SliceHeader& h) {
-  bool fragments = false;
-  pixelDataEnd(h.file, fragments);
-  {
-    gdcm::Reader head;
-    head.SetFileName(h.file.c_str());
-    if (!head.ReadUpToTag(kPixelData, {kPixelData}))
-      throw FormatError(h.file, "GDCM cannot read it as DICOM (corrupt header)");
-    const gdcm::DataSet& ds = head.GetFile().GetDataSet();
-    if (ds.FindDataElement(gdcm::Tag(0x5200, 0x9230)) && !hasFrameOrientation(ds))
-      throw FormatError(h.file,
-                        "is a multi-frame image without an Image Orientation (Patient) of six "
-                        "numbers in its functional groups");
-  }
   std::vector<std::byte> stored;
   const Decoded d = decode(h.file, stored, 0, 0);
   const glm::ivec3 dims(int(d.dims[0]), int(d.dims[1]), int(d.dims[2]));
@@ -972,6 +1019,10 @@ Volume readDicom(const std::string& path, const DicomOptions& options) {
   const std::string name = series.info.uid.empty() ? path : "series " + series.info.uid;
 
   for (const SliceHeader& s : slices)
+    if (s.samples != 1)
+      throw FormatError(s.file, "is a colour image (" + std::to_string(s.samples) +
+                                    " samples per pixel); voxwall reads greyscale DICOM");
+  for (const SliceHeader& s : slices)
     if (s.frames > 1) {
       if (slices.size() > 1)
         throw FormatError(path, name + " holds " + std::to_string(slices.size()) +
@@ -979,10 +1030,6 @@ Volume readDicom(const std::string& path, const DicomOptions& options) {
                                     " has several frames; read one multi-frame file at a time");
       return readMultiFrame(s);
     }
-  for (const SliceHeader& s : slices)
-    if (s.samples != 1)
-      throw FormatError(s.file, "is a colour image (" + std::to_string(s.samples) +
-                                    " samples per pixel); voxwall reads greyscale DICOM");
 
   // Every slice the same size and orientation, at a position of its own along the normal.
   const SliceHeader& first = slices.front();
