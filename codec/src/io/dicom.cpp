@@ -95,6 +95,14 @@ bool startsAsDicom(const fs::path& file) {
   return in.read(head, sizeof head) && std::memcmp(head + 128, "DICM", 4) == 0;
 }
 
+// Little-endian 16- and 32-bit values of a file's bytes (the walks below read DICOM's own
+// little-endian encodings).
+unsigned le16(const unsigned char* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; }
+std::uint32_t le32(const unsigned char* b) {
+  return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
+         std::uint32_t(b[3]) << 24;
+}
+
 // Whether `vr` is a value representation DICOM defines (PS3.5 6.2).
 bool isDicomVr(const std::string& vr) {
   static const std::string kVrs =
@@ -122,7 +130,7 @@ std::uint64_t checkMetaGroup(const std::string& file, std::string& transferSynta
   };
   for (int elements = 0; elements < 1000; ++elements) {
     unsigned char head[8];
-    if (!bytes(at, 2, head) || (head[0] | head[1] << 8) != 0x0002) {  // the group ended
+    if (!bytes(at, 2, head) || le16(head) != 0x0002) {  // the group ended
       // GDCM asserts when the file ends there (found by the DICOM fuzz target).
       if (at + 8 > size)
         throw FormatError(file, "ends after its File Meta Information (it has no data set)");
@@ -143,11 +151,10 @@ std::uint64_t checkMetaGroup(const std::string& file, std::string& transferSynta
     if (long32) {
       unsigned char l[4];
       if (!bytes(at + 8, 4, l)) throw FormatError(file, "its File Meta Information is cut short");
-      length = std::uint64_t(l[0]) | std::uint64_t(l[1]) << 8 | std::uint64_t(l[2]) << 16 |
-               std::uint64_t(l[3]) << 24;
+      length = le32(l);
       header = 12;
     } else {
-      length = std::uint64_t(head[6]) | std::uint64_t(head[7]) << 8;
+      length = le16(head + 6);
     }
     if (v == "SQ" || length == 0xffffffffu)
       throw FormatError(file, "its File Meta Information holds a sequence or an undefined length");
@@ -500,11 +507,6 @@ class ElementWalk {
            " with a length where it must have "
            "none";
   }
-  static unsigned le16(const unsigned char* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; }
-  static std::uint32_t le32(const unsigned char* b) {
-    return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
-           std::uint32_t(b[3]) << 24;
-  }
   static std::string hex(std::uint32_t tag) {
     char text[16];
     std::snprintf(text, sizeof text, "%04X,%04X", tag >> 16, tag & 0xffff);
@@ -571,11 +573,6 @@ std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
   const auto readAt = [&](std::uint64_t offset, unsigned char* out, std::size_t n) {
     return !ec && offset <= size && n <= size - offset && in.seekg(std::streamoff(offset)) &&
            in.read(reinterpret_cast<char*>(out), std::streamsize(n));
-  };
-  const auto le16 = [](const unsigned char* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; };
-  const auto le32 = [](const unsigned char* b) {
-    return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
-           std::uint32_t(b[3]) << 24;
   };
   // The walk stopped at the Pixel Data element's tag. GDCM reads fragments from any Pixel Data
   // of undefined length, whatever the transfer syntax says (the fuzz target found an
