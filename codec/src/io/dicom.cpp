@@ -771,7 +771,7 @@ bool hasFrameOrientation(const gdcm::DataSet& ds) {
     const gdcm::ByteValue* bv = set.GetDataElement(iop).GetByteValue();
     return bv && numbersOf(std::string(bv->GetPointer(), bv->GetLength())).size() == 6;
   };
-  for (const gdcm::Tag groups : {gdcm::Tag(0x5200, 0x9229), gdcm::Tag(0x5200, 0x9230)}) {
+  for (const gdcm::Tag& groups : {gdcm::Tag(0x5200, 0x9229), gdcm::Tag(0x5200, 0x9230)}) {
     if (!ds.FindDataElement(groups)) continue;
     const auto items = ds.GetDataElement(groups).GetValueAsSQ();
     if (!items || items->GetNumberOfItems() == 0) continue;
