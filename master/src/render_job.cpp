@@ -1,13 +1,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
 #include <future>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <voxwall/core/errors.hpp>
-#include <voxwall/core/files.hpp>
 #include <voxwall/core/process.hpp>
 #include <voxwall/core/text.hpp>
 #include <voxwall/master/frame_messages.hpp>
@@ -15,8 +12,9 @@
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/net/wire.hpp>
 
+#include "frame_output.hpp"
+
 namespace voxwall::master {
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -24,54 +22,6 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
-
-constexpr const char* kManifestName = "voxwall-job.json";
-
-void writeManifest(const std::string& outDir, const nlohmann::json& manifest) {
-  const std::string text = manifest.dump(2) + "\n";
-  voxwall::writeFileAtomically((fs::path(outDir) / kManifestName).string(),
-                               std::as_bytes(std::span(text)));
-}
-
-// Writes frames in a background thread, one at a time: push() waits for the previous frame.
-// After each frame is in place, its size and hash go into the job manifest (written atomically),
-// so --resume keeps exactly the frames that were finished.
-class FrameWriter {
- public:
-  FrameWriter(std::string outDir, nlohmann::json manifest)
-      : outDir_(std::move(outDir)), manifest_(std::move(manifest)) {}
-  // Returns the seconds spent waiting for the previous write.
-  double push(voxwall::Image image, std::string path, std::optional<glm::dvec3> background) {
-    const double wait = finish();
-    pending_ = std::async(std::launch::async,
-                          [this, image = std::move(image), path = std::move(path), background]() {
-                            const auto start = Clock::now();
-                            const auto digest = voxwall::writeImage(image, path, background);
-                            manifest_["completed"][fs::path(path).filename().string()] = {
-                                {"bytes", digest.bytes}, {"xxh64", voxwall::hex64(digest.xxh64)}};
-                            writeManifest(outDir_, manifest_);
-                            return since(start);
-                          });
-    return wait;
-  }
-  // Waits for the write in flight (rethrowing its error); returns the wait.
-  double finish() {
-    if (!pending_.valid()) return 0;
-    const auto start = Clock::now();
-    totalWriteSeconds_ += pending_.get();
-    return since(start);
-  }
-  double totalWriteSeconds() const { return totalWriteSeconds_; }
-  ~FrameWriter() {
-    if (pending_.valid()) pending_.wait();
-  }
-
- private:
-  std::string outDir_;
-  nlohmann::json manifest_;  // touched by the one write in flight, or after finish()
-  std::future<double> pending_;
-  double totalWriteSeconds_ = 0;
-};
 
 // A job id the sink has not seen: random, never 0.
 std::uint64_t newJobId() {
@@ -316,98 +266,6 @@ std::vector<std::vector<voxwall::Rect>> firstFrameRects(const JobSettings& job, 
   const auto renderers = renderingRanks(job, ranks);
   return byRank(staticSlots(job, int(renderers.size())), renderers, ranks);
 }
-
-std::string framePath(const JobSettings& job, int frame) {
-  char name[64];
-  std::snprintf(name, sizeof name, "frame_%05d.%s", frame, job.format.c_str());
-  return (fs::path(job.outDir) / name).string();
-}
-
-namespace {
-
-// prepareOutput, also giving the manifest as written (the frame writer adds to it).
-std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest) {
-  std::vector<bool> done(std::size_t(job.frames), false);
-  if (job.outDir.empty()) return done;
-  std::error_code ec;
-  fs::create_directories(job.outDir, ec);
-  if (ec) throw FormatError(job.outDir, "cannot create output directory: " + ec.message());
-  const fs::path manifestPath = fs::path(job.outDir) / kManifestName;
-  const auto wanted = nlohmann::json::parse(job.manifest);
-  nlohmann::json frames = nlohmann::json::object();
-  if (job.resume) {
-    // Temporaries of frames that were being written when the last run was killed.
-    for (const auto& entry : fs::directory_iterator(job.outDir, ec)) {
-      const auto name = entry.path().filename().string();
-      if ((name.rfind("frame_", 0) == 0 || name.rfind(kManifestName, 0) == 0) &&
-          name.find(".tmp.") != std::string::npos)
-        fs::remove(entry.path(), ec);
-    }
-    int existing = 0;
-    for (int f = 0; f < job.frames; ++f) existing += fs::exists(framePath(job, f), ec);
-    if (fs::exists(manifestPath)) {
-      nlohmann::json found;
-      try {
-        std::ifstream in(manifestPath);
-        found = nlohmann::json::parse(in);
-        if (found.contains("completed")) {
-          frames = found["completed"];
-          found.erase("completed");
-        }
-        if (!frames.is_object())
-          throw FormatError(manifestPath.string(), "'completed' is not an object");
-      } catch (const nlohmann::json::exception& e) {
-        throw FormatError(manifestPath.string(), std::string("not valid JSON: ") + e.what());
-      }
-      if (found != wanted) {
-        std::string differs;
-        for (const auto& [key, value] : wanted.items())
-          if (!found.contains(key) || found[key] != value)
-            differs += (differs.empty() ? "" : ", ") + key;
-        throw FormatError(manifestPath.string(),
-                          "the frames here were rendered with other settings (" +
-                              (differs.empty() ? std::string("extra keys") : differs) +
-                              "); use another --out or drop --resume to overwrite them");
-      }
-    } else if (existing > 0) {
-      throw FormatError(job.outDir, "holds frames but no " + std::string(kManifestName) +
-                                        ": cannot tell how they were made; use another --out or "
-                                        "drop --resume");
-    }
-    // A frame is kept only when the manifest recorded it and the file still has that size and
-    // hash: a frame cut short by a full disk, or changed since, is rendered again.
-    nlohmann::json kept = nlohmann::json::object();
-    for (int f = 0; f < job.frames; ++f) {
-      const std::string path = framePath(job, f);
-      const std::string name = fs::path(path).filename().string();
-      if (!frames.contains(name)) continue;
-      bool same = false;
-      try {
-        same = voxwall::fileHasDigest(path, frames[name].at("bytes").get<std::uint64_t>(),
-                                      frames[name].at("xxh64").get<std::string>());
-      } catch (const nlohmann::json::exception&) {
-      }
-      if (same) {
-        done[std::size_t(f)] = true;
-        kept[name] = frames[name];
-      } else {
-        std::fprintf(stderr,
-                     "voxwall: %s: not as the job manifest recorded it; rendering it again\n",
-                     path.c_str());
-      }
-    }
-    frames = kept;
-  }
-  nlohmann::json out = wanted;
-  out["completed"] = frames;
-  writeManifest(job.outDir, out);
-  if (manifest) *manifest = out;
-  return done;
-}
-
-}  // namespace
-
-std::vector<bool> prepareOutput(const JobSettings& job) { return prepareOutput(job, nullptr); }
 
 namespace {
 
@@ -664,8 +522,8 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   MasterLoop loop(comm, backend, volume, tf, render, job);
   JobSummary summary;
   // Since when no frame's tiles reached the wall sink, whether one ever did, and the last reason.
-  std::optional<Clock::time_point> unreachedSince;
-  bool reached = false;
+  Clock::time_point unreachedSince{};  // meaningful while `unreached`
+  bool unreached = false, reached = false;
   std::string missed;
   const std::string sinkName =
       job.stream ? "wall sink " + job.stream->host + ":" + std::to_string(job.stream->port) : "";
@@ -679,13 +537,16 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
     if (onFrame) onFrame(s);
     if (!job.stream) continue;
     if (s.streamError.empty()) {
-      unreachedSince.reset();
+      unreached = false;
       reached = true;
       continue;
     }
     missed = s.streamError;
-    if (!unreachedSince) unreachedSince = Clock::now();
-    if (since(*unreachedSince) > job.stream->deadlineSeconds)
+    if (!unreached) {
+      unreached = true;
+      unreachedSince = Clock::now();
+    }
+    if (since(unreachedSince) > job.stream->deadlineSeconds)
       throw net::NetError(sinkName + ": no tiles reached it for " +
                           formatLine("%g", job.stream->deadlineSeconds) + " s (" + missed +
                           "); the job stops rather than render for nobody");

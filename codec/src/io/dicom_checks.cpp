@@ -1,0 +1,562 @@
+// The checks a DICOM file passes before GDCM reads it. Debian's GDCM is built with its
+// assertions on and trusts the lengths it reads: on a corrupt file it aborts the program or
+// allocates gigabytes. So every file's elements, sequences and pixel-data fragments are walked
+// here by their tags and lengths first (never their meaning), and a compressed stream's own frame
+// header is compared with the image it claims to be. Each check names the input of the DICOM fuzz
+// target that led to it.
+#include "dicom_checks.hpp"
+
+#include <gdcmDicts.h>
+#include <gdcmGlobal.h>
+#include <gdcmReader.h>
+#include <gdcmSequenceOfFragments.h>
+#include <gdcmSequenceOfItems.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <voxwall/core/errors.hpp>
+
+namespace voxwall::codec::dicom {
+namespace {
+
+namespace fs = std::filesystem;
+
+const gdcm::Tag kRows(0x0028, 0x0010), kColumns(0x0028, 0x0011), kSamples(0x0028, 0x0002),
+    kBitsAllocated(0x0028, 0x0100), kPixelData(0x7fe0, 0x0010);
+
+// Little-endian 16- and 32-bit values of a file's bytes (the walks below read DICOM's own
+// little-endian encodings).
+unsigned le16(const unsigned char* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; }
+std::uint32_t le32(const unsigned char* b) {
+  return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 |
+         std::uint32_t(b[3]) << 24;
+}
+
+// Whether `vr` is a value representation DICOM defines (PS3.5 6.2).
+bool isDicomVr(const std::string& vr) {
+  static const std::string kVrs =
+      "AE AS AT CS DA DS DT FL FD IS LO LT OB OD OF OL OV OW PN SH SL SQ SS ST SV TM UC UI UL UN "
+      "UR US UT UV";
+  const std::size_t at = kVrs.find(vr);
+  return vr.size() == 2 && at != std::string::npos && at % 3 == 0;
+}
+
+// Debian's GDCM is built with its assertions on, and its reader of the File Meta Information
+// (group 0002, always explicit VR little endian) asserts, aborting the program, on a sequence, an
+// undefined length or a value cut short there. Those elements are walked here first (only their
+// lengths, not their meaning) so that such a file is refused instead. Returns where the data set
+// starts; `transferSyntax` receives the UID of (0002,0010).
+std::uint64_t checkMetaGroup(const std::string& file, std::string& transferSyntax) {
+  std::ifstream in(file, std::ios::binary);
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(file, ec);
+  if (ec || !in) throw FormatError(file, "cannot read it");
+  std::uint64_t at = 132;  // after the preamble and "DICM"
+  auto bytes = [&](std::uint64_t offset, std::size_t n, unsigned char* out) {
+    if (offset + n > size) return false;
+    in.seekg(std::streamoff(offset));
+    return bool(in.read(reinterpret_cast<char*>(out), std::streamsize(n)));
+  };
+  for (int elements = 0; elements < 1000; ++elements) {
+    unsigned char head[8];
+    if (!bytes(at, 2, head) || le16(head) != 0x0002) {  // the group ended
+      // GDCM asserts when the file ends there (found by the DICOM fuzz target).
+      if (at + 8 > size)
+        throw FormatError(file, "ends after its File Meta Information (it has no data set)");
+      return at;
+    }
+    if (!bytes(at, 8, head)) throw FormatError(file, "its File Meta Information is cut short");
+    const char vr[3] = {char(head[4]), char(head[5]), 0};
+    const std::string v(vr);
+    // GDCM's meta reader asserts on a VR it does not know (found by the DICOM fuzz target).
+    if (!isDicomVr(v))
+      throw FormatError(file,
+                        "its File Meta Information has an element whose value representation "
+                        "DICOM does not define");
+    const bool long32 = v == "OB" || v == "OW" || v == "OF" || v == "OD" || v == "OL" ||
+                        v == "OV" || v == "SQ" || v == "UN" || v == "UT" || v == "UC" ||
+                        v == "UR" || v == "SV" || v == "UV";
+    std::uint64_t length = 0, header = 8;
+    if (long32) {
+      unsigned char l[4];
+      if (!bytes(at + 8, 4, l)) throw FormatError(file, "its File Meta Information is cut short");
+      length = le32(l);
+      header = 12;
+    } else {
+      length = le16(head + 6);
+    }
+    if (v == "SQ" || length == 0xffffffffu)
+      throw FormatError(file, "its File Meta Information holds a sequence or an undefined length");
+    if (at + header + length > size)
+      throw FormatError(file,
+                        "an element of its File Meta Information runs past the end of the "
+                        "file");
+    if ((head[2] | head[3] << 8) == 0x0010 && length < 256) {
+      std::string uid(std::size_t(length), '\0');
+      in.seekg(std::streamoff(at + header));
+      in.read(uid.data(), std::streamsize(length));
+      while (!uid.empty() && (uid.back() == '\0' || uid.back() == ' ')) uid.pop_back();
+      transferSyntax = uid;
+    }
+    at += header + length;
+  }
+  throw FormatError(file, "its File Meta Information holds more than 1000 elements");
+}
+
+// Checks that the data set's elements before `stop` (and those of their sequences) each end
+// inside the file, walking their tags and lengths only (never their values or meaning): GDCM,
+// reading an element whose value runs past the end, falls back to other encodings on a failed
+// stream and (built with assertions) aborts the program. Found by the DICOM fuzz target: a Rows
+// element claiming 53,250 bytes in a 1 KiB file.
+class ElementWalk {
+ public:
+  ElementWalk(const std::string& file, std::uint64_t size, bool explicitVr)
+      : file_(file), in_(file, std::ios::binary), size_(size), explicit_(explicitVr) {}
+
+  // The elements from `at` until the element `stop` (at depth 0), the end of the file or, in an
+  // item of undefined length, the item's delimiter; returns where the walk ended.
+  std::uint64_t list(std::uint64_t at, std::uint64_t end, int depth, bool delimited,
+                     std::uint32_t stop) {
+    if (depth > 16) fail(at, "nests sequences more than 16 deep");
+    while (at < end) {
+      unsigned char h[12];
+      read(at, h, 8, end);
+      const std::uint32_t tag = std::uint32_t(le16(h)) << 16 | le16(h + 2);
+      if (tag == 0xfffee00du && delimited) {  // the item's end
+        if (le32(h + 4) != 0) fail(at, delimiterError(at));
+        return at + 8;
+      }
+      if ((tag >> 16) == 0xfffe) fail(at, "has a misplaced item or delimiter");
+      // Elements past `stop` (a file without Pixel Data) are checked like the others: GDCM's
+      // scanner reads the first element past the tags it looks for.
+      if (depth == 0 && tag == stop) return at;
+      std::uint64_t header = 8, length = 0;
+      bool sequence = false;
+      if (explicit_) {
+        const std::string vr{char(h[4]), char(h[5])};
+        // A VR DICOM does not define sends GDCM's reader into its fallbacks for broken files,
+        // which read the lengths another way (the fuzz target found one allocating 4 GB).
+        if (!isDicomVr(vr))
+          fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
+                       " with a value representation DICOM does not define");
+        // GDCM's image helpers assert that a public element's VR is the dictionary's (found by
+        // the DICOM fuzz target: Pixel Spacing stored as UT). UN fits any element.
+        const gdcm::VR expected = dictionaryVr(tag);
+        if (vr != "UN" && expected != gdcm::VR::INVALID &&
+            !expected.Compatible(gdcm::VR(gdcm::VR::GetVRType(vr.c_str()))))
+          fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
+                       " stored as " + vr + " where DICOM says " + gdcm::VR::GetVRString(expected));
+        static const char* const kLong[] = {"OB", "OW", "OF", "OD", "OL", "OV", "SQ",
+                                            "UN", "UT", "UC", "UR", "SV", "UV"};
+        bool isLong = false;
+        for (const char* v : kLong) isLong = isLong || vr == v;
+        sequence = vr == "SQ";
+        if (isLong) {
+          read(at, h, 12, end);
+          header = 12, length = le32(h + 8);
+        } else {
+          length = le16(h + 6);
+        }
+      } else {
+        length = le32(h + 4);
+        // Implicit VR: GDCM reads a sequence's items when its dictionary says SQ.
+        sequence = dictionaryVr(tag) == gdcm::VR::SQ;
+      }
+      if (length == 0xffffffffu) {
+        // An undefined-length UN holds implicit VR little endian elements (PS3.5 6.2.2); an
+        // undefined-length OB or OW (pixel data, such as an icon's) holds fragments, whose
+        // bytes are not elements.
+        const bool saved = explicit_;
+        const bool fragments =
+            explicit_ ? !sequence && !(h[4] == 'U' && h[5] == 'N') : tag == 0x7fe00010u;
+        if (explicit_ && h[4] == 'U' && h[5] == 'N') explicit_ = false;
+        at = items(at + header, end, depth, true, fragments);
+        explicit_ = saved;
+        continue;
+      }
+      if (at + header + length > end)
+        fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
+                     " that claims " + std::to_string(length) +
+                     " bytes past the end of the file (" + std::to_string(size_) + " bytes)");
+      if (sequence) items(at + header, at + header + length, depth, false, false);
+      at += header + length;
+    }
+    if (delimited) fail(at, "ends inside a sequence (cut short)");
+    return at;
+  }
+
+ private:
+  // The items of a sequence from `at`: up to `end`, or (undefined length) up to its delimiter.
+  // The elements in each item are walked too, unless the items are `fragments` of pixel data.
+  std::uint64_t items(std::uint64_t at, std::uint64_t end, int depth, bool delimited,
+                      bool fragments) {
+    while (at < end) {
+      unsigned char h[8];
+      read(at, h, 8, end);
+      const std::uint32_t tag = std::uint32_t(le16(h)) << 16 | le16(h + 2);
+      const std::uint32_t length = le32(h + 4);
+      if (tag == 0xfffee0ddu && delimited) {
+        if (length != 0) fail(at, delimiterError(at));
+        return at + 8;
+      }
+      if (tag != 0xfffee000u) fail(at, "has something other than an item in a sequence");
+      if (length == 0xffffffffu) {
+        if (fragments) fail(at, "has a pixel data fragment of undefined length");
+        at = list(at + 8, end, depth + 1, true, 0);
+      } else {
+        if (at + 8 + length > end)
+          fail(at, "has a sequence item at byte " + std::to_string(at) + " that claims " +
+                       std::to_string(length) + " bytes past its end");
+        if (!fragments) list(at + 8, at + 8 + length, depth + 1, false, 0);
+        at += 8 + length;
+      }
+    }
+    if (delimited) fail(at, "ends inside a sequence (cut short)");
+    return at;
+  }
+
+  void read(std::uint64_t at, unsigned char* out, std::size_t n, std::uint64_t end) {
+    if (at > end || n > end - at || !in_.seekg(std::streamoff(at)) ||
+        !in_.read(reinterpret_cast<char*>(out), std::streamsize(n)))
+      fail(at, "is cut short inside an element's header at byte " + std::to_string(at));
+  }
+  [[noreturn]] void fail(std::uint64_t, const std::string& what) { throw FormatError(file_, what); }
+  static std::string delimiterError(std::uint64_t at) {
+    return "has a delimiter at byte " + std::to_string(at) +
+           " with a length where it must have "
+           "none";
+  }
+  static std::string hex(std::uint32_t tag) {
+    char text[16];
+    std::snprintf(text, sizeof text, "%04X,%04X", tag >> 16, tag & 0xffff);
+    return text;
+  }
+
+  // The public dictionary's VR of `tag`; INVALID for private and unknown tags.
+  static gdcm::VR dictionaryVr(std::uint32_t tag) {
+    if ((tag >> 16) & 1) return gdcm::VR::INVALID;
+    return gdcm::Global::GetInstance()
+        .GetDicts()
+        .GetPublicDict()
+        .GetDictEntry(gdcm::Tag(std::uint16_t(tag >> 16), std::uint16_t(tag)))
+        .GetVR();
+  }
+
+  std::string file_;
+  std::ifstream in_;
+  std::uint64_t size_;
+  bool explicit_;
+};
+
+}  // namespace
+
+// Walks the file's elements up to the Pixel Data with ElementWalk (GDCM's own walk that selects
+// the Pixel Data reads its fragments: 4.2 GB for the file below), and returns where it stopped:
+// at the Pixel Data's tag, or at the file's end when it has none. Refuses a file
+// one of whose elements claims more bytes than the file holds: GDCM, reading such a file,
+// falls back to other encodings on a failed stream and (built with assertions) aborts the
+// program (found by the DICOM fuzz target: a Rows element claiming 53,250 bytes).
+std::uint64_t walkToPixelData(const std::string& file, std::string* transferSyntax) {
+  std::string uid;
+  const std::uint64_t dataSet = checkMetaGroup(file, uid);
+  if (transferSyntax) *transferSyntax = uid;
+  std::error_code sizeError;
+  const std::uint64_t fileSize = fs::file_size(file, sizeError);
+  if (sizeError) throw FormatError(file, sizeError.message());
+  // Implicit VR little endian (also when the meta group names none), deflated and big endian
+  // refused, every other syntax explicit VR little endian.
+  if (uid == "1.2.840.10008.1.2.1.99" || uid == "1.2.840.10008.1.2.2")
+    throw FormatError(file, "uses transfer syntax " + uid +
+                                " (deflated or big endian), which voxwall does not read");
+  return ElementWalk(file, fileSize, !uid.empty() && uid != "1.2.840.10008.1.2")
+      .list(dataSet, fileSize, 0, false, 0x7fe00010u);
+}
+
+// The items of encapsulated (compressed) Pixel Data, walked here before GDCM reads any of them:
+// GDCM allocates what each fragment claims, and a 1 KiB file whose fragment claimed 1 GiB cost
+// 27 s and 3.2 GB (0xfffffff0: 142 s and 12.7 GB) and was then accepted. Each item must be an
+// Item (FFFE,E000) of defined length that ends inside the file, and a Sequence Delimitation Item
+// (FFFE,E0DD) must close them.
+// Returns where the Pixel Data ends; `fragments` says whether it is a sequence of fragments
+// (undefined length). Refuses a file whose pixel data runs past its end (GDCM, walking to it,
+// fell back to other encodings on such files and aborted on an assertion).
+std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
+  fragments = false;
+  std::string uid;
+  std::uint64_t at = walkToPixelData(file, &uid);
+  // GDCM's decoders dereference what they expect without checking (a JPEG file whose pixel data
+  // was not fragments crashed in gdcm::JPEGCodec::Decode: found by the DICOM fuzz target).
+  const bool compressed =
+      gdcm::TransferSyntax(gdcm::TransferSyntax::GetTSType(uid.c_str())).IsEncapsulated();
+  std::error_code ec;
+  const std::uint64_t size = fs::file_size(file, ec);
+  std::ifstream in(file, std::ios::binary);
+  const auto readAt = [&](std::uint64_t offset, unsigned char* out, std::size_t n) {
+    return !ec && offset <= size && n <= size - offset && in.seekg(std::streamoff(offset)) &&
+           in.read(reinterpret_cast<char*>(out), std::streamsize(n));
+  };
+  // The walk stopped at the Pixel Data element's tag. GDCM reads fragments from any Pixel Data
+  // of undefined length, whatever the transfer syntax says (the fuzz target found an
+  // uncompressed file that way), so the items are walked whenever the length is undefined.
+  // Explicit VR: tag, VR, two reserved bytes, the 4-byte length; implicit VR: tag, length.
+  unsigned char h[12] = {};
+  if (!readAt(at, h, 8) || le16(h) != 0x7fe0 || le16(h + 2) != 0x0010)
+    throw FormatError(file, "has no Pixel Data");
+  // (GDCM ignores the two reserved bytes after an explicit VR; so does this.)
+  const bool explicitVr = isDicomVr(std::string{char(h[4]), char(h[5])});
+  if (explicitVr && !readAt(at, h, 12))
+    throw FormatError(file, "is cut short inside its Pixel Data element's header");
+  const std::uint32_t length = le32(explicitVr ? h + 8 : h + 4);
+  at += explicitVr ? 12 : 8;
+  if (length != 0xffffffffu) {
+    if (at + length > size)
+      throw FormatError(file, "is cut short: its pixel data ends at byte " +
+                                  std::to_string(at + length) + " but the file has " +
+                                  std::to_string(size) + " bytes");
+    if (compressed)
+      throw FormatError(file, "its transfer syntax " + uid +
+                                  " is compressed but its pixel data is not a sequence of "
+                                  "fragments");
+    return at + length;
+  }
+  if (!compressed)
+    throw FormatError(file, "its pixel data is a sequence of fragments but its transfer syntax " +
+                                (uid.empty() ? std::string("(none)") : uid) +
+                                " is not a compressed one");
+  fragments = true;
+  for (int item = 0;; ++item) {
+    unsigned char b[8];
+    if (!readAt(at, b, 8))
+      throw FormatError(file, "its compressed pixel data ends at byte " + std::to_string(size) +
+                                  " before its sequence delimiter (cut short)");
+    const unsigned group = le16(b), element = le16(b + 2);
+    const std::uint32_t length = le32(b + 4);
+    // A delimiter's length must be 0: GDCM allocated 3.3 GB for one claiming 0xc4000000 bytes
+    // (found by the DICOM fuzz target).
+    if (group == 0xfffe && element == 0xe0dd) {
+      if (length != 0)
+        throw FormatError(file, "the sequence delimiter of its pixel data at byte " +
+                                    std::to_string(at) + " has a length (" +
+                                    std::to_string(length) + ") where it must have none");
+      return at + 8;
+    }
+    if (group != 0xfffe || element != 0xe000)
+      throw FormatError(file,
+                        "its compressed pixel data holds something other than an item "
+                        "at byte " +
+                            std::to_string(at));
+    if (length == 0xffffffffu || at + 8 + length > size)
+      throw FormatError(
+          file, "fragment " + std::to_string(item) + " of its compressed pixel data claims " +
+                    std::to_string(length) + " bytes at byte " + std::to_string(at + 8) +
+                    ", past the end of the file (" + std::to_string(size) + " bytes)");
+    at += 8 + std::uint64_t(length);
+  }
+}
+
+namespace {
+
+// A US value of the data set (-1 when missing or not 2 bytes).
+int usValue(const gdcm::DataSet& ds, const gdcm::Tag& tag) {
+  if (!ds.FindDataElement(tag)) return -1;
+  const gdcm::ByteValue* bv = ds.GetDataElement(tag).GetByteValue();
+  if (!bv || bv->GetLength() != 2) return -1;
+  const auto* b = reinterpret_cast<const unsigned char*>(bv->GetPointer());
+  return int(b[0]) | int(b[1]) << 8;
+}
+
+// GDCM's decoders assert (aborting the program) when a JPEG, JPEG-LS or JPEG 2000 stream
+// decodes to fewer bytes than the DICOM header's image (found by the DICOM fuzz target). So the
+// stream's own frame header (SOF, SOF55 or SIZ) must give the header's columns, rows, samples
+// and bytes per sample.
+void checkStreamGeometry(const std::string& file, const std::string& ts, const gdcm::DataSet& ds,
+                         const unsigned char* b, std::size_t n) {
+  const int rows = usValue(ds, kRows), columns = usValue(ds, kColumns),
+            samples = usValue(ds, kSamples), bits = usValue(ds, kBitsAllocated);
+  const auto be16 = [&](std::size_t at) { return at + 2 <= n ? int(b[at]) << 8 | b[at + 1] : -1; };
+  const auto be32 = [&](std::size_t at) {
+    return at + 4 <= n ? std::int64_t(be16(at)) << 16 | be16(at + 2) : std::int64_t(-1);
+  };
+  std::int64_t width = -1, height = -1;
+  int components = -1, precision = -1;
+  if (ts.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
+    // JPEG 2000: the SIZ marker segment after SOC, in a bare codestream or a JP2 'jp2c' box.
+    std::size_t at = std::string::npos;
+    for (std::size_t i = 0; i + 4 <= n; ++i)
+      if (b[i] == 0xff && b[i + 1] == 0x4f && b[i + 2] == 0xff && b[i + 3] == 0x51) {
+        at = i + 2;
+        break;
+      }
+    if (at != std::string::npos && at + 41 <= n) {
+      width = be32(at + 6) - be32(at + 14);
+      height = be32(at + 10) - be32(at + 18);
+      components = be16(at + 38);
+      precision = (b[at + 40] & 0x7f) + 1;
+    }
+  } else if (ts.rfind("1.2.840.10008.1.2.4.", 0) == 0) {
+    // JPEG and JPEG-LS: the marker segments after SOI, each where the previous one ends, up to
+    // the first scan (SOS). libjpeg warns of bytes between them, and GDCM asserts on any
+    // warning while it reads a JPEG header (found by the DICOM fuzz target).
+    std::size_t at = 2;
+    bool scan = false;
+    while (at + 4 <= n && b[at] == 0xff) {
+      const int marker = b[at + 1];
+      if (marker == 0xff) {  // a fill byte
+        ++at;
+        continue;
+      }
+      if ((marker >= 0xd0 && marker <= 0xd7) || marker == 0x01) {
+        at += 2;
+        continue;
+      }
+      const int length = be16(at + 2);
+      if (length < 2 || at + 2 + std::size_t(length) > n) break;
+      const bool frame = (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 &&
+                          marker != 0xcc) ||
+                         marker == 0xf7;
+      if (frame && length >= 8 && precision < 0) {
+        precision = b[at + 4];
+        height = be16(at + 5);
+        width = be16(at + 7);
+        components = b[at + 9];
+      }
+      if (marker == 0xda) {
+        scan = true;
+        break;
+      }
+      at += 2 + std::size_t(length);
+    }
+    if (!scan)
+      throw FormatError(file,
+                        "its JPEG stream's markers do not lead to a scan in its first "
+                        "fragment (corrupt)");
+  } else {
+    return;  // RLE: GDCM decodes it to the header's size
+  }
+  const int bytesPerSample = precision <= 8 ? 1 : precision <= 16 ? 2 : 4;
+  if (width != columns || height != rows || components != samples || precision < 1 ||
+      bytesPerSample * 8 != bits)
+    throw FormatError(file, "its compressed stream holds " + std::to_string(width) + "x" +
+                                std::to_string(height) + " pixels of " +
+                                std::to_string(components) + " samples of " +
+                                std::to_string(precision) + " bits where its header says " +
+                                std::to_string(columns) + "x" + std::to_string(rows) + " of " +
+                                std::to_string(samples) + " samples of " + std::to_string(bits) +
+                                " bits allocated");
+}
+
+}  // namespace
+
+// GDCM's image reader looks into compressed pixel data as it reads a file: handed a JPEG
+// fragment that is not JPEG, it retried for 23 s and 3.2 GB on three 1 KiB files (found by the
+// DICOM fuzz target). So a compressed file is first read plainly (no decoding), and its first
+// fragment must start as its transfer syntax's stream does: JPEG and JPEG-LS with SOI, JPEG 2000
+// with a codestream or a JP2 box, RLE with a segment count of 1 to 15.
+void checkCompressedStart(const std::string& file, std::istream* stream) {
+  gdcm::Reader plain;
+  if (stream)
+    plain.SetStream(*stream);
+  else
+    plain.SetFileName(file.c_str());
+  if (!plain.Read()) throw FormatError(file, "GDCM cannot read it as DICOM (corrupt)");
+  const gdcm::TransferSyntax syntax = plain.GetFile().GetHeader().GetDataSetTransferSyntax();
+  if (!syntax.IsEncapsulated()) return;
+  const std::string ts = syntax.GetString() ? syntax.GetString() : "";
+  const gdcm::DataSet& ds = plain.GetFile().GetDataSet();
+  const gdcm::SequenceOfFragments* fragments =
+      ds.FindDataElement(kPixelData) ? ds.GetDataElement(kPixelData).GetSequenceOfFragments()
+                                     : nullptr;
+  const gdcm::ByteValue* first = fragments && fragments->GetNumberOfFragments() > 0
+                                     ? fragments->GetFragment(0).GetByteValue()
+                                     : nullptr;
+  const auto* b = first ? reinterpret_cast<const unsigned char*>(first->GetPointer()) : nullptr;
+  const std::size_t n = first && b ? std::size_t(first->GetLength()) : 0;
+  bool starts = n > 0;
+  if (ts.rfind("1.2.840.10008.1.2.4.9", 0) == 0)
+    starts = (n >= 4 && b[0] == 0xff && b[1] == 0x4f && b[2] == 0xff && b[3] == 0x51) ||
+             (n >= 8 && b[4] == 'j' && b[5] == 'P' && b[6] == ' ' && b[7] == ' ');
+  else if (ts.rfind("1.2.840.10008.1.2.4.", 0) == 0)
+    starts = n >= 2 && b[0] == 0xff && b[1] == 0xd8;
+  else if (ts == "1.2.840.10008.1.2.5")
+    starts = n >= 64 && b[0] >= 1 && b[0] <= 15 && b[1] == 0 && b[2] == 0 && b[3] == 0;
+  if (!starts)
+    throw FormatError(
+        file, "its compressed pixel data does not start as transfer syntax " + ts + " does");
+  checkStreamGeometry(file, ts, ds, b, n);
+}
+
+namespace {
+
+// Whether an enhanced multi-frame file names its orientation where GDCM looks for it (the
+// first item of the shared, then the per-frame functional groups' Plane Orientation, then the
+// top level), as six numbers. GDCM's image reader asserts, aborting the program, when it finds
+// none (found by the DICOM fuzz target).
+bool hasFrameOrientation(const gdcm::DataSet& ds) {
+  const auto sixNumbers = [](const gdcm::DataSet& set) {
+    const gdcm::Tag iop(0x0020, 0x0037);
+    if (!set.FindDataElement(iop)) return false;
+    const gdcm::ByteValue* bv = set.GetDataElement(iop).GetByteValue();
+    return bv && numbersOf(std::string(bv->GetPointer(), bv->GetLength())).size() == 6;
+  };
+  for (const gdcm::Tag& groups : {gdcm::Tag(0x5200, 0x9229), gdcm::Tag(0x5200, 0x9230)}) {
+    if (!ds.FindDataElement(groups)) continue;
+    const auto items = ds.GetDataElement(groups).GetValueAsSQ();
+    if (!items || items->GetNumberOfItems() == 0) continue;
+    const gdcm::DataSet& first = items->GetItem(1).GetNestedDataSet();
+    const gdcm::Tag plane(0x0020, 0x9116);
+    if (!first.FindDataElement(plane)) continue;
+    const auto planes = first.GetDataElement(plane).GetValueAsSQ();
+    if (planes && planes->GetNumberOfItems() > 0 &&
+        sixNumbers(planes->GetItem(1).GetNestedDataSet()))
+      return true;
+  }
+  return sixNumbers(ds);
+}
+
+}  // namespace
+
+// An image with functional groups (enhanced, usually multi-frame) must name its orientation
+// where GDCM looks for it; call after pixelDataEnd() checked the file.
+void checkFunctionalGroups(const std::string& file) {
+  gdcm::Reader head;
+  head.SetFileName(file.c_str());
+  if (!head.ReadUpToTag(kPixelData, {kPixelData}))
+    throw FormatError(file, "GDCM cannot read it as DICOM (corrupt header)");
+  const gdcm::DataSet& ds = head.GetFile().GetDataSet();
+  if ((ds.FindDataElement(gdcm::Tag(0x5200, 0x9229)) ||
+       ds.FindDataElement(gdcm::Tag(0x5200, 0x9230))) &&
+      !hasFrameOrientation(ds))
+    throw FormatError(file,
+                      "has functional groups but no Image Orientation (Patient) of six numbers "
+                      "in them");
+}
+
+std::string trimmed(const char* value) {
+  if (!value) return {};
+  std::string s(value);
+  static const std::string blank(" \t\r\n\0", 5);  // DICOM pads with spaces (UIDs with NUL)
+  const auto first = s.find_first_not_of(blank);
+  if (first == std::string::npos) return {};
+  return s.substr(first, s.find_last_not_of(blank) - first + 1);
+}
+
+std::vector<double> numbersOf(const std::string& text) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, '\\')) {
+    try {
+      std::size_t used = 0;
+      const double v = std::stod(item, &used);
+      if (!std::isfinite(v) || trimmed(item.c_str() + used).size()) return {};
+      out.push_back(v);
+    } catch (const std::exception&) {
+      return {};
+    }
+  }
+  return out;
+}
+
+}  // namespace voxwall::codec::dicom
