@@ -387,6 +387,39 @@ TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {
                     "before its sequence delimiter");
 }
 
+// Elements GDCM reads in a way of its own (workarounds for broken files that shift where it reads
+// the rest, or an assertion that an undefined length means UN) are refused before it sees them.
+TEST(Dicom, ElementsGdcmWouldMisreadAreRefused) {
+  TempDir dir;
+  const std::string pixelTag("\xe0\x7f\x10\x00OW\x00\x00", 8);
+  std::size_t at = 0;  // where the element went
+  const auto withBefore = [&](const std::string& name, const std::string& element) {
+    const auto files = writeSeries(dir.root() / name, Series{});
+    const std::string bytes = voxwall::test::readFile(files[2]);
+    at = bytes.rfind(pixelTag);
+    EXPECT_NE(at, std::string::npos);
+    voxwall::test::writeFile(files[2], bytes.substr(0, at) + element + bytes.substr(at));
+    return files[2];
+  };
+  // An OB of undefined length that is not pixel data (GDCM asserts it is UN).
+  std::string file =
+      withBefore("ob", std::string("\xd1\x7f\x10\x10OB\x00\x00\xff\xff\xff\xff", 12) +
+                           std::string("\xfe\xff\x00\xe0\x02\x00\x00\x00xx", 10) +
+                           std::string("\xfe\xff\xdd\xe0\x00\x00\x00\x00", 8));
+  expectFormatError([&] { readVolume(dir.path("ob")); }, file,
+                    "(7FD1,1010) at byte " + std::to_string(at) +
+                        " of undefined length that is neither a sequence nor "
+                        "pixel data");
+  // A UL of 6 bytes (GDCM reads 4 of them in group 0009).
+  file = withBefore("ul", std::string("\x09\x00\x10\x10UL\x06\x00\x01\x02\x03\x04\x05\x06", 14));
+  expectFormatError(
+      [&] { readVolume(dir.path("ul")); }, file,
+      "(0009,1010) at byte " + std::to_string(at) + " of 6 bytes, not a whole number of UL values");
+  // (00FF,4AA5), read by GDCM as pixel data up to the end of the file.
+  file = withBefore("marker", std::string("\xff\x00\xa5\x4aOB\x00\x00\x02\x00\x00\x00xx", 14));
+  expectFormatError([&] { readVolume(dir.path("marker")); }, file, "(00FF,4AA5)");
+}
+
 // The element walk that guards GDCM steps over what real files hold: an icon image sequence of
 // undefined length whose pixel data is compressed fragments (bytes that are not elements).
 TEST(Dicom, AnIconWithCompressedFragmentsInASequenceIsRead) {

@@ -132,6 +132,9 @@ class ElementWalk {
       // Elements past `stop` (a file without Pixel Data) are checked like the others: GDCM's
       // scanner reads the first element past the tags it looks for.
       if (depth == 0 && tag == stop) return at;
+      // GDCM reads (00FF,4AA5) as pixel data running to the end of the file, asserting on what
+      // it finds there (a workaround for one scanner's broken files).
+      if (tag == 0x00ff4aa5u) fail(at, "has element (00FF,4AA5), which GDCM reads as pixel data");
       std::uint64_t header = 8, length = 0;
       bool sequence = false;
       if (explicit_) {
@@ -159,19 +162,34 @@ class ElementWalk {
         } else {
           length = le16(h + 6);
         }
+        // GDCM shortens some values of a size no value of their VR has (a UL of 6 bytes in
+        // group 0009 is read as 4) and then reads the rest of the file from the wrong place.
+        const std::size_t size = numberSize(vr);
+        if (size > 1 && length != 0xffffffffu && length % size != 0)
+          fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) + " of " +
+                       std::to_string(length) + " bytes, not a whole number of " + vr + " values");
       } else {
         length = le32(h + 4);
         // Implicit VR: GDCM reads a sequence's items when its dictionary says SQ.
         sequence = dictionaryVr(tag) == gdcm::VR::SQ;
+        // GDCM reads 10 bytes of an implicit value of 13 (a workaround for one vendor's files)
+        // and then reads the rest of the file from the wrong place.
+        if (length == 13 && tag != 0x00080070u && tag != 0x00080080u)
+          fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
+                       " of 13 bytes (DICOM values have an even length)");
       }
       if (length == 0xffffffffu) {
-        // An undefined-length UN holds implicit VR little endian elements (PS3.5 6.2.2); an
-        // undefined-length OB or OW (pixel data, such as an icon's) holds fragments, whose
-        // bytes are not elements.
+        // Pixel data of undefined length holds fragments, whose bytes are not elements (an
+        // icon's too, in a sequence); an undefined-length UN holds implicit VR little endian
+        // elements (PS3.5 6.2.2). GDCM reads nothing else of undefined length but a sequence:
+        // it asserts that such an element is UN.
+        const bool isUn = explicit_ && h[4] == 'U' && h[5] == 'N';
+        const bool fragments = tag == 0x7fe00010u;
+        if (explicit_ && !sequence && !isUn && !fragments)
+          fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
+                       " of undefined length that is neither a sequence nor pixel data");
         const bool saved = explicit_;
-        const bool fragments =
-            explicit_ ? !sequence && !(h[4] == 'U' && h[5] == 'N') : tag == 0x7fe00010u;
-        if (explicit_ && h[4] == 'U' && h[5] == 'N') explicit_ = false;
+        if (isUn && !fragments) explicit_ = false;
         at = items(at + header, end, depth, true, fragments);
         explicit_ = saved;
         continue;
@@ -227,6 +245,13 @@ class ElementWalk {
     return "has a delimiter at byte " + std::to_string(at) +
            " with a length where it must have "
            "none";
+  }
+  // The bytes of one value of a numeric VR (0 for the others).
+  static std::size_t numberSize(const std::string& vr) {
+    if (vr == "US" || vr == "SS") return 2;
+    if (vr == "UL" || vr == "SL" || vr == "FL" || vr == "AT") return 4;
+    if (vr == "FD" || vr == "SV" || vr == "UV") return 8;
+    return 0;
   }
   static std::string hex(std::uint32_t tag) {
     char text[16];
