@@ -415,6 +415,23 @@ TEST(Dicom, ElementsGdcmWouldMisreadAreRefused) {
   expectFormatError(
       [&] { readVolume(dir.path("ul")); }, file,
       "(0009,1010) at byte " + std::to_string(at) + " of 6 bytes, not a whole number of UL values");
+  // Pixel Data whose VR is two zero bytes: GDCM's fallback reader asserted (found by the DICOM
+  // fuzz target).
+  file = withBefore("pixelvr", "");
+  std::string bytes = voxwall::test::readFile(file);
+  bytes[at + 4] = bytes[at + 5] = '\0';
+  voxwall::test::writeFile(file, bytes);
+  expectFormatError([&] { readVolume(dir.path("pixelvr")); }, file,
+                    "its Pixel Data is stored with a value representation other than OB, OW or UN");
+  // No transfer syntax in the meta group: GDCM would guess how the data set is encoded.
+  file = withBefore("nosyntax", "");
+  bytes = voxwall::test::readFile(file);
+  const auto syntax = bytes.find(std::string("\x02\x00\x10\x00UI", 6));
+  ASSERT_NE(syntax, std::string::npos);
+  const std::size_t syntaxBytes = 8 + std::uint8_t(bytes[syntax + 6]);
+  voxwall::test::writeFile(file, bytes.erase(syntax, syntaxBytes));
+  expectFormatError([&] { readVolume(dir.path("nosyntax")); }, file,
+                    "names no Transfer Syntax UID (0002,0010)");
   // (00FF,4AA5), read by GDCM as pixel data up to the end of the file.
   file = withBefore("marker", std::string("\xff\x00\xa5\x4aOB\x00\x00\x02\x00\x00\x00xx", 14));
   expectFormatError([&] { readVolume(dir.path("marker")); }, file, "(00FF,4AA5)");

@@ -275,6 +275,11 @@ class ElementWalk {
   bool explicit_;
 };
 
+// Every transfer syntax voxwall reads is explicit VR little endian but one.
+bool isExplicitVr(const std::string& transferSyntax) {
+  return transferSyntax != "1.2.840.10008.1.2";
+}
+
 }  // namespace
 
 // Walks the file's elements up to the Pixel Data with ElementWalk (GDCM's own walk that selects
@@ -290,12 +295,14 @@ std::uint64_t walkToPixelData(const std::string& file, std::string* transferSynt
   std::error_code sizeError;
   const std::uint64_t fileSize = fs::file_size(file, sizeError);
   if (sizeError) throw FormatError(file, sizeError.message());
-  // Implicit VR little endian (also when the meta group names none), deflated and big endian
-  // refused, every other syntax explicit VR little endian.
+  // GDCM guesses the encoding of a data set whose meta group names no transfer syntax; the walk
+  // must read the elements as GDCM will, so such a file is refused (the UID is required).
+  if (uid.empty())
+    throw FormatError(file, "its File Meta Information names no Transfer Syntax UID (0002,0010)");
   if (uid == "1.2.840.10008.1.2.1.99" || uid == "1.2.840.10008.1.2.2")
     throw FormatError(file, "uses transfer syntax " + uid +
                                 " (deflated or big endian), which voxwall does not read");
-  return ElementWalk(file, fileSize, !uid.empty() && uid != "1.2.840.10008.1.2")
+  return ElementWalk(file, fileSize, isExplicitVr(uid))
       .list(dataSet, fileSize, 0, false, 0x7fe00010u);
 }
 
@@ -329,8 +336,15 @@ std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
   unsigned char h[12] = {};
   if (!readAt(at, h, 8) || le16(h) != 0x7fe0 || le16(h + 2) != 0x0010)
     throw FormatError(file, "has no Pixel Data");
-  // (GDCM ignores the two reserved bytes after an explicit VR; so does this.)
-  const bool explicitVr = isDicomVr(std::string{char(h[4]), char(h[5])});
+  // (GDCM ignores the two reserved bytes after an explicit VR; so does this.) Another VR there
+  // makes GDCM fall back to readers for broken files, which assert (found by the DICOM fuzz
+  // target: a VR of two zero bytes).
+  const bool explicitVr = isExplicitVr(uid);
+  const std::string vr{char(h[4]), char(h[5])};
+  if (explicitVr && vr != "OB" && vr != "OW" && vr != "UN")
+    throw FormatError(file,
+                      "its Pixel Data is stored with a value representation other than "
+                      "OB, OW or UN");
   if (explicitVr && !readAt(at, h, 12))
     throw FormatError(file, "is cut short inside its Pixel Data element's header");
   const std::uint32_t length = le32(explicitVr ? h + 8 : h + 4);
