@@ -42,7 +42,10 @@ struct Server::Impl {
   struct Session : Peer, std::enable_shared_from_this<Session> {
     Impl& server;
     tcp::socket socket;
-    asio::steady_timer helloDeadline;
+    // The Hello deadline, then (once greeted) the idle deadline, checked against lastHeard.
+    asio::steady_timer deadline;
+    std::chrono::steady_clock::time_point lastHeard = std::chrono::steady_clock::now();
+    bool watchingIdle = false;
     std::array<std::byte, kHeaderBytes> header{};
     std::vector<std::byte> payload;
     std::uint32_t payloadBytes = 0;
@@ -65,21 +68,37 @@ struct Server::Impl {
     }
 
     Session(Impl& s, tcp::socket sock)
-        : Peer(nameOf(sock), addressOf(sock)),
-          server(s),
-          socket(std::move(sock)),
-          helloDeadline(s.io) {}
+        : Peer(nameOf(sock), addressOf(sock)), server(s), socket(std::move(sock)), deadline(s.io) {}
 
     void start() {
       server.handler.attach(*this);
       auto self = shared_from_this();
       const int timeoutMs = server.settings.helloTimeoutMs;
-      helloDeadline.expires_after(std::chrono::milliseconds(timeoutMs));
-      helloDeadline.async_wait([self, timeoutMs](asio::error_code ec) {
-        if (ec || self->greeted() || self->closed) return;
+      deadline.expires_after(std::chrono::milliseconds(timeoutMs));
+      deadline.async_wait([self, timeoutMs](asio::error_code ec) {
+        if (ec || self->closed || self->greeted()) return;
         self->drop("sent no Hello within " + std::to_string(timeoutMs) + " ms");
       });
       readHeader();
+    }
+
+    // A greeted peer must keep saying something (tiles, or KeepAlive when it has nothing to
+    // send): one that is silent for peerIdleMs (a squatter, a hung rank) is dropped, so it
+    // cannot hold the wall for its job.
+    void watchIdle() {
+      const auto idle = std::chrono::milliseconds(server.settings.peerIdleMs);
+      const auto silent = std::chrono::steady_clock::now() - lastHeard;
+      if (silent >= idle) {
+        const int ms = server.settings.peerIdleMs;
+        return drop("sent nothing for " +
+                    (ms % 1000 ? std::to_string(ms) + " ms" : std::to_string(ms / 1000) + " s") +
+                    " (--peer-idle)");
+      }
+      auto self = shared_from_this();
+      deadline.expires_after(idle - silent);
+      deadline.async_wait([self](asio::error_code ec) {
+        if (!ec && !self->closed) self->watchIdle();
+      });
     }
 
     void readHeader() {
@@ -87,6 +106,7 @@ struct Server::Impl {
       asio::async_read(socket, asio::buffer(header), [self](asio::error_code ec, std::size_t) {
         if (self->closed) return;
         if (ec) return self->drop(ec == asio::error::eof ? "" : ec.message());
+        self->lastHeard = std::chrono::steady_clock::now();
         try {
           self->payloadBytes = checkHeader(self->header, self->name(), &self->type, &self->frame);
         } catch (const FormatError& e) {
@@ -115,6 +135,7 @@ struct Server::Impl {
           [self](asio::error_code ec, std::size_t) {
             if (self->closed) return;
             if (ec) return self->drop(ec == asio::error::eof ? "closed mid-message" : ec.message());
+            self->lastHeard = std::chrono::steady_clock::now();
             self->readPayload();
           });
     }
@@ -127,7 +148,11 @@ struct Server::Impl {
       } catch (const FormatError& e) {
         return drop(e.what());
       }
-      if (closed) return;  // the handler hung up on this peer
+      if (closed) return;                // the handler hung up on this peer
+      if (greeted() && !watchingIdle) {  // the Hello deadline gives way to the idle deadline
+        watchingIdle = true;
+        watchIdle();
+      }
       readHeader();
     }
 
@@ -167,7 +192,7 @@ struct Server::Impl {
       closed = true;
       server.handler.detach(*this);
       asio::error_code ignored;
-      helloDeadline.cancel();
+      deadline.cancel();
       socket.shutdown(tcp::socket::shutdown_both, ignored);
       socket.close(ignored);
       server.sessions.erase(shared_from_this());
@@ -215,6 +240,7 @@ Server::Server(asio::io_context& io, const ServerSettings& settings, PeerHandler
   if (settings.maxPeers < 1) throw std::invalid_argument("--max-peers must be at least 1");
   if (settings.helloTimeoutMs < 1)
     throw std::invalid_argument("the Hello timeout must be positive");
+  if (settings.peerIdleMs < 1) throw std::invalid_argument("--peer-idle must be positive");
   auto& acceptor = impl_->acceptor;
   asio::error_code ec;
   const auto address = asio::ip::make_address(settings.host, ec);

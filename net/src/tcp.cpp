@@ -137,25 +137,83 @@ std::optional<Message> Connection::receive(int timeoutMs) {
   }
 }
 
-TileStreamer::TileStreamer(std::string host, std::uint16_t port, Hello hello, int timeoutMs)
-    : host_(std::move(host)), port_(port), hello_(std::move(hello)), connectTimeoutMs_(timeoutMs) {}
+TileStreamer::TileStreamer(std::string host, std::uint16_t port, Hello hello, int timeoutMs,
+                           int keepAliveMs)
+    : host_(std::move(host)),
+      port_(port),
+      hello_(std::move(hello)),
+      connectTimeoutMs_(timeoutMs),
+      keepAliveMs_(keepAliveMs) {
+  if (keepAliveMs_ > 0) keeper_ = std::thread([this] { keepAlive(); });
+}
+
+TileStreamer::~TileStreamer() {
+  {
+    std::lock_guard lock(mutex_);
+    stopKeeper_ = true;
+  }
+  wake_.notify_all();
+  if (keeper_.joinable()) keeper_.join();
+}
+
+void TileStreamer::keepAlive() {
+  const auto interval = std::chrono::milliseconds(keepAliveMs_);
+  std::unique_lock lock(mutex_);
+  while (!stopKeeper_) {
+    if (!connection_) {
+      wake_.wait_for(lock, interval);
+      continue;
+    }
+    if (Clock::now() < lastSent_ + interval) {
+      wake_.wait_until(lock, lastSent_ + interval);
+      continue;
+    }
+    try {
+      connection_->send(encodeKeepAlive());
+      lastSent_ = Clock::now();
+    } catch (const NetError& e) {
+      keeperError_ = e.what();
+      connection_.reset();
+    }
+  }
+}
+
+void TileStreamer::send(std::span<const std::byte> bytes) {
+  std::lock_guard lock(mutex_);
+  if (!connection_)
+    throw NetError(keeperError_.empty() ? host_ + ":" + std::to_string(port_) + ": not connected"
+                                        : keeperError_);
+  connection_->send(bytes);
+  lastSent_ = Clock::now();
+}
 
 void TileStreamer::setJob(std::uint64_t jobId) {
   if (hello_.jobId == jobId) return;
   hello_.jobId = jobId;
   sending_ = false;
+  std::lock_guard lock(mutex_);
   connection_.reset();
 }
 
 bool TileStreamer::ensureConnected() {
-  if (connection_) return true;
+  {
+    std::lock_guard lock(mutex_);
+    if (connection_) return true;
+  }
   if (!refused_.empty()) return false;
   const auto now = Clock::now();
   if (now < nextAttempt_) return false;
   try {
-    connection_ = Connection::open(host_, port_, hello_, connectTimeoutMs_);
-    cut_ = connection_->welcome().cut();
+    auto connection = Connection::open(host_, port_, hello_, connectTimeoutMs_);
+    cut_ = connection->welcome().cut();
     backoff_ = std::chrono::milliseconds(100);
+    {
+      std::lock_guard lock(mutex_);
+      connection_ = std::move(connection);
+      lastSent_ = Clock::now();
+      keeperError_.clear();
+    }
+    wake_.notify_all();
     return true;
   } catch (const SinkRefused& e) {
     lastError_ = refused_ = e.what();
@@ -189,7 +247,7 @@ bool TileStreamer::sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_
     for (const auto& t : tiles) {
       const auto bytes = encodeMessage(frame_, TileMessage{t.rect, t.codec, decidedUnixMicros,
                                                            t.bytes, step, renderMicros, phase});
-      connection_->send(bytes);
+      send(bytes);
       bytesSent_ += bytes.size();
       ++tilesSent_;
     }
@@ -203,7 +261,7 @@ bool TileStreamer::sendTiles(const std::vector<EncodedTile>& tiles, std::uint64_
 bool TileStreamer::endFrame(bool abandoned) {
   if (!sending_) return false;
   try {
-    connection_->send(encodeMessage(frame_, FrameEnd{hello_.rank, tilesSent_, abandoned}));
+    send(encodeMessage(frame_, FrameEnd{hello_.rank, tilesSent_, abandoned}));
     sending_ = false;
     return true;
   } catch (const NetError& e) {
@@ -213,9 +271,13 @@ bool TileStreamer::endFrame(bool abandoned) {
 }
 
 bool TileStreamer::abandon(std::uint64_t frame) {
-  if (!connection_ || sending_) return false;
+  if (sending_) return false;
+  {
+    std::lock_guard lock(mutex_);
+    if (!connection_) return false;
+  }
   try {
-    connection_->send(encodeMessage(frame, FrameEnd{hello_.rank, 0, true}));
+    send(encodeMessage(frame, FrameEnd{hello_.rank, 0, true}));
     return true;
   } catch (const NetError& e) {
     lost(e);
@@ -226,7 +288,10 @@ bool TileStreamer::abandon(std::uint64_t frame) {
 void TileStreamer::lost(const NetError& e) {
   lastError_ = e.what();
   sending_ = false;
-  connection_.reset();
+  {
+    std::lock_guard lock(mutex_);
+    connection_.reset();
+  }
   nextAttempt_ = Clock::now() + backoff_;
 }
 
@@ -236,8 +301,8 @@ bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>
   return beginFrame(frame) && sendTiles(tiles, decidedUnixMicros, step, renderMicros) && endFrame();
 }
 
-ControlChannel::ControlChannel(std::string host, std::uint16_t port, Hello hello)
-    : host_(std::move(host)), port_(port), hello_(std::move(hello)) {
+ControlChannel::ControlChannel(std::string host, std::uint16_t port, Hello hello, int keepAliveMs)
+    : host_(std::move(host)), port_(port), hello_(std::move(hello)), keepAliveMs_(keepAliveMs) {
   hello_.role = Role::Controller;
   thread_ = std::thread([this] { run(); });
 }
@@ -310,7 +375,13 @@ void ControlChannel::run() {
     }
     backoff = std::chrono::milliseconds(100);
     try {
+      auto lastSent = Clock::now();
       while (!stopping()) {
+        if (keepAliveMs_ > 0 &&
+            Clock::now() - lastSent >= std::chrono::milliseconds(keepAliveMs_)) {
+          c->send(encodeKeepAlive());
+          lastSent = Clock::now();
+        }
         const auto m = c->receive(100);
         if (!m) continue;
         if (m->type == MessageType::Control) {

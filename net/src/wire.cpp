@@ -127,6 +127,8 @@ std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameNote& m) {
   return frameMessage(MessageType::FrameNote, frame, p);
 }
 
+std::vector<std::byte> encodeKeepAlive() { return frameMessage(MessageType::KeepAlive, 0, {}); }
+
 std::uint32_t checkHeader(std::span<const std::byte, kHeaderBytes> header,
                           const std::string& source, MessageType* type, std::uint64_t* frame) {
   ByteReader r(header, source, "message header");
@@ -136,7 +138,7 @@ std::uint32_t checkHeader(std::span<const std::byte, kHeaderBytes> header,
     r.fail("protocol version " + std::to_string(version) + ", this program speaks " +
            std::to_string(kWireVersion));
   const auto t = r.get<std::uint16_t>();
-  if (t < 1 || t > 7) r.fail("unknown message type " + std::to_string(t));
+  if (t < 1 || t > 8) r.fail("unknown message type " + std::to_string(t));
   if (r.get<std::uint32_t>() != 0) r.fail("unknown flags");
   const auto length = r.get<std::uint32_t>();
   if (length > kMaxPayload)

@@ -516,6 +516,9 @@ TEST(Cli, WallAndSinkOptionsAreCheckedWithOneLine) {
                      "voxwall: --max-peers must be in [1, 65536]");
   expectOneLineError(runVoxwall("sink --wall " + wall + " --hello-timeout-ms 0"),
                      "voxwall: --hello-timeout-ms must be in [1, 600000]");
+  // Ranks say KeepAlive every 5 s: a shorter idle time would drop them between two.
+  expectOneLineError(runVoxwall("sink --wall " + wall + " --peer-idle 5"),
+                     "voxwall: --peer-idle 5: expected 10 to 86400 seconds");
   // Memory for open frames must hold at least one frame of the wall (bigeye: 99 MiB).
   expectOneLineError(
       runVoxwall("sink --wall " + std::string(VOXWALL_WALLS_DIR) + "/bigeye.json --pending-mib 10"),

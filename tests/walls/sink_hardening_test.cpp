@@ -144,6 +144,57 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   }
 }
 
+// A peer that says Hello with its job id and then nothing held the wall for its job forever:
+// every other render job was refused. A greeted peer silent for the peer-idle time is dropped,
+// and once its job has no peer left another job takes the wall.
+TEST(SinkHardening, ASilentPeerIsDroppedAfterTheIdleTimeAndAnotherJobTakesTheWall) {
+  auto s = settings();
+  s.peerIdleMs = 300;
+  test::SinkRunner sink(s);
+  auto squatter = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
+  std::unique_ptr<net::Connection> job;
+  std::string refusal;
+  ASSERT_TRUE(test::waitUntil([&] {
+    try {
+      job = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+    } catch (const net::SinkRefused& e) {
+      refusal = e.what();  // while the squatter is still there
+    }
+    return job != nullptr;
+  })) << sink.log();
+  EXPECT_NE(refusal.find("is showing on this wall"), std::string::npos) << refusal;
+  EXPECT_NE(sink.log().find("sent nothing for 300 ms (--peer-idle)"), std::string::npos)
+      << sink.log();
+  job->send(net::encodeMessage(0, wholeScreen()));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }))
+      << sink.log();
+  EXPECT_NE(sink.log().find("job 00000000000000de took the wall"), std::string::npos) << sink.log();
+}
+
+// Ranks between frames and rank 0, which sends nothing but Bye, say KeepAlive: they stay
+// connected through many idle times.
+TEST(SinkHardening, KeepAlivesHoldAQuietStreamerAndControllerConnected) {
+  auto s = settings();
+  s.peerIdleMs = 400;
+  test::SinkRunner sink(s);
+  net::TileStreamer streamer("127.0.0.1", sink.port(), renderer(0, 1, 333), 1000, 40);
+  ASSERT_TRUE(streamer.beginFrame(0));
+  ASSERT_TRUE(streamer.endFrame());
+  auto control = renderer(0, 1, 333);
+  control.role = net::Role::Controller;
+  net::ControlChannel channel("127.0.0.1", sink.port(), control, 40);
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.controllerConnected; }));
+  // 60 keep-alives of 32 bytes: about 1.2 s of both peers saying nothing else, three idle times.
+  const std::uint64_t from = sink.sink().stats().bytesReceived;
+  ASSERT_TRUE(sink.waitFor([&](const walls::SinkStats& st) {
+    return st.bytesReceived >= from + 60 * net::kHeaderBytes;
+  })) << sink.log();
+  const auto now = sink.sink().stats();
+  EXPECT_EQ(now.renderersConnected, 1) << sink.log();
+  EXPECT_TRUE(now.controllerConnected) << sink.log();
+  EXPECT_EQ(sink.log().find("sent nothing"), std::string::npos) << sink.log();
+}
+
 // Defect 2: one complete tile with frame id 2^64 - 1 made the sink discard every later frame.
 TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
   test::SinkRunner sink(settings());

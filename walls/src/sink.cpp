@@ -129,7 +129,7 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
   s.server = std::make_unique<net::Server>(
       s.io,
       net::ServerSettings{s.settings.listenHost, s.settings.listenPort, s.settings.maxPeers,
-                          s.settings.helloTimeoutMs},
+                          s.settings.helloTimeoutMs, s.settings.peerIdleMs},
       s, s.log);
   if (!s.settings.outDir.empty()) {
     std::error_code ec;

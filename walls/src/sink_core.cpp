@@ -229,6 +229,9 @@ bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t fram
       peer.hangUp();
       detach(peer);
       return false;
+    case MessageType::KeepAlive:  // the server counts it as a sign of life; nothing else
+      if (!payload.empty()) throw FormatError(peer.name(), "a KeepAlive with a payload");
+      return true;
     default:
       throw FormatError(peer.name(), "unexpected message type " + std::to_string(int(type)));
   }

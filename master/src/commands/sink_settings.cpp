@@ -1,5 +1,6 @@
 #include "sink_settings.hpp"
 
+#include <voxwall/core/text.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/wall.hpp>
 
@@ -59,6 +60,12 @@ void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_option("--hello-timeout-ms", o.helloTimeoutMs,
                  "Drop a peer that has not said Hello by then")
       ->capture_default_str();
+  cmd.add_option("--peer-idle", o.peerIdle,
+                 "Seconds (at least 10) after which a peer that has sent nothing is dropped: "
+                 "ranks and rank 0 send a keep-alive every 5 s while they have nothing else to "
+                 "send, so a silent peer (a squatter, a hung rank) cannot hold the wall for its "
+                 "job; once its job has no peer left, another job may take the wall")
+      ->capture_default_str();
   cmd.add_option("--http", o.http,
                  "Serve the wall's pages at HOST:PORT (e.g. 127.0.0.1:8080): / the overview (the "
                  "live wall, the load balancer's rectangles, camera control by mouse and touch), "
@@ -106,6 +113,11 @@ walls::SinkSettings sinkSettings(const SinkOptions& o) {
   s.pendingFrames = inRange(o.pending, 1, 64, "--pending");
   s.maxPeers = inRange(o.maxPeers, 1, 65536, "--max-peers");
   s.helloTimeoutMs = inRange(o.helloTimeoutMs, 1, 600000, "--hello-timeout-ms");
+  if (!(o.peerIdle >= 10 && o.peerIdle <= 86400))
+    throw std::invalid_argument("--peer-idle " + formatLine("%g", o.peerIdle) +
+                                ": expected 10 to 86400 seconds (ranks send a keep-alive every "
+                                "5 s)");
+  s.peerIdleMs = int(o.peerIdle * 1000);
   if (o.pendingMiB > (1u << 20)) throw std::invalid_argument("--pending-mib is over 1 TiB");
   s.pendingBytes = o.pendingMiB << 20;
   if (!o.http.empty()) {

@@ -17,6 +17,7 @@ struct SinkOptions {
   int surface = 0, frames = 0, pending = 16, maxPeers = 256, helloTimeoutMs = 5000;
   int maxViewers = 64, maxDisplayPages = 0, swapTimeoutMs = 500, writeQueue = 8;
   int swapLeadMs = 25;
+  double peerIdle = 30;
   std::uint64_t pendingMiB = 0;
   bool mosaic = false, quiet = false, noStdin = false;
 };

@@ -2,9 +2,10 @@
 // io_context that accepts peers, reads each message (header, then the payload in chunks as it
 // arrives, both checked by wire.hpp) and hands it to a PeerHandler, which holds the protocol's
 // meaning (the sink's SinkCore). Hostile peers: connections are capped (maxPeers), a peer without
-// a Hello is dropped after helloTimeoutMs, a payload longer than the handler allows is refused
-// before it is read, and running out of file descriptors pauses accepting instead of ending it.
-// Render hosts that vanish are found by TCP keep-alive within about a minute.
+// a Hello is dropped after helloTimeoutMs, a greeted peer that sends nothing for peerIdleMs is
+// dropped (peers send KeepAlive while they have nothing else to say), a payload longer than the
+// handler allows is refused before it is read, and running out of file descriptors pauses
+// accepting instead of ending it. Render hosts that vanish are also found by TCP keep-alive.
 #pragma once
 
 #include <cstdint>
@@ -80,6 +81,7 @@ struct ServerSettings {
   std::uint16_t port = 0;     // 0: any free port (see Server::port)
   int maxPeers = 256;         // connections at once; more are refused
   int helloTimeoutMs = 5000;  // a peer the handler has not greeted by then is dropped
+  int peerIdleMs = 30000;     // a greeted peer that sends no byte for this long is dropped
 };
 
 class Server {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <condition_variable>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -45,10 +46,16 @@ class Connection {
 // Sends a rank's tiles to the sink, frame by frame. When the sink is unreachable or drops the
 // connection, the frame is skipped and the next attempt waits a growing back-off (0.1 s doubling
 // to 5 s), so rendering never stalls on a dead sink. A sink that refuses the peer (SinkRefused)
-// is not retried: refused() says why and the job should end. Not thread-safe.
+// is not retried: refused() says why and the job should end. While connected, a thread of its
+// own sends KeepAlive when nothing was sent for keepAliveMs (0: never), so a rank busy on a long
+// frame is not dropped as idle. Not thread-safe (one thread calls it; the keeper is internal).
 class TileStreamer {
  public:
-  TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000);
+  TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000,
+               int keepAliveMs = kKeepAliveMs);
+  ~TileStreamer();
+  TileStreamer(const TileStreamer&) = delete;
+  TileStreamer& operator=(const TileStreamer&) = delete;
   // The render job the frames belong to (Hello.jobId); a change reconnects.
   void setJob(std::uint64_t jobId);
   // A frame sent in parts, each as soon as it is rendered: beginFrame, sendTiles per part,
@@ -81,8 +88,12 @@ class TileStreamer {
 
  private:
   bool ensureConnected();
+  // Sends one whole message (the keeper may send between two); throws NetError when the
+  // connection is gone.
+  void send(std::span<const std::byte> bytes);
   // A send failed: the connection goes, the frame is skipped, the next attempt waits.
   void lost(const NetError& e);
+  void keepAlive();  // the keeper thread's loop
   std::string host_;
   std::uint16_t port_;
   Hello hello_;
@@ -96,6 +107,15 @@ class TileStreamer {
   bool sending_ = false;  // between a beginFrame that connected and endFrame or a failed send
   std::uint64_t frame_ = 0;
   std::uint32_t tilesSent_ = 0;
+  // Shared with the keeper thread: the connection, when a message last went out, why the keeper
+  // lost the connection.
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stopKeeper_ = false;
+  std::chrono::steady_clock::time_point lastSent_{};
+  std::string keeperError_;
+  int keepAliveMs_;
+  std::thread keeper_;
 };
 
 // Rank 0's connection for camera commands from the wall: a background thread keeps it open
@@ -103,7 +123,8 @@ class TileStreamer {
 // refuses the job ends the thread and refused() says why. Thread-safe.
 class ControlChannel {
  public:
-  ControlChannel(std::string host, std::uint16_t port, Hello hello);
+  // While connected it sends KeepAlive every keepAliveMs (it sends nothing else until Bye).
+  ControlChannel(std::string host, std::uint16_t port, Hello hello, int keepAliveMs = kKeepAliveMs);
   ~ControlChannel();
   std::vector<Control> drain();  // the commands received since the last call, in order
   std::size_t pending() const;   // how many drain() would return now
@@ -119,6 +140,7 @@ class ControlChannel {
   std::string host_;
   std::uint16_t port_;
   Hello hello_;
+  int keepAliveMs_;
   mutable std::mutex mutex_;
   std::deque<Control> queue_;
   std::vector<std::string> notes_;

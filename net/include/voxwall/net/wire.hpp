@@ -35,6 +35,8 @@
 //   FrameNote u8 status (1 presented, 2 dropped, 3 refused, 4 superseded), str reason
 //            (sink -> controller;
 //            the header's frame id names the frame)
+//   KeepAlive (no payload; peer -> sink, at least every kKeepAliveInterval while nothing else
+//            is sent: the sink drops a greeted peer that sends nothing for its peer-idle time)
 // Sequence: peer connects, sends Hello; the sink answers Welcome, or Bye with the reason (wrong
 // version, token or wall) and closes. A renderer then sends, per frame, its Tiles and a
 // FrameEnd; the controller (rank 0) receives Controls and a FrameNote for every frame of its job
@@ -46,7 +48,8 @@
 // Version history: 1 first release; 2 adds Hello.jobId and FrameNote; 3 adds Tile.step and
 // Tile.renderMicros (interactive frames, the load overlay); 4 adds the displays and the bezel flag
 // to Welcome (segments cut at display edges, so the sink routes them without decoding),
-// Tile.phase, FrameEnd's flags and the superseded status (abandoned frames, refinement).
+// Tile.phase, FrameEnd's flags and the superseded status (abandoned frames, refinement); 5 adds
+// KeepAlive (idle peers are dropped, so a silent or hung peer cannot hold the wall).
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
 
@@ -61,7 +64,7 @@
 namespace voxwall::net {
 
 inline constexpr std::uint32_t kWireMagic = 0x50575756;
-inline constexpr std::uint16_t kWireVersion = 4;
+inline constexpr std::uint16_t kWireVersion = 5;
 inline constexpr std::size_t kHeaderBytes = 32;
 inline constexpr std::uint32_t kMaxPayload = 64u << 20;
 inline constexpr std::size_t kMaxString = 256;
@@ -70,6 +73,9 @@ inline constexpr std::size_t kMaxString = 256;
 inline constexpr std::uint32_t kMaxHelloPayload = 1024;
 // The coarsest interactive frame: one pixel for kMaxStep x kMaxStep virtual-screen pixels.
 inline constexpr int kMaxStep = 16;
+// How often a peer with nothing else to send says it is alive; a sink's peer-idle time must be
+// longer (the sink's command line takes at least 10 s).
+inline constexpr int kKeepAliveMs = 5000;
 // The most displays a Welcome lists (a wall file allows no more).
 inline constexpr std::size_t kMaxWelcomeDisplays = 1024;
 
@@ -81,6 +87,7 @@ enum class MessageType : std::uint16_t {
   Control = 5,
   Bye = 6,
   FrameNote = 7,
+  KeepAlive = 8,
 };
 enum class Role : std::uint8_t { Renderer = 1, Controller = 2 };
 enum class ControlCommand : std::uint8_t { Rotate = 1, Zoom = 2, Pan = 3, Reset = 4 };
@@ -159,6 +166,7 @@ std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameEnd& m);
 std::vector<std::byte> encodeMessage(const Control& m);
 std::vector<std::byte> encodeMessage(const Bye& m);
 std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameNote& m);
+std::vector<std::byte> encodeKeepAlive();
 
 // Header check: magic, version, type, flags, length limit, header checksum. Returns the payload
 // length. Throws FormatError(source, ...) naming what is wrong (a version mismatch says both).

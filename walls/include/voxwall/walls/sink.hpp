@@ -9,7 +9,9 @@
 // wall) and forwards camera commands to rank 0.
 // Hostile peers: the protocol logic (sink_core.hpp) bounds what any peer can make it hold;
 // here, connections are capped (maxPeers), peers without a Hello are dropped after
-// helloTimeoutMs, and running out of file descriptors pauses accepting instead of ending it.
+// helloTimeoutMs, greeted peers silent for peerIdleMs are dropped (so a squatter or a hung rank
+// cannot hold the wall for its job), and running out of file descriptors pauses accepting
+// instead of ending it.
 #pragma once
 
 #include <atomic>
@@ -40,6 +42,7 @@ struct SinkSettings {
   std::uint64_t frameWindow = 1 << 16;  // frame ids accepted past the last complete one
   int maxPeers = 256;                   // connections at once; more are refused
   int helloTimeoutMs = 5000;            // a peer that sends no Hello by then is dropped
+  int peerIdleMs = 30000;               // a greeted peer silent this long is dropped
   // The browser view (web_view.hpp): empty httpHost: none. The token above guards it too.
   std::string httpHost;
   std::uint16_t httpPort = 0;            // 0: any free port (see Sink::httpPort)
