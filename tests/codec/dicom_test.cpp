@@ -432,6 +432,15 @@ TEST(Dicom, ElementsGdcmWouldMisreadAreRefused) {
   voxwall::test::writeFile(file, bytes.erase(syntax, syntaxBytes));
   expectFormatError([&] { readVolume(dir.path("nosyntax")); }, file,
                     "names no Transfer Syntax UID (0002,0010)");
+  // Pixel Data claiming 4 GiB: GDCM's scanner, which reads the element after the last tag it
+  // looks for, allocated that (found by the DICOM fuzz target); files are checked whole first.
+  file = withBefore("bigpixels", "");
+  bytes = voxwall::test::readFile(file);
+  const std::uint32_t claim = 0xffffff00u;
+  std::memcpy(&bytes[at + 8], &claim, 4);
+  voxwall::test::writeFile(file, bytes);
+  expectFormatError([&] { readVolume(dir.path("bigpixels")); }, file,
+                    "is cut short: its pixel data ends at byte");
   // (00FF,4AA5), read by GDCM as pixel data up to the end of the file.
   file = withBefore("marker", std::string("\xff\x00\xa5\x4aOB\x00\x00\x02\x00\x00\x00xx", 14));
   expectFormatError([&] { readVolume(dir.path("marker")); }, file, "(00FF,4AA5)");

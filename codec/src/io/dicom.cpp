@@ -29,11 +29,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using dicom::checkCompressedStart;
+using dicom::checkElements;
 using dicom::checkFunctionalGroups;
 using dicom::numbersOf;
-using dicom::pixelDataEnd;
 using dicom::trimmed;
-using dicom::walkToPixelData;
 
 // At most this many files are looked at under one folder: a folder that holds more is refused
 // rather than read for minutes.
@@ -126,7 +125,8 @@ std::map<std::string, Series> scanSeries(const std::string& path) {
   quietGdcm();
   const std::vector<std::string> files = dicomFilesOf(path);
   std::map<std::string, std::string> syntaxOf;  // each file's transfer syntax UID
-  for (const std::string& f : files) walkToPixelData(f, &syntaxOf[f]);  // before the scanner
+  for (const std::string& f : files)            // before the scanner
+    syntaxOf[f] = checkElements(f).transferSyntax;
   gdcm::Scanner scanner;
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kRows, kColumns, kPosition,
                              kOrientation, kFrames, kSamples, kBitsAllocated})
@@ -281,8 +281,10 @@ Orientation orientationOf(const double* cosines, const double* position) {
 
 Decoded decode(const std::string& file, std::vector<std::byte>& buffer, std::size_t offset,
                std::size_t expectBytes) {
-  bool encapsulated = false;
-  const std::size_t end = pixelDataEnd(file, encapsulated);
+  const dicom::CheckedFile checked = checkElements(file);
+  if (!checked.hasPixelData) throw FormatError(file, "has no Pixel Data");
+  const bool encapsulated = checked.fragments;
+  const std::size_t end = checked.end;
   checkFunctionalGroups(file);
   gdcm::ImageReader reader;
   // Elements after the pixels (padding, signatures) are not needed and could claim any length:

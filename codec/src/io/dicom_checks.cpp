@@ -280,8 +280,6 @@ bool isExplicitVr(const std::string& transferSyntax) {
   return transferSyntax != "1.2.840.10008.1.2";
 }
 
-}  // namespace
-
 // Walks the file's elements up to the Pixel Data with ElementWalk (GDCM's own walk that selects
 // the Pixel Data reads its fragments: 4.2 GB for the file below), and returns where it stopped:
 // at the Pixel Data's tag, or at the file's end when it has none. Refuses a file
@@ -306,17 +304,21 @@ std::uint64_t walkToPixelData(const std::string& file, std::string* transferSynt
       .list(dataSet, fileSize, 0, false, 0x7fe00010u);
 }
 
+}  // namespace
+
 // The items of encapsulated (compressed) Pixel Data, walked here before GDCM reads any of them:
 // GDCM allocates what each fragment claims, and a 1 KiB file whose fragment claimed 1 GiB cost
 // 27 s and 3.2 GB (0xfffffff0: 142 s and 12.7 GB) and was then accepted. Each item must be an
 // Item (FFFE,E000) of defined length that ends inside the file, and a Sequence Delimitation Item
 // (FFFE,E0DD) must close them.
-// Returns where the Pixel Data ends; `fragments` says whether it is a sequence of fragments
-// (undefined length). Refuses a file whose pixel data runs past its end (GDCM, walking to it,
-// fell back to other encodings on such files and aborted on an assertion).
-std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
-  fragments = false;
-  std::string uid;
+// Refuses a file whose pixel data runs past its end (GDCM, walking to it, fell back to other
+// encodings on such files and aborted on an assertion). GDCM's scanner reads the element after
+// the last tag it looks for, which may be the Pixel Data: a 584-byte file whose Pixel Data claimed
+// 4 GiB made it allocate that (found by the DICOM fuzz target), so files are checked whole before
+// the scanner too.
+CheckedFile checkElements(const std::string& file) {
+  CheckedFile out;
+  std::string& uid = out.transferSyntax;
   std::uint64_t at = walkToPixelData(file, &uid);
   // GDCM's decoders dereference what they expect without checking (a JPEG file whose pixel data
   // was not fragments crashed in gdcm::JPEGCodec::Decode: found by the DICOM fuzz target).
@@ -334,8 +336,11 @@ std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
   // uncompressed file that way), so the items are walked whenever the length is undefined.
   // Explicit VR: tag, VR, two reserved bytes, the 4-byte length; implicit VR: tag, length.
   unsigned char h[12] = {};
-  if (!readAt(at, h, 8) || le16(h) != 0x7fe0 || le16(h + 2) != 0x0010)
-    throw FormatError(file, "has no Pixel Data");
+  if (!readAt(at, h, 8) || le16(h) != 0x7fe0 || le16(h + 2) != 0x0010) {
+    out.end = size;  // the walk went to the end
+    return out;
+  }
+  out.hasPixelData = true;
   // (GDCM ignores the two reserved bytes after an explicit VR; so does this.) Another VR there
   // makes GDCM fall back to readers for broken files, which assert (found by the DICOM fuzz
   // target: a VR of two zero bytes).
@@ -358,13 +363,14 @@ std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
       throw FormatError(file, "its transfer syntax " + uid +
                                   " is compressed but its pixel data is not a sequence of "
                                   "fragments");
-    return at + length;
+    out.end = at + length;
+    return out;
   }
   if (!compressed)
     throw FormatError(file, "its pixel data is a sequence of fragments but its transfer syntax " +
                                 (uid.empty() ? std::string("(none)") : uid) +
                                 " is not a compressed one");
-  fragments = true;
+  out.fragments = true;
   for (int item = 0;; ++item) {
     unsigned char b[8];
     if (!readAt(at, b, 8))
@@ -379,7 +385,8 @@ std::uint64_t pixelDataEnd(const std::string& file, bool& fragments) {
         throw FormatError(file, "the sequence delimiter of its pixel data at byte " +
                                     std::to_string(at) + " has a length (" +
                                     std::to_string(length) + ") where it must have none");
-      return at + 8;
+      out.end = at + 8;
+      return out;
     }
     if (group != 0xfffe || element != 0xe000)
       throw FormatError(file,
@@ -557,7 +564,7 @@ bool hasFrameOrientation(const gdcm::DataSet& ds) {
 }  // namespace
 
 // An image with functional groups (enhanced, usually multi-frame) must name its orientation
-// where GDCM looks for it; call after pixelDataEnd() checked the file.
+// where GDCM looks for it; call after checkElements() checked the file.
 void checkFunctionalGroups(const std::string& file) {
   gdcm::Reader head;
   head.SetFileName(file.c_str());

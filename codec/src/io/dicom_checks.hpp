@@ -15,21 +15,25 @@ std::string trimmed(const char* value);
 // "a\b\c" as numbers; empty when any of them is not a finite number.
 std::vector<double> numbersOf(const std::string& text);
 
-// Walks the File Meta Information and the data set's elements (and their sequences) by their
-// lengths up to the Pixel Data; returns where it stopped (the Pixel Data's tag, or the file's
-// end). `transferSyntax`, when given, receives the UID of (0002,0010).
-std::uint64_t walkToPixelData(const std::string& file, std::string* transferSyntax = nullptr);
+// What checkElements() found of a file.
+struct CheckedFile {
+  std::string transferSyntax;  // the UID of (0002,0010)
+  bool hasPixelData = false;
+  bool fragments = false;  // the Pixel Data is a sequence of fragments (undefined length)
+  std::uint64_t end = 0;   // where the Pixel Data ends (the file's size when it has none)
+};
 
-// Walks the Pixel Data element (its fragments when encapsulated); returns where it ends.
-// `fragments` says whether it is a sequence of fragments (undefined length).
-std::uint64_t pixelDataEnd(const std::string& file, bool& fragments);
+// Walks the File Meta Information, the data set's elements (and their sequences) up to the Pixel
+// Data, and the Pixel Data element (its fragments when encapsulated) by their lengths. Call it
+// before any GDCM reader (the scanner too) sees the file; GDCM may read it up to `end`.
+CheckedFile checkElements(const std::string& file);
 
 // A compressed file's first fragment starts as its transfer syntax's stream does, and the
 // stream's frame header gives the header's image size. Reads `stream` when given, else `file`.
 void checkCompressedStart(const std::string& file, std::istream* stream);
 
 // An image with functional groups names its orientation where GDCM looks for it; call after
-// pixelDataEnd() checked the file.
+// checkElements() checked the file.
 void checkFunctionalGroups(const std::string& file);
 
 }  // namespace voxwall::codec::dicom
