@@ -441,6 +441,16 @@ TEST(Dicom, ElementsGdcmWouldMisreadAreRefused) {
   voxwall::test::writeFile(file, bytes);
   expectFormatError([&] { readVolume(dir.path("bigpixels")); }, file,
                     "is cut short: its pixel data ends at byte");
+  // A Recognition Code that is not ACR-NEMA's: GDCM 3.0 asserts (found by the DICOM fuzz target).
+  file = withBefore("recognition", std::string("\x08\x00\x10\x00SH\x04\x00JUNK", 12));
+  expectFormatError([&] { readVolume(dir.path("recognition")); }, file,
+                    "has a Recognition Code (0008,0010) that is not ACR-NEMA's");
+  // A public value (Slice Thickness) stored as UN of undefined length: read as items, no value.
+  file = withBefore("unvalue", std::string("\x18\x00\x50\x00UN\x00\x00\xff\xff\xff\xff", 12) +
+                                   std::string("\xfe\xff\xdd\xe0\x00\x00\x00\x00", 8));
+  expectFormatError([&] { readVolume(dir.path("unvalue")); }, file,
+                    "(0018,0050) at byte " + std::to_string(at) +
+                        " stored as UN of undefined length where DICOM says it holds a value");
   // (00FF,4AA5), read by GDCM as pixel data up to the end of the file.
   file = withBefore("marker", std::string("\xff\x00\xa5\x4aOB\x00\x00\x02\x00\x00\x00xx", 14));
   expectFormatError([&] { readVolume(dir.path("marker")); }, file, "(00FF,4AA5)");

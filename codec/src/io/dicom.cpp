@@ -30,7 +30,7 @@ namespace {
 namespace fs = std::filesystem;
 using dicom::checkCompressedStart;
 using dicom::checkElements;
-using dicom::checkFunctionalGroups;
+using dicom::checkImageHeader;
 using dicom::numbersOf;
 using dicom::trimmed;
 
@@ -285,7 +285,7 @@ Decoded decode(const std::string& file, std::vector<std::byte>& buffer, std::siz
   if (!checked.hasPixelData) throw FormatError(file, "has no Pixel Data");
   const bool encapsulated = checked.fragments;
   const std::size_t end = checked.end;
-  checkFunctionalGroups(file);
+  checkImageHeader(file);
   gdcm::ImageReader reader;
   // Elements after the pixels (padding, signatures) are not needed and could claim any length:
   // GDCM reads the file only up to the end of its pixel data.

@@ -185,6 +185,12 @@ class ElementWalk {
         // it asserts that such an element is UN.
         const bool isUn = explicit_ && h[4] == 'U' && h[5] == 'N';
         const bool fragments = tag == 0x7fe00010u;
+        // A public element read as items although its dictionary says it holds a value: GDCM's
+        // image code then finds no value where it dereferences one.
+        if (isUn && !fragments && dictionaryVr(tag) != gdcm::VR::INVALID &&
+            dictionaryVr(tag) != gdcm::VR::SQ)
+          fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
+                       " stored as UN of undefined length where DICOM says it holds a value");
         if (explicit_ && !sequence && !isUn && !fragments)
           fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
                        " of undefined length that is neither a sequence nor pixel data");
@@ -564,13 +570,24 @@ bool hasFrameOrientation(const gdcm::DataSet& ds) {
 }  // namespace
 
 // An image with functional groups (enhanced, usually multi-frame) must name its orientation
-// where GDCM looks for it; call after checkElements() checked the file.
-void checkFunctionalGroups(const std::string& file) {
+// where GDCM looks for it; a Recognition Code (0008,0010, ACR-NEMA's) must be one GDCM 3.0
+// knows: it asserts on any other (found by the DICOM fuzz target). Call after checkElements().
+void checkImageHeader(const std::string& file) {
   gdcm::Reader head;
   head.SetFileName(file.c_str());
   if (!head.ReadUpToTag(kPixelData, {kPixelData}))
     throw FormatError(file, "GDCM cannot read it as DICOM (corrupt header)");
   const gdcm::DataSet& ds = head.GetFile().GetDataSet();
+  const gdcm::Tag recognition(0x0008, 0x0010);
+  if (ds.FindDataElement(recognition) && !ds.GetDataElement(recognition).IsEmpty()) {
+    const gdcm::ByteValue* bv = ds.GetDataElement(recognition).GetByteValue();
+    const std::string code = bv ? std::string(bv->GetPointer(), bv->GetLength()) : "";
+    if (code.rfind("ACR-NEMA", 0) != 0 && code.rfind("ACRNEMA", 0) != 0 &&
+        code.rfind("MIPS 2.0", 0) != 0)
+      throw FormatError(file,
+                        "has a Recognition Code (0008,0010) that is not ACR-NEMA's (a retired "
+                        "element GDCM reads only as that)");
+  }
   if ((ds.FindDataElement(gdcm::Tag(0x5200, 0x9229)) ||
        ds.FindDataElement(gdcm::Tag(0x5200, 0x9230))) &&
       !hasFrameOrientation(ds))

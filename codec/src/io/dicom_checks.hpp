@@ -32,8 +32,8 @@ CheckedFile checkElements(const std::string& file);
 // stream's frame header gives the header's image size. Reads `stream` when given, else `file`.
 void checkCompressedStart(const std::string& file, std::istream* stream);
 
-// An image with functional groups names its orientation where GDCM looks for it; call after
-// checkElements() checked the file.
-void checkFunctionalGroups(const std::string& file);
+// An image with functional groups names its orientation where GDCM looks for it, and a
+// Recognition Code is ACR-NEMA's; call after checkElements() checked the file.
+void checkImageHeader(const std::string& file);
 
 }  // namespace voxwall::codec::dicom
