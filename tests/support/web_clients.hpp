@@ -55,9 +55,15 @@ inline std::pair<int, std::string> get(std::uint16_t port, const std::string& ta
 // A WebSocket viewer. `origin` empty: no Origin header (not a browser).
 class Viewer {
  public:
-  Viewer(std::uint16_t port, const std::string& origin = "", const std::string& target = "/ws")
+  // `from`: the local address to connect from (127.0.0.2 is another loopback client).
+  Viewer(std::uint16_t port, const std::string& origin = "", const std::string& target = "/ws",
+         const std::string& from = "")
       : ws_(io_) {
     auto& socket = beast::get_lowest_layer(ws_).socket();
+    if (!from.empty()) {
+      socket.open(tcp::v4());
+      socket.bind(tcp::endpoint(boost::asio::ip::make_address(from), 0));
+    }
     socket.connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
     // Blocking reads give up after 10 s instead of hanging the test.
     timeval limit{10, 0};
@@ -72,6 +78,8 @@ class Viewer {
     ws_.text(true);
     ws_.write(boost::asio::buffer(text), ec_);
   }
+  // A WebSocket ping (what a viewer that reads nothing may still send).
+  void ping() { ws_.ping({}, ec_); }
   void sendBinary(const std::string& bytes) {
     ws_.binary(true);
     ws_.write(boost::asio::buffer(bytes), ec_);

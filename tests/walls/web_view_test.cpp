@@ -122,6 +122,70 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
   EXPECT_DOUBLE_EQ(got[0].b, -5);
 }
 
+// With a token, connections that never send it held viewers' places for ever and locked out
+// the token's holder. They now wait in a pool of their own (4 per address) for at most the
+// auth deadline.
+TEST(WebView, ConnectionsWithoutTheTokenWaitApartAndBriefly) {
+  auto settings = webSink("s3cret");
+  settings.maxViewers = 2;
+  settings.viewerAuthTimeoutMs = 300;
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  std::vector<std::unique_ptr<Viewer>> squatters;
+  for (int i = 0; i < 4; ++i) {
+    squatters.push_back(std::make_unique<Viewer>(port, "", "/ws", "127.0.0.2"));
+    ASSERT_TRUE(squatters.back()->open()) << squatters.back()->error().message();
+  }
+  Viewer fifth(port, "", "/ws", "127.0.0.2");
+  EXPECT_FALSE(fifth.open());
+  EXPECT_TRUE(sink.waitForLog("4 from 127.0.0.2 are waiting for their token")) << sink.log();
+  // The holder of the token gets in from another address, though 4 are waiting and only 2
+  // viewers are allowed.
+  Viewer holder(port);
+  ASSERT_TRUE(holder.open()) << holder.error().message();
+  holder.read();
+  holder.send("auth s3cret");
+  EXPECT_EQ(nlohmann::json::parse(holder.read())["type"], "auth");
+  for (auto& v : squatters) {
+    EXPECT_TRUE(v->closedByServer());
+    EXPECT_EQ(v->closeReason(), "no token within 300 ms");
+  }
+  // Their places are free again.
+  Viewer later(port, "", "/ws", "127.0.0.2");
+  EXPECT_TRUE(later.open()) << later.error().message();
+}
+
+// A viewer that reads nothing but sends pings kept its place: any byte it sent reset its idle
+// timer. It is now judged by what it reads: a frame not taken within the write deadline cuts it
+// off.
+TEST(WebView, AViewerThatSendsButNeverReadsIsCutOff) {
+  auto settings = webSink();
+  settings.wall = walls::parseWall(
+      R"({"wall": "big", "display": {"width": 800, "height": 500},
+          "grid": {"columns": 1, "rows": 1}})",
+      "test");
+  settings.viewerWriteTimeoutMs = 300;
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  Viewer stuck(port);
+  ASSERT_TRUE(stuck.open());
+  Renderer rank(sink.port(), "big", 800, 500);
+  std::uint64_t f = 0;
+  // Frames of noise until its socket buffers are full and a write waits past the deadline; it
+  // pings all along.
+  ASSERT_TRUE(test::waitUntil([&] {
+    rank.frame(f++, 1, true);
+    stuck.ping();
+    return sink.log().find("(read nothing for 300 ms)") != std::string::npos;
+  })) << sink.log();
+  // Tile intake never waited for it: every frame was presented.
+  EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats& st) {
+    return st.framesPresented == int(f);
+  })) << sink.log();
+  Viewer next(port);
+  EXPECT_TRUE(next.open());
+}
+
 // A viewer that floods commands: a burst of 120 goes through, the rest are dropped and it is told.
 TEST(WebView, CommandsBeyondTheRateAreDroppedAndTheViewerIsTold) {
   test::SinkRunner sink(webSink());

@@ -156,6 +156,8 @@ Sink::Sink(SinkSettings settings, SinkLog log) : impl_(std::make_unique<Impl>())
     web.maxDisplayPages = s.settings.maxDisplayPages;
     web.swapTimeoutMs = s.settings.swapTimeoutMs;
     web.swapLeadMs = s.settings.swapLeadMs;
+    web.authTimeoutMs = s.settings.viewerAuthTimeoutMs;
+    web.writeTimeoutMs = s.settings.viewerWriteTimeoutMs;
     s.web = std::make_unique<WebView>(
         s.settings.wall, web, [this](const net::Control& c) { sendControl(c); }, s.log,
         [this](const WebView::SwapStats& swap) {

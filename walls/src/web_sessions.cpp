@@ -22,6 +22,13 @@ std::string peerAddress(const tcp::socket& socket) {
   return ep.address().to_string() + ":" + std::to_string(ep.port());
 }
 
+// The remote address without its port.
+std::string hostOf(const tcp::socket& socket) {
+  boost::system::error_code ec;
+  const auto ep = socket.remote_endpoint(ec);
+  return ec ? "?" : ep.address().to_string();
+}
+
 // "ready 12" -> 12: the whole text a number, or nothing.
 std::optional<std::uint64_t> parseUnsigned(std::string_view text) {
   std::uint64_t value = 0;
@@ -33,14 +40,37 @@ std::optional<std::uint64_t> parseUnsigned(std::string_view text) {
 }  // namespace
 
 WsSession::WsSession(tcp::socket socket, WebView::Impl* v, int displayIndex)
-    : ws(std::move(socket)), view(v), display(displayIndex) {
-  const auto address = peerAddress(beast::get_lowest_layer(ws).socket());
+    : ws(std::move(socket)),
+      view(v),
+      display(displayIndex),
+      authDeadline(ws.get_executor()),
+      writeDeadline(ws.get_executor()) {
+  const auto& socketRef = beast::get_lowest_layer(ws).socket();
+  const auto remote = peerAddress(socketRef);
+  address = hostOf(socketRef);
   name = display >= 0 ? "display page " + view->wall.displays[std::size_t(display)].name + " (" +
-                            address + ")"
-                      : "viewer " + address;
+                            remote + ")"
+                      : "viewer " + remote;
   authed = view->settings.token.empty();
   tokens = 2 * rate();
-  ++count();
+  pending = !authed;
+  if (pending) {
+    ++view->pendingAuth;
+    ++view->pendingByAddress[address];
+  } else {
+    ++count();
+  }
+}
+
+int WsSession::cap() const {
+  return display >= 0 ? view->settings.maxDisplayPages : view->settings.maxViewers;
+}
+
+void WsSession::unpend() {
+  if (!pending) return;
+  pending = false;
+  --view->pendingAuth;
+  if (--view->pendingByAddress[address] <= 0) view->pendingByAddress.erase(address);
 }
 
 double WsSession::rate() const {
@@ -60,6 +90,14 @@ void WsSession::start(http::request<http::empty_body> request) {
     auto& v = *self->view;
     self->open = true;
     v.sessions[self.get()] = self;
+    if (!self->authed) {  // a token must come within the deadline
+      const int ms = v.settings.authTimeoutMs;
+      self->authDeadline.expires_after(std::chrono::milliseconds(ms));
+      self->authDeadline.async_wait([self, ms](beast::error_code e) {
+        if (e || self->authed || !self->open || self->closing) return;
+        self->refuse(websocket::close_code::policy_error, "no token within " + durationText(ms));
+      });
+    }
     if (self->display >= 0) {
       v.say("sink: " + self->name + " connected (" + std::to_string(v.pageCount.load()) +
             " display page(s))");
@@ -76,9 +114,12 @@ void WsSession::start(http::request<http::empty_body> request) {
 }
 
 void WsSession::gone(const std::string& why) {
+  authDeadline.cancel();
+  writeDeadline.cancel();
   if (counted) {
     counted = false;
-    const int n = --count();
+    const int n = pending ? count().load() : --count();
+    unpend();
     if (open)
       view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
                 std::to_string(n) + (display >= 0 ? " display page(s)" : " watching"));
@@ -137,7 +178,17 @@ bool WsSession::take(const std::string& text) {
       return false;
     }
     const bool first = !authed;
+    if (pending) {  // it takes a viewer's (page's) place now
+      if (count() >= cap()) {
+        refuse(websocket::close_code::try_again_later,
+               display >= 0 ? "too many display pages" : "too many viewers");
+        return false;
+      }
+      unpend();
+      ++count();
+    }
     authed = true;
+    authDeadline.cancel();
     note(R"({"type":"auth","ok":true})");
     if (first && display >= 0) view->pageJoined(shared_from_this());
     return true;
@@ -216,6 +267,7 @@ void WsSession::write() {
   auto done = [self = shared_from_this()](beast::error_code ec, std::size_t) {
     self->writing = false;
     self->writingFrame.reset();
+    self->writeDeadline.cancel();
     if (ec) return self->gone(ec.message());
     self->write();
   };
@@ -232,6 +284,16 @@ void WsSession::write() {
     ws.binary(true);
     ws.async_write(bnet::buffer(*writingFrame), done);
   }
+  if (!writing) return;
+  // Judged by what it reads, not by what it sends: a viewer whose last write has not gone out by
+  // then (it sends pongs, or commands, but reads nothing) is cut off.
+  const auto generation = ++writes;
+  const int ms = view->settings.writeTimeoutMs;
+  writeDeadline.expires_after(std::chrono::milliseconds(ms));
+  writeDeadline.async_wait([self = shared_from_this(), generation, ms](beast::error_code e) {
+    if (e || !self->writing || self->writes != generation) return;
+    self->gone("read nothing for " + durationText(ms));
+  });
 }
 
 HttpSession::HttpSession(tcp::socket socket, WebView::Impl* v)
@@ -287,6 +349,23 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
   if (!view->originAllowed(origin, host)) {
     view->say("sink: refused a viewer from Origin '" + origin.substr(0, 100) + "'");
     return reply(http::status::forbidden, "this Origin may not watch the wall\n", "text/plain");
+  }
+  if (!view->settings.token.empty()) {
+    // Connections waiting for their token hold no viewer's place, but are few per address.
+    const std::string from = hostOf(stream.socket());
+    const auto mine = view->pendingByAddress.find(from);
+    if (mine != view->pendingByAddress.end() && mine->second >= kMaxPendingPerAddress) {
+      view->say("sink: refused a WebSocket: " + std::to_string(kMaxPendingPerAddress) + " from " +
+                from + " are waiting for their token");
+      return reply(http::status::service_unavailable, "too many waiting for their token\n",
+                   "text/plain");
+    }
+    if (view->pendingAuth >= view->settings.maxViewers + view->settings.maxDisplayPages) {
+      view->say("sink: refused a WebSocket: " + std::to_string(view->pendingAuth) +
+                " are waiting for their token");
+      return reply(http::status::service_unavailable, "too many waiting for their token\n",
+                   "text/plain");
+    }
   }
   if (display < 0 && view->viewerCount >= view->settings.maxViewers) {
     view->say("sink: refused a viewer: " + std::to_string(view->settings.maxViewers) +

@@ -175,6 +175,8 @@ WebView::WebView(const Wall& wall, WebViewSettings settings, Control control, Si
     s.settings.maxDisplayPages = 2 * int(wall.displays.size()) + 8;
   if (s.settings.maxDisplayPages < 1) throw std::invalid_argument("at least one display page");
   if (s.settings.swapTimeoutMs < 1) throw std::invalid_argument("a positive swap timeout");
+  if (s.settings.authTimeoutMs < 1 || s.settings.writeTimeoutMs < 1)
+    throw std::invalid_argument("positive viewer deadlines");
   if (s.settings.maxWidth < 16) throw std::invalid_argument("viewer frames of at least 16 pixels");
   s.wallJson = web::wallJson(wall, !s.settings.token.empty());
   try {

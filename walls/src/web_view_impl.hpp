@@ -46,6 +46,13 @@ inline constexpr auto kRequestTimeout = std::chrono::seconds(10);
 inline constexpr std::size_t kMaxQueuedText = 32;  // a viewer with more unsent notes is closed
 inline constexpr std::size_t kMaxRequests = 256;   // HTTP requests being read or answered at once
 inline constexpr std::size_t kSkewsKept = 16;      // swapped frames whose show times are collected
+// With a token: WebSockets waiting for theirs, per remote address (all of them: viewers and pages).
+inline constexpr int kMaxPendingPerAddress = 4;
+
+// "300 ms", "5 s".
+inline std::string durationText(int ms) {
+  return ms % 1000 ? std::to_string(ms) + " ms" : std::to_string(ms / 1000) + " s";
+}
 
 }  // namespace web
 
@@ -65,6 +72,10 @@ struct WebView::Impl {
   std::map<WsSession*, std::weak_ptr<WsSession>> sessions;      // the io thread's
   std::map<HttpSession*, std::weak_ptr<HttpSession>> requests;  // likewise
   std::atomic<int> viewerCount{0}, pageCount{0};
+  // With a token, WebSockets that have not authenticated yet: they hold no viewer's or page's
+  // place, at most kMaxPendingPerAddress per address and maxViewers + maxDisplayPages in all.
+  int pendingAuth = 0;                          // the io thread's
+  std::map<std::string, int> pendingByAddress;  // likewise
   bool stopped = false;
   bool loopback = true;  // served on a loopback address (hostAllowed)
   std::shared_ptr<bnet::steady_timer> stopTimer;
@@ -160,7 +171,12 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   int display = -1;
   Page page = 0;  // a display page's place with the barrier, once authenticated
   beast::flat_buffer in;
+  std::string address;  // remote, without the port
   bool authed = false, open = false, writing = false, closing = false, counted = true;
+  bool pending = false;  // counted among those waiting for their token, not the viewers (pages)
+  bnet::steady_timer authDeadline;   // a token must come by then
+  bnet::steady_timer writeDeadline;  // a write in flight longer than this: it reads nothing
+  std::uint64_t writes = 0;          // writes started (tells the write deadline which it is for)
   std::deque<std::string> notes;
   std::shared_ptr<const std::string> frame, writingFrame;
   std::string writingNote;
@@ -168,12 +184,15 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   Clock::time_point refilled = Clock::now();
 
   // Counted among the viewers (or pages) from here (a handshake in progress takes a place too,
-  // so the caps bound what handshakes can hold), until gone().
+  // so the caps bound what handshakes can hold), until gone(); with a token, among those waiting
+  // for theirs until it comes.
   WsSession(tcp::socket socket, WebView::Impl* v, int displayIndex);
   std::atomic<int>& count() { return display >= 0 ? view->pageCount : view->viewerCount; }
   double rate() const;  // messages a second it may send
   void start(http::request<http::empty_body> request);
   void gone(const std::string& why);
+  int cap() const;  // the most viewers (or pages) at once
+  void unpend();    // no longer counted among those waiting for their token
   // Closes with a reason the page can show; a viewer that does not take the close is cut off.
   void refuse(websocket::close_code code, const std::string& reason);
   void read();

@@ -43,6 +43,8 @@ struct SinkSettings {
   int maxPeers = 256;                   // connections at once; more are refused
   int helloTimeoutMs = 5000;            // a peer that sends no Hello by then is dropped
   int peerIdleMs = 30000;               // a greeted peer silent this long is dropped
+  int viewerAuthTimeoutMs = 5000;       // WebViewSettings::authTimeoutMs
+  int viewerWriteTimeoutMs = 10000;     // WebViewSettings::writeTimeoutMs
   // The browser view (web_view.hpp): empty httpHost: none. The token above guards it too.
   std::string httpHost;
   std::uint16_t httpPort = 0;            // 0: any free port (see Sink::httpPort)

@@ -86,6 +86,12 @@ struct WebViewSettings {
   int jpegQuality = 80;
   double commandsPerSecond = 60;       // per viewer (a burst of twice that is allowed)
   double pageMessagesPerSecond = 600;  // per display page (two a frame; a burst of twice that)
+  // With a token, a WebSocket that has not sent it by then is closed (until then it holds no
+  // viewer's place; at most 4 such per address).
+  int authTimeoutMs = 5000;
+  // A viewer or page whose last write has not gone out by then reads nothing: it is cut off,
+  // whatever it sends.
+  int writeTimeoutMs = 10000;
 };
 
 // One presented frame as the viewers see it: the assembler's frame (handed over, not copied),
