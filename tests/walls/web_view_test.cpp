@@ -105,11 +105,16 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
     EXPECT_EQ(v.closeReason(), "wrong token");
   }
   // Nothing of the refused viewers reached rank 0: the one command that arrives below is the
-  // authenticated viewer's (they were closed before it connected).
-  Viewer v(port);
-  v.read();
-  v.send("auth s3cret");
-  EXPECT_EQ(nlohmann::json::parse(v.read())["type"], "auth");
+  // authenticated viewer's (they were closed before it connected). The right token is taken
+  // once the back-off after the wrong one has passed (0.1 s).
+  std::unique_ptr<Viewer> authed;
+  ASSERT_TRUE(test::waitUntil([&] {
+    authed = std::make_unique<Viewer>(port);
+    authed->read();
+    authed->send("auth s3cret");
+    return authed->read().find("\"auth\"") != std::string::npos;
+  }));
+  Viewer& v = *authed;
   v.send("rotate 10 -5");
   std::vector<net::Control> got;
   test::waitUntil([&] {
@@ -184,6 +189,68 @@ TEST(WebView, AViewerThatSendsButNeverReadsIsCutOff) {
   })) << sink.log();
   Viewer next(port);
   EXPECT_TRUE(next.open());
+}
+
+// Guessing the page's token gained nothing from being slow, and cost a log line each. The tile
+// port's back-off per address now guards the WebSockets too, and the log counts the guesses.
+TEST(WebView, WrongTokensBackOffPerAddressAndAreCountedNotLoggedEach) {
+  test::SinkRunner sink(webSink("s3cret"));
+  const auto port = sink.sink().httpPort();
+  for (int i = 0; i < 40; ++i) {
+    Viewer v(port);
+    ASSERT_TRUE(v.open());
+    v.read();
+    v.send("auth guess" + std::to_string(i));
+    EXPECT_TRUE(v.closedByServer());
+    EXPECT_NE(v.closeReason().find("wrong token"), std::string::npos) << v.closeReason();
+  }
+  const std::string log = sink.log();
+  int lines = 0;
+  for (auto at = log.find("wrong token ("); at != std::string::npos;
+       at = log.find("wrong token (", at + 1))
+    ++lines;
+  EXPECT_GE(lines, 1) << log;
+  EXPECT_LE(lines, 4) << log;
+  EXPECT_EQ(log.find("closed: wrong token"), std::string::npos) << log;
+  {
+    Viewer early(port);
+    early.read();
+    early.send("auth s3cret");
+    EXPECT_TRUE(early.closedByServer());
+    EXPECT_NE(early.closeReason().find("too many wrong tokens from 127.0.0.1"), std::string::npos)
+        << early.closeReason();
+  }
+  EXPECT_TRUE(test::waitUntil([&] {
+    Viewer later(port);
+    later.read();
+    later.send("auth s3cret");
+    return later.read().find("\"auth\"") != std::string::npos;
+  })) << sink.log();
+}
+
+// Reconnecting after every burst of commands got a new budget each time (2,300 commands a
+// second). The budget is now the address's.
+TEST(WebView, ReconnectingDoesNotRefillTheCommandBudget) {
+  test::SinkRunner sink(webSink());
+  net::ControlChannel control("127.0.0.1", sink.port(),
+                              net::Hello{net::Role::Controller, 0, 1, "t2x1", ""});
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  const auto port = sink.sink().httpPort();
+  {
+    Viewer first(port);
+    first.read();
+    for (int i = 0; i < 100; ++i) first.send("rotate 1 0");  // within the burst of 120
+  }
+  Viewer second(port);
+  second.read();
+  for (int i = 0; i < 100; ++i) second.send("rotate 1 0");
+  bool told = false;
+  for (int i = 0; i < 100 && !told; ++i) {
+    const auto m = second.read();
+    ASSERT_FALSE(second.error()) << second.error().message();
+    told = m.find("too many commands") != std::string::npos;
+  }
+  EXPECT_TRUE(told);
 }
 
 // A viewer that floods commands: a burst of 120 goes through, the rest are dropped and it is told.

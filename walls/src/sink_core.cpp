@@ -11,17 +11,6 @@ namespace {
 constexpr std::size_t kEndedJobsKept = 1024;
 }
 
-bool sameSecret(const std::string& a, const std::string& b) {
-  unsigned diff = unsigned(a.size() != b.size());
-  const std::size_t n = std::max(a.size(), b.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    const unsigned char x = i < a.size() ? static_cast<unsigned char>(a[i]) : 0;
-    const unsigned char y = i < b.size() ? static_cast<unsigned char>(b[i]) : 0;
-    diff |= unsigned(x ^ y);
-  }
-  return diff == 0;
-}
-
 std::string jobName(std::uint64_t job) { return voxwall::hex64(job); }
 
 SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
@@ -31,7 +20,8 @@ SinkCore::SinkCore(const SinkSettings& settings, SinkLog log, Present present)
       assembler_(settings.wall,
                  AssemblerLimits{settings.pendingFrames, settings.pendingBytes,
                                  settings.frameWindow, settings.mosaic},
-                 [this](const FrameEvent& e) { onEvent(e); }) {}
+                 [this](const FrameEvent& e) { onEvent(e); }),
+      tokens_(settings.token) {}
 
 void SinkCore::attach(net::Peer& peer) { peers_.insert(&peer); }
 
@@ -61,43 +51,20 @@ void SinkCore::refuseQuietly(net::Peer& peer, const std::string& reason) {
 }
 
 bool SinkCore::tokenAccepted(net::Peer& peer, const net::Hello& hello) {
-  if (settings_.token.empty()) return true;
-  using Clock = std::chrono::steady_clock;
-  const auto now = Clock::now();
-  const std::string& from = peer.address();
-  auto it = guesses_.find(from);
-  const bool right = sameSecret(hello.token, settings_.token);
-  if (it != guesses_.end() && now < it->second.until) {
-    // Backing off: not even a right token is looked at, so guessing gains nothing from speed.
-    ++it->second.untold;
-    refuseQuietly(peer, peer.name() + ": too many wrong tokens from " + from +
-                            "; try again in a few seconds");
-    return false;
-  }
-  if (right) {
-    if (it != guesses_.end()) guesses_.erase(it);
-    return true;
-  }
-  // A bounded table: forget addresses whose back-off has passed, then the oldest entry.
-  if (it == guesses_.end() && guesses_.size() >= 4096) {
-    std::erase_if(guesses_, [&](const auto& g) { return g.second.until < now; });
-    if (guesses_.size() >= 4096) guesses_.erase(guesses_.begin());
-  }
-  Guesses& g = guesses_[from];
-  ++g.wrong;
-  const auto backoff = std::min<Clock::duration>(
-      kFirstTokenBackoff * (std::int64_t(1) << std::min(g.wrong - 1, 20)), kMaxTokenBackoff);
-  g.until = now + backoff;
-  // One line for the first wrong tokens, then at most one every 10 s with the count since.
-  if (g.wrong <= 3 || now - g.told >= std::chrono::seconds(10)) {
-    const double seconds = std::chrono::duration<double>(backoff).count();
-    refuse(peer, peer.name() + ": wrong token (" + std::to_string(g.wrong) + " from " + from +
-                     (g.untold ? ", " + std::to_string(g.untold) + " more refused unheard" : "") +
-                     "; refused unheard for " + formatLine("%.1f", seconds) + " s)");
-    g.told = now, g.untold = 0;
-  } else {
-    ++g.untold;
-    refuseQuietly(peer, peer.name() + ": wrong token");
+  const auto result = tokens_.check(peer.address(), hello.token);
+  switch (result.verdict) {
+    case TokenGuard::Verdict::Accepted:
+      return true;
+    case TokenGuard::Verdict::BackingOff:
+      refuseQuietly(peer, peer.name() + ": too many wrong tokens from " + peer.address() +
+                              "; try again in a few seconds");
+      return false;
+    case TokenGuard::Verdict::Wrong:
+      if (result.logLine.empty())
+        refuseQuietly(peer, peer.name() + ": wrong token");
+      else
+        refuse(peer, peer.name() + ": " + result.logLine);
+      return false;
   }
   return false;
 }

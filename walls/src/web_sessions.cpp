@@ -99,18 +99,24 @@ void WsSession::start(http::request<http::empty_body> request) {
       });
     }
     if (self->display >= 0) {
-      v.say("sink: " + self->name + " connected (" + std::to_string(v.pageCount.load()) +
-            " display page(s))");
+      self->sayConnected();
       self->note(web::displayJson(v.wall, v.wall.displays[std::size_t(self->display)],
                                   !v.settings.token.empty(), v.settings.swapTimeoutMs));
       if (self->authed) v.pageJoined(self);
     } else {
-      v.say("sink: " + self->name + " connected (" + std::to_string(v.viewerCount.load()) +
-            " watching)");
+      self->sayConnected();
       self->note(v.wallJson);
     }
     self->read();
   });
+}
+
+// With a token, a WebSocket is logged once it sent the right one: those that never do are told
+// only by the token guard's lines, so guessing cannot flood the log.
+void WsSession::sayConnected() {
+  if (!authed) return;
+  view->say("sink: " + name + " connected (" + std::to_string(count().load()) +
+            (display >= 0 ? " display page(s))" : " watching)"));
 }
 
 void WsSession::gone(const std::string& why) {
@@ -118,9 +124,10 @@ void WsSession::gone(const std::string& why) {
   writeDeadline.cancel();
   if (counted) {
     counted = false;
+    const bool wasPending = pending;
     const int n = pending ? count().load() : --count();
     unpend();
-    if (open)
+    if (open && !wasPending)
       view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
                 std::to_string(n) + (display >= 0 ? " display page(s)" : " watching"));
   }
@@ -135,7 +142,7 @@ void WsSession::gone(const std::string& why) {
 void WsSession::refuse(websocket::close_code code, const std::string& reason) {
   if (closing) return;
   closing = true;
-  view->say("sink: " + name + " closed: " + reason);
+  if (!pending) view->say("sink: " + name + " closed: " + reason);
   if (page) view->pageLeft(std::exchange(page, 0));
   beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(5));
   ws.async_close(websocket::close_reason(code, reason.substr(0, 120)),
@@ -163,17 +170,40 @@ void WsSession::read() {
 bool WsSession::withinRate() {
   const double r = rate();
   const auto now = Clock::now();
-  tokens = std::min(2 * r, tokens + r * std::chrono::duration<double>(now - refilled).count());
-  refilled = now;
-  if (tokens < 1) return false;
-  tokens -= 1;
+  double* left = &tokens;
+  Clock::time_point* when = &refilled;
+  if (display < 0) {  // a viewer: its address's budget
+    auto& budget = view->commandBudget;
+    auto it = budget.find(address);
+    if (it == budget.end()) {
+      if (budget.size() >= 4096) {  // forget the budgets that are full again, then the oldest
+        std::erase_if(budget, [&](const auto& b) {
+          return now - b.second.refilled > std::chrono::seconds(2);
+        });
+        if (budget.size() >= 4096) budget.erase(budget.begin());
+      }
+      it = budget.emplace(address, WebView::Impl::Budget{2 * r, now}).first;
+    }
+    left = &it->second.tokens, when = &it->second.refilled;
+  }
+  *left = std::min(2 * r, *left + r * std::chrono::duration<double>(now - *when).count());
+  *when = now;
+  if (*left < 1) return false;
+  *left -= 1;
   return true;
 }
 
 bool WsSession::take(const std::string& text) {
-  const auto& token = view->settings.token;
   if (text.rfind("auth ", 0) == 0) {
-    if (!token.empty() && !sameSecret(text.substr(5), token)) {
+    // The tile port's back-off per address: guessing gains nothing from speed.
+    const auto checked = view->tokenGuard.check(address, text.substr(5));
+    if (checked.verdict == TokenGuard::Verdict::BackingOff) {
+      refuse(websocket::close_code::policy_error,
+             "too many wrong tokens from " + address + "; try again in a few seconds");
+      return false;
+    }
+    if (checked.verdict == TokenGuard::Verdict::Wrong) {
+      if (!checked.logLine.empty()) view->say("sink: " + name + ": " + checked.logLine);
       refuse(websocket::close_code::policy_error, "wrong token");
       return false;
     }
@@ -189,6 +219,7 @@ bool WsSession::take(const std::string& text) {
     }
     authed = true;
     authDeadline.cancel();
+    if (first) sayConnected();
     note(R"({"type":"auth","ok":true})");
     if (first && display >= 0) view->pageJoined(shared_from_this());
     return true;

@@ -167,6 +167,7 @@ WebView::WebView(const Wall& wall, WebViewSettings settings, Control control, Si
   auto& s = *impl_;
   s.wall = wall;
   s.settings = std::move(settings);
+  s.tokenGuard = TokenGuard(s.settings.token);
   s.control = std::move(control);
   s.log = std::move(log);
   s.swapReport = std::move(swapReport);

@@ -24,6 +24,7 @@
 #include <thread>
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/swap_barrier.hpp>
+#include <voxwall/walls/token_guard.hpp>
 #include <voxwall/walls/web_view.hpp>
 
 #include "web_messages.hpp"
@@ -74,6 +75,14 @@ struct WebView::Impl {
   std::atomic<int> viewerCount{0}, pageCount{0};
   // With a token, WebSockets that have not authenticated yet: they hold no viewer's or page's
   // place, at most kMaxPendingPerAddress per address and maxViewers + maxDisplayPages in all.
+  TokenGuard tokenGuard{""};  // the io thread's: the token and its back-off per address
+  // Viewers' camera commands per remote address (a burst of twice the rate, refilled at the
+  // rate), so reconnecting does not refill them. The io thread's; at most 4096 addresses.
+  struct Budget {
+    double tokens = 0;
+    Clock::time_point refilled{};
+  };
+  std::map<std::string, Budget> commandBudget;
   int pendingAuth = 0;                          // the io thread's
   std::map<std::string, int> pendingByAddress;  // likewise
   bool stopped = false;
@@ -180,7 +189,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   std::deque<std::string> notes;
   std::shared_ptr<const std::string> frame, writingFrame;
   std::string writingNote;
-  double tokens = 0;
+  double tokens = 0;  // a display page's message budget (viewers': commandBudget)
   Clock::time_point refilled = Clock::now();
 
   // Counted among the viewers (or pages) from here (a handshake in progress takes a place too,
@@ -191,6 +200,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   double rate() const;  // messages a second it may send
   void start(http::request<http::empty_body> request);
   void gone(const std::string& why);
+  void sayConnected();
   int cap() const;  // the most viewers (or pages) at once
   void unpend();    // no longer counted among those waiting for their token
   // Closes with a reason the page can show; a viewer that does not take the close is cut off.

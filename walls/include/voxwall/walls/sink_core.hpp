@@ -25,11 +25,9 @@
 #include <voxwall/net/wire.hpp>
 #include <voxwall/walls/frame_assembler.hpp>
 #include <voxwall/walls/sink.hpp>
+#include <voxwall/walls/token_guard.hpp>
 
 namespace voxwall::walls {
-
-// Compares secrets in time that depends on their lengths only.
-bool sameSecret(const std::string& a, const std::string& b);
 
 class SinkCore {
  public:
@@ -50,10 +48,6 @@ class SinkCore {
               std::span<const std::byte> payload);
   // Sends Bye with the reason, counts and logs the refusal, hangs up.
   void refuse(net::Peer& peer, const std::string& reason);
-  // How long an address that sent a wrong token is refused without its token being looked at:
-  // 0.1 s after the first, doubling with each wrong one up to kMaxTokenBackoff.
-  static constexpr std::chrono::milliseconds kFirstTokenBackoff{100};
-  static constexpr std::chrono::seconds kMaxTokenBackoff{30};
   // Counts and logs a peer dropped for `why` (empty: it simply closed).
   void dropped(net::Peer& peer, const std::string& why);
   // The presenter's word on a complete frame (presented, skipped, not written), told to the
@@ -90,13 +84,7 @@ class SinkCore {
   net::Peer* controller_ = nullptr;
   std::optional<std::uint64_t> job_;
   std::set<std::uint64_t> endedJobs_;
-  // Wrong tokens per remote address: how many, until when the address is refused unheard, how
-  // many refusals the log has not told yet, and when it last told one.
-  struct Guesses {
-    int wrong = 0, untold = 0;
-    std::chrono::steady_clock::time_point until{}, told{};
-  };
-  std::map<std::string, Guesses> guesses_;
+  TokenGuard tokens_;  // the token and its back-off per address
   mutable std::mutex statsMutex_;
   SinkStats stats_;
 };
