@@ -328,7 +328,7 @@ void WsSession::write() {
 }
 
 HttpSession::HttpSession(tcp::socket socket, WebView::Impl* v)
-    : stream(std::move(socket)), view(v) {}
+    : stream(std::move(socket)), view(v), address(hostOf(stream.socket())) {}
 
 void HttpSession::start() {
   parser.emplace();
@@ -440,6 +440,16 @@ void HttpSession::serve(http::request<http::empty_body> req) {
   return reply(http::status::not_found, "not found\n", "text/plain", head);
 }
 
+void WebView::Impl::refusedAtCap(const std::string& why) {
+  ++refusedUntold;
+  const auto now = Clock::now();
+  if (now - refusalToldAt < std::chrono::seconds(10)) return;
+  say("sink: web: refused " + std::to_string(refusedUntold) + " connection(s) (" + why +
+      "); at most one such line every 10 s");
+  refusedUntold = 0;
+  refusalToldAt = now;
+}
+
 void WebView::Impl::accept() {
   acceptor.async_accept([self = this](beast::error_code ec, tcp::socket socket) {
     if (self->stopped) return;
@@ -451,7 +461,16 @@ void WebView::Impl::accept() {
       return;
     }
     std::erase_if(self->requests, [](const auto& r) { return r.second.expired(); });
-    if (self->requests.size() >= kMaxRequests) {  // requests in flight; each ends within 10 s
+    // Requests in flight, each ending within 10 s: at most 256, 16 from one address, so slow
+    // requests from one client (a slowloris) leave room for the others.
+    const std::string from = hostOf(socket);
+    std::size_t fromThere = 0;
+    for (const auto& [p, weak] : self->requests)
+      if (const auto r = weak.lock(); r && r->address == from) ++fromThere;
+    if (self->requests.size() >= kMaxRequests || fromThere >= kMaxRequestsPerAddress) {
+      self->refusedAtCap(fromThere >= kMaxRequestsPerAddress
+                             ? std::to_string(fromThere) + " requests in flight from " + from
+                             : std::to_string(self->requests.size()) + " requests in flight");
       boost::system::error_code ignored;
       socket.close(ignored);
       self->accept();

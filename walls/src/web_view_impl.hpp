@@ -46,7 +46,8 @@ inline constexpr std::size_t kMaxRequestHeader = 8192;
 inline constexpr auto kRequestTimeout = std::chrono::seconds(10);
 inline constexpr std::size_t kMaxQueuedText = 32;  // a viewer with more unsent notes is closed
 inline constexpr std::size_t kMaxRequests = 256;   // HTTP requests being read or answered at once
-inline constexpr std::size_t kSkewsKept = 16;      // swapped frames whose show times are collected
+inline constexpr std::size_t kMaxRequestsPerAddress = 16;  // of those, from one remote address
+inline constexpr std::size_t kSkewsKept = 16;  // swapped frames whose show times are collected
 // With a token: WebSockets waiting for theirs, per remote address (all of them: viewers and pages).
 inline constexpr int kMaxPendingPerAddress = 4;
 
@@ -72,6 +73,9 @@ struct WebView::Impl {
   std::string wallJson;
   std::map<WsSession*, std::weak_ptr<WsSession>> sessions;      // the io thread's
   std::map<HttpSession*, std::weak_ptr<HttpSession>> requests;  // likewise
+  // Connections refused at the caps on requests, told in the log at most every 10 s.
+  int refusedUntold = 0;
+  Clock::time_point refusalToldAt{};
   std::atomic<int> viewerCount{0}, pageCount{0};
   // With a token, WebSockets that have not authenticated yet: they hold no viewer's or page's
   // place, at most kMaxPendingPerAddress per address and maxViewers + maxDisplayPages in all.
@@ -152,6 +156,8 @@ struct WebView::Impl {
     return "http://" + ep.address().to_string() + ":" + std::to_string(ep.port());
   }
   void accept();
+  // Counts a connection refused at a cap on requests; logs it, at most once every 10 s.
+  void refusedAtCap(const std::string& why);
   void closeAll();
 
   // The barrier (io thread).
@@ -222,6 +228,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
 struct HttpSession : std::enable_shared_from_this<HttpSession> {
   beast::tcp_stream stream;
   WebView::Impl* view;
+  std::string address;  // remote, without the port
   beast::flat_buffer buffer;
   std::optional<http::request_parser<http::empty_body>> parser;
 
