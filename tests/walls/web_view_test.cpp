@@ -56,6 +56,41 @@ TEST(WebView, ServesThePageAndNothingElse) {
   EXPECT_EQ(get(port, "/").first, 200);
 }
 
+// The status line's code of a raw request (0 when the server closed without answering).
+static int rawStatus(std::uint16_t port, const std::string& request) {
+  boost::asio::io_context io;
+  tcp::socket s(io);
+  s.connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+  boost::system::error_code ec;
+  boost::asio::write(s, boost::asio::buffer(request), ec);
+  std::string got;
+  char buf[256];
+  while (got.find("\r\n") == std::string::npos) {
+    const auto n = s.read_some(boost::asio::buffer(buf), ec);
+    if (ec) break;
+    got.append(buf, n);
+  }
+  return got.starts_with("HTTP/1.1 ") && got.size() >= 12 ? std::stoi(got.substr(9, 3)) : 0;
+}
+
+// The Host check took "[::1]evil.example" and "127.0.0.1:evil" as loopback and the first of two
+// Host headers; oversized requests were closed without a status.
+TEST(WebView, HostIsOneAuthorityAndOversizedRequestsGetTheirStatus) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  for (const char* bad : {"[::1]evil.example", "127.0.0.1:evil", "127.0.0.1:99999",
+                          "127.0.0.1:80:80", "evil.example/127.0.0.1", "[::1"})
+    EXPECT_EQ(get(port, "/", http::verb::get, 0, bad).first, 400) << bad;
+  for (const char* good : {"localhost:8080", "LOCALHOST", "127.0.0.1", "[::1]:1"})
+    EXPECT_EQ(get(port, "/", http::verb::get, 0, good).first, 200) << good;
+  EXPECT_EQ(rawStatus(port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nHost: evil.example\r\n\r\n"),
+            400);
+  EXPECT_EQ(rawStatus(port, "GET / HTTP/1.1\r\n\r\n"), 400);  // no Host
+  EXPECT_EQ(get(port, "/", http::verb::get, 20000).first, 431);
+  EXPECT_EQ(get(port, "/" + std::string(3000, 'a')).first, 414);
+  EXPECT_EQ(get(port, "/").first, 200);
+}
+
 TEST(WebView, AnotherOriginGivenOnTheCommandLineMayWatch) {
   auto settings = webSink();
   settings.httpOrigins = {"http://wallhost.lab:8080"};

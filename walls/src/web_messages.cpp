@@ -251,6 +251,38 @@ std::shared_ptr<const std::string> overviewFrameMessage(const ViewerFrame& f, co
   return message;
 }
 
+std::optional<std::string> hostOfAuthority(std::string_view authority) {
+  std::string host;
+  std::string_view rest;
+  if (authority.starts_with("[")) {
+    const auto close = authority.find(']');
+    if (close == std::string_view::npos || close < 2) return std::nullopt;
+    for (const char c : authority.substr(1, close - 1))
+      if (!std::isxdigit(static_cast<unsigned char>(c)) && c != ':' && c != '.')
+        return std::nullopt;
+    host = std::string(authority.substr(0, close + 1));
+    rest = authority.substr(close + 1);
+  } else {
+    const auto colon = authority.find(':');
+    host = std::string(authority.substr(0, colon));
+    rest = colon == std::string_view::npos ? std::string_view() : authority.substr(colon);
+    if (host.empty()) return std::nullopt;
+    for (const char c : host)
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-' && c != '_' &&
+          c != '~')
+        return std::nullopt;
+  }
+  if (!rest.empty()) {
+    const auto port = rest.substr(1);
+    if (rest[0] != ':' || port.size() > 5) return std::nullopt;
+    for (const char c : port)
+      if (!std::isdigit(static_cast<unsigned char>(c))) return std::nullopt;
+    if (!port.empty() && std::stoul(std::string(port)) > 65535) return std::nullopt;
+  }
+  for (char& c : host) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return host;
+}
+
 std::optional<std::size_t> displayOfPath(const Wall& wall, std::string_view path,
                                          std::string_view prefix) {
   if (!path.starts_with(prefix)) return std::nullopt;

@@ -34,6 +34,12 @@ std::shared_ptr<const std::string> displayFrameMessage(const AssembledFrame& fra
 std::shared_ptr<const std::string> overviewFrameMessage(const ViewerFrame& frame, const Wall& wall,
                                                         int maxWidth, int jpegQuality);
 
+// A Host header's value as RFC 3986's authority: host [":" port], the host an IP literal in
+// brackets, or a name or IPv4 address of letters, digits, '.', '-', '_' and '~'; the port 0 to
+// 65535 (or empty). Returns the host (lower case; brackets kept), nothing when malformed
+// ("[::1]evil.example", "127.0.0.1:evil").
+std::optional<std::string> hostOfAuthority(std::string_view authority);
+
 // "/display/<name>" -> the display's index in `wall` (the name percent-decoded); nullopt when
 // the path is not a display's.
 std::optional<std::size_t> displayOfPath(const Wall& wall, std::string_view path,

@@ -337,6 +337,11 @@ void HttpSession::start() {
   stream.expires_after(kRequestTimeout);
   http::async_read(stream, buffer, *parser,
                    [self = shared_from_this()](beast::error_code ec, std::size_t) {
+                     if (ec == http::error::header_limit)
+                       return self->reply(
+                           http::status::request_header_fields_too_large,
+                           "request headers over " + std::to_string(kMaxRequestHeader) + " bytes\n",
+                           "text/plain");
                      if (ec) return self->close();
                      self->serve(self->parser->release());
                    });
@@ -414,6 +419,15 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
 void HttpSession::serve(http::request<http::empty_body> req) {
   const std::string target(req.target());
   const std::string host(req[http::field::host]);
+  // One Host header, an authority as RFC 3986 writes it (RFC 9112: else 400).
+  if (req.count(http::field::host) != 1 || !web::hostOfAuthority(host)) {
+    view->say("sink: refused a request with a malformed or repeated Host " +
+              quotedForLog(host, 100));
+    return reply(http::status::bad_request, "one Host header, HOST[:PORT]\n", "text/plain");
+  }
+  if (target.size() > kMaxTarget)
+    return reply(http::status::uri_too_long,
+                 "request target over " + std::to_string(kMaxTarget) + " bytes\n", "text/plain");
   if (!view->hostAllowed(host)) {
     view->say("sink: refused a request for Host " + quotedForLog(host, 100));
     return reply(http::status::forbidden, "this Host is not served here\n", "text/plain");

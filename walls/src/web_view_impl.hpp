@@ -43,6 +43,7 @@ using Page = SwapBarrier::Page;
 namespace web {
 
 inline constexpr std::size_t kMaxRequestHeader = 8192;
+inline constexpr std::size_t kMaxTarget = 2048;  // a longer request target gets 414
 inline constexpr auto kRequestTimeout = std::chrono::seconds(10);
 inline constexpr std::size_t kMaxQueuedText = 32;  // a viewer with more unsent notes is closed
 inline constexpr std::size_t kMaxRequests = 256;   // HTTP requests being read or answered at once
@@ -133,14 +134,10 @@ struct WebView::Impl {
   // DNS rebinding: a page of evil.example whose name was pointed at 127.0.0.1 reaches a loopback
   // server as a same-origin request. Served on loopback, only the loopback names (any port: an
   // SSH tunnel may use another) and the hosts of --http-origin are answered.
+  // `host` is a well-formed authority (web::hostOfAuthority).
   bool hostAllowed(const std::string& host) const {
     if (!loopback) return true;
-    std::string name = host;
-    if (name.starts_with("[")) {
-      name = name.substr(0, name.find(']') + 1);
-    } else if (const auto colon = name.rfind(':'); colon != std::string::npos) {
-      name = name.substr(0, colon);
-    }
+    const std::string name = web::hostOfAuthority(host).value_or("");
     if (name == "127.0.0.1" || name == "localhost" || name == "[::1]") return true;
     for (const auto& origin : settings.origins) {
       const auto start = origin.find("://");
