@@ -18,6 +18,7 @@ using asio::ip::tcp;
 
 namespace {
 constexpr std::size_t kPayloadChunk = 1 << 20;  // a payload's memory grows as its bytes arrive
+constexpr int kMaxUngreetedPerAddress = 16;     // connections without a Hello, per address
 }  // namespace
 
 struct Server::Impl {
@@ -216,6 +217,17 @@ struct Server::Impl {
       if (int(sessions.size()) >= settings.maxPeers) {
         handler.refusedConnection(std::to_string(settings.maxPeers) +
                                   " peers connected (--max-peers)");
+        socket.close(ignored);
+        return accept();
+      }
+      // Connections that have not said Hello yet, from one address: a few (a rank says Hello at
+      // once), so silent connections from one host cannot take every place from the others.
+      const std::string from = Session::addressOf(socket);
+      int waiting = 0;
+      for (const auto& s : sessions) waiting += !s->greeted() && s->address() == from;
+      if (waiting >= kMaxUngreetedPerAddress) {
+        handler.refusedConnection(std::to_string(waiting) + " connections from " + from +
+                                  " have not said Hello");
         socket.close(ignored);
         return accept();
       }

@@ -51,8 +51,18 @@ const net::TileMessage& wholeScreen() {
   return tile;
 }
 
-int rawConnect(std::uint16_t port) {
+// A TCP connection to the sink, from `from` (another loopback address: 127.0.0.2) if given.
+int rawConnect(std::uint16_t port, const char* from = nullptr) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd >= 0 && from) {
+    sockaddr_in local{};
+    local.sin_family = AF_INET;
+    ::inet_pton(AF_INET, from, &local.sin_addr);
+    if (::bind(fd, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0) {
+      ::close(fd);
+      return -1;
+    }
+  }
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(port);
@@ -275,6 +285,31 @@ TEST(SinkHardening, DropsPeersThatSayNoHelloAndCapsConnections) {
   EXPECT_NE(sink.log().find("sent no Hello within 200 ms"), std::string::npos) << sink.log();
   EXPECT_NE(sink.log().find("peers connected (--max-peers)"), std::string::npos) << sink.log();
   EXPECT_NO_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000));
+}
+
+// 256 connections that never said Hello (re-opened as they were dropped) left no place for a
+// render job's ranks. One address now holds at most 16 such connections, and the refusals are
+// counted in the log instead of a line each.
+TEST(SinkHardening, SilentConnectionsFromOneHostLeaveRoomForAnother) {
+  test::SinkRunner sink(settings());
+  std::vector<int> silent;
+  for (int i = 0; i < 300; ++i) {
+    const int fd = rawConnect(sink.port(), "127.0.0.2");
+    ASSERT_GE(fd, 0);
+    silent.push_back(fd);
+  }
+  EXPECT_TRUE(sink.waitForLog("connections from 127.0.0.2 have not said Hello")) << sink.log();
+  auto rank = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  rank->send(net::encodeMessage(0, wholeScreen()));
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }))
+      << sink.log();
+  const std::string log = sink.log();
+  int lines = 0;
+  for (auto at = log.find("have not said Hello"); at != std::string::npos;
+       at = log.find("have not said Hello", at + 1))
+    ++lines;
+  EXPECT_LE(lines, 2) << log;  // 284 refusals, told at most once every 10 s
+  for (const int fd : silent) ::close(fd);
 }
 
 // Defect 4: a header claiming 64 MiB was allocated and zeroed before Hello or any payload.

@@ -64,10 +64,20 @@ struct Sink::Impl : net::PeerHandler {
   void received(std::uint64_t bytes) override {
     core->updateStats([&](SinkStats& s) { s.bytesReceived += bytes; });
   }
+  // Logged at most once every 10 s, with the count since: a flood of connections must not flood
+  // the log.
   void refusedConnection(const std::string& why) override {
     core->updateStats([](SinkStats& s) { ++s.peersRefused; });
-    say("sink: refused a peer: " + why);
+    ++refusedUntold;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - refusalToldAt < std::chrono::seconds(10)) return;
+    say("sink: refused " + std::to_string(refusedUntold) + " connection(s): " + why +
+        " (at most one such line every 10 s)");
+    refusedUntold = 0;
+    refusalToldAt = now;
   }
+  int refusedUntold = 0;
+  std::chrono::steady_clock::time_point refusalToldAt{};
 
   // On the io thread: a complete frame is presented at once. Nothing here decodes or writes.
   void onComplete(std::uint64_t job, AssembledFrame&& data) {

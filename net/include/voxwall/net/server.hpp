@@ -1,7 +1,9 @@
 // The server half of the wall protocol (the client half is tcp.hpp): a TCP listener on an Asio
 // io_context that accepts peers, reads each message (header, then the payload in chunks as it
 // arrives, both checked by wire.hpp) and hands it to a PeerHandler, which holds the protocol's
-// meaning (the sink's SinkCore). Hostile peers: connections are capped (maxPeers), a peer without
+// meaning (the sink's SinkCore). Hostile peers: connections are capped (maxPeers; at most 16 from
+// one address before they said Hello, so silent connections from one host leave room for the
+// ranks of others), a peer without
 // a Hello is dropped after helloTimeoutMs, a greeted peer that sends nothing for peerIdleMs is
 // dropped (peers send KeepAlive while they have nothing else to say), a payload longer than the
 // handler allows is refused before it is read, and running out of file descriptors pauses
