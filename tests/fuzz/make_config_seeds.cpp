@@ -1,5 +1,6 @@
-// Writes seeds for config_files_fuzz into the folder given: each is a reader byte (even: walls,
-// 1 mod 4: colour map without a name, 3 mod 4: the map named "Cool to Warm") and a file.
+// Writes seeds for config_files_fuzz into the folder given: each is a reader byte (0xf0 and
+// above: a camera command; else even: walls, 1 mod 4: colour map without a name, 3 mod 4: the
+// map named "Cool to Warm") and a file.
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,10 @@ int main(int argc, char** argv) {
   }
   std::filesystem::create_directories(argv[1]);
   const std::pair<char, const char*> seeds[] = {
+      {char(0xf0), "rotate 10 -5"},
+      {char(0xf0), "zoom 1.5"},
+      {char(0xf1), "pan\t0.25 -1e-3"},
+      {char(0xf2), "reset"},
       {0, R"({"wall": "w", "display": {"width": 40, "height": 30, "width_mm": 400,
               "height_mm": 300}, "bezel_mm": {"left": 2, "right": 2}, "grid": {"columns": 2,
               "rows": 2}, "background": "#102030"})"},
