@@ -58,6 +58,7 @@ class Page {
     return false;
   }
   void say(const std::string& text) { viewer_.send(text); }
+  const std::vector<nlohmann::json>& notes() const { return notes_; }  // text messages read
 
  private:
   Viewer viewer_;
@@ -218,7 +219,8 @@ TEST(DisplayPages, ATokenGuardsThePagesToo) {
   test::SinkRunner sink(webSink("s3cret"));
   Page page(sink.sink().httpPort(), "r0c0");
   ASSERT_TRUE(page.open());
-  EXPECT_EQ(page.info()["token"], true);
+  // Nothing about the wall before the token: only that one is needed.
+  EXPECT_EQ(page.info(), nlohmann::json::parse(R"({"type":"login"})"));
   auto r = rank(sink.port(), "s3cret");
   sendFrame(*r, 0, 0x10);
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }));
@@ -227,6 +229,10 @@ TEST(DisplayPages, ATokenGuardsThePagesToo) {
   const auto meta = page.frame();  // the newest frame comes once it is authenticated
   ASSERT_FALSE(meta.is_null());
   EXPECT_EQ(meta["frame"], 0);
+  ASSERT_EQ(page.notes().size(), 2u);  // then the display, before the frame
+  EXPECT_EQ(page.notes()[0]["type"], "auth");
+  EXPECT_EQ(page.notes()[1]["type"], "display");
+  EXPECT_EQ(page.notes()[1]["name"], "r0c0");
   Page wrong(sink.sink().httpPort(), "r0c1");
   wrong.say("auth guess");
   EXPECT_TRUE(wrong.frame().is_null());  // closed

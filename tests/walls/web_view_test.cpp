@@ -127,7 +127,8 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
   {
     Viewer v(port);
     ASSERT_TRUE(v.open());
-    EXPECT_TRUE(nlohmann::json::parse(v.read())["token"].get<bool>());
+    // Nothing about the wall before the token: only that one is needed.
+    EXPECT_EQ(nlohmann::json::parse(v.read()), nlohmann::json::parse(R"({"type":"login"})"));
     v.send("rotate 10 0");
     EXPECT_TRUE(v.closedByServer());
     EXPECT_EQ(v.closeReason(), "a command before the token");
@@ -150,6 +151,9 @@ TEST(WebView, ATokenGuardsFramesAndControl) {
     return authed->read().find("\"auth\"") != std::string::npos;
   }));
   Viewer& v = *authed;
+  const auto wall = nlohmann::json::parse(v.read());  // the wall, now
+  EXPECT_EQ(wall["type"], "wall");
+  EXPECT_EQ(wall["width"], 44);
   v.send("rotate 10 -5");
   std::vector<net::Control> got;
   test::waitUntil([&] {

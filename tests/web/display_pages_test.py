@@ -10,7 +10,9 @@ It checks that
   - the pages switch together: between the first and the last frame all of them showed, each
     showed the same frames, the same frame id at each swap;
   - a page closed mid-run does not stop the other three from switching frames, and the sink
-    names it; reopened, it shows frames again and is back in the barrier.
+    names it; reopened, it shows frames again and is back in the barrier;
+  - all of it with a token: the sink and the ranks are given one, the pages take it from their
+    address's #token= fragment.
 
 Usage: display_pages_test.py --voxwall BIN --mpiexec MPIEXEC [--preflags "..."] --walls DIR
 Exits 0 when every check passed; one line saying what failed and 1 otherwise.
@@ -110,9 +112,12 @@ def main():
         wall_dir = os.path.join(work, "wall")
         # A long swap timeout: a browser stalled by a busy machine must not leave the barrier
         # here (leaving and rejoining is the unit tests' business); a closed page leaves at once.
+        # With a token: the pages take it from their address's #token= and are told nothing
+        # about the wall before they send it.
+        token = "wall-s3cret"
         procs.start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
-                     "127.0.0.1:0", "--out", wall_dir, "--swap-timeout", "5000", "--no-stdin"],
-                    "sink.log")
+                     "127.0.0.1:0", "--out", wall_dir, "--swap-timeout", "5000", "--no-stdin",
+                     "--token", token], "sink.log")
 
         def sink_ports():
             text = procs.log("sink.log")
@@ -127,13 +132,14 @@ def main():
             return procs.start([args.mpiexec, *shlex.split(args.preflags), "-np", "2",
                                 args.voxwall, "render", volume, "--wall", wall, "--sink",
                                 "127.0.0.1:" + tile_port, "--frames", "100000", "--orbit-deg",
-                                "3", "--threads", "1", "--tile-codec", codec, "-q"], log)
+                                "3", "--threads", "1", "--tile-codec", codec, "--token", token,
+                                "-q"], log)
 
         names = ["r0c0", "r0c1", "r1c0", "r1c1"]
 
         def open_page(name):
             driver = chromium(work, name, "320,240")
-            driver.get(f"{base}/display/{name}")
+            driver.get(f"{base}/display/{name}#token={token}")
             pages[name] = driver
             return driver
 

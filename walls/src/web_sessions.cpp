@@ -98,25 +98,25 @@ void WsSession::start(http::request<http::empty_body> request) {
         self->refuse(websocket::close_code::policy_error, "no token within " + durationText(ms));
       });
     }
-    if (self->display >= 0) {
-      self->sayConnected();
-      self->note(web::displayJson(v.wall, v.wall.displays[std::size_t(self->display)],
-                                  !v.settings.token.empty(), v.settings.swapTimeoutMs));
-      if (self->authed) v.pageJoined(self);
+    if (self->authed) {
+      self->welcome();
     } else {
-      self->sayConnected();
-      self->note(v.wallJson);
+      self->note(R"({"type":"login"})");  // nothing about the wall before the token
     }
     self->read();
   });
 }
 
-// With a token, a WebSocket is logged once it sent the right one: those that never do are told
-// only by the token guard's lines, so guessing cannot flood the log.
-void WsSession::sayConnected() {
-  if (!authed) return;
+// Once authenticated (at once without a token): logged (with a token, those that never send the
+// right one are told only by the token guard's lines, so guessing cannot flood the log), told the
+// wall or its display, and a page joins the swap barrier.
+void WsSession::welcome() {
   view->say("sink: " + name + " connected (" + std::to_string(count().load()) +
             (display >= 0 ? " display page(s))" : " watching)"));
+  if (display < 0) return note(view->wallJson);
+  note(web::displayJson(view->wall, view->wall.displays[std::size_t(display)],
+                        !view->settings.token.empty(), view->settings.swapTimeoutMs));
+  view->pageJoined(shared_from_this());
 }
 
 void WsSession::gone(const std::string& why) {
@@ -219,9 +219,8 @@ bool WsSession::take(const std::string& text) {
     }
     authed = true;
     authDeadline.cancel();
-    if (first) sayConnected();
     note(R"({"type":"auth","ok":true})");
-    if (first && display >= 0) view->pageJoined(shared_from_this());
+    if (first) welcome();
     return true;
   }
   if (!authed) {

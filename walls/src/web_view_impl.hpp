@@ -203,7 +203,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   double rate() const;  // messages a second it may send
   void start(http::request<http::empty_body> request);
   void gone(const std::string& why);
-  void sayConnected();
+  void welcome();   // authenticated: logged, told the wall (or display), a page joins
   int cap() const;  // the most viewers (or pages) at once
   void unpend();    // no longer counted among those waiting for their token
   // Closes with a reason the page can show; a viewer that does not take the close is cut off.

@@ -13,9 +13,11 @@
 //   at most 8 KiB, no body, read within 10 s (slow clients are cut off).
 // Overview WebSocket (text JSON from the sink; text commands from the page, at most
 // kMaxViewerMessage bytes each):
-//   sink -> page  {"type":"wall", "id", "width", "height", "displays":[{"name","x","y","w","h"}],
-//                  "token": whether one is required}                          (on connect)
+//   sink -> page  {"type":"login"} (on connect when a token is required: nothing about the wall
+//                  is sent before it)
 //                 {"type":"auth", "ok": true}                     (after a right token)
+//                 {"type":"wall", "id", "width", "height", "displays":[{"name","x","y","w","h"}],
+//                  "token": whether one is required}         (on connect, or after the token)
 //                 {"type":"error", "message"}                     (a command that was not taken)
 //                 binary: u32 n (little-endian), n bytes of JSON {"type":"frame", "frame",
 //                  "step", "phase" ("full", "interactive" or "refining"), "width", "height" (of
@@ -27,10 +29,11 @@
 //                  maxWidth, on a thread of its own, only while someone watches).
 //   page -> sink  "auth TOKEN" | "rotate DAZ DEL" | "zoom FACTOR" | "pan DX DY" | "reset"
 // Display page WebSocket:
-//   sink -> page  {"type":"display", "name", "wall", "x", "y", "w", "h" (its rectangle on the
-//                  virtual screen), "token", "swap_timeout_ms", "background":"#rrggbb"}
-//                  (on connect)
+//   sink -> page  {"type":"login"} (on connect when a token is required)
 //                 {"type":"auth", "ok": true}
+//                 {"type":"display", "name", "wall", "x", "y", "w", "h" (its rectangle on the
+//                  virtual screen), "token", "swap_timeout_ms", "background":"#rrggbb"}
+//                  (on connect, or after the token)
 //                 binary: u32 n, n bytes of JSON {"type":"frame", "frame", "seq" (the sink's
 //                  count of presented frames: frame ids restart with each job), "step", "phase",
 //                  "latency_ms", "segments":[{"x","y","w","h" (pixels of the frame's screen,
