@@ -92,8 +92,10 @@ class Viewer {
     if (binary) *binary = ws_.got_binary();
     return beast::buffers_to_string(buffer.data());
   }
-  // Reads until a binary frame message arrives; returns its JSON, and the JPEG in `jpeg`.
-  nlohmann::json readFrame(std::string* jpeg = nullptr) {
+  // Reads until a binary frame message arrives; returns its JSON, and the JPEG in `jpeg`. Then
+  // says "next", as the page does, unless `next` is false (the sink sends a viewer a frame only
+  // once it took the last one).
+  nlohmann::json readFrame(std::string* jpeg = nullptr, bool next = true) {
     for (int i = 0; i < 50; ++i) {
       bool binary = false;
       const auto m = read(&binary);
@@ -102,6 +104,7 @@ class Viewer {
       std::uint32_t n = 0;
       std::memcpy(&n, m.data(), 4);
       if (jpeg) *jpeg = m.substr(4 + n);
+      if (next) send("next");
       return nlohmann::json::parse(m.substr(4, n));
     }
     return nullptr;

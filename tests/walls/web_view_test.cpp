@@ -441,6 +441,33 @@ TEST(WebView, AViewerThatNeverReadsDoesNotStallTileIntake) {
   EXPECT_EQ(sink.sink().stats().framesPresented, kFrames);
 }
 
+// A viewer reading 10 messages a second was still on frame 586 a minute after the render ended:
+// "newest wins" began only once the socket buffers were full. A viewer now has one frame in
+// flight: the next it gets, once it said "next", is the newest.
+TEST(WebView, ASlowViewersNextFrameIsTheNewest) {
+  test::SinkRunner sink(webSink());
+  Viewer v(sink.sink().httpPort());
+  ASSERT_TRUE(v.open());
+  Renderer rank(sink.port());
+  rank.frame(0);
+  const auto first = v.readFrame(nullptr, false);  // taken, but no "next" yet
+  ASSERT_FALSE(first.is_null()) << v.error().message();
+  EXPECT_EQ(first["frame"], 0);
+  for (std::uint64_t f = 1; f <= 20; ++f) rank.frame(f);
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 21; }));
+  v.send("next");
+  std::uint64_t got = 0;
+  for (int i = 0; i < 21 && got != 20; ++i) {
+    const auto meta = v.readFrame();
+    ASSERT_FALSE(meta.is_null()) << v.error().message();
+    got = meta["frame"].get<std::uint64_t>();
+    if (i == 0) {
+      EXPECT_GT(got, 1u) << "the frame after 0 was not the newest";
+    }
+  }
+  EXPECT_EQ(got, 20u);
+}
+
 TEST(WebView, FiftyViewersAtOnceEachGetTheFrame) {
   auto settings = webSink();
   settings.maxViewers = 50;

@@ -227,6 +227,11 @@ bool WsSession::take(const std::string& text) {
     refuse(websocket::close_code::policy_error, "a command before the token");
     return false;
   }
+  if (display < 0 && text == "next") {  // the viewer took its frame: the newest may go
+    awaitingNext = false;
+    write();
+    return true;
+  }
   return display >= 0 ? takePageMessage(text) : takeCommand(text);
 }
 
@@ -289,6 +294,17 @@ void WsSession::note(std::string text) {
 void WsSession::offer(std::shared_ptr<const std::string> bytes) {
   if (!open || closing || !authed || !bytes) return;
   frame = std::move(bytes);
+  // A viewer that has not taken its last frame for the write deadline while newer ones came reads
+  // nothing, whatever it sends.
+  const int ms = view->settings.writeTimeoutMs;
+  if (display < 0 && awaitingNext && Clock::now() - frameSentAt > std::chrono::milliseconds(ms)) {
+    // Not from here: the caller walks the sessions that gone() leaves.
+    closing = true;
+    bnet::post(ws.get_executor(), [self = shared_from_this(), ms] {
+      self->gone("read nothing for " + durationText(ms));
+    });
+    return;
+  }
   write();
 }
 
@@ -307,7 +323,8 @@ void WsSession::write() {
     notes.pop_front();
     ws.text(true);
     ws.async_write(bnet::buffer(writingNote), done);
-  } else if (frame) {
+  } else if (frame && !(display < 0 && awaitingNext)) {
+    if (display < 0) awaitingNext = true, frameSentAt = Clock::now();
     writing = true;
     writingFrame = std::move(frame);
     frame.reset();

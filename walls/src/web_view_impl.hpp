@@ -189,6 +189,10 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   bnet::steady_timer authDeadline;   // a token must come by then
   bnet::steady_timer writeDeadline;  // a write in flight longer than this: it reads nothing
   std::uint64_t writes = 0;          // writes started (tells the write deadline which it is for)
+  // A viewer is sent a frame only once it said "next" after the last one (one frame in flight,
+  // not a socket buffer of them): a slow viewer gets the newest frame, not a backlog.
+  bool awaitingNext = false;
+  Clock::time_point frameSentAt{};
   std::deque<std::string> notes;
   std::shared_ptr<const std::string> frame, writingFrame;
   std::string writingNote;

@@ -27,7 +27,8 @@
 //                  sink's count so far), "dropped" (dropped so far), "ranks_connected"}, then the
 //                  JPEG (the frame decoded at 1/k, k the smallest whole factor that fits
 //                  maxWidth, on a thread of its own, only while someone watches).
-//   page -> sink  "auth TOKEN" | "rotate DAZ DEL" | "zoom FACTOR" | "pan DX DY" | "reset"
+//   page -> sink  "auth TOKEN" | "rotate DAZ DEL" | "zoom FACTOR" | "pan DX DY" | "reset" |
+//                 "next" (it took its frame: the sink sends the next one, the newest, only then)
 // Display page WebSocket:
 //   sink -> page  {"type":"login"} (on connect when a token is required)
 //                 {"type":"auth", "ok": true}
