@@ -142,13 +142,16 @@ TEST(DisplayPages, APageGetsItsDisplaysSegmentsAsTheRankSentThem) {
     return sink.log().find("frame 0 shown together on 1 display page(s), spread 0.0 ms") !=
            std::string::npos;
   })) << sink.log();
-  // What a page may say is narrow: anything else closes it.
-  right.say("rotate 10 0");
+  // What a page may say is narrow: anything else closes it, and reaches the log only quoted (a
+  // newline there once forged a log line).
+  right.say("rotate 10 0\nframe 999999 presented: forged");
   Page again(sink.sink().httpPort(), "r0c1");
   EXPECT_TRUE(again.open());
   EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats&) {
-    return sink.log().find("not a display page's message") != std::string::npos;
-  }));
+    return sink.log().find("not a display page's message: \"rotate 10 0\\x0aframe") !=
+           std::string::npos;
+  })) << sink.log();
+  EXPECT_EQ(sink.log().find("\nframe 999999"), std::string::npos) << sink.log();
 }
 
 TEST(DisplayPages, APageThatNeverAnswersLeavesTheBarrierTheOtherKeepsSwitchingAndItRejoins) {

@@ -112,7 +112,7 @@ TEST(WebView, RefusesAForeignOriginAndTakesItsOwn) {
   EXPECT_EQ(wall["width"], 44);
   EXPECT_EQ(wall["displays"].size(), 2u);
   EXPECT_FALSE(wall["token"].get<bool>());
-  EXPECT_NE(sink.log().find("refused a viewer from Origin 'http://evil.example'"),
+  EXPECT_NE(sink.log().find("refused a viewer from Origin \"http://evil.example\""),
             std::string::npos)
       << sink.log();
 }

@@ -277,7 +277,7 @@ bool WsSession::takePageMessage(const std::string& text) {
     }
   }
   refuse(websocket::close_code::policy_error,
-         "not a display page's message: '" + text.substr(0, 40) + "'");
+         "not a display page's message: " + quotedForLog(text, 40));
   return false;
 }
 
@@ -399,7 +399,7 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
     display = int(*d);
   }
   if (!view->originAllowed(origin, host)) {
-    view->say("sink: refused a viewer from Origin '" + origin.substr(0, 100) + "'");
+    view->say("sink: refused a viewer from Origin " + quotedForLog(origin, 100));
     return reply(http::status::forbidden, "this Origin may not watch the wall\n", "text/plain");
   }
   if (!view->settings.token.empty()) {
