@@ -22,6 +22,8 @@
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/web_view.hpp>
 
+#include "log_throttle.hpp"
+
 namespace voxwall::walls {
 
 struct Sink::Impl : net::PeerHandler {
@@ -68,16 +70,10 @@ struct Sink::Impl : net::PeerHandler {
   // the log.
   void refusedConnection(const std::string& why) override {
     core->updateStats([](SinkStats& s) { ++s.peersRefused; });
-    ++refusedUntold;
-    const auto now = std::chrono::steady_clock::now();
-    if (now - refusalToldAt < std::chrono::seconds(10)) return;
-    say("sink: refused " + std::to_string(refusedUntold) + " connection(s): " + why +
-        " (at most one such line every 10 s)");
-    refusedUntold = 0;
-    refusalToldAt = now;
+    const std::string line = refusals.line("connection", "sink: refused a connection: " + why);
+    if (!line.empty()) say(line);
   }
-  int refusedUntold = 0;
-  std::chrono::steady_clock::time_point refusalToldAt{};
+  LogThrottle refusals;
 
   // On the io thread: a complete frame is presented at once. Nothing here decodes or writes.
   void onComplete(std::uint64_t job, AssembledFrame&& data) {

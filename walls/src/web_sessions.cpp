@@ -399,7 +399,7 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
     display = int(*d);
   }
   if (!view->originAllowed(origin, host)) {
-    view->say("sink: refused a viewer from Origin " + quotedForLog(origin, 100));
+    view->refused("origin", "a viewer from Origin " + quotedForLog(origin, 100));
     return reply(http::status::forbidden, "this Origin may not watch the wall\n", "text/plain");
   }
   if (!view->settings.token.empty()) {
@@ -407,26 +407,26 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
     const std::string from = hostOf(stream.socket());
     const auto mine = view->pendingByAddress.find(from);
     if (mine != view->pendingByAddress.end() && mine->second >= kMaxPendingPerAddress) {
-      view->say("sink: refused a WebSocket: " + std::to_string(kMaxPendingPerAddress) + " from " +
-                from + " are waiting for their token");
+      view->refused("pending-address", "a WebSocket: " + std::to_string(kMaxPendingPerAddress) +
+                                           " from " + from + " are waiting for their token");
       return reply(http::status::service_unavailable, "too many waiting for their token\n",
                    "text/plain");
     }
     if (view->pendingAuth >= view->settings.maxViewers + view->settings.maxDisplayPages) {
-      view->say("sink: refused a WebSocket: " + std::to_string(view->pendingAuth) +
-                " are waiting for their token");
+      view->refused("pending", "a WebSocket: " + std::to_string(view->pendingAuth) +
+                                   " are waiting for their token");
       return reply(http::status::service_unavailable, "too many waiting for their token\n",
                    "text/plain");
     }
   }
   if (display < 0 && view->viewerCount >= view->settings.maxViewers) {
-    view->say("sink: refused a viewer: " + std::to_string(view->settings.maxViewers) +
-              " already watching");
+    view->refused("viewers",
+                  "a viewer: " + std::to_string(view->settings.maxViewers) + " already watching");
     return reply(http::status::service_unavailable, "too many viewers\n", "text/plain");
   }
   if (display >= 0 && view->pageCount >= view->settings.maxDisplayPages) {
-    view->say("sink: refused a display page: " + std::to_string(view->settings.maxDisplayPages) +
-              " already open");
+    view->refused("pages", "a display page: " + std::to_string(view->settings.maxDisplayPages) +
+                               " already open");
     return reply(http::status::service_unavailable, "too many display pages\n", "text/plain");
   }
   std::make_shared<WsSession>(stream.release_socket(), view, display)->start(std::move(req));
@@ -437,15 +437,15 @@ void HttpSession::serve(http::request<http::empty_body> req) {
   const std::string host(req[http::field::host]);
   // One Host header, an authority as RFC 3986 writes it (RFC 9112: else 400).
   if (req.count(http::field::host) != 1 || !web::hostOfAuthority(host)) {
-    view->say("sink: refused a request with a malformed or repeated Host " +
-              quotedForLog(host, 100));
+    view->refused("host-syntax",
+                  "a request with a malformed or repeated Host " + quotedForLog(host, 100));
     return reply(http::status::bad_request, "one Host header, HOST[:PORT]\n", "text/plain");
   }
   if (target.size() > kMaxTarget)
     return reply(http::status::uri_too_long,
                  "request target over " + std::to_string(kMaxTarget) + " bytes\n", "text/plain");
   if (!view->hostAllowed(host)) {
-    view->say("sink: refused a request for Host " + quotedForLog(host, 100));
+    view->refused("host", "a request for Host " + quotedForLog(host, 100));
     return reply(http::status::forbidden, "this Host is not served here\n", "text/plain");
   }
   if (websocket::is_upgrade(req)) return upgrade(std::move(req), target, host);
@@ -470,14 +470,9 @@ void HttpSession::serve(http::request<http::empty_body> req) {
   return reply(http::status::not_found, "not found\n", "text/plain", head);
 }
 
-void WebView::Impl::refusedAtCap(const std::string& why) {
-  ++refusedUntold;
-  const auto now = Clock::now();
-  if (now - refusalToldAt < std::chrono::seconds(10)) return;
-  say("sink: web: refused " + std::to_string(refusedUntold) + " connection(s) (" + why +
-      "); at most one such line every 10 s");
-  refusedUntold = 0;
-  refusalToldAt = now;
+void WebView::Impl::refused(const std::string& kind, const std::string& what) {
+  const std::string line = refusals.line(kind, "sink: web: refused " + what);
+  if (!line.empty()) say(line);
 }
 
 void WebView::Impl::accept() {
@@ -498,9 +493,12 @@ void WebView::Impl::accept() {
     for (const auto& [p, weak] : self->requests)
       if (const auto r = weak.lock(); r && r->address == from) ++fromThere;
     if (self->requests.size() >= kMaxRequests || fromThere >= kMaxRequestsPerAddress) {
-      self->refusedAtCap(fromThere >= kMaxRequestsPerAddress
-                             ? std::to_string(fromThere) + " requests in flight from " + from
-                             : std::to_string(self->requests.size()) + " requests in flight");
+      if (fromThere >= kMaxRequestsPerAddress)
+        self->refused("address", "a connection: " + std::to_string(fromThere) +
+                                     " requests in flight from " + from);
+      else
+        self->refused("requests", "a connection: " + std::to_string(self->requests.size()) +
+                                      " requests in flight");
       boost::system::error_code ignored;
       socket.close(ignored);
       self->accept();

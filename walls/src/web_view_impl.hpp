@@ -27,6 +27,7 @@
 #include <voxwall/walls/token_guard.hpp>
 #include <voxwall/walls/web_view.hpp>
 
+#include "log_throttle.hpp"
 #include "web_messages.hpp"
 
 namespace voxwall::walls {
@@ -74,9 +75,7 @@ struct WebView::Impl {
   std::string wallJson;
   std::map<WsSession*, std::weak_ptr<WsSession>> sessions;      // the io thread's
   std::map<HttpSession*, std::weak_ptr<HttpSession>> requests;  // likewise
-  // Connections refused at the caps on requests, told in the log at most every 10 s.
-  int refusedUntold = 0;
-  Clock::time_point refusalToldAt{};
+  LogThrottle refusals;  // the io thread's: refusals told at most once every 10 s per kind
   std::atomic<int> viewerCount{0}, pageCount{0};
   // With a token, WebSockets that have not authenticated yet: they hold no viewer's or page's
   // place, at most kMaxPendingPerAddress per address and maxViewers + maxDisplayPages in all.
@@ -153,8 +152,9 @@ struct WebView::Impl {
     return "http://" + ep.address().to_string() + ":" + std::to_string(ep.port());
   }
   void accept();
-  // Counts a connection refused at a cap on requests; logs it, at most once every 10 s.
-  void refusedAtCap(const std::string& why);
+  // A request or WebSocket refused: "sink: web: refused <what>", at most once every 10 s per
+  // `kind`, with the count of those not told.
+  void refused(const std::string& kind, const std::string& what);
   void closeAll();
 
   // The barrier (io thread).
