@@ -12,6 +12,10 @@ std::string humanBytes(double bytes) {
   return buf;
 }
 
+std::string durationText(int ms) {
+  return ms % 1000 ? std::to_string(ms) + " ms" : std::to_string(ms / 1000) + " s";
+}
+
 std::string quotedForLog(std::string_view text, std::size_t maxChars) {
   std::string out = "\"";
   const std::size_t shown = std::min(text.size(), maxChars);

@@ -8,6 +8,7 @@
 #include <set>
 #include <stdexcept>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/net/asio.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
@@ -91,9 +92,7 @@ struct Server::Impl {
       const auto silent = std::chrono::steady_clock::now() - lastHeard;
       if (silent >= idle) {
         const int ms = server.settings.peerIdleMs;
-        return drop("sent nothing for " +
-                    (ms % 1000 ? std::to_string(ms) + " ms" : std::to_string(ms / 1000) + " s") +
-                    " (--peer-idle)");
+        return drop("sent nothing for " + durationText(ms) + " (--peer-idle)");
       }
       auto self = shared_from_this();
       deadline.expires_after(idle - silent);

@@ -16,6 +16,12 @@ TEST(Text, HumanBytesPicksTheBinaryUnit) {
   EXPECT_EQ(humanBytes(2048.0 * 1024 * 1024 * 1024 * 1024), "2048.0 TiB");  // no unit past TiB
 }
 
+TEST(Text, DurationTextSaysWholeSecondsAsSeconds) {
+  EXPECT_EQ(voxwall::durationText(300), "300 ms");
+  EXPECT_EQ(voxwall::durationText(5000), "5 s");
+  EXPECT_EQ(voxwall::durationText(1500), "1500 ms");
+}
+
 TEST(Text, FormatLineFormatsAndCutsLongLines) {
   EXPECT_EQ(formatLine("\n  %d atoms, %.2f dB", 64, 41.256), "\n  64 atoms, 41.26 dB");
   const std::string longText(600, 'x');

@@ -29,6 +29,13 @@
 using namespace voxwall;
 using namespace voxwall::test;
 
+// One 800x500 display: frames of noise far larger than the loopback socket buffers take unread.
+static walls::Wall bigWall() {
+  return walls::parseWall(R"({"wall": "big", "display": {"width": 800, "height": 500},
+                              "grid": {"columns": 1, "rows": 1}})",
+                          "test");
+}
+
 TEST(WebView, ServesThePageAndNothingElse) {
   test::SinkRunner sink(webSink());
   const auto port = sink.sink().httpPort();
@@ -204,10 +211,7 @@ TEST(WebView, ConnectionsWithoutTheTokenWaitApartAndBriefly) {
 // off.
 TEST(WebView, AViewerThatSendsButNeverReadsIsCutOff) {
   auto settings = webSink();
-  settings.wall = walls::parseWall(
-      R"({"wall": "big", "display": {"width": 800, "height": 500},
-          "grid": {"columns": 1, "rows": 1}})",
-      "test");
+  settings.wall = bigWall();
   settings.viewerWriteTimeoutMs = 300;
   test::SinkRunner sink(settings);
   const auto port = sink.sink().httpPort();
@@ -412,10 +416,7 @@ TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
 // The frames are noise, 800x500: far more than the loopback socket buffers can take unread.
 TEST(WebView, AViewerThatNeverReadsDoesNotStallTileIntake) {
   auto settings = webSink();
-  settings.wall = walls::parseWall(
-      R"({"wall": "big", "display": {"width": 800, "height": 500},
-          "grid": {"columns": 1, "rows": 1}})",
-      "test");
+  settings.wall = bigWall();
   // The reader below starts reading only once all frames were presented (slow under ASan): the
   // viewers' deadline (10 s) is not what this test is about.
   settings.viewerWriteTimeoutMs = 600000;

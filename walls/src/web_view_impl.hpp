@@ -53,11 +53,6 @@ inline constexpr std::size_t kSkewsKept = 16;  // swapped frames whose show time
 // With a token: WebSockets waiting for theirs, per remote address (all of them: viewers and pages).
 inline constexpr int kMaxPendingPerAddress = 4;
 
-// "300 ms", "5 s".
-inline std::string durationText(int ms) {
-  return ms % 1000 ? std::to_string(ms) + " ms" : std::to_string(ms / 1000) + " s";
-}
-
 }  // namespace web
 
 struct WsSession;

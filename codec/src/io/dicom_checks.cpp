@@ -187,8 +187,8 @@ class ElementWalk {
         const bool fragments = tag == 0x7fe00010u;
         // A public element read as items although its dictionary says it holds a value: GDCM's
         // image code then finds no value where it dereferences one.
-        if (isUn && !fragments && dictionaryVr(tag) != gdcm::VR::INVALID &&
-            dictionaryVr(tag) != gdcm::VR::SQ)
+        const gdcm::VR known = isUn ? dictionaryVr(tag) : gdcm::VR(gdcm::VR::INVALID);
+        if (isUn && !fragments && known != gdcm::VR::INVALID && known != gdcm::VR::SQ)
           fail(at, "has an element (" + hex(tag) + ") at byte " + std::to_string(at) +
                        " stored as UN of undefined length where DICOM says it holds a value");
         if (explicit_ && !sequence && !isUn && !fragments)

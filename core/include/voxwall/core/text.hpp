@@ -11,6 +11,9 @@ namespace voxwall {
 // A byte count for people: "512 B", "7.7 MiB" (binary units up to TiB).
 std::string humanBytes(double bytes);
 
+// A deadline for people: "300 ms", "5 s" (whole seconds when it is a whole number of them).
+std::string durationText(int ms);
+
 // printf-style formatting of a report line (at most 511 characters; longer lines are cut).
 template <class... Args>
 std::string formatLine(const char* format, Args... args) {
