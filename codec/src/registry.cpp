@@ -63,6 +63,11 @@ double CodecOptionValues::number(const std::string& flag, double fallback, doubl
 
 const std::vector<const Codec*>& codecs() { return RegisteredCodecs::objects(); }
 
+bool largerThanVoxels(const CompressedVolume& compressed) {
+  const std::uint64_t voxels = compressed.info.voxelCount() * scalarBytes(compressed.info.type);
+  return compressed.payloadBytes() > voxels + voxels / 256 + 4096;
+}
+
 const Codec* findCodec(CodecId id) {
   for (const Codec* c : codecs())
     if (c->id() == id) return c;

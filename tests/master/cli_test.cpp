@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <initializer_list>
+#include <random>
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
@@ -97,6 +98,52 @@ TEST(Cli, CompressReadsRawInputWithItsLayout) {
   expectOneLineError(runVoxwall("compress " + dir.path("v.raw") +
                                 " --dims 4,3,3 --type uint16 -o " + dir.path("w.vwz")),
                      "voxwall: " + dir.path("v.raw") + ": truncated");
+}
+
+// Noise does not compress: every codec's default (or lossless) file of 64^3 random voxels is at
+// most the voxels plus the allowance for its parameters and the container's header and table, or
+// `compress` refuses it with one line, names zfp's lossless mode and writes nothing. svmm and vq
+// lossless are refused (they would write 3-9% more than the voxels); --allow-larger writes them;
+// zfp --lossless stores the bricks as they are.
+TEST(Cli, NoCodecWritesAFileLargerThanTheVoxelsOfNoise) {
+  test::TempDir dir;
+  std::mt19937 random(7);
+  for (const auto& [type, bytes] : {std::pair{"uint8", 1}, std::pair{"int16", 2}}) {
+    std::string voxels(std::size_t(64 * 64 * 64 * bytes), '\0');
+    for (char& v : voxels) v = char(random());
+    const std::string input = dir.path(std::string("noise-") + type + ".raw");
+    test::writeFile(input, voxels);
+    const std::string from = "compress " + input + " --dims 64,64,64 --type " + type + " -q ";
+    for (const codec::Codec* c : codec::codecs()) {
+      if (!c->compresses()) continue;
+      const std::string name(c->name()), out = dir.path(name + "-" + type + ".vwz");
+      const CliRun r = runVoxwall(from + "--codec " + name + " -o " + out);
+      SCOPED_TRACE(name + " " + type + ": " + r.out);
+      if (r.status == 0) {
+        const auto size = std::filesystem::file_size(out);
+        EXPECT_LE(size, voxels.size() + voxels.size() / 256 + 4096 + 4096);
+      } else {
+        expectOneLineError(r, "voxwall: codec " + name + " takes ");
+        EXPECT_NE(r.out.find("more than its " + std::to_string(8 * bytes) + "-bit voxels"),
+                  std::string::npos);
+        EXPECT_NE(r.out.find("--codec zfp --lossless"), std::string::npos);
+        EXPECT_FALSE(std::filesystem::exists(out));
+      }
+      if (name == "svmm" || name == "vq") {
+        EXPECT_EQ(r.status, 1);  // lossless by default: noise outgrows the voxels
+        const CliRun forced = runVoxwall(from + "--codec " + name + " --allow-larger -o " + out);
+        EXPECT_EQ(forced.status, 0) << forced.out;
+        EXPECT_GT(std::filesystem::file_size(out), voxels.size());
+        const CliRun info = runVoxwall("info " + out);
+        EXPECT_NE(info.out.find("the file is larger than its voxels"), std::string::npos)
+            << info.out;
+      }
+    }
+    const std::string zfp = dir.path(std::string("zfp-lossless-") + type + ".vwz");
+    const CliRun lossless = runVoxwall(from + "--codec zfp --lossless -o " + zfp);
+    ASSERT_EQ(lossless.status, 0) << lossless.out;
+    EXPECT_LE(std::filesystem::file_size(zfp), voxels.size() + voxels.size() / 256 + 4096 + 4096);
+  }
 }
 
 // `compress` reads raw, NRRD and NIfTI inputs a slab at a time: vq and svmm compress a volume

@@ -23,7 +23,7 @@ class Payload final : public RenderPayload {
   Layout layout_;
 };
 
-std::string encodeReport(const EncodeStats& s, const Volume& v) {
+std::string encodeReport(const EncodeStats& s, const Volume& v, bool sizeTarget) {
   std::string report = formatLine(
       "\n  %llu bricks (%llu constant), %llu blocks coded with %llu pairs (%.2f per block, at "
       "most %d)",
@@ -48,6 +48,11 @@ std::string encodeReport(const EncodeStats& s, const Volume& v) {
     for (double p : s.levelPsnr)
       report += std::isinf(p) ? std::string(" exact") : formatLine(" %.2f", p);
     report += " dB";
+    if (sizeTarget)  // the target's bytes are shared with the pyramid
+      report += formatLine(
+          "\n  the coarser levels take %.1f%% of this size target's pairs: without render --lod, "
+          "--levels 1 gives them to level 0 (a better picture at the same size)",
+          s.pairs ? 100.0 * double(s.levelPairs) / double(s.pairs) : 0.0);
   }
   report += std::isinf(s.psnr) ? std::string("\n  exact (every brick constant)")
                                : formatLine("\n  PSNR %.2f dB", s.psnr);
@@ -109,7 +114,7 @@ class KsvdCodec final : public Codec {
     p.threads = options.threads;
     EncodeStats s;
     CompressedVolume out = ksvd::encode(volume, p, progress, &s);
-    report = encodeReport(s, volume);
+    report = encodeReport(s, volume, p.targetBitsPerVoxel > 0);
     return out;
   }
 

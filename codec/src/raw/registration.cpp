@@ -38,6 +38,7 @@ class RawCodec final : public Codec {
  public:
   CodecId id() const override { return RawCodecEntry::kId; }
   std::string_view name() const override { return RawCodecEntry::kName; }
+  bool compresses() const override { return false; }
 
   std::string_view summary() const override {
     return "bricked, uncompressed (every scalar type; the reference the lossy codecs are measured "

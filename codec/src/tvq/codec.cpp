@@ -377,6 +377,17 @@ class Encoder {
     }
     double lo = -40, hi = 40;  // log2 of lambda, in squared value units per bit
     if (bytesAt(0) <= target) {
+      // Every partition at its largest codebooks: a file within 2% of the target meets it; one
+      // further below cannot, and says how far it goes and what codes more.
+      const double largest = bytesAt(0);
+      if (largest < 0.98 * target)
+        throw std::invalid_argument(formatLine(
+            "--bits-per-voxel %g is above the largest tvq file of this volume (%.3f bits per "
+            "voxel with %d-bit codes in every partition at --fidelity %g; a record is at most "
+            "%d + --dc-bits bits per 4^3 block): lower the target or --fidelity, or use ksvd or "
+            "zfp for this rate",
+            params_.targetBitsPerVoxel, 8.0 * largest / double(volume_.voxelCount()), kMaxCodeBits,
+            params_.fidelity, 3 * kMaxCodeBits));
       hi = -std::numeric_limits<double>::infinity();
     } else {
       for (int i = 0; i < 60; ++i) {

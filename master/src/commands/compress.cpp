@@ -20,7 +20,7 @@ namespace {
 struct CompressOptions {
   std::string input, output, codec = "raw";
   int threads = 0;
-  bool quiet = false;
+  bool quiet = false, allowLarger = false;
   RawInputOptions raw;
   std::map<std::string, std::string> codecFlags;  // given: flag -> value
 };
@@ -37,6 +37,24 @@ codec::CodecOptionValues codecOptionValues(const CompressOptions& o, const codec
     values.set(flag, value);
   }
   return values;
+}
+
+// A file larger than the voxels it codes is refused (unless --allow-larger): the data does not
+// suit the codec, and zfp's lossless mode, which stores a brick as it is wherever coding would
+// enlarge it, never outgrows them.
+void refuseLarger(const CompressOptions& o, const codec::Codec& chosen,
+                  const codec::CompressedVolume& compressed) {
+  if (o.allowLarger || !chosen.compresses() || !codec::largerThanVoxels(compressed)) return;
+  const codec::VolumeInfo& info = compressed.info;
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "codec %s takes %.2f bits per voxel on this volume, more than its %d-bit voxels "
+                "(the data does not suit it): use --codec zfp --lossless (never larger than the "
+                "voxels) or a lossy setting, or --allow-larger to write it anyway",
+                o.codec.c_str(),
+                8.0 * double(compressed.payloadBytes()) / double(info.voxelCount()),
+                int(8 * codec::scalarBytes(info.type)));
+  throw std::invalid_argument(line);
 }
 
 void runCompress(const CompressOptions& o) {
@@ -56,6 +74,7 @@ void runCompress(const CompressOptions& o) {
   try {
     const codec::CompressedVolume compressed =
         chosen.encodeSource(*source, values, progress, report);
+    refuseLarger(o, chosen, compressed);
     fileBytes = codec::writeContainer(compressed, o.output);
   } catch (const std::bad_alloc&) {
     throw voxwall::FormatError(o.input,
@@ -96,6 +115,9 @@ void addCompressCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", o->quiet, "No progress output");
+  cmd->add_flag("--allow-larger", o->allowLarger,
+                "Write the file even where the codec makes it larger than the voxels (refused "
+                "by default: the data does not suit that codec)");
   o->raw.addTo(*cmd);
   cmd->callback([o] { runCompress(*o); });
 }

@@ -51,9 +51,12 @@ void runInfo(const InfoOptions& o) {
                      info.valueMax);
     std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
                 (unsigned long long)file.fileBytes());
-    std::printf("bits/voxel  %.3f\n", 8.0 * double(file.fileBytes()) / double(info.voxelCount()));
-    std::printf("ratio       %.3f : 1 (uncompressed %s)\n", rawBytes / double(file.fileBytes()),
-                humanBytes(rawBytes).c_str());
+    std::printf("bits/voxel  %.3f (the voxels: %d)\n",
+                8.0 * double(file.fileBytes()) / double(info.voxelCount()),
+                int(8 * codec::scalarBytes(info.type)));
+    std::printf("ratio       %.3f : 1 (uncompressed %s%s)\n", rawBytes / double(file.fileBytes()),
+                humanBytes(rawBytes).c_str(),
+                double(file.fileBytes()) > rawBytes ? "; the file is larger than its voxels" : "");
     if (c)
       for (const auto& [label, text] : c->describe(info, file.sections()))
         std::printf("%-12s%s\n", label.c_str(), text.c_str());

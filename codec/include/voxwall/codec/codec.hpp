@@ -75,6 +75,9 @@ class Codec {
   // One sentence for `compress --help` and `voxwall codecs`: what it does, which data it takes.
   virtual std::string_view summary() const = 0;
   virtual std::vector<CodecOption> options() const { return {}; }
+  // False for a codec that stores the voxels as they are (raw, bricked with an apron): `compress`
+  // holds every other codec's sections to the voxels' size (largerThanVoxels below).
+  virtual bool compresses() const { return true; }
   // Encodes `volume`. `report` receives what `compress` prints under its summary line: lines
   // that each start with "\n  ". Throws std::invalid_argument for options or data it refuses.
   virtual CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
@@ -113,6 +116,11 @@ class Codec {
   // volume, for `voxwall codecs` and the multi-rank scenarios.
   virtual std::vector<std::string> exampleOptions() const = 0;
 };
+
+// Whether `compressed` is larger than the voxels it codes: its sections hold more bytes than the
+// voxels at their scalar type, beyond an allowance of 4 KiB plus 1/256 for the codec's parameters
+// and indices (the container's header and table come on top of either).
+bool largerThanVoxels(const CompressedVolume& compressed);
 
 // Every codec this build carries, in id order.
 const std::vector<const Codec*>& codecs();
