@@ -34,12 +34,13 @@ MIB = {"B": 1 / 1048576.0, "KiB": 1 / 1024.0, "MiB": 1.0, "GiB": 1024.0}
 
 def run(cmd, refusal=None):
     """Runs cmd; returns (output, seconds). Stops the bench when it fails, except with an error
-    line containing `refusal`: then returns (None, that line)."""
+    line containing `refusal` (a phrase or a tuple of them): then returns (None, that line)."""
     start = time.perf_counter()
     r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if r.returncode != 0:
         if refusal:
-            line = [l for l in r.stdout.splitlines() if refusal in l]
+            phrases = (refusal,) if isinstance(refusal, str) else refusal
+            line = [l for l in r.stdout.splitlines() if any(p in l for p in phrases)]
             if line:
                 return None, line[0]
         sys.exit("failed: %s\n%s" % (" ".join(cmd), r.stdout))
@@ -82,14 +83,46 @@ def make_inputs(voxwall, work, which):
             noise = (np.roll(noise, 1, axis) + 2 * noise + np.roll(noise, -1, axis)) / 4
         a = (mri.astype(np.float64) / 255.0 + 0.01 * noise).astype(np.float32)
         out.append(("mri-float32", a))
+    if "ct" in which:
+        out.append(("ct-phantom-int16", ct_phantom(voxwall, work)))
+    if "smooth" in which:
+        out.append(("marschner-lobb-float32", generated(voxwall, work, "marschner-lobb", 160,
+                                                        "float32", np.float32)))
     return out
+
+
+def generated(voxwall, work, kind, size, typ, dtype):
+    raw = os.path.join(work, "%s-%d-%s.raw" % (kind, size, typ))
+    run([voxwall, "generate", kind, "--size", str(size), "--type", typ, "-o", raw])
+    return np.fromfile(raw, dtype).reshape(size, size, size)
+
+
+def ct_phantom(voxwall, work, size=192):
+    """A CT-like int16 volume in Hounsfield units: the 3D Shepp-Logan phantom's regions as air
+    (-1000), soft tissue (20-80 HU by region), fat-like lows and bone (up to 1000), with CT's
+    noise (sigma 12 HU, lightly correlated between neighbours), about a real head CT's 7 Mvox."""
+    v = generated(voxwall, work, "shepp-logan", size, "float32", np.float32).astype(np.float64)
+    hi = float(v.max()) or 1.0
+    v /= hi
+    hu = np.where(v <= 0.0, -1000.0, np.where(v >= 0.9, 400.0 + 600.0 * v, -100.0 + 250.0 * v))
+    rng = np.random.default_rng(11)
+    noise = rng.normal(0.0, 1.0, v.shape)
+    for axis in range(3):
+        noise = (np.roll(noise, 1, axis) + 2 * noise + np.roll(noise, -1, axis)) / 4
+    noise *= 12.0 / noise.std()
+    return np.clip(np.rint(hu + noise), -1024, 3071).astype(np.int16)
+
+
+def max_error(a, b):
+    return float(np.max(np.abs(a.astype(np.float64) - b.astype(np.float64))))
 
 
 def save_raw(work, name, a):
     src = os.path.join(work, name + ".raw")
     a.tofile(src)
     z, y, x = a.shape
-    typ = {np.dtype(np.uint8): "uint8", np.dtype(np.float32): "float32"}[a.dtype]
+    typ = {np.dtype(np.uint8): "uint8", np.dtype(np.int16): "int16",
+           np.dtype(np.float32): "float32"}[a.dtype]
     return src, ["--dims", "%d,%d,%d" % (x, y, z), "--type", typ]
 
 
@@ -101,7 +134,8 @@ def show(row):
 
 # ---- voxwall codecs -----------------------------------------------------------------------
 
-REFUSED = "is below the smallest"  # ksvd and tvq say so of a size target they cannot reach
+# What ksvd, tvq and zfp say of a size target they cannot reach on a volume.
+REFUSED = ("is below the smallest", "is above the largest")
 # Level 0 only: vq, svmm's base level and ZFP store no pyramid for render --lod, so the
 # rate-distortion rows compare like with like; one row shows what the pyramid adds.
 FLAT = ["--levels", "1"]
@@ -123,7 +157,7 @@ def voxwall_run(voxwall, work, name, a, codec, setting, options, method=None):
     os.remove(dec)
     row = {"method": method or codec, "setting": setting, "file": vwz,
            "bpv": 8.0 * os.path.getsize(vwz) / a.size, "psnr": psnr(a, b), "seconds": seconds,
-           "peak_mib": peak}
+           "peak_mib": peak, "max_err": max_error(a, b)}
     if codec == "ksvd":
         m = need(r"coreset of (\d+) of (\d+) blocks in ([\d.]+)s .*coding ([\d.]+)s", log,
                  "the K-SVD line")
@@ -190,12 +224,12 @@ def zfp_runs(work, name, a, rates, precisions):
             with open(comp + ".mem") as f:
                 peak = float(need(r"peak (\d+) KiB", f.read(), "zfp's peak memory").group(1)) / 1024
             b = np.fromfile(dec, np.float32).reshape(a.shape)
-            if a.dtype != np.float32:
-                b = np.clip(np.rint(b), 0, np.iinfo(a.dtype).max)
+            if a.dtype != np.float32:  # rounded and clamped to the input's range, as the codec
+                b = np.clip(np.rint(b), float(a.min()), float(a.max()))
             row = {"method": "zfp " + mode, "setting": ("rate %g" if mode == "fixed-rate"
                                                         else "precision %g") % v,
                    "bpv": 8.0 * os.path.getsize(comp) / a.size, "psnr": psnr(a, b),
-                   "seconds": seconds, "peak_mib": peak}
+                   "seconds": seconds, "peak_mib": peak, "max_err": max_error(a, b)}
             rows.append(row)
             show(row)
             os.remove(dec)
@@ -227,13 +261,14 @@ def speed(bench, raw_vwz, rows, threads):
 
 def table(name, rows):
     print("\n### %s\n" % name)
-    print("| method | setting | bits/voxel | PSNR dB | encode s | K-SVD train s | peak MiB |")
-    print("|---|---|---|---|---|---|---|")
+    print("| method | setting | bits/voxel | PSNR dB | max error | encode s | K-SVD train s | "
+          "peak MiB |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print("| %s | %s | %.3f | %s | %.1f | %s | %.0f |" % (
+        print("| %s | %s | %.3f | %s | %.4g | %.1f | %s | %.0f |" % (
             r["method"], r["setting"], r["bpv"],
-            "lossless" if r["psnr"] == float("inf") else "%.2f" % r["psnr"], r["seconds"],
-            "%.1f" % r["train_s"] if "train_s" in r else "", r["peak_mib"]))
+            "lossless" if r["psnr"] == float("inf") else "%.2f" % r["psnr"], r["max_err"],
+            r["seconds"], "%.1f" % r["train_s"] if "train_s" in r else "", r["peak_mib"]))
 
 
 def speed_table(name, result):

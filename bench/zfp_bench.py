@@ -1,16 +1,18 @@
 #!/usr/bin/python3
 """The zfp codec against the zfp command line, and where the other codecs stand against both.
 
-On ch2better (uint8 MRI) and a float32 volume (the MRI as float32 with smooth noise, as in
-ksvd_bench.py): Debian's `zfp` 1.0 command line in fixed precision and fixed rate on the whole
-volume, voxwall's zfp codec at the same settings (bricks of 16^3 coded on their own plus an index)
-and in fixed accuracy and at size targets, and vq, ksvd (one level) and tvq at size targets.
-Every method's output is decoded and compared with the input by the same PSNR (peak = the input's
-value range, as voxwall::codec::psnr; the command line's integer output rounded and clamped as
-the codec does). For each codec row in fixed precision, "vs CLI" is its PSNR minus the command
-line's at the same bits per voxel (interpolated between the command line's precision points).
-Then decode speed and the 1920x1080 frame time of the fixed-precision files against raw
-(voxwall_bench_vq).
+Volumes: ch2better (uint8 MRI), a float32 volume (the MRI as float32 with smooth noise, as in
+ksvd_bench.py), a CT-like int16 volume (the 3D Shepp-Logan phantom at 192^3 in Hounsfield units
+with CT's noise) and a smooth field (Marschner-Lobb, 160^3 float32). On each: Debian's `zfp` 1.0
+command line in fixed precision and fixed rate on the whole volume, voxwall's zfp codec at the
+same settings (bricks of 16^3 coded on their own plus an index), in fixed accuracy and at size
+targets, and vq, ksvd (one level) and tvq at size targets. Every method's output is decoded and
+compared with the input by the same PSNR (peak = the input's value range, as
+voxwall::codec::psnr) and maximum error; the command line's integer output is rounded and
+clamped to the input's range as the codec does. For each codec row in fixed precision, "vs CLI"
+is its PSNR minus the command line's at the same bits per voxel (interpolated between the
+command line's precision points). Then decode speed and the 1920x1080 frame time of the
+fixed-precision files against raw (voxwall_bench_vq).
 Prints tables, writes results.json and rd-<volume>.png.
 
 Run from the repository root after building: /usr/bin/python3 bench/zfp_bench.py
@@ -50,6 +52,33 @@ def codec_rows(voxwall, work, name, a, precisions, rates, tolerances, targets, p
     return [r for r in rows if r]
 
 
+def target_table(name, rows, targets):
+    """Each codec at each size target: bits per voxel reached and PSNR; the last column says
+    which codec leads at that target (zfp's target rows are its fixed-accuracy mode at the
+    power-of-two tolerance whose file fits)."""
+    codecs = []
+    for r in rows:
+        if r["method"].endswith(" target") and r["method"][:-7] not in codecs:
+            codecs.append(r["method"][:-7])
+    print("\n### %s: every codec at the size targets (bits/voxel reached, PSNR dB)\n" % name)
+    print("| target | " + " | ".join(codecs) + " | leads |")
+    print("|---|" + "---|" * (len(codecs) + 1))
+    for t in targets:
+        cells, best = [], None
+        for c in codecs:
+            hit = [r for r in rows if r["method"] == c + " target" and
+                   r["setting"] == "target %g" % t]
+            if not hit:
+                cells.append("refused")
+                continue
+            r = hit[0]
+            cells.append("%.3f / %s" % (r["bpv"], "lossless" if r["psnr"] == float("inf")
+                                        else "%.2f" % r["psnr"]))
+            if best is None or r["psnr"] > best[1]:
+                best = (c, r["psnr"])
+        print("| %g | %s | %s |" % (t, " | ".join(cells), best[0] if best else "-"))
+
+
 def versus_cli(rows):
     """Adds "vs_cli" (dB) to the codec's precision rows: its PSNR minus the command line's at the
     same rate, where the command line's precision points bracket that rate."""
@@ -67,7 +96,7 @@ def main():
     p.add_argument("--voxwall", default="build/master/voxwall")
     p.add_argument("--bench", default="build/bench/voxwall_bench_vq")
     p.add_argument("--out", default="bench-out/zfp")
-    p.add_argument("--volumes", default="mri,float")
+    p.add_argument("--volumes", default="mri,float,ct,smooth")
     p.add_argument("--precisions", default="6,8,10,12,14")
     p.add_argument("--rates", default="1,2,4")
     p.add_argument("--tolerances", default="0.001,0.01,0.05")
@@ -98,6 +127,7 @@ def main():
             if "vs_cli" in r:
                 print("| %s | %.3f | %.2f | %+.2f |" % (r["setting"], r["bpv"], r["psnr"],
                                                        r["vs_cli"]))
+        target_table(name, rows, numbers(args.targets))
         speed_table(name, results[name]["speed"])
         plot(os.path.join(args.out, "rd-%s.png" % name), "rate-distortion: %s" % name, rows,
              points=("vq target", "ksvd target", "tvq target"))
