@@ -388,6 +388,15 @@ TEST(Cli, KsvdPyramidInfoAndLevelOfDetailRender) {
       vwz);
   ASSERT_EQ(c.status, 0) << c.out;
   EXPECT_NE(c.out.find("2 levels (--lod)"), std::string::npos) << c.out;
+  EXPECT_EQ(c.out.find("the coarser levels take"), std::string::npos) << c.out;
+  // With a size target the report says what the pyramid takes of it.
+  const CliRun sized = runVoxwall(
+      "compress generated:marschner-lobb:40 --codec ksvd --block 4 --atoms 16 --iterations 2 "
+      "--bits-per-voxel 2 -q -o " +
+      dir.path("sized.vwz"));
+  ASSERT_EQ(sized.status, 0) << sized.out;
+  EXPECT_NE(sized.out.find("the coarser levels take "), std::string::npos) << sized.out;
+  EXPECT_NE(sized.out.find("--levels 1 gives them to level 0"), std::string::npos) << sized.out;
   const CliRun info = runVoxwall("info " + vwz);
   ASSERT_EQ(info.status, 0) << info.out;
   EXPECT_NE(info.out.find("2 (render --lod), PSNR 40x40x40: "), std::string::npos) << info.out;

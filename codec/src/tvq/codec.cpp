@@ -376,10 +376,10 @@ class Encoder {
           params_.dcBits));
     }
     double lo = -40, hi = 40;  // log2 of lambda, in squared value units per bit
-    if (bytesAt(0) <= target) {
-      // Every partition at its largest codebooks: a file within 2% of the target meets it; one
-      // further below cannot, and says how far it goes and what codes more.
-      const double largest = bytesAt(0);
+    // Every partition at its largest codebooks: a file within 2% of the target meets it; one
+    // further below cannot, and says how far it goes and what codes more.
+    const double largest = bytesAt(0);
+    if (largest <= target) {
       if (largest < 0.98 * target)
         throw std::invalid_argument(formatLine(
             "--bits-per-voxel %g is above the largest tvq file of this volume (%.3f bits per "

@@ -46,15 +46,12 @@ void refuseLarger(const CompressOptions& o, const codec::Codec& chosen,
                   const codec::CompressedVolume& compressed) {
   if (o.allowLarger || !chosen.compresses() || !codec::largerThanVoxels(compressed)) return;
   const codec::VolumeInfo& info = compressed.info;
-  char line[400];
-  std::snprintf(line, sizeof line,
-                "codec %s takes %.2f bits per voxel on this volume, more than its %d-bit voxels "
-                "(the data does not suit it): use --codec zfp --lossless (never larger than the "
-                "voxels) or a lossy setting, or --allow-larger to write it anyway",
-                o.codec.c_str(),
-                8.0 * double(compressed.payloadBytes()) / double(info.voxelCount()),
-                int(8 * codec::scalarBytes(info.type)));
-  throw std::invalid_argument(line);
+  throw std::invalid_argument(formatLine(
+      "codec %s takes %.2f bits per voxel on this volume, more than its %d-bit voxels (the data "
+      "does not suit it): use --codec zfp --lossless (never larger than the voxels) or a lossy "
+      "setting, or --allow-larger to write it anyway",
+      o.codec.c_str(), 8.0 * double(compressed.payloadBytes()) / double(info.voxelCount()),
+      int(8 * codec::scalarBytes(info.type))));
 }
 
 void runCompress(const CompressOptions& o) {
