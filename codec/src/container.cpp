@@ -5,6 +5,7 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -120,95 +121,208 @@ Orientation parseOrientation(std::span<const std::byte> bytes, const std::string
   return o;
 }
 
-// The header and section table of `volume`'s file, and where each section starts. `sections`
-// are the codec's followed by the container's own orientation section.
+// One section as the writer lays it out: its id, its step (kSharedStep: every step's), its bytes.
+struct TableEntry {
+  std::uint32_t id = 0, step = 0;
+  std::span<const std::byte> bytes;
+};
+
+// The header and section table of a file, and where each section starts. `sections` are the
+// codec's followed by the container's own (orientation; step ranges in a series).
 struct ContainerHead {
   std::vector<std::byte> bytes;
-  std::vector<std::byte> orientation;
-  std::vector<std::pair<std::uint32_t, std::span<const std::byte>>> sections;
+  std::vector<std::byte> orientation, stepRanges;
+  std::vector<TableEntry> sections;
   std::vector<std::size_t> offsets;
   std::size_t fileBytes = 0;
 };
 
-ContainerHead containerHead(const CompressedVolume& volume) {
-  if (volume.sections.size() + 1 > kMaxSections)
+void checkCodecId(std::uint32_t id) {
+  if (id >= kContainerSectionIds)
+    throw std::invalid_argument("section id " + std::to_string(id) +
+                                " is one of the container's own");
+}
+
+// `ranges`: each step's value range (a series, version 3), or empty (one volume, version 2).
+ContainerHead containerHead(const VolumeInfo& info, std::vector<TableEntry> entries,
+                            const std::vector<std::pair<double, double>>& ranges) {
+  const bool series = !ranges.empty();
+  if (entries.size() + 2 > kMaxSections)
     throw std::invalid_argument("too many sections for a .vwz file");
+  if (series && (ranges.size() > kMaxSteps))
+    throw std::invalid_argument("too many steps for a .vwz file (at most " +
+                                std::to_string(kMaxSteps) + ")");
   ContainerHead head;
-  head.orientation = orientationSection(volume.info.orientation);
-  for (auto& [id, bytes] : volume.sections) {
-    if (id >= kContainerSectionIds)
-      throw std::invalid_argument("section id " + std::to_string(id) +
-                                  " is one of the container's own");
-    head.sections.emplace_back(id, bytes);
+  head.orientation = orientationSection(info.orientation);
+  for (const TableEntry& e : entries) checkCodecId(e.id);
+  head.sections = std::move(entries);
+  head.sections.push_back({kOrientationSectionId, kSharedStep, head.orientation});
+  if (series) {
+    ByteWriter r(head.stepRanges);
+    for (const auto& [lo, hi] : ranges) r.put<double>(lo), r.put<double>(hi);
+    head.sections.push_back({kStepRangesSectionId, kSharedStep, head.stepRanges});
   }
-  head.sections.emplace_back(kOrientationSectionId, head.orientation);
   // Lay out the sections first so the header can state the file size.
   std::size_t end = alignUp(kHeaderBytes + kTableEntryBytes * head.sections.size());
   for (auto& s : head.sections) {
     head.offsets.push_back(end);
-    end = alignUp(end + s.second.size());
+    end = alignUp(end + s.bytes.size());
   }
-  head.fileBytes = head.offsets.back() + head.sections.back().second.size();
+  head.fileBytes = head.offsets.back() + head.sections.back().bytes.size();
 
   std::vector<std::byte>& out = head.bytes;
   ByteWriter w(out);
   w.putBytes(std::as_bytes(std::span(kMagic)));
-  w.put<std::uint32_t>(kContainerVersion);
+  w.put<std::uint32_t>(series ? kContainerVersion : kSingleVolumeVersion);
   w.put<std::uint32_t>(kHeaderBytes);
-  w.put<std::uint32_t>(std::uint32_t(volume.info.codec));
-  w.put<std::uint32_t>(std::uint32_t(volume.info.type));
-  for (int i = 0; i < 3; ++i) w.put<std::uint32_t>(std::uint32_t(volume.info.dims[i]));
+  w.put<std::uint32_t>(std::uint32_t(info.codec));
+  w.put<std::uint32_t>(std::uint32_t(info.type));
+  for (int i = 0; i < 3; ++i) w.put<std::uint32_t>(std::uint32_t(info.dims[i]));
   w.put<std::uint32_t>(std::uint32_t(head.sections.size()));
-  for (int i = 0; i < 3; ++i) w.put<double>(volume.info.spacing[i]);
-  w.put<double>(volume.info.valueMin);
-  w.put<double>(volume.info.valueMax);
+  for (int i = 0; i < 3; ++i) w.put<double>(info.spacing[i]);
+  w.put<double>(info.valueMin);
+  w.put<double>(info.valueMax);
   w.put<std::uint64_t>(head.fileBytes);
   // The table comes after the header but its hash sits in it: write the table aside first.
   std::vector<std::byte> table;
   ByteWriter tw(table);
   for (std::size_t i = 0; i < head.sections.size(); ++i) {
-    auto& [id, bytes] = head.sections[i];
-    tw.put<std::uint32_t>(id);
-    tw.put<std::uint32_t>(0);
+    const TableEntry& e = head.sections[i];
+    tw.put<std::uint32_t>(e.id);
+    tw.put<std::uint32_t>(series ? e.step : 0);
     tw.put<std::uint64_t>(head.offsets[i]);
-    tw.put<std::uint64_t>(bytes.size());
-    tw.put<std::uint64_t>(hashBytes(bytes));
+    tw.put<std::uint64_t>(e.bytes.size());
+    tw.put<std::uint64_t>(hashBytes(e.bytes));
   }
   w.put<std::uint64_t>(hashBytes(table));
-  for (int i = 0; i < 3; ++i) w.put<std::uint64_t>(0);
+  w.put<std::uint32_t>(series ? std::uint32_t(ranges.size()) : 0);
+  w.put<std::uint32_t>(0);
+  for (int i = 0; i < 2; ++i) w.put<std::uint64_t>(0);
   w.put<std::uint64_t>(hashBytes(std::span(out).first(kOffHeaderHash)));
   w.putBytes(table);
   return head;
 }
 
-}  // namespace
+ContainerHead containerHead(const CompressedVolume& volume) {
+  std::vector<TableEntry> entries;
+  for (const auto& [id, bytes] : volume.sections) entries.push_back({id, 0, bytes});
+  return containerHead(volume.info, std::move(entries), {});
+}
 
-std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
-  ContainerHead head = containerHead(volume);
-  std::vector<std::byte> out = std::move(head.bytes);
+ContainerHead containerHead(const CompressedSeries& series) {
+  if (series.steps.empty()) throw std::invalid_argument("a series of no steps");
+  if (series.steps.size() == 1 && series.shared.empty())
+    return containerHead(series.steps.front());
+  std::vector<TableEntry> entries;
+  for (const auto& [id, bytes] : series.shared) entries.push_back({id, kSharedStep, bytes});
+  std::vector<std::pair<double, double>> ranges;
+  for (std::size_t k = 0; k < series.steps.size(); ++k) {
+    for (const auto& [id, bytes] : series.steps[k].sections)
+      entries.push_back({id, std::uint32_t(k), bytes});
+    ranges.emplace_back(series.steps[k].info.valueMin, series.steps[k].info.valueMax);
+  }
+  VolumeInfo info = series.info;
+  info.valueMin = ranges.front().first, info.valueMax = ranges.front().second;
+  for (const auto& [lo, hi] : ranges)
+    info.valueMin = std::min(info.valueMin, lo), info.valueMax = std::max(info.valueMax, hi);
+  return containerHead(info, std::move(entries), ranges);
+}
+
+std::vector<std::byte> serialize(const ContainerHead& head) {
+  std::vector<std::byte> out = head.bytes;
   out.reserve(head.fileBytes);
   for (std::size_t i = 0; i < head.sections.size(); ++i) {
     out.resize(head.offsets[i]);
-    out.insert(out.end(), head.sections[i].second.begin(), head.sections[i].second.end());
+    out.insert(out.end(), head.sections[i].bytes.begin(), head.sections[i].bytes.end());
   }
   out.resize(head.fileBytes);
   return out;
 }
 
-std::uint64_t writeContainer(const CompressedVolume& volume, const std::string& path) {
+std::uint64_t write(const ContainerHead& head, const std::string& path) {
   // Piece by piece from the sections themselves: a joined copy of the file would double the
   // memory `compress` needs for its output.
-  const ContainerHead head = containerHead(volume);
   static constexpr std::byte kZeros[kSectionAlignment] = {};
   std::vector<std::span<const std::byte>> pieces{head.bytes};
   std::size_t at = head.bytes.size();
   for (std::size_t i = 0; i < head.sections.size(); ++i) {
     pieces.emplace_back(kZeros, head.offsets[i] - at);
-    pieces.emplace_back(head.sections[i].second);
-    at = head.offsets[i] + head.sections[i].second.size();
+    pieces.emplace_back(head.sections[i].bytes);
+    at = head.offsets[i] + head.sections[i].bytes.size();
   }
   commitTemporary(writeTemporary(path, pieces), path);
   return head.fileBytes;
+}
+
+}  // namespace
+
+std::uint64_t CompressedSeries::payloadBytes() const {
+  std::uint64_t n = 0;
+  for (const auto& s : shared) n += s.second.size();
+  for (const auto& s : steps) n += s.payloadBytes();
+  return n;
+}
+
+CompressedVolume CompressedSeries::step(int k) const {
+  CompressedVolume v = steps.at(std::size_t(k));
+  v.sections.insert(v.sections.begin(), shared.begin(), shared.end());
+  return v;
+}
+
+CompressedSeries makeSeries(std::vector<CompressedVolume> steps) {
+  if (steps.empty()) throw std::invalid_argument("a series of no steps");
+  CompressedSeries series;
+  series.info = steps.front().info;
+  series.info.steps = int(steps.size());
+  for (std::size_t k = 1; k < steps.size(); ++k) {
+    const VolumeInfo& a = steps.front().info;
+    const VolumeInfo& b = steps[k].info;
+    if (a.codec != b.codec || a.type != b.type || a.dims != b.dims || a.spacing != b.spacing ||
+        a.orientation.direction != b.orientation.direction ||
+        a.orientation.origin != b.orientation.origin)
+      throw std::invalid_argument("step " + std::to_string(k) +
+                                  " differs from step 0 in codec, size, type or geometry");
+    series.info.valueMin = std::min(series.info.valueMin, b.valueMin);
+    series.info.valueMax = std::max(series.info.valueMax, b.valueMax);
+  }
+  // A section every step has with the same bytes is stored once.
+  if (steps.size() > 1)
+    for (std::size_t i = 0; i < steps.front().sections.size();) {
+      const auto& [id, bytes] = steps.front().sections[i];
+      bool everywhere = true;
+      for (std::size_t k = 1; k < steps.size() && everywhere; ++k) {
+        const auto& other = steps[k].sections;
+        everywhere = std::any_of(other.begin(), other.end(), [&](const auto& s) {
+          return s.first == id && s.second == bytes;
+        });
+      }
+      if (!everywhere) {
+        ++i;
+        continue;
+      }
+      series.shared.emplace_back(id, bytes);
+      const std::uint32_t sharedId = id;
+      for (auto& step : steps)
+        std::erase_if(step.sections, [&](const auto& s) { return s.first == sharedId; });
+    }
+  series.steps = std::move(steps);
+  return series;
+}
+
+std::vector<std::byte> serializeContainer(const CompressedVolume& volume) {
+  return serialize(containerHead(volume));
+}
+
+std::vector<std::byte> serializeContainer(const CompressedSeries& series) {
+  return serialize(containerHead(series));
+}
+
+std::uint64_t writeContainer(const CompressedVolume& volume, const std::string& path) {
+  return write(containerHead(volume), path);
+}
+
+std::uint64_t writeContainer(const CompressedSeries& series, const std::string& path) {
+  return write(containerHead(series), path);
 }
 
 struct ContainerFile::Mapping {
@@ -257,7 +371,7 @@ void ContainerFile::releaseResident() const {
 ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::string& source) {
   ContainerFile file;
   file.bytes_ = bytes;
-  file.sections_.source = source;
+  file.source_ = source;
   auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
   if (bytes.size() < kHeaderBytes)
     fail("not a .vwz file: " + std::to_string(bytes.size()) + " bytes is shorter than the " +
@@ -293,7 +407,7 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   }
   checkDims(info.dims, source);
   const auto sectionCount = r.get<std::uint32_t>();
-  if (sectionCount > kMaxSections)
+  if (sectionCount > (version >= 3 ? kMaxSections : kMaxSingleVolumeSections))
     fail("section count " + std::to_string(sectionCount) + " is too large");
   for (int i = 0; i < 3; ++i) {
     info.spacing[i] = r.get<double>();
@@ -315,15 +429,34 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   const std::uint64_t storedTableHash = r.get<std::uint64_t>();
   if (kVerifyChecksums && hashBytes(table) != storedTableHash)
     fail("section table checksum mismatch (the file is corrupt)");
+  std::uint32_t steps = 1;
+  if (version >= 3) {
+    steps = r.get<std::uint32_t>();
+    if (steps < 1 || steps > kMaxSteps)
+      fail("step count " + std::to_string(steps) + " is not 1 to " + std::to_string(kMaxSteps));
+  }
+  info.steps = int(steps);
+  // The table first (it lies in the file, so its size is bounded by the file's), then the steps.
+  struct Entry {
+    std::uint32_t id, step;
+    std::span<const std::byte> data;
+    std::string name;
+  };
+  std::vector<Entry> entries;
   ByteReader t(table, source, "section table");
   std::uint64_t previousEnd = tableEnd;
+  std::span<const std::byte> orientation, stepRanges;
   for (std::uint32_t i = 0; i < sectionCount; ++i) {
     const auto id = t.get<std::uint32_t>();
-    t.skip(4);
+    const auto step = version >= 3 ? t.get<std::uint32_t>() : (t.skip(4), 0u);
     const auto offset = t.get<std::uint64_t>();
     const auto length = t.get<std::uint64_t>();
     const auto hash = t.get<std::uint64_t>();
-    const std::string name = "section " + std::to_string(i) + " (id " + std::to_string(id) + ")";
+    std::string name = "section " + std::to_string(i) + " (id " + std::to_string(id) +
+                       (steps == 1 ? std::string()
+                        : step == kSharedStep ? std::string(", shared by every step")
+                                              : ", step " + std::to_string(step)) +
+                       ")";
     if (offset % kSectionAlignment)
       fail(name + ": offset " + std::to_string(offset) + " is not 64-byte aligned");
     if (offset < previousEnd) fail(name + ": overlaps the table or the previous section");
@@ -333,21 +466,75 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     auto data = bytes.subspan(offset, length);
     if (kVerifyChecksums && hashBytes(data) != hash)
       fail(name + ": checksum mismatch (the file is corrupt)");
-    if (!file.sections_.sections.emplace(id, data).second) fail(name + ": duplicate section id");
+    if (step != kSharedStep && step >= steps)
+      fail(name + ": step " + std::to_string(step) + " is past the file's " +
+           std::to_string(steps) + " step(s)");
     previousEnd = offset + length;
+    if (id >= kContainerSectionIds) {
+      std::span<const std::byte>* known = id == kOrientationSectionId && version >= 2 ? &orientation
+                                          : id == kStepRangesSectionId && version >= 3
+                                              ? &stepRanges
+                                              : nullptr;
+      if (!known)
+        fail("section id " + std::to_string(id) + " is reserved for the container and unknown");
+      if (step != (version >= 3 ? kSharedStep : 0u))
+        fail(name + ": the container's own section belongs to no step");
+      if (!known->empty() || known->data()) fail(name + ": duplicate section id");
+      *known = data;
+      continue;
+    }
+    entries.push_back({id, step, data, std::move(name)});
   }
   // Version 1 files predate orientation: their voxels are taken as LPS, as they were rendered.
-  auto& sections = file.sections_.sections;
   if (version >= 2) {
-    const auto it = sections.find(kOrientationSectionId);
-    if (it == sections.end()) fail("the orientation section is missing");
-    info.orientation = parseOrientation(it->second, source);
-    sections.erase(it);
+    if (!orientation.data()) fail("the orientation section is missing");
+    info.orientation = parseOrientation(orientation, source);
   }
-  for (const auto& [id, data] : sections)
-    if (id >= kContainerSectionIds)
-      fail("section id " + std::to_string(id) + " is reserved for the container and unknown");
+  if (version >= 3) {
+    if (stepRanges.size() != 16 * std::size_t(steps))
+      fail("the step ranges section has " + std::to_string(stepRanges.size()) +
+           " bytes, not 16 for each of " + std::to_string(steps) + " step(s)");
+    ByteReader sr(stepRanges, source, "step ranges");
+    for (std::uint32_t k = 0; k < steps; ++k) {
+      const double lo = sr.get<double>(), hi = sr.get<double>();
+      if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi || lo < info.valueMin ||
+          hi > info.valueMax)
+        fail("step " + std::to_string(k) +
+             ": its value range is not finite or lies outside the file's");
+      file.stepRanges_.emplace_back(lo, hi);
+    }
+  } else {
+    file.stepRanges_.emplace_back(info.valueMin, info.valueMax);
+  }
+  file.steps_.assign(steps, SectionSet{source, {}});
+  file.stepBytes_.assign(steps, 0);
+  for (const Entry& e : entries) {
+    if (e.step == kSharedStep) continue;
+    if (!file.steps_[e.step].sections.emplace(e.id, e.data).second)
+      fail(e.name + ": duplicate section id");
+    file.stepBytes_[e.step] += e.data.size();
+  }
+  const auto shared = std::count_if(entries.begin(), entries.end(),
+                                    [](const Entry& e) { return e.step == kSharedStep; });
+  if (shared > std::ptrdiff_t(kMaxSingleVolumeSections))
+    fail(std::to_string(shared) + " shared sections: at most " +
+         std::to_string(kMaxSingleVolumeSections));
+  for (const Entry& e : entries) {
+    if (e.step != kSharedStep) continue;
+    file.sharedBytes_ += e.data.size();
+    for (std::uint32_t k = 0; k < steps; ++k)
+      if (!file.steps_[k].sections.emplace(e.id, e.data).second)
+        fail(e.name + ": step " + std::to_string(k) + " has a section of the same id");
+  }
   return file;
+}
+
+VolumeInfo ContainerFile::stepInfo(int k) const {
+  VolumeInfo info = info_;
+  info.steps = 1;
+  info.valueMin = stepRanges_.at(std::size_t(k)).first;
+  info.valueMax = stepRanges_.at(std::size_t(k)).second;
+  return info;
 }
 
 bool isContainerFile(const std::string& path) {

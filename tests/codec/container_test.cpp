@@ -195,7 +195,7 @@ TEST(Container, OrientationRoundTrips) {
   c.info.orientation.origin = {12.5, -40, 7.25};
   const auto bytes = serializeContainer(c);
   const auto file = ContainerFile::parse(bytes, "mem");
-  EXPECT_EQ(file.version(), kContainerVersion);
+  EXPECT_EQ(file.version(), kSingleVolumeVersion);
   EXPECT_EQ(file.info().orientation, c.info.orientation);
   EXPECT_EQ(orientationLetters(file.info().orientation.direction), "AIR");
   // The codec sees only its own sections.
@@ -261,4 +261,142 @@ TEST(Container, GoldenChecksumOfASmallFile) {
   EXPECT_EQ(bytes.size(), 7328u);
   EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0x26e1c353ba24dd46ull)
       << std::hex << XXH64(bytes.data(), bytes.size(), 0);
+}
+
+namespace {
+
+// Three steps of a small volume, each coded on its own: step 2 scaled so its range differs.
+std::vector<CompressedVolume> sampleSteps() {
+  std::vector<CompressedVolume> steps;
+  Progress quiet;
+  for (int k = 0; k < 3; ++k) {
+    Volume v = generateMarschnerLobb(11, ScalarType::UInt16);
+    auto voxels = v.as<std::uint16_t>();
+    for (std::size_t i = 0; i < voxels.size(); ++i)
+      voxels[i] = std::uint16_t(voxels[i] / (k + 1) + (i % 7 == 0 ? k : 0));
+    v.computeRange();
+    steps.push_back(raw::encode(v, {4}, quiet));
+  }
+  return steps;
+}
+
+}  // namespace
+
+// A series stores each step's own sections and, once, those every step has alike (the raw
+// codec's params); each step reads as the volume it was.
+TEST(ContainerSeries, StepsRoundTripWithIdenticalSectionsStoredOnce) {
+  const auto steps = sampleSteps();
+  const CompressedSeries series = makeSeries(steps);
+  ASSERT_EQ(series.shared.size(), 1u);  // the params (8 bytes); ranges and bricks differ
+  EXPECT_EQ(series.shared.front().first, 1u);
+  const auto bytes = serializeContainer(series);
+  const auto file = ContainerFile::parse(bytes, "series.vwz");
+  EXPECT_EQ(file.version(), kContainerVersion);
+  ASSERT_EQ(file.stepCount(), 3);
+  EXPECT_EQ(file.info().steps, 3);
+  EXPECT_EQ(file.sharedBytes(), 8u);
+  double lo = 1e300, hi = -1e300;
+  for (int k = 0; k < 3; ++k) {
+    const VolumeInfo info = file.stepInfo(k);
+    EXPECT_EQ(info.steps, 1);
+    EXPECT_EQ(info.valueMin, steps[std::size_t(k)].info.valueMin);
+    EXPECT_EQ(info.valueMax, steps[std::size_t(k)].info.valueMax);
+    lo = std::min(lo, info.valueMin), hi = std::max(hi, info.valueMax);
+    ASSERT_EQ(file.stepSections(k).sections.size(), steps[std::size_t(k)].sections.size());
+    for (const auto& [id, data] : steps[std::size_t(k)].sections) {
+      const auto got = file.stepSections(k).get(id, "x");
+      EXPECT_EQ(std::vector<std::byte>(got.begin(), got.end()), data) << "step " << k;
+    }
+    const Volume back = raw::decode(file.stepInfo(k), file.stepSections(k));
+    const Volume want = raw::decode(steps[std::size_t(k)].info, steps[std::size_t(k)].view());
+    EXPECT_EQ(back.data, want.data) << "step " << k;
+  }
+  EXPECT_EQ(file.info().valueMin, lo);  // the header holds the whole series' range
+  EXPECT_EQ(file.info().valueMax, hi);
+  EXPECT_NE(file.stepInfo(0).valueMax, file.stepInfo(1).valueMax);
+  // The shared params are in no step's bytes.
+  std::uint64_t own = 0;
+  for (int k = 0; k < 3; ++k) own += file.stepBytes(k);
+  EXPECT_EQ(own + file.sharedBytes(), series.payloadBytes());
+}
+
+// A series of one step is a plain version 2 file, which earlier builds read.
+TEST(ContainerSeries, OneStepIsAVersionTwoFile) {
+  auto steps = sampleSteps();
+  steps.resize(1);
+  const auto bytes = serializeContainer(makeSeries(steps));
+  EXPECT_EQ(bytes, serializeContainer(steps.front()));
+  EXPECT_EQ(ContainerFile::parse(bytes, "one.vwz").version(), kSingleVolumeVersion);
+}
+
+TEST(ContainerSeries, RefusesStepsThatDiffer) {
+  auto steps = sampleSteps();
+  Progress quiet;
+  steps.push_back(raw::encode(generateMarschnerLobb(12, ScalarType::UInt16), {4}, quiet));
+  try {
+    (void)makeSeries(steps);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("step 3 differs"), std::string::npos) << e.what();
+  }
+}
+
+// A flipped byte in a step's section is refused in one line that names the step.
+TEST(ContainerSeries, ACorruptStepSectionIsRefusedNamingTheStep) {
+  const auto good = serializeContainer(makeSeries(sampleSteps()));
+  // The table's 8th entry: step 2's second own section (shared params, then 2 per step).
+  std::uint32_t step = 0;
+  std::uint64_t offset = 0;
+  std::memcpy(&step, good.data() + 128 + 32 * 6 + 4, 4);
+  std::memcpy(&offset, good.data() + 128 + 32 * 6 + 8, 8);
+  ASSERT_EQ(step, 2u);
+  auto bad = good;
+  bad[offset + 3] ^= std::byte{0x40};
+  const std::string error = parseError(bad);
+  EXPECT_NE(error.find("step 2"), std::string::npos) << error;
+  EXPECT_NE(error.find("checksum mismatch"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos);
+}
+
+// Forged tables with checksums that fit: a step past the count, a shared id that is also a
+// step's own, no step ranges, a step count of zero.
+TEST(ContainerSeries, RefusesForgedStepTables) {
+  const auto good = serializeContainer(makeSeries(sampleSteps()));
+  const std::size_t entry = 128 + 32 * 1 + 4;  // the step of the table's second entry (step 0's)
+  auto past = good;
+  const std::uint32_t five = 5;
+  std::memcpy(past.data() + entry, &five, 4);
+  reseal(past);
+  EXPECT_NE(parseError(past).find("step 5 is past the file's 3 step(s)"), std::string::npos)
+      << parseError(past);
+
+  // Step 1's ranges section (entry 3) made shared: it collides with step 0's own ranges.
+  auto collide = good;
+  const std::uint32_t shared = kSharedStep;
+  std::memcpy(collide.data() + 128 + 32 * 3 + 4, &shared, 4);
+  reseal(collide);
+  EXPECT_NE(parseError(collide).find("has a section of the same id"), std::string::npos)
+      << parseError(collide);
+
+  auto zero = good;
+  const std::uint32_t none = 0;
+  std::memcpy(zero.data() + 96, &none, 4);
+  reseal(zero);
+  EXPECT_NE(parseError(zero).find("step count 0"), std::string::npos) << parseError(zero);
+
+  auto more = good;
+  const std::uint32_t four = 4;
+  std::memcpy(more.data() + 96, &four, 4);
+  reseal(more);
+  EXPECT_NE(parseError(more).find("step ranges section has 48 bytes, not 16 for each of 4"),
+            std::string::npos)
+      << parseError(more);
+}
+
+// The bytes of a small series are pinned too.
+TEST(ContainerSeries, GoldenChecksumOfASmallSeries) {
+  const auto bytes = serializeContainer(makeSeries(sampleSteps()));
+  EXPECT_EQ(bytes.size(), 21424u);
+  EXPECT_EQ(XXH64(bytes.data(), bytes.size(), 0), 0x48de19a8d7cf2b4eull)
+      << std::hex << XXH64(bytes.data(), bytes.size(), 0) << " size " << std::dec << bytes.size();
 }
