@@ -32,6 +32,8 @@ test=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # fuzzing: clang's libFuzzer
   clang libclang-rt-14-dev
+  # a real 4D NIfTI (fMRI) among nibabel's test files, for the time series tests
+  python3-nibabel
   # the browser test of the sink's web page (tests/web)
   chromium chromium-driver python3-selenium
 )

@@ -1,6 +1,7 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <string>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/core/parallel.hpp>
 
@@ -111,6 +112,38 @@ Volume generateSheppLogan(int n, ScalarType type) {
       const double v = e.r[3] * px + e.r[4] * py + e.r[5] * pz;
       const double w = e.r[6] * px + e.r[7] * py + e.r[8] * pz;
       if (u * u / (e.a * e.a) + v * v / (e.b * e.b) + w * w / (e.c * e.c) <= 1.0) value += e.value;
+    }
+    return value;
+  });
+}
+
+}  // namespace voxwall::codec
+
+namespace voxwall::codec {
+
+Volume generateOrbitingBlobs(int n, int step, int steps, ScalarType type) {
+  if (steps < 1 || step < 0 || step >= steps)
+    throw std::invalid_argument("step " + std::to_string(step) + " of " + std::to_string(steps) +
+                                " steps");
+  const double pi = std::numbers::pi;
+  const double t = steps > 1 ? double(step) / double(steps - 1) : 0.0;
+  const double phase = 2.0 * pi * double(step) / double(steps);
+  struct Blob {
+    double x, y, z, inverseTwoSigma2, weight;
+  };
+  Blob blobs[3];
+  for (int i = 0; i < 3; ++i) {
+    const double angle = phase + 2.0 * pi * i / 3.0;
+    const double sigma = 0.12 + 0.08 * t + 0.02 * i;
+    blobs[i] = {0.5 * std::cos(angle), 0.5 * std::sin(angle), 0.3 * std::sin(phase + i),
+                1.0 / (2.0 * sigma * sigma), 0.9 - 0.15 * i};
+  }
+  return sampleUnitCube(n, type, [&](double x, double y, double z) {
+    const double ring = std::sqrt(x * x + y * y) - 0.85;
+    double value = 0.4 * std::exp(-(ring * ring + z * z) / 0.004);
+    for (const Blob& b : blobs) {
+      const double dx = x - b.x, dy = y - b.y, dz = z - b.z;
+      value += b.weight * std::exp(-(dx * dx + dy * dy + dz * dz) * b.inverseTwoSigma2);
     }
     return value;
   });

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/codec/series_source.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/core/errors.hpp>
 
@@ -19,6 +20,21 @@ CompressedVolume Codec::encodeSource(const VolumeSource& source, const CodecOpti
   if (const Volume* whole = source.inMemory()) return encode(*whole, options, progress, report);
   const Volume volume = source.readAll();
   return encode(volume, options, progress, report);
+}
+
+CompressedSeries Codec::encodeSeries(const SeriesSource& series, const CodecOptionValues& options,
+                                     Progress& progress, std::string& report) const {
+  std::vector<CompressedVolume> steps;
+  for (int k = 0; k < series.steps(); ++k) {
+    progress.setPrefix("step " + std::to_string(k + 1) + "/" + std::to_string(series.steps()) +
+                       ": ");
+    const std::unique_ptr<VolumeSource> source = series.open(k, progress);
+    std::string stepReport;
+    steps.push_back(encodeSource(*source, options, progress, stepReport));
+    if (k == 0) report += stepReport;
+  }
+  progress.setPrefix("");
+  return makeSeries(std::move(steps));
 }
 
 std::string CodecOptionValues::text(const std::string& flag, const std::string& fallback) const {
@@ -66,6 +82,12 @@ const std::vector<const Codec*>& codecs() { return RegisteredCodecs::objects(); 
 bool largerThanVoxels(const CompressedVolume& compressed) {
   const std::uint64_t voxels = compressed.info.voxelCount() * scalarBytes(compressed.info.type);
   return compressed.payloadBytes() > voxels + voxels / 256 + 4096;
+}
+
+bool largerThanVoxels(const CompressedSeries& compressed) {
+  const std::uint64_t voxels = compressed.info.voxelCount() * scalarBytes(compressed.info.type) *
+                               compressed.steps.size();
+  return compressed.payloadBytes() > voxels + voxels / 256 + 4096 * compressed.steps.size();
 }
 
 const Codec* findCodec(CodecId id) {

@@ -5,10 +5,15 @@ namespace voxwall {
 
 void Progress::begin(std::string stage, std::uint64_t total) {
   std::lock_guard lock(mutex_);
-  stage_ = std::move(stage);
+  stage_ = prefix_ + stage;
   total_ = total;
   done_ = lastReported_ = 0;
   if (cb_) cb_(stage_, 0, total_);
+}
+
+void Progress::setPrefix(std::string prefix) {
+  std::lock_guard lock(mutex_);
+  prefix_ = std::move(prefix);
 }
 
 void Progress::advance(std::uint64_t n) {

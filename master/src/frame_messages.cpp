@@ -54,6 +54,7 @@ std::vector<std::byte> encode(const FrameTask& t) {
   w.put<std::int32_t>(t.screenWidth), w.put<std::int32_t>(t.screenHeight);
   w.put<std::int32_t>(t.cellPixels);
   w.put<std::int32_t>(t.step);
+  w.put<std::uint32_t>(t.timeStep);
   w.put<std::uint32_t>(std::uint32_t(t.rects.size()));
   for (const auto& rects : t.rects) {
     w.put<std::uint32_t>(std::uint32_t(rects.size()));
@@ -92,6 +93,8 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   if (t.cellPixels <= 0 || t.cellPixels > kMaxScreenSide) r.fail("cost cell size");
   t.step = r.get<std::int32_t>();
   if (t.step < 1 || t.step > kMaxTaskStep) r.fail("step " + std::to_string(t.step));
+  t.timeStep = r.get<std::uint32_t>();
+  if (t.timeStep >= kMaxTimeSteps) r.fail("time step " + std::to_string(t.timeStep));
   const auto ranks = r.get<std::uint32_t>();
   if (ranks > std::uint32_t(kMaxRanks)) r.fail(std::to_string(ranks) + " ranks");
   // Each rank takes at least 4 bytes: a count larger than the rest of the message is corrupt.

@@ -212,7 +212,57 @@ node::Orbit CameraOffset::apply(node::Orbit orbit) const {
   return orbit;
 }
 
+int TimeSettings::stepOfFrame(int f, int frames) const {
+  const int n = count();
+  if (frames <= n) return stepAt(f);
+  const int per = std::max(1, frames / n);
+  return first + stride * std::min(f / per, n - 1);
+}
+
+int TimeSettings::stepAt(long long i) const {
+  const long long n = count();
+  return first + stride * int(((i % n) + n) % n);
+}
+
 namespace {
+
+// The volume and transfer function of each frame's time step: the job's volume, or another step
+// of it, opened when a frame first shows it (the step before is let go then). A frame of another
+// step than the last plans afresh: its value ranges skip other cells.
+class StepVolumes {
+ public:
+  StepVolumes(const node::RenderVolume& volume, const node::TransferFunction& tf,
+              const JobSettings& job)
+      : volume_(volume), tf_(tf), job_(job) {}
+
+  const node::RenderVolume& volume(const master::FrameTask& task,
+                                   std::optional<node::FramePlan>& plan) {
+    const int step = int(task.timeStep);
+    if (step >= volume_.steps())
+      throw FormatError("frame task from rank 0",
+                        "asks for time step " + std::to_string(step) + " of a volume of " +
+                            std::to_string(volume_.steps()));
+    if (step != planStep_) plan.reset();
+    planStep_ = step;
+    if (step == volume_.step()) return volume_;
+    if (!other_ || other_->step() != step) {
+      other_.reset();
+      other_.emplace(volume_.atStep(step));
+    }
+    return *other_;
+  }
+  const node::TransferFunction& tf(const master::FrameTask& task) const {
+    const auto& each = job_.stepTransferFunctions;
+    return task.timeStep < each.size() ? each[task.timeStep] : tf_;
+  }
+
+ private:
+  const node::RenderVolume& volume_;
+  const node::TransferFunction& tf_;
+  const JobSettings& job_;
+  std::optional<node::RenderVolume> other_;
+  int planStep_ = 0;
+};
 
 JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::RenderVolume& volume,
                      const node::TransferFunction& tf, const node::RenderSettings& render,
@@ -222,6 +272,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   const auto streamer = makeStreamer(job, comm.rank(), comm.size());
   const auto steering = steeringSettings(job);
   std::optional<node::FramePlan> plan;
+  StepVolumes steps(volume, tf, job);
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
     // twice as long, so that rank 0's watchdog names the culprit before anyone blames rank 0.
@@ -237,9 +288,10 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     AbandonWatch watch;
     if (!task.stop && abandonable(steering, task.phase))
       watch = [&comm, frame = task.frame] { return comm.abandoned(frame); };
+    const node::RenderVolume& stepVolume = task.stop ? volume : steps.volume(task, plan);
     const auto report =
-        renderRects(comm.rank(), backend, volume, tf, render, job, streamer.get(), plan, task,
-                    task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
+        renderRects(comm.rank(), backend, stepVolume, steps.tf(task), render, job, streamer.get(),
+                    plan, task, task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(master::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -291,6 +343,8 @@ class MasterLoop {
         writer_(job.outDir, manifest_),
         streamer_(makeStreamer(job, 0, comm.size())),
         steering_(steeringSettings(job)),
+        steps_(volume, tf, job),
+        started_(Clock::now()),
         timeoutMs_(job.watchdogMs) {
     if (job.balance == Balance::Dynamic)
       balancer_.emplace(job.width, job.height, slots_, job.balancer);
@@ -315,6 +369,8 @@ class MasterLoop {
     s.step = choice.step, s.phase = choice.phase;
     s.rects = cut(s.step);
     master::FrameTask t = task(f, s.rects, choice);
+    t.timeStep = std::uint32_t(timeStep(f, frameStart));
+    s.timeStep = int(t.timeStep);
     auto taskBytes = master::encode(t);
     comm_.broadcast(taskBytes, timeoutMs_);
     // A command from the wall abandons a refining or full frame: every rank hears it at once.
@@ -328,8 +384,9 @@ class MasterLoop {
         }
         return signalled;
       };
-    auto own = renderRects(0, backend_, volume_, tf_, render_, job_, streamer_.get(), plan_, t,
-                           t.rects[0], watch);
+    const node::RenderVolume& stepVolume = steps_.volume(t, plan_);
+    auto own = renderRects(0, backend_, stepVolume, steps_.tf(t), render_, job_, streamer_.get(),
+                           plan_, t, t.rects[0], watch);
     const auto gatherStart = Clock::now();
     // Rank 0 keeps its own report as it is; only the others' travel. It goes on watching while
     // the others render.
@@ -397,6 +454,15 @@ class MasterLoop {
   }
 
  private:
+  // The time step frame f shows: by frame in a batch job, by the clock when the wall plays.
+  int timeStep(int f, Clock::time_point now) const {
+    const TimeSettings& time = job_.time;
+    if (time.rate > 0 && job_.stream)
+      return time.stepAt((long long)(std::chrono::duration<double>(now - started_).count() *
+                                     time.rate));
+    return time.stepOfFrame(f, job_.frames);
+  }
+
   // What the wall sent since the last frame: its notes and camera commands. A sink that refused
   // the job (token, wall, version, a newer job) shows nothing of it: the job ends.
   void readWall(int f, FrameSummary& s) {
@@ -506,6 +572,8 @@ class MasterLoop {
   std::unique_ptr<net::ControlChannel> control_;
   CameraOffset offset_;
   Steering steering_;  // each frame's step, and which frames a command abandons
+  StepVolumes steps_;  // each frame's time step
+  const Clock::time_point started_;
   double slowestFrame_ = 0;
   int timeoutMs_;
 };

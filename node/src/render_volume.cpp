@@ -55,7 +55,31 @@ RenderVolume RenderVolume::fromContainer(codec::ContainerFile file,
   v.info_ = v.file_->info();
   v.storedBytes_ = v.file_->fileBytes();
   v.source_ = v.file_->path();
+  v.renderOptions_ = renderOptions;
   v.init(renderOptions);
+  return v;
+}
+
+std::pair<double, double> RenderVolume::stepRange(int k) const {
+  if (k < 0 || k >= steps()) throw std::invalid_argument("no step " + std::to_string(k));
+  const codec::VolumeInfo own = file_ ? file_->stepInfo(k) : info_;
+  return {own.valueMin, own.valueMax};
+}
+
+RenderVolume RenderVolume::atStep(int step) const {
+  if (step < 0 || step >= steps())
+    throw std::invalid_argument(source_ + ": no step " + std::to_string(step) + " (it holds " +
+                                std::to_string(steps()) + ")");
+  if (step == step_) return *this;
+  RenderVolume v;
+  v.file_ = file_;
+  v.sections_ = file_->stepSections(step);
+  v.info_ = info_;
+  v.storedBytes_ = storedBytes_;
+  v.source_ = source_;
+  v.renderOptions_ = renderOptions_;
+  v.step_ = step;
+  v.init(renderOptions_);
   return v;
 }
 
@@ -85,7 +109,9 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
                                 codec::codecsTaking(flag, &codec::Codec::renderOptions) + "; " +
                                 source_ + " is " + std::string(c.name()));
   }
-  payload_ = c.openWith(info_, sections_, renderOptions);
+  // The codec sees the step as a volume of its own (its own value range).
+  const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
+  payload_ = c.openWith(own, sections_, renderOptions);
   ranges_ = CellRanges(payload_->rangeGrid(), info_.type);
 }
 
@@ -105,12 +131,15 @@ std::uint64_t RenderVolume::fingerprint() const {
   add(info_.spacing.x), add(info_.spacing.y), add(info_.spacing.z);
   add(info_.valueMin), add(info_.valueMax);
   add(info_.orientation.direction), add(info_.orientation.origin);
-  for (const auto& [id, bytes] : sections_.sections) {
-    add(id);
-    const std::uint64_t size = bytes.size();
-    add(size);
-    XXH64_update(state, bytes.data(), bytes.size());
-  }
+  if (steps() > 1) add(info_.steps);  // (a single volume's fingerprint is what it always was)
+  for (int k = 0; k < steps(); ++k)
+    for (const auto& [id, bytes] : (file_ ? file_->stepSections(k) : sections_).sections) {
+      if (steps() > 1) add(k);
+      add(id);
+      const std::uint64_t size = bytes.size();
+      add(size);
+      XXH64_update(state, bytes.data(), bytes.size());
+    }
   const std::uint64_t hash = XXH64_digest(state);
   XXH64_freeState(state);
   return hash;

@@ -235,10 +235,16 @@ TEST(VolumeIo, NiftiScaleSlopeGivesFloatValues) {
   EXPECT_EQ(readVolume(dir.path("plain.nii")).type, ScalarType::UInt8);
 }
 
-TEST(VolumeIo, NiftiTimeSeriesIsRefused) {
+// A NIfTI time series is not one volume: readVolume says how many steps it holds and what takes
+// them; its steps read one at a time.
+TEST(VolumeIo, NiftiTimeSeriesIsReadStepByStepNotAsOneVolume) {
   TempDir dir;
   writeNiftiWith(dir.path("4d.nii"), 3, 1.0f, 0.0f);
-  expectFormatError([&] { readVolume(dir.path("4d.nii")); }, dir.path("4d.nii"), "3D");
+  expectFormatError([&] { readVolume(dir.path("4d.nii")); }, dir.path("4d.nii"),
+                    "holds 3 time steps: `voxwall compress` makes one .vwz of them");
+  EXPECT_EQ(niftiStepCount(dir.path("4d.nii")), 3);
+  EXPECT_EQ(readNiftiStep(dir.path("4d.nii"), 2).dims, readNiftiStep(dir.path("4d.nii"), 0).dims);
+  EXPECT_THROW(readNiftiStep(dir.path("4d.nii"), 3), std::invalid_argument);
 }
 
 // Hardening: each of these allocated, crashed or said too little before.

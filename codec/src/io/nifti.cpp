@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 #include <memory>
 #include <optional>
+#include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/errors.hpp>
@@ -86,17 +87,31 @@ void checkRawHeader(const std::string& path, std::uint64_t have) {
                                   " is not a voxel spacing");
 }
 
+// The time steps of a header: dim[4] (time) when the file has a fourth dimension, else 1.
+int stepsOf(const nifti_image& header) {
+  return header.ndim >= 4 && header.dim[4] > 1 ? int(header.dim[4]) : 1;
+}
+
 // The header of a NIfTI file readNifti accepts, checked against the file before any voxel is
-// read: a single 3D volume, a datatype of known size, all its data there.
-NiftiPtr checkedHeader(const std::string& path) {
+// read: a 3D volume (or, with `allowSteps`, a series of them along dim[4]), a datatype of known
+// size, all its data there.
+NiftiPtr checkedHeader(const std::string& path, bool allowSteps = false) {
   nifti_set_debug_level(0);  // we report errors ourselves, in one line
   NiftiPtr header(nifti_image_read(path.c_str(), 0));
   if (!header) throw FormatError(path, "not a readable NIfTI file");
   const glm::ivec3 dims(int(header->nx), int(header->ny), int(header->nz));
-  for (int d = 4; d <= header->ndim && d <= 7; ++d)
+  for (int d = 5; d <= header->ndim && d <= 7; ++d)
     if (header->dim[d] > 1)
       throw FormatError(path, "has " + std::to_string(header->ndim) +
-                                  " dimensions; only single 3D volumes are supported");
+                                  " dimensions; voxwall reads 3D volumes and series of them "
+                                  "(a fourth dimension, time)");
+  if (!allowSteps && stepsOf(*header) > 1)
+    throw FormatError(path, "holds " + std::to_string(stepsOf(*header)) +
+                                " time steps: `voxwall compress` makes one .vwz of them");
+  if (stepsOf(*header) > int(kMaxSteps))
+    throw FormatError(path, "holds " + std::to_string(stepsOf(*header)) +
+                                " time steps, more than a .vwz file holds (" +
+                                std::to_string(kMaxSteps) + ")");
   checkDims(dims, path);
   if (header->nbyper <= 0 || header->nbyper > 8)
     throw FormatError(path, "unsupported NIfTI datatype " + std::to_string(header->datatype));
@@ -181,8 +196,11 @@ Geometry geometryOf(const nifti_image& nim) {
 
 }  // namespace
 
-std::optional<SlabLayout> niftiSlabLayout(const std::string& path) {
-  const NiftiPtr header = checkedHeader(path);
+std::optional<SlabLayout> niftiSlabLayout(const std::string& path, int step) {
+  const NiftiPtr header = checkedHeader(path, step >= 0);
+  step = std::max(step, 0);
+  if (step >= stepsOf(*header))
+    throw std::invalid_argument(path + ": no step " + std::to_string(step));
   if (!header->iname || nifti_is_gzfile(header->iname)) return std::nullopt;
   const auto [slope, inter] = scalingOf(*header);
   if (slope != 1.0 || inter != 0.0) return std::nullopt;  // converted to float32 on reading
@@ -218,14 +236,24 @@ std::optional<SlabLayout> niftiSlabLayout(const std::string& path) {
   if (have < need)
     throw FormatError(path, "truncated: " + std::to_string(have) +
                                 " bytes of data, the header needs " + std::to_string(need));
+  l.headerBytes += std::uint64_t(step) * std::uint64_t(l.dims.x) * std::uint64_t(l.dims.y) *
+                   std::uint64_t(l.dims.z) * scalarBytes(l.type);
   return slab;
 }
 
-Volume readNifti(const std::string& path) {
-  checkedHeader(path);
-  NiftiPtr nim(nifti_image_read(path.c_str(), 1));
-  if (!nim || !nim->data)
+namespace {
+
+// Step `step` of the file; `series`: the file may hold several.
+Volume readStep(const std::string& path, int step, bool series) {
+  NiftiPtr nim = checkedHeader(path, series);
+  if (step < 0 || step >= stepsOf(*nim))
+    throw std::invalid_argument(path + ": no step " + std::to_string(step));
+  // One volume of the series: nifticlib reads the sub-brick (from a gzip stream too).
+  void* stepData = nullptr;
+  int select[8] = {-1, -1, -1, -1, step, -1, -1, -1};
+  if (nifti_read_collapsed_image(nim.get(), select, &stepData) < 0 || !stepData)
     throw FormatError(path, "cannot read NIfTI voxel data (truncated or corrupt)");
+  nim->data = stepData;  // freed with the image
   const Geometry geometry = geometryOf(*nim);
   const glm::dvec3 spacing = geometry.spacing;
   const glm::ivec3 dims(int(nim->nx), int(nim->ny), int(nim->nz));
@@ -280,7 +308,27 @@ Volume readNifti(const std::string& path) {
   return v;
 }
 
+}  // namespace
+
+Volume readNifti(const std::string& path) { return readStep(path, 0, false); }
+
+int niftiStepCount(const std::string& path) { return stepsOf(*checkedHeader(path, true)); }
+
+Volume readNiftiStep(const std::string& path, int step) { return readStep(path, step, true); }
+
 void writeNifti(const Volume& volume, const std::string& path) {
+  writeNiftiSeries({volume}, path, 1.0);
+}
+
+void writeNiftiSeries(const std::vector<Volume>& steps, const std::string& path,
+                      double stepSeconds) {
+  if (steps.empty()) throw std::invalid_argument("writeNiftiSeries: no steps");
+  const Volume& volume = steps.front();
+  for (std::size_t k = 1; k < steps.size(); ++k)
+    if (steps[k].dims != volume.dims || steps[k].type != volume.type)
+      throw std::invalid_argument("writeNiftiSeries: step " + std::to_string(k) +
+                                  " differs from step 0 in size or type");
+  const int count = int(steps.size());
   int datatype = DT_UINT8;
   switch (volume.type) {
     case ScalarType::UInt8:
@@ -296,10 +344,16 @@ void writeNifti(const Volume& volume, const std::string& path) {
       datatype = DT_FLOAT32;
       break;
   }
-  int dims[8] = {3, volume.dims.x, volume.dims.y, volume.dims.z, 1, 1, 1, 1};
+  int dims[8] = {count > 1 ? 4 : 3, volume.dims.x, volume.dims.y, volume.dims.z, count, 1, 1, 1};
   NiftiPtr nim(nifti_make_new_nim(dims, datatype, 1));
   if (!nim) throw FormatError(path, "cannot create NIfTI image");
-  std::memcpy(nim->data, volume.data.data(), volume.data.size());
+  for (std::size_t k = 0; k < steps.size(); ++k)
+    std::memcpy(static_cast<std::byte*>(nim->data) + k * volume.data.size(), steps[k].data.data(),
+                volume.data.size());
+  if (count > 1) {
+    nim->dt = nim->pixdim[4] = float(stepSeconds);
+    nim->time_units = NIFTI_UNITS_SEC;
+  }
   nim->dx = nim->pixdim[1] = float(volume.spacing.x);
   nim->dy = nim->pixdim[2] = float(volume.spacing.y);
   nim->dz = nim->pixdim[3] = float(volume.spacing.z);
@@ -332,7 +386,8 @@ void writeNifti(const Volume& volume, const std::string& path) {
   nifti_image_write(nim.get());  // returns void: check the result on disk
   // A full disk leaves a short file (or a cut gzip stream): it must hold the header and every
   // voxel before it is renamed into place.
-  const std::uint64_t want = std::uint64_t(sizeof(nifti_1_header)) + 4 + volume.data.size();
+  const std::uint64_t want =
+      std::uint64_t(sizeof(nifti_1_header)) + 4 + volume.data.size() * steps.size();
   std::uint64_t written = 0;
   try {
     std::error_code ec;

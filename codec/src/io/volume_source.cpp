@@ -183,14 +183,17 @@ std::unique_ptr<VolumeSource> openVolumeSource(const std::string& path, const Re
     if (format == VolumeFormat::Nrrd) slab = nrrdSlabLayout(path);
     if (format == VolumeFormat::Nifti) slab = niftiSlabLayout(path);
   }
-  if (slab) {
-    try {
-      return std::make_unique<FileSource>(path, *slab, progress);
-    } catch (const std::bad_alloc&) {
-      throw FormatError(path, "not enough memory to read it");
-    }
-  }
+  if (slab) return slabSource(path, *slab, progress);
   return memorySource(readVolume(path, options));
+}
+
+std::unique_ptr<VolumeSource> slabSource(const std::string& path, const SlabLayout& slab,
+                                         Progress& progress) {
+  try {
+    return std::make_unique<FileSource>(path, slab, progress);
+  } catch (const std::bad_alloc&) {
+    throw FormatError(path, "not enough memory to read it");
+  }
 }
 
 }  // namespace voxwall::codec

@@ -6,6 +6,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/codec/series_source.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/process.hpp>
 #include <voxwall/core/text.hpp>
@@ -22,6 +23,7 @@ struct CompressOptions {
   int threads = 0;
   bool quiet = false, allowLarger = false;
   RawInputOptions raw;
+  codec::SeriesInput series;
   std::map<std::string, std::string> codecFlags;  // given: flag -> value
 };
 
@@ -42,22 +44,65 @@ codec::CodecOptionValues codecOptionValues(const CompressOptions& o, const codec
 // A file larger than the voxels it codes is refused (unless --allow-larger): the data does not
 // suit the codec, and zfp's lossless mode, which stores a brick as it is wherever coding would
 // enlarge it, never outgrows them.
+template <class Compressed>
 void refuseLarger(const CompressOptions& o, const codec::Codec& chosen,
-                  const codec::CompressedVolume& compressed) {
+                  const Compressed& compressed) {
   if (o.allowLarger || !chosen.compresses() || !codec::largerThanVoxels(compressed)) return;
   const codec::VolumeInfo& info = compressed.info;
   throw std::invalid_argument(formatLine(
       "codec %s takes %.2f bits per voxel on this volume, more than its %d-bit voxels (the data "
       "does not suit it): use --codec zfp --lossless (never larger than the voxels) or a lossy "
       "setting, or --allow-larger to write it anyway",
-      o.codec.c_str(), 8.0 * double(compressed.payloadBytes()) / double(info.voxelCount()),
+      o.codec.c_str(),
+      8.0 * double(compressed.payloadBytes()) / double(info.voxelCount()) / double(info.steps),
       int(8 * codec::scalarBytes(info.type))));
+}
+
+// A time series: every step encoded (by the codec's encodeSeries), one file.
+void compressSeries(const CompressOptions& o, const codec::Codec& chosen,
+                    const codec::CodecOptionValues& values, const codec::SeriesSource& series,
+                    std::chrono::steady_clock::time_point start) {
+  if (!o.raw.spacing.empty() || !o.raw.orientation.empty())
+    throw std::invalid_argument(
+        "--spacing and --orientation are not taken for a series yet: give each step's file its "
+        "geometry");
+  voxwall::Progress progress = makeProgress(o.quiet);
+  std::string report;
+  std::uint64_t fileBytes = 0;
+  codec::CompressedSeries compressed;
+  try {
+    compressed = chosen.encodeSeries(series, values, progress, report);
+    refuseLarger(o, chosen, compressed);
+    fileBytes = codec::writeContainer(compressed, o.output);
+  } catch (const std::bad_alloc&) {
+    throw voxwall::FormatError(o.output, "not enough memory to compress the series with codec " +
+                                             o.codec);
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::uint64_t peak = processMemory().peakBytes;
+  const codec::VolumeInfo& info = compressed.info;
+  std::uint64_t shared = 0;
+  for (const auto& s : compressed.shared) shared += s.second.size();
+  const double voxels = double(info.voxelCount()) * double(info.steps);
+  std::printf(
+      "%s: %d steps of %dx%dx%d %s, codec %s, %s, %.3f bits/voxel (%s shared by every step), "
+      "values %g .. %g, %.2fs, peak memory %s%s\n",
+      o.output.c_str(), info.steps, info.dims.x, info.dims.y, info.dims.z,
+      std::string(codec::scalarName(info.type)).c_str(), o.codec.c_str(),
+      humanBytes(double(fileBytes)).c_str(), 8.0 * double(fileBytes) / voxels,
+      humanBytes(double(shared)).c_str(), info.valueMin, info.valueMax, seconds,
+      humanBytes(double(peak)).c_str(), report.c_str());
 }
 
 void runCompress(const CompressOptions& o) {
   const codec::Codec& chosen = codec::codecNamed(o.codec);
   const codec::CodecOptionValues values = codecOptionValues(o, chosen);
   const auto start = std::chrono::steady_clock::now();
+  if (o.input.empty() && o.series.files.empty())
+    throw std::invalid_argument("give the input volume (or the steps of a series, --time-files)");
+  if (const auto series = codec::openSeries(o.input, o.raw.readOptions(), o.series))
+    return compressSeries(o, chosen, values, *series, start);
   voxwall::Progress progress = makeProgress(o.quiet);
   // Raw, NRRD (raw encoding) and uncompressed NIfTI files are read a slab at a time by the codecs
   // that stream; anything else is read whole first.
@@ -98,8 +143,9 @@ void addCompressCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("compress", "Compress a volume file into a .vwz container");
   cmd->add_option("input", o->input,
                   "Volume: .nii/.nii.gz, .nrrd/.nhdr, .raw (with --dims/--type), .tif/.tiff, a "
-                  "directory of slices, or generated:KIND:SIZE")
-      ->required();
+                  "directory of slices, DICOM, or generated:KIND:SIZE. A time series: a 4D "
+                  "NIfTI, a file pattern ('sim_%04d.nrrd': every file it prints, in number "
+                  "order), a raw file of several volumes (--time N), or --time-files");
   cmd->add_option("-o,--output", o->output, "Output .vwz file")->required();
   std::string codecHelp = "Codec:";
   for (const codec::Codec* c : codec::codecs())
@@ -116,6 +162,12 @@ void addCompressCommand(CLI::App& app) {
                 "Write the file even where the codec makes it larger than the voxels (refused "
                 "by default: the data does not suit that codec)");
   o->raw.addTo(*cmd);
+  cmd->add_option("--time-files", o->series.files,
+                  "The steps of a time series, one 3D volume file each, in order (instead of the "
+                  "input)");
+  cmd->add_option("--time", o->series.rawSteps,
+                  "A raw input holds this many volumes of --dims one after the other: a series")
+      ->check(CLI::Range(1, int(codec::kMaxSteps)));
   cmd->callback([o] { runCompress(*o); });
 }
 

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <voxwall/codec/container.hpp>
@@ -12,11 +13,21 @@ namespace {
 
 struct DecompressOptions {
   std::string input, output;
+  int step = -1;
 };
 
 void runDecompress(const DecompressOptions& o) {
   const auto file = codec::ContainerFile::open(o.input);
-  codec::Volume v = codec::codecOf(file.info(), o.input).decode(file.info(), file.sections());
+  const int steps = file.stepCount();
+  if (o.step >= steps)
+    throw std::invalid_argument("--step " + std::to_string(o.step) + ": " + o.input + " holds " +
+                                std::to_string(steps) + " step(s), 0 to " +
+                                std::to_string(steps - 1));
+  if (o.step < 0 && steps > 1)
+    throw std::invalid_argument(o.input + " holds " + std::to_string(steps) +
+                                " steps: give --step K (0 to " + std::to_string(steps - 1) + ")");
+  const int k = std::max(o.step, 0);
+  codec::Volume v = codec::codecOf(file.info(), o.input).decode(file.stepInfo(k), file.stepSections(k));
   v.orientation = file.info().orientation;
   codec::writeVolume(v, o.output);
   std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
@@ -33,6 +44,8 @@ void addDecompressCommand(CLI::App& app) {
                   "Output, format from the extension: .raw (voxels in their own type, x fastest, "
                   "little-endian), .nrrd, .nhdr, .nii or .nii.gz")
       ->required();
+  cmd->add_option("--step", o->step, "The step of a time series to write (from 0)")
+      ->check(CLI::NonNegativeNumber);
   cmd->callback([o] { runDecompress(*o); });
 }
 

@@ -146,6 +146,38 @@ std::uint64_t firstFramePageBytes(const Setup& s, master::Communicator& comm) {
   return decoded * node::cpuDecodeCacheUse(*backend).pageBytes;
 }
 
+// --time, --time-rate and --range on the volume's steps: which step each frame shows (one frame a
+// step unless --frames is given), and for --range per-step a transfer function for each step.
+void applyTime(const RenderOptions& o, bool quiet, Setup& s) {
+  const int steps = s.volume->steps();
+  if (o.range != "series" && o.range != "per-step")
+    throw std::invalid_argument("--range: expected series or per-step");
+  if (o.timeRate > 0 && !s.job.stream)
+    throw std::invalid_argument(
+        "--time-rate plays a series on the wall (--sink); a batch job shows a step a frame "
+        "(--time)");
+  const master::TimeSettings time = timeSettings(o, steps);
+  if (!o.time.empty() && !o.framesGiven && o.timeRate == 0) {
+    RenderOptions each = o;
+    each.frames = time.count();
+    s.job = jobSettings(each);
+  }
+  s.job.time = time;
+  if (steps > 1 && o.time.empty() && o.timeRate == 0 && !quiet)
+    std::fprintf(stderr,
+                 "voxwall: %s holds %d time steps; rendering step 0 (--time FIRST:LAST or --time "
+                 "all shows others)\n",
+                 s.input.c_str(), steps);
+  if (o.range == "per-step") {
+    std::vector<std::string> notes;
+    for (int k = 0; k < steps; ++k) {
+      codec::VolumeInfo info = s.volume->info();
+      std::tie(info.valueMin, info.valueMax) = s.volume->stepRange(k);
+      s.job.stepTransferFunctions.push_back(loadTransferFunction(o, info, notes));
+    }
+  }
+}
+
 // Everything a rank does before the job; throws what is wrong on this rank.
 void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, Setup& s) {
   s.job = jobSettings(o);
@@ -164,6 +196,7 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
         "(compress it with --codec " +
         codec::RegisteredCodecs::traversalCodecNames() + ")");
   s.tf = loadTransferFunction(o, s.volume->info(), s.tfNotes);
+  applyTime(o, quiet, s);
   // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache. A dry
   // run counts the pages this rank's rays reach in the first frame.
   std::uint64_t pages = o.backend == "cpu" && o.simd == "on"
@@ -308,8 +341,11 @@ class Report {
                     f.rankSeconds[i] * 1e3);
       ranks += text;
     }
-    std::printf("frame %d/%d: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s%s\n",
-                f.frame + 1, s_.job.frames, f.frameSeconds * 1e3, f.imbalance, ranks.c_str(),
+    const std::string timeStep =
+        s_.volume->steps() > 1 ? ", time step " + std::to_string(f.timeStep) : std::string();
+    std::printf("frame %d/%d%s: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s%s\n",
+                f.frame + 1, s_.job.frames, timeStep.c_str(), f.frameSeconds * 1e3, f.imbalance,
+                ranks.c_str(),
                 double(f.samples) / f.renderSeconds / 1e6, sinkText(f).c_str(),
                 f.path.empty() ? "" : " -> ", f.path.c_str());
     for (const auto& note : f.sinkNotes) std::printf("  %s\n", note.c_str());

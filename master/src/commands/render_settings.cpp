@@ -257,6 +257,51 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   return job;
 }
 
+master::TimeSettings timeSettings(const RenderOptions& o, int steps) {
+  master::TimeSettings time;
+  if (!(o.timeRate >= 0 && o.timeRate <= 1000))
+    throw std::invalid_argument("--time-rate must be in [0, 1000] steps a second");
+  time.rate = o.timeRate;
+  const std::string spec = o.time.empty() && o.timeRate > 0 ? "all" : o.time;
+  if (spec.empty()) return time;  // step 0 in every frame
+  if (spec == "all") {
+    time.last = steps - 1;
+  } else {
+    std::vector<int> parts;
+    std::size_t at = 0;
+    for (;;) {
+      const std::size_t colon = spec.find(':', at);
+      const std::string part = spec.substr(at, colon == std::string::npos ? colon : colon - at);
+      std::size_t used = 0;
+      int value = -1;
+      try {
+        value = std::stoi(part, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != part.size() || value < 0)
+        throw std::invalid_argument("--time: expected FIRST:LAST[:STRIDE], a step, or all; not '" +
+                                    spec + "'");
+      parts.push_back(value);
+      if (colon == std::string::npos) break;
+      at = colon + 1;
+    }
+    if (parts.size() > 3)
+      throw std::invalid_argument("--time: expected FIRST:LAST[:STRIDE], a step, or all");
+    time.first = parts[0];
+    time.last = parts.size() > 1 ? parts[1] : parts[0];
+    time.stride = parts.size() > 2 ? parts[2] : 1;
+    if (time.stride < 1) throw std::invalid_argument("--time: the stride must be at least 1");
+    if (time.last < time.first)
+      throw std::invalid_argument("--time: the last step comes before the first");
+  }
+  if (time.last >= steps)
+    throw std::invalid_argument("--time " + spec + ": the volume has " + std::to_string(steps) +
+                                " step(s), 0 to " + std::to_string(steps - 1));
+  time.last = time.first + (time.last - time.first) / time.stride * time.stride;
+  return time;
+}
+
 codec::CodecOptionValues codecRenderOptions(const RenderOptions& o) {
   codec::CodecOptionValues values;
   for (const auto& [flag, value] : o.codecFlags) values.set(flag, value);
@@ -295,6 +340,8 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["wall"] = o.wall;
   m["surface"] = o.surface;
   m["frames"] = job.frames;
+  m["time"] = {job.time.first, job.time.last, job.time.stride};
+  m["range"] = o.range;
   m["path"] = o.path;
   m["camera"] = o.camera;
   m["view"] = o.view;
@@ -410,7 +457,7 @@ void addCutOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
 }
 
 // The camera path and the frames.
-void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
+void addCameraOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
   cmd.add_option(
          "--path", o.path,
          "Camera path: orbit (one turn over --frames, or --orbit-deg per frame), still (the "
@@ -437,7 +484,22 @@ void addCameraOptions(CLI::App& cmd, RenderOptions& o) {
                  "Slide the camera across the view by X,Y bounding radii (the volume moves the "
                  "other way on the screen)");
   cmd.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str();
-  cmd.add_option("--frames", o.frames, "Number of frames")->capture_default_str();
+  h.frames = cmd.add_option("--frames", o.frames,
+                            "Number of frames (with --time: one a step unless given)")
+                 ->capture_default_str();
+  cmd.add_option("--time", o.time,
+                 "Time steps of a series (.vwz of several steps) the frames show: FIRST:LAST[:STRIDE] "
+                 "(frame f shows step FIRST + f*STRIDE; with more --frames than steps each step "
+                 "shows for several frames), one step, or all. Default: step 0")
+      ->capture_default_str();
+  cmd.add_option("--time-rate", o.timeRate,
+                 "On the wall (--sink): play the --time steps (default all) at this many steps a "
+                 "second, looping; the wall's page pauses, steps and moves them")
+      ->capture_default_str();
+  cmd.add_option("--range", o.range,
+                 "What a series' transfer function spans: series (every step's values: a step "
+                 "does not flicker brighter) or per-step (each step's own values)")
+      ->capture_default_str();
   cmd.add_option("--orbit-deg", o.orbitDeg,
                  "Azimuth step per frame in degrees (default: one full turn over --frames)");
 }
@@ -539,7 +601,7 @@ RenderOptionHandles addRenderOptions(CLI::App& cmd, RenderOptions& o) {
   RenderOptionHandles h;
   addScreenOptions(cmd, o, h);
   addCutOptions(cmd, o, h);
-  addCameraOptions(cmd, o);
+  addCameraOptions(cmd, o, h);
   addLookOptions(cmd, o);
   addOutputOptions(cmd, o, h);
   o.raw.addTo(cmd);

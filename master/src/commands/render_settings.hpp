@@ -32,7 +32,10 @@ struct RenderOptions {
   double frameBudgetMs = 0;      // --frame-budget
   double settle = 0.5;           // --settle, seconds
   double sinkDeadline = 30;      // --sink-deadline, seconds
-  bool sizeGiven = false, outGiven = false;
+  bool sizeGiven = false, outGiven = false, framesGiven = false;
+  std::string time;              // --time A:B[:S], A, or all
+  double timeRate = 0;           // --time-rate STEPS_PER_SECOND (on the wall)
+  std::string range = "series";  // --range series|per-step: what the transfer function spans
   double fov = 30, orbitDeg = 0, step = 0.25, zoomTo = 1.2, watchdogSeconds = 120;
   int frames = 1, threads = 0, costCell = 32;
   std::string sampling = "trilinear", gradients = "cell";
@@ -49,8 +52,9 @@ struct RenderOptions {
 
 // Registers every render option with `cmd`; the callback must call noteGiven() before use.
 struct RenderOptionHandles {
-  CLI::Option *balance = nullptr, *size = nullptr, *out = nullptr;
+  CLI::Option *balance = nullptr, *size = nullptr, *out = nullptr, *frames = nullptr;
   void noteGiven(RenderOptions& o) const {
+    o.framesGiven = frames->count() > 0;
     o.balanceGiven = balance->count() > 0;
     o.sizeGiven = size->count() > 0;
     o.outGiven = out->count() > 0;
@@ -61,6 +65,9 @@ RenderOptionHandles addRenderOptions(CLI::App& cmd, RenderOptions& o);
 // The job: screen (--size or --wall), sink, camera path, output, cut and watchdog. Reads the wall
 // and key-frame files it names; throws std::invalid_argument naming the option.
 master::JobSettings jobSettings(const RenderOptions& o);
+// --time and --time-rate for a volume of `steps` time steps: which steps the frames show. Throws
+// std::invalid_argument naming the option for a range outside the volume's steps.
+master::TimeSettings timeSettings(const RenderOptions& o, int steps);
 // The renderer: step, shading, skipping, sampling, level of detail (and checks --backend).
 node::RenderSettings renderSettings(const RenderOptions& o);
 // The codec render flags given (--progressive ...), for RenderVolume::open.

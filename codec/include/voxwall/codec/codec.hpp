@@ -18,6 +18,7 @@
 namespace voxwall::codec {
 
 class RenderPayload;  // render_payload.hpp
+class SeriesSource;   // series_source.hpp
 
 // A command-line option a codec adds to `compress` (e.g. "--quality"). Values arrive as text and
 // the codec parses them (CodecOptionValues); an option given with another codec is refused.
@@ -88,6 +89,14 @@ class Codec {
   virtual CompressedVolume encodeSource(const VolumeSource& source,
                                         const CodecOptionValues& options, Progress& progress,
                                         std::string& report) const;
+  // Encodes a time series, one step after the other (step k of `series.open(k)`), holding one
+  // step's input at a time. By default every step is encoded on its own (encodeSource) and
+  // makeSeries stores the sections all steps have alike once; a codec whose model can serve
+  // every step (a dictionary, a codebook) overrides it to train one model on all steps.
+  // `report` receives step 0's report and the codec's words on the series.
+  virtual CompressedSeries encodeSeries(const SeriesSource& series,
+                                        const CodecOptionValues& options, Progress& progress,
+                                        std::string& report) const;
   // The full volume. Throws FormatError for sections that do not describe one.
   virtual Volume decode(const VolumeInfo& info, const SectionSet& sections) const = 0;
   // The codec's `info` lines (after the container's).
@@ -121,6 +130,8 @@ class Codec {
 // voxels at their scalar type, beyond an allowance of 4 KiB plus 1/256 for the codec's parameters
 // and indices (the container's header and table come on top of either).
 bool largerThanVoxels(const CompressedVolume& compressed);
+// The same for a series: every section against the voxels of every step.
+bool largerThanVoxels(const CompressedSeries& compressed);
 
 // Every codec this build carries, in id order.
 const std::vector<const Codec*>& codecs();

@@ -17,4 +17,10 @@ Volume generateMarschnerLobb(int n, ScalarType type = ScalarType::UInt8);
 // "modified" intensities) on an n^3 grid, values 0..1 scaled like generateMarschnerLobb.
 Volume generateSheppLogan(int n, ScalarType type = ScalarType::UInt8);
 
+// Step `step` of a time-varying field of `steps` steps on an n^3 grid over [-1, 1]^3: three
+// Gaussian blobs orbiting the z axis once over the series while they bob up and down and grow,
+// beside a still torus (the part of a simulation that does not change), values 0..1 scaled like
+// generateMarschnerLobb. Throws std::invalid_argument for a step outside 0..steps-1.
+Volume generateOrbitingBlobs(int n, int step, int steps, ScalarType type = ScalarType::UInt8);
+
 }  // namespace voxwall::codec

@@ -55,6 +55,10 @@ Volume readVolume(const std::string& path, const ReadOptions& options = {});
 
 Volume readRaw(const std::string& path, const RawLayout& layout);
 Volume readNifti(const std::string& path);
+// A NIfTI file's time steps (dim[4] when it has a fourth dimension, else 1), and one of them.
+// readNifti refuses a file of several steps, naming how many.
+int niftiStepCount(const std::string& path);
+Volume readNiftiStep(const std::string& path, int step);
 Volume readNrrd(const std::string& path);
 Volume readSliceStack(const std::string& path);
 
@@ -84,5 +88,9 @@ void writeVolume(const Volume& volume, const std::string& path);
 void writeRaw(const Volume& volume, const std::string& path);
 void writeNrrd(const Volume& volume, const std::string& path);
 void writeNifti(const Volume& volume, const std::string& path);
+// A series of volumes of one size and type as one 4D NIfTI file (.nii or .nii.gz; dim[4] the
+// steps, pixdim[4] = `stepSeconds`).
+void writeNiftiSeries(const std::vector<Volume>& steps, const std::string& path,
+                      double stepSeconds = 1.0);
 
 }  // namespace voxwall::codec

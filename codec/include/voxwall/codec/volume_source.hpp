@@ -97,7 +97,13 @@ struct SlabLayout {
 // .hdr/.img NIfTI file without scaling; nullopt for any other file of those formats (which
 // readVolume reads whole). Throws FormatError for files readVolume refuses too.
 std::optional<SlabLayout> nrrdSlabLayout(const std::string& path);
-std::optional<SlabLayout> niftiSlabLayout(const std::string& path);
+// `step` >= 0: that volume of a NIfTI series (niftiStepCount); -1: the file must hold one volume.
+std::optional<SlabLayout> niftiSlabLayout(const std::string& path, int step = -1);
+
+// The voxels `slab` describes, read from the file in slabs (the first pass finds their range,
+// reporting on `progress`); `path` names the input in errors.
+std::unique_ptr<VolumeSource> slabSource(const std::string& path, const SlabLayout& slab,
+                                         Progress& progress);
 
 // The source for `path`: read in slabs where the format allows (raw with `options.raw` given,
 // NRRD and NIfTI as above), else read whole with readVolume() (DICOM among them). Opening a file

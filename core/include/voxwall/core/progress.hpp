@@ -18,13 +18,15 @@ class Progress {
   explicit Progress(Callback cb) : cb_(std::move(cb)) {}
 
   void begin(std::string stage, std::uint64_t total);
+  // Put before every later stage's name (e.g. "step 3/64: " while a series is encoded).
+  void setPrefix(std::string prefix);
   void advance(std::uint64_t n = 1);
   void end();
 
  private:
   Callback cb_;
   std::mutex mutex_;
-  std::string stage_;
+  std::string stage_, prefix_;
   std::uint64_t total_ = 0;
   std::uint64_t done_ = 0;
   std::uint64_t lastReported_ = 0;

@@ -14,7 +14,7 @@
 //               interactive frame, bit 2: a refining frame; neither: a full one),
 //               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
 //               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, i32 step, u32
-//               rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
+//               timeStep, u32 rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 pageHits,
 //               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, pageCoarse, u32
@@ -39,14 +39,15 @@ namespace voxwall::master {
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
 // 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
-// RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse.
-inline constexpr std::uint32_t kFrameMessageVersion = 7;
+// RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse; 8: FrameTask.timeStep.
+inline constexpr std::uint32_t kFrameMessageVersion = 8;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
 inline constexpr int kMaxScreenSide = 1 << 16;
 inline constexpr std::size_t kMaxStreamError = 256;
 inline constexpr int kMaxTaskStep = 16;  // the same bound as the wall protocol's (wire.hpp)
+inline constexpr std::uint32_t kMaxTimeSteps = 1u << 16;  // the same as a .vwz file's steps
 
 struct FrameTask {
   std::uint32_t frame = 0;
@@ -61,6 +62,7 @@ struct FrameTask {
   // screenHeight (and the rects) are then the reduced screen, ceil(virtual side / n).
   int step = 1;
   net::FramePhase phase = net::FramePhase::Full;  // why it has that step (the sink shows it)
+  std::uint32_t timeStep = 0;  // the volume's time step the frame shows (0 for one volume)
   std::vector<std::vector<voxwall::Rect>> rects;  // per rank (index = rank); may be empty
 };
 

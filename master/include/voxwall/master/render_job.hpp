@@ -47,6 +47,20 @@ struct CameraOffset {
   static constexpr double kMaxPan = 1.5;
 };
 
+// Which time step of a series each frame shows (a single volume: step 0 in every frame).
+struct TimeSettings {
+  int first = 0, last = 0, stride = 1;  // the steps first, first + stride, ... up to last
+  // > 0: a job that streams to the wall plays the steps at this many a second (looping), from
+  // when the job starts, instead of one a frame; the wall's time commands pause, move and go on.
+  double rate = 0;
+  int count() const { return (last - first) / stride + 1; }
+  // A batch job's frame f of `frames`: the range's f-th step; with more frames than steps each
+  // step shows for frames / count() frames (the last one to the end).
+  int stepOfFrame(int f, int frames) const;
+  // The range's i-th step, i taken modulo count().
+  int stepAt(long long i) const;
+};
+
 struct JobSettings {
   int width = 1920, height = 1080;  // the virtual screen
   int frames = 1;
@@ -75,6 +89,10 @@ struct JobSettings {
   // camera command arriving during a refining or full frame abandons it.
   std::vector<int> refine = {4, 2, 1};
   double frameBudgetMs = 0;  // > 0: the interactive step keeps a steered frame near this
+  TimeSettings time;
+  // A transfer function for each step of the volume (`render --range per-step`: each placed on
+  // its step's own values); empty: the job's one for every step.
+  std::vector<node::TransferFunction> stepTransferFunctions;
 };
 
 // The steering of this job (master/steering.hpp): interactive only when it streams to a sink
@@ -102,6 +120,7 @@ struct FrameSummary {
   std::uint64_t streamedBytes = 0;
   int controls = 0;  // camera commands from the wall applied to this frame
   int step = 1;      // > 1: a reduced frame at 1/step per side
+  int timeStep = 0;  // the volume's time step it shows
   net::FramePhase phase = net::FramePhase::Full;  // interactive (steered), refining or full
   bool abandoned = false;              // the camera moved while it rendered: given up, not shown
   std::vector<std::string> sinkNotes;  // what the sink said about earlier frames (drops, refusals)

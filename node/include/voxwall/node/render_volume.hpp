@@ -76,7 +76,17 @@ class RenderVolume {
   static RenderVolume fromVolume(const codec::Volume& volume,
                                  int brickVoxels = codec::raw::Params{}.brickVoxels);
 
+  // The volume's description; for a time series, the whole series' (steps, the range of every
+  // step together), whichever step this is.
   const codec::VolumeInfo& info() const { return info_; }
+  // Time steps: how many the file holds, which one this is, and another one of them (opened
+  // from the same mapped file with the same render flags: its own payload and ranges). Throws
+  // std::invalid_argument for a step outside 0..steps()-1, FormatError as open() does.
+  int steps() const { return info_.steps; }
+  int step() const { return step_; }
+  RenderVolume atStep(int step) const;
+  // The value range of step k's own voxels (of the volume, for one step).
+  std::pair<double, double> stepRange(int k) const;
   const CellRanges& ranges() const { return ranges_; }
   // Bytes of the compressed representation a backend has to hold (file size for a .vwz).
   std::uint64_t storedBytes() const { return storedBytes_; }
@@ -87,8 +97,8 @@ class RenderVolume {
   // Whether the view traverses mip levels (--lod, nearest sampling).
   bool traversal() const;
   const std::string& source() const { return source_; }
-  // xxHash64 of the volume's description and every section's bytes: two ranks with the same
-  // fingerprint render the same pixels. Computed on first use (reads the whole payload).
+  // xxHash64 of the volume's description and every section's bytes (of every step): two ranks
+  // with the same fingerprint render the same pixels. Reads the whole file.
   std::uint64_t fingerprint() const;
   // Drops the mapped .vwz file from this process's resident memory after the passes that read
   // all of it (opening, the range grid, the fingerprint): a rank then holds only the compressed
@@ -101,6 +111,8 @@ class RenderVolume {
   RenderVolume() = default;
   void init(const codec::CodecOptionValues& renderOptions = {});
   std::shared_ptr<codec::ContainerFile> file_;
+  codec::CodecOptionValues renderOptions_;
+  int step_ = 0;
   std::shared_ptr<codec::CompressedVolume> memory_;
   codec::SectionSet sections_;
   // Validated once, in init(); points into file_ or memory_ (declared after them: destroyed first).

@@ -1,0 +1,232 @@
+// Time series as a user meets them: a 4D NIfTI, a file pattern, a list of files and a raw file of
+// several volumes compress into one .vwz; `info` lists the steps, `decompress --step` gives each
+// back; steps that disagree and corrupt step sections are refused in one line naming the step.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <voxwall/codec/container.hpp>
+#include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/volume_io.hpp>
+#include <voxwall/core/image.hpp>
+
+#include "support/cli_run.hpp"
+#include "support/image_expect.hpp"
+#include "support/temp_dir.hpp"
+
+using namespace voxwall;
+
+namespace {
+
+constexpr int kSize = 24, kSteps = 4;
+
+codec::Volume blobs(int step) { return codec::generateOrbitingBlobs(kSize, step, kSteps); }
+
+// Every step of `vwz`, written by `decompress --step k`, equals `want(k)` voxel for voxel.
+template <class Want>
+void expectStepsDecompressTo(const std::string& vwz, int steps, const test::TempDir& dir,
+                             Want&& want) {
+  for (int k = 0; k < steps; ++k) {
+    const std::string out = dir.path("step" + std::to_string(k) + ".nrrd");
+    const CliRun r = runVoxwall("decompress " + vwz + " -o " + out + " --step " + std::to_string(k));
+    ASSERT_EQ(r.status, 0) << r.out;
+    const codec::Volume back = codec::readVolume(out);
+    const codec::Volume expected = want(k);
+    EXPECT_EQ(back.dims, expected.dims) << "step " << k;
+    EXPECT_EQ(back.type, expected.type) << "step " << k;
+    EXPECT_TRUE(back.data == expected.data) << vwz << " step " << k;
+  }
+}
+
+}  // namespace
+
+TEST(TimeSeries, A4dNiftiRoundTripsLosslesslyThroughRawAndVqStepByStep) {
+  test::TempDir dir;
+  const CliRun g =
+      runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("blobs.nii.gz"));
+  ASSERT_EQ(g.status, 0) << g.out;
+  EXPECT_EQ(codec::niftiStepCount(dir.path("blobs.nii.gz")), kSteps);
+  for (const char* c : {"raw", "vq"}) {
+    const std::string vwz = dir.path(std::string(c) + ".vwz");
+    const CliRun r =
+        runVoxwall("compress -q " + dir.path("blobs.nii.gz") + " -o " + vwz + " --codec " + c);
+    ASSERT_EQ(r.status, 0) << r.out;
+    EXPECT_NE(r.out.find("4 steps of 24x24x24 uint8"), std::string::npos) << r.out;
+    const auto file = codec::ContainerFile::open(vwz);
+    EXPECT_EQ(file.stepCount(), kSteps);
+    EXPECT_EQ(file.version(), codec::kContainerVersion);
+    expectStepsDecompressTo(vwz, kSteps, dir, blobs);
+    // info lists every step, with its own range.
+    const CliRun info = runVoxwall("info " + vwz);
+    ASSERT_EQ(info.status, 0) << info.out;
+    EXPECT_NE(info.out.find("4 steps"), std::string::npos) << info.out;
+    for (int k = 0; k < kSteps; ++k) {
+      const codec::Volume v = blobs(k);
+      char line[96];
+      std::snprintf(line, sizeof line, "values %g .. %g, lossless", v.valueMin, v.valueMax);
+      EXPECT_NE(info.out.find("step " + std::to_string(k)), std::string::npos) << info.out;
+      EXPECT_NE(info.out.find(line), std::string::npos) << line << "\n" << info.out;
+    }
+  }
+  // A series needs --step to decompress; a step past the end is refused.
+  expectOneLineError(runVoxwall("decompress " + dir.path("vq.vwz") + " -o " + dir.path("x.nrrd")),
+                     "voxwall: " + dir.path("vq.vwz") + " holds 4 steps: give --step K");
+  expectOneLineError(runVoxwall("decompress " + dir.path("vq.vwz") + " -o " + dir.path("x.nrrd") +
+                                " --step 4"),
+                     "voxwall: --step 4: ");
+}
+
+// The 4D NIfTI of nibabel's test data (python3-nibabel): two int16 steps of an fMRI run.
+TEST(TimeSeries, ARealFmriSeriesRoundTripsLosslessly) {
+  const std::string fmri = "/usr/lib/python3/dist-packages/nibabel/tests/data/example4d.nii.gz";
+  if (!std::filesystem::exists(fmri)) GTEST_SKIP() << fmri << " missing (python3-nibabel)";
+  test::TempDir dir;
+  const std::string vwz = dir.path("fmri.vwz");
+  const CliRun r = runVoxwall("compress -q " + fmri + " -o " + vwz + " --codec vq");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("2 steps of 128x96x24 int16"), std::string::npos) << r.out;
+  expectStepsDecompressTo(vwz, 2, dir, [&](int k) { return codec::readNiftiStep(fmri, k); });
+  EXPECT_FALSE(codec::readNiftiStep(fmri, 0).data == codec::readNiftiStep(fmri, 1).data);
+}
+
+TEST(TimeSeries, AFilePatternAndAFileListCompressInNumberOrder) {
+  test::TempDir dir;
+  // Numbers 8, 9, 10 printed by %d: number order is not the names' order.
+  for (int k = 0; k < 3; ++k)
+    codec::writeVolume(blobs(k), dir.path("sim_" + std::to_string(k + 8) + ".nrrd"));
+  const CliRun r = runVoxwall("compress -q '" + dir.path("sim_%d.nrrd") + "' -o " +
+                              dir.path("p.vwz") + " --codec vq");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("3 steps"), std::string::npos) << r.out;
+  expectStepsDecompressTo(dir.path("p.vwz"), 3, dir, blobs);
+
+  const CliRun list = runVoxwall("compress -q -o " + dir.path("l.vwz") + " --time-files " +
+                                 dir.path("sim_10.nrrd") + " " + dir.path("sim_8.nrrd"));
+  ASSERT_EQ(list.status, 0) << list.out;
+  expectStepsDecompressTo(dir.path("l.vwz"), 2, dir, [](int k) { return blobs(k == 0 ? 2 : 0); });
+
+  expectOneLineError(runVoxwall("compress -q '" + dir.path("none_%04d.nrrd") + "' -o " +
+                                dir.path("n.vwz")),
+                     "voxwall: " + dir.path("none_%04d.nrrd") + ": no file in ");
+}
+
+TEST(TimeSeries, ARawFileOfSeveralVolumesCompressesWithTime) {
+  test::TempDir dir;
+  {
+    std::ofstream out(dir.path("three.raw"), std::ios::binary);
+    for (int k = 0; k < 3; ++k) {
+      const codec::Volume v = blobs(k);
+      out.write(reinterpret_cast<const char*>(v.data.data()), std::streamsize(v.data.size()));
+    }
+  }
+  const std::string layout = " --dims 24,24,24 --type uint8";
+  const CliRun r = runVoxwall("compress -q " + dir.path("three.raw") + layout + " --time 3 -o " +
+                              dir.path("r.vwz") + " --codec vq");
+  ASSERT_EQ(r.status, 0) << r.out;
+  expectStepsDecompressTo(dir.path("r.vwz"), 3, dir, blobs);
+  // Four volumes do not fit in the file.
+  const CliRun four = runVoxwall("compress -q " + dir.path("three.raw") + layout +
+                                 " --time 4 -o " + dir.path("r4.vwz"));
+  expectOneLineError(four, "voxwall: " + dir.path("three.raw") + ": truncated");
+}
+
+// The first step that differs from step 0 in size, type or spacing is named, in one line.
+TEST(TimeSeries, StepsThatDisagreeAreRefusedNamingTheFirst) {
+  test::TempDir dir;
+  codec::writeVolume(blobs(0), dir.path("a.nrrd"));
+  codec::writeVolume(blobs(1), dir.path("b.nrrd"));
+  codec::writeVolume(codec::generateOrbitingBlobs(20, 2, kSteps), dir.path("c.nrrd"));
+  const CliRun r = runVoxwall("compress -q -o " + dir.path("x.vwz") + " --time-files " +
+                              dir.path("a.nrrd") + " " + dir.path("b.nrrd") + " " +
+                              dir.path("c.nrrd"));
+  expectOneLineError(r, "voxwall: " + dir.path("c.nrrd") + ": step 2 (c.nrrd) is 20x20x20 uint8");
+  EXPECT_NE(r.out.find("but step 0 (a.nrrd) is 24x24x24 uint8"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.path("x.vwz")));
+}
+
+// A flipped byte in one step's section: every command that reads the file refuses it in one line
+// naming that step.
+TEST(TimeSeries, ACorruptStepSectionIsRefusedNamingTheStep) {
+  test::TempDir dir;
+  ASSERT_EQ(runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("b.nii")).status, 0);
+  const std::string vwz = dir.path("b.vwz");
+  ASSERT_EQ(runVoxwall("compress -q " + dir.path("b.nii") + " -o " + vwz + " --codec vq").status,
+            0);
+  std::string bytes = test::readFile(vwz);
+  // The first table entry of step 2.
+  std::uint32_t sections = 0;
+  std::memcpy(&sections, bytes.data() + 36, 4);
+  std::uint64_t offset = 0;
+  for (std::uint32_t i = 0; i < sections && !offset; ++i) {
+    std::uint32_t step = 0;
+    std::memcpy(&step, bytes.data() + 128 + 32 * i + 4, 4);
+    if (step == 2) std::memcpy(&offset, bytes.data() + 128 + 32 * i + 8, 8);
+  }
+  ASSERT_GT(offset, 0u);
+  bytes[offset + 5] ^= 0x10;
+  test::writeFile(vwz, bytes);
+  for (const std::string& command :
+       {"info " + vwz, "decompress " + vwz + " --step 0 -o " + dir.path("o.nrrd"),
+        "render " + vwz + " --size 32x32 --out " + dir.path("frames")}) {
+    const CliRun r = runVoxwall(command);
+    expectOneLineError(r, "voxwall: " + vwz + ": section ");
+    EXPECT_NE(r.out.find("step 2): checksum mismatch"), std::string::npos) << command << r.out;
+  }
+}
+
+// `render --time 0:3` writes four frames, each the picture a render of that step alone gives
+// (the camera still; --range per-step places the map on each step's values as a lone step's
+// render does). With the series' range (the default) the frames differ from those renders, as
+// they must where a step's values span less than the series'.
+TEST(TimeSeries, RenderTimeWritesAFrameAStepEqualToSingleStepRenders) {
+  test::TempDir dir;
+  ASSERT_EQ(runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("b.nii")).status, 0);
+  const std::string vwz = dir.path("b.vwz");
+  ASSERT_EQ(runVoxwall("compress -q " + dir.path("b.nii") + " -o " + vwz + " --codec vq").status,
+            0);
+  const std::string view = " --size 64x48 --path still --shading -q";
+  const CliRun series =
+      runVoxwall("render " + vwz + view + " --time 0:3 --range per-step --out " + dir.path("t"));
+  ASSERT_EQ(series.status, 0) << series.out;
+  const CliRun whole = runVoxwall("render " + vwz + view + " --time 0:3 --out " + dir.path("w"));
+  ASSERT_EQ(whole.status, 0) << whole.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.path("t/frame_00004.png")));
+  int differ = 0;
+  for (int k = 0; k < kSteps; ++k) {
+    const std::string step = dir.path("s" + std::to_string(k) + ".vwz");
+    ASSERT_EQ(runVoxwall("decompress " + vwz + " --step " + std::to_string(k) + " -o " +
+                         dir.path("s.nrrd"))
+                  .status,
+              0);
+    ASSERT_EQ(runVoxwall("compress -q " + dir.path("s.nrrd") + " -o " + step + " --codec vq")
+                  .status,
+              0);
+    const std::string out = dir.path("single" + std::to_string(k));
+    const CliRun one = runVoxwall("render " + step + view + " --out " + out);
+    ASSERT_EQ(one.status, 0) << one.out;
+    char name[32];
+    std::snprintf(name, sizeof name, "/frame_%05d.png", k);
+    const Image alone = readImage(out + "/frame_00000.png");
+    test::expectImagesNear(alone, readImage(dir.path("t") + name), 0, 0, "step " + std::to_string(k));
+    differ += !(alone.pixels == readImage(dir.path("w") + name).pixels);
+  }
+  EXPECT_GT(differ, 0) << "the series' range made no frame differ from its lone step's";
+  // Every step shows something else: the blobs move.
+  EXPECT_FALSE(readImage(dir.path("t/frame_00000.png")).pixels ==
+               readImage(dir.path("t/frame_00002.png")).pixels);
+}
+
+TEST(TimeSeries, RenderRefusesStepsTheVolumeDoesNotHave) {
+  test::TempDir dir;
+  ASSERT_EQ(runVoxwall("generate blobs --steps 3 --size 16 -o " + dir.path("b.vwz")).status, 0);
+  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time 1:5 --out " +
+                                dir.path("f")),
+                     "voxwall: --time 1:5: the volume has 3 step(s), 0 to 2");
+  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time 2:1 --out " +
+                                dir.path("f")),
+                     "voxwall: --time: the last step comes before the first");
+  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time-rate 2 "
+                                "--out " + dir.path("f")),
+                     "voxwall: --time-rate plays a series on the wall (--sink)");
+}
