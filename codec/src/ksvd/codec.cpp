@@ -116,6 +116,15 @@ class Encoder {
     scale_ = vmax > vmin ? vmax - vmin : 1.0f;
   }
 
+  std::vector<std::int16_t> learnOnly() {
+    pyramid();
+    brickRanges();
+    findCandidates();
+    chooseSizes();
+    learn();
+    return stored_;
+  }
+
   CompressedVolume run() {
     pyramid();
     brickRanges();
@@ -259,7 +268,17 @@ class Encoder {
   // Learning, then the 16-bit dictionary the file stores: blocks are coded against exactly that.
   void learn() {
     dict_.m = m_;
-    if (trainable_ > 0) {
+    if (params_.dictionary) {  // given (a series' shared one): only its count is checked here
+      const auto& given = *params_.dictionary;
+      if (given.size() % std::size_t(m_) != 0 || given.size() / std::size_t(m_) < 2)
+        throw std::invalid_argument("ksvd codec: a given dictionary of " +
+                                    std::to_string(given.size()) + " values is not atoms of " +
+                                    std::to_string(m_));
+      atoms_ = int(given.size() / std::size_t(m_));
+      dict_.atoms = atoms_;
+      dict_.values.resize(given.size());
+      stored_ = given;
+    } else if (trainable_ > 0) {
       const TrainingSet set = buildCoreset(
           trainable_, m_, [&](std::uint64_t i, float* out) { candidateBlock(i, out); },
           coresetSize_, params_.seed, progress_);
@@ -277,9 +296,12 @@ class Encoder {
         dict_.values[std::size_t(i)] = float(1 / std::sqrt(double(m_))),
         dict_.values[std::size_t(m_ + i)] = float((i & 1 ? 1 : -1) / std::sqrt(double(m_)));
     }
-    stored_.resize(dict_.values.size());
-    for (std::size_t i = 0; i < stored_.size(); ++i)
-      stored_[i] = std::int16_t(std::lround(std::clamp(dict_.values[i], -1.0f, 1.0f) * 32767.0f));
+    if (!params_.dictionary) {
+      stored_.resize(dict_.values.size());
+      for (std::size_t i = 0; i < stored_.size(); ++i)
+        stored_[i] =
+            std::int16_t(std::lround(std::clamp(dict_.values[i], -1.0f, 1.0f) * 32767.0f));
+    }
     for (std::size_t i = 0; i < stored_.size(); ++i) dict_.values[i] = float(stored_[i]) / 32767.0f;
     indexBits_ = indexBitsFor(atoms_);
     qmax_ = maxQuantized(indexBits_);
@@ -507,8 +529,9 @@ int blocksPerBrick(int blockSide) {
   throw std::invalid_argument("--block must be 4, 6 or 8, not " + std::to_string(blockSide));
 }
 
-CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
-                        EncodeStats* statsOut) {
+namespace {
+
+void checkParams(const Params& params) {
   (void)blocksPerBrick(params.blockSide);
   if (params.atoms != 0 && (params.atoms < 2 || params.atoms > kMaxAtoms))
     throw std::invalid_argument("--atoms must be in 2..65536");
@@ -523,6 +546,23 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
     throw std::invalid_argument("K-SVD iterations must be in 0..10000");
   if (!(params.coreset >= 0) || !std::isfinite(params.coreset))
     throw std::invalid_argument("--coreset must be a count or a fraction in (0, 1]");
+}
+
+}  // namespace
+
+std::vector<std::int16_t> learnDictionary(const Volume& volume, const Params& params,
+                                          Progress& progress) {
+  checkParams(params);
+  if (volume.voxelCount() == 0) throw std::invalid_argument("ksvd codec: empty volume");
+  EncodeStats stats;
+  return dispatchScalar(volume.type, [&](auto t) {
+    return Encoder<decltype(t)>(volume, params, progress, stats).learnOnly();
+  });
+}
+
+CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
+                        EncodeStats* statsOut) {
+  checkParams(params);
   if (volume.voxelCount() == 0) throw std::invalid_argument("ksvd codec: empty volume");
   EncodeStats stats;
   CompressedVolume out = dispatchScalar(volume.type, [&](auto t) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/ksvd_codec.hpp>
+#include <voxwall/codec/series_source.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/core/text.hpp>
@@ -96,8 +97,7 @@ class KsvdCodec final : public Codec {
          ""}};
   }
 
-  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
-                          Progress& progress, std::string& report) const override {
+  static Params paramsOf(const CodecOptionValues& options) {
     Params p;
     p.blockSide = options.integer("--block", 6, 4, 8);
     p.atoms = options.integer("--atoms", 0, 2, 1 << 16);
@@ -112,10 +112,63 @@ class KsvdCodec final : public Codec {
     if (p.coreset > 1 && p.coreset != std::floor(p.coreset))
       throw std::invalid_argument("--coreset must be a whole count (> 1) or a fraction (<= 1)");
     p.threads = options.threads;
+    return p;
+  }
+
+  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
+                          Progress& progress, std::string& report) const override {
+    const Params p = paramsOf(options);
     EncodeStats s;
     CompressedVolume out = ksvd::encode(volume, p, progress, &s);
     report = encodeReport(s, volume, p.targetBitsPerVoxel > 0);
     return out;
+  }
+
+  // One dictionary for every step, learned on a coreset drawn from up to kTrainingSteps steps
+  // spread over the series (stacked along z), as COVRA does for time-varying volumes; each step
+  // is then coded with it, so the dictionary section is the same in every step and stored once.
+  CompressedSeries encodeSeries(const SeriesSource& series, const CodecOptionValues& options,
+                                Progress& progress, std::string& report) const override {
+    if (options.stepsAlone || series.steps() == 1)
+      return Codec::encodeSeries(series, options, progress, report);
+    constexpr int kTrainingSteps = 8;
+    Params p = paramsOf(options);
+    const int steps = series.steps(), n = std::min(steps, kTrainingSteps);
+    {
+      Volume stacked;
+      for (int i = 0; i < n; ++i) {
+        const int k = n > 1 ? int((long long)i * (steps - 1) / (n - 1)) : 0;
+        progress.setPrefix("dictionary: step " + std::to_string(k) + ": ");
+        const std::unique_ptr<VolumeSource> source = series.open(k, progress);
+        if (i == 0) {
+          stacked = Volume::allocate({source->dims.x, source->dims.y, source->dims.z * n},
+                                     source->type, source->spacing);
+        }
+        const std::size_t bytes = source->voxelCount() * scalarBytes(source->type);
+        source->readSlices(0, source->dims.z,
+                           std::span(stacked.data).subspan(std::size_t(i) * bytes, bytes));
+      }
+      stacked.computeRange();
+      progress.setPrefix("dictionary: ");
+      p.dictionary =
+          std::make_shared<const std::vector<std::int16_t>>(learnDictionary(stacked, p, progress));
+    }
+    std::vector<CompressedVolume> coded;
+    for (int k = 0; k < steps; ++k) {
+      progress.setPrefix("step " + std::to_string(k + 1) + "/" + std::to_string(steps) + ": ");
+      const std::unique_ptr<VolumeSource> source = series.open(k, progress);
+      const Volume whole = source->inMemory() ? Volume() : source->readAll();
+      const Volume& volume = source->inMemory() ? *source->inMemory() : whole;
+      EncodeStats s;
+      coded.push_back(ksvd::encode(volume, p, progress, &s));
+      if (k == 0) report += encodeReport(s, volume, p.targetBitsPerVoxel > 0);
+    }
+    progress.setPrefix("");
+    report += formatLine(
+        "\n  one dictionary of %zu atoms for every step, learned on blocks of %d of the %d steps "
+        "(--steps-alone: a dictionary a step)",
+        p.dictionary->size() / std::size_t(p.blockSide * p.blockSide * p.blockSide), n, steps);
+    return makeSeries(std::move(coded));
   }
 
   Volume decode(const VolumeInfo& info, const SectionSet& sections) const override {

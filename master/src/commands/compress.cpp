@@ -21,7 +21,7 @@ namespace {
 struct CompressOptions {
   std::string input, output, codec = "raw";
   int threads = 0;
-  bool quiet = false, allowLarger = false;
+  bool quiet = false, allowLarger = false, stepsAlone = false;
   RawInputOptions raw;
   codec::SeriesInput series;
   std::map<std::string, std::string> codecFlags;  // given: flag -> value
@@ -31,6 +31,7 @@ struct CompressOptions {
 codec::CodecOptionValues codecOptionValues(const CompressOptions& o, const codec::Codec& chosen) {
   codec::CodecOptionValues values;
   values.threads = o.threads;
+  values.stepsAlone = o.stepsAlone;
   for (const auto& [flag, value] : o.codecFlags) {
     const auto own = chosen.options();
     if (std::none_of(own.begin(), own.end(), [&](const auto& spec) { return spec.flag == flag; }))
@@ -168,6 +169,9 @@ void addCompressCommand(CLI::App& app) {
   cmd->add_option("--time", o->series.rawSteps,
                   "A raw input holds this many volumes of --dims one after the other: a series")
       ->check(CLI::Range(1, int(codec::kMaxSteps)));
+  cmd->add_flag("--steps-alone", o->stepsAlone,
+                "A series: code every step on its own (by default a codec that can shares one "
+                "model across the steps: ksvd one dictionary)");
   cmd->callback([o] { runCompress(*o); });
 }
 

@@ -33,6 +33,8 @@ struct CodecOption {
 class CodecOptionValues {
  public:
   int threads = 0;  // encoder threads, 0: every usable core
+  // A series: code every step on its own, with no model shared across steps (encodeSeries).
+  bool stepsAlone = false;
 
   void set(const std::string& flag, std::string value) { values_[flag] = std::move(value); }
   bool given(const std::string& flag) const { return values_.count(flag) > 0; }

@@ -49,6 +49,7 @@
 #include <functional>
 #include <span>
 #include <string>
+#include <memory>
 #include <vector>
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
@@ -78,6 +79,9 @@ struct Params {
   int levels = 0;   // pyramid levels (1: level 0 only); 0: until a level fits in one brick, <= 8
   int threads = 0;  // 0: every usable core
   std::uint64_t seed = 1;  // coreset and dictionary initialisation
+  // A dictionary to code with instead of learning one (the stored atoms, as section 2 holds
+  // them: a series' steps share one); its atom count replaces `atoms`.
+  std::shared_ptr<const std::vector<std::int16_t>> dictionary;
 };
 
 // What the encoder did, for the CLI and benchmarks.
@@ -94,6 +98,12 @@ struct EncodeStats {
   double trainingRmse = 0;  // weighted RMS error on the coreset after training (x value range)
   std::uint64_t dictionaryBytes = 0, brickBytes = 0, countBytes = 0, pairBytes = 0;
 };
+
+// The dictionary encode() would learn on `volume` (section 2's atoms), learned and nothing coded:
+// on a volume of several steps stacked, a coreset drawn from every step (as COVRA trains one
+// dictionary for a time-varying volume).
+std::vector<std::int16_t> learnDictionary(const Volume& volume, const Params& params,
+                                          Progress& progress);
 
 // Throws std::invalid_argument for bad parameters.
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
