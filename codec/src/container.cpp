@@ -211,8 +211,7 @@ ContainerHead containerHead(const CompressedVolume& volume) {
 
 ContainerHead containerHead(const CompressedSeries& series) {
   if (series.steps.empty()) throw std::invalid_argument("a series of no steps");
-  if (series.steps.size() == 1 && series.shared.empty())
-    return containerHead(series.steps.front());
+  if (series.steps.size() == 1 && series.shared.empty()) return containerHead(series.steps.front());
   std::vector<TableEntry> entries;
   for (const auto& [id, bytes] : series.shared) entries.push_back({id, kSharedStep, bytes});
   std::vector<std::pair<double, double>> ranges;
@@ -288,22 +287,21 @@ CompressedSeries makeSeries(std::vector<CompressedVolume> steps) {
   // A section every step has with the same bytes is stored once.
   if (steps.size() > 1)
     for (std::size_t i = 0; i < steps.front().sections.size();) {
-      const auto& [id, bytes] = steps.front().sections[i];
+      const std::uint32_t id = steps.front().sections[i].first;
+      const std::vector<std::byte>& bytes = steps.front().sections[i].second;
       bool everywhere = true;
       for (std::size_t k = 1; k < steps.size() && everywhere; ++k) {
         const auto& other = steps[k].sections;
-        everywhere = std::any_of(other.begin(), other.end(), [&](const auto& s) {
-          return s.first == id && s.second == bytes;
-        });
+        everywhere = std::any_of(other.begin(), other.end(),
+                                 [&](const auto& s) { return s.first == id && s.second == bytes; });
       }
       if (!everywhere) {
         ++i;
         continue;
       }
       series.shared.emplace_back(id, bytes);
-      const std::uint32_t sharedId = id;
       for (auto& step : steps)
-        std::erase_if(step.sections, [&](const auto& s) { return s.first == sharedId; });
+        std::erase_if(step.sections, [id](const auto& s) { return s.first == id; });
     }
   series.steps = std::move(steps);
   return series;
@@ -453,7 +451,7 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     const auto length = t.get<std::uint64_t>();
     const auto hash = t.get<std::uint64_t>();
     std::string name = "section " + std::to_string(i) + " (id " + std::to_string(id) +
-                       (steps == 1 ? std::string()
+                       (steps == 1            ? std::string()
                         : step == kSharedStep ? std::string(", shared by every step")
                                               : ", step " + std::to_string(step)) +
                        ")";
@@ -472,9 +470,8 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     previousEnd = offset + length;
     if (id >= kContainerSectionIds) {
       std::span<const std::byte>* known = id == kOrientationSectionId && version >= 2 ? &orientation
-                                          : id == kStepRangesSectionId && version >= 3
-                                              ? &stepRanges
-                                              : nullptr;
+                                          : id == kStepRangesSectionId && version >= 3 ? &stepRanges
+                                                                                       : nullptr;
       if (!known)
         fail("section id " + std::to_string(id) + " is reserved for the container and unknown");
       if (step != (version >= 3 ? kSharedStep : 0u))

@@ -3,8 +3,8 @@
 #include <cstdio>
 #include <stdexcept>
 #include <voxwall/codec/registry.hpp>
-#include <voxwall/codec/series_source.hpp>
 #include <voxwall/codec/render_payload.hpp>
+#include <voxwall/codec/series_source.hpp>
 #include <voxwall/core/errors.hpp>
 
 namespace voxwall::codec {
@@ -85,8 +85,8 @@ bool largerThanVoxels(const CompressedVolume& compressed) {
 }
 
 bool largerThanVoxels(const CompressedSeries& compressed) {
-  const std::uint64_t voxels = compressed.info.voxelCount() * scalarBytes(compressed.info.type) *
-                               compressed.steps.size();
+  const std::uint64_t voxels =
+      compressed.info.voxelCount() * scalarBytes(compressed.info.type) * compressed.steps.size();
   return compressed.payloadBytes() > voxels + voxels / 256 + 4096 * compressed.steps.size();
 }
 

@@ -239,9 +239,9 @@ class StepVolumes {
                                    std::optional<node::FramePlan>& plan) {
     const int step = int(task.timeStep);
     if (step >= volume_.steps())
-      throw FormatError("frame task from rank 0",
-                        "asks for time step " + std::to_string(step) + " of a volume of " +
-                            std::to_string(volume_.steps()));
+      throw FormatError("frame task from rank 0", "asks for time step " + std::to_string(step) +
+                                                      " of a volume of " +
+                                                      std::to_string(volume_.steps()));
     if (step != planStep_) plan.reset();
     planStep_ = step;
     if (step == volume_.step()) return volume_;
@@ -458,8 +458,8 @@ class MasterLoop {
   int timeStep(int f, Clock::time_point now) const {
     const TimeSettings& time = job_.time;
     if (time.rate > 0 && job_.stream)
-      return time.stepAt((long long)(std::chrono::duration<double>(now - started_).count() *
-                                     time.rate));
+      return time.stepAt(
+          (long long)(std::chrono::duration<double>(now - started_).count() * time.rate));
     return time.stepOfFrame(f, job_.frames);
   }
 

@@ -1,6 +1,6 @@
 // libFuzzer target: arbitrary bytes as a .vwz file, through the container reader and, when that
 // accepts them, the registered codec's checks (section parser, decoder, range grid: Codec::verify)
-// and, for a renderable file, samples through its view.
+// and, for a renderable file, samples through its view; a series' steps each.
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -15,9 +15,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const auto bytes = std::as_bytes(std::span(data, size));
     const auto file = ContainerFile::parse(bytes, "fuzz.vwz");
     const Codec& codec = codecOf(file.info(), "fuzz.vwz");
-    codec.verify(file.info(), file.sections());
+    // Every step of a series (at most four of them: the bytes are few) is a volume to verify.
+    for (int k = 1; k < file.stepCount() && k < 4; ++k)
+      codec.verify(file.stepInfo(k), file.stepSections(k));
+    codec.verify(file.stepInfo(0), file.sections());
     // The view on a validated file: corners, and samples along a diagonal through a cache.
-    const auto payload = codec.open(file.info(), file.sections());
+    const auto payload = codec.open(file.stepInfo(0), file.sections());
     (void)payload->rangeGrid();
     const auto d = file.info().dims;
     std::visit(

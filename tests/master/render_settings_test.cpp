@@ -227,3 +227,34 @@ TEST(RenderSettings, AStillPathKeepsTheCamera) {
   o.path = "orbit";
   EXPECT_NE(jobSettings(o).path.at(49).azimuthDeg, 40);
 }
+
+// --time: a range of steps, one step, all; a step a frame, or each step for several frames.
+TEST(RenderSettings, TimeRangesMapFramesToSteps) {
+  RenderOptions o;
+  o.time = "2:8:3";
+  master::TimeSettings t = timeSettings(o, 10);
+  EXPECT_EQ(t.count(), 3);  // 2, 5, 8
+  EXPECT_EQ(t.stepOfFrame(0, 3), 2);
+  EXPECT_EQ(t.stepOfFrame(2, 3), 8);
+  // Seven frames of three steps: two frames a step, the last step to the end.
+  const int want[7] = {2, 2, 5, 5, 8, 8, 8};
+  for (int f = 0; f < 7; ++f) EXPECT_EQ(t.stepOfFrame(f, 7), want[f]) << f;
+  EXPECT_EQ(t.stepAt(4), 5);  // playing loops
+  o.time = "2:9:3";           // the last step a stride does not reach is dropped
+  EXPECT_EQ(timeSettings(o, 10).last, 8);
+  o.time = "all";
+  EXPECT_EQ(timeSettings(o, 10).count(), 10);
+  o.time = "4";
+  t = timeSettings(o, 10);
+  EXPECT_EQ(t.first, 4);
+  EXPECT_EQ(t.stepOfFrame(5, 9), 4);
+  o.time = "";
+  o.timeRate = 2;  // playing without --time: every step
+  EXPECT_EQ(timeSettings(o, 10).count(), 10);
+  o.timeRate = 0;
+  EXPECT_EQ(timeSettings(o, 10).count(), 1);  // step 0 alone
+  for (const char* bad : {"1:", ":3", "a:b", "3:1", "0:3:0", "0:10", "1:2:3:4", "-1"}) {
+    o.time = bad;
+    EXPECT_THROW(timeSettings(o, 10), std::invalid_argument) << bad;
+  }
+}

@@ -32,7 +32,8 @@ void expectStepsDecompressTo(const std::string& vwz, int steps, const test::Temp
                              Want&& want) {
   for (int k = 0; k < steps; ++k) {
     const std::string out = dir.path("step" + std::to_string(k) + ".nrrd");
-    const CliRun r = runVoxwall("decompress " + vwz + " -o " + out + " --step " + std::to_string(k));
+    const CliRun r =
+        runVoxwall("decompress " + vwz + " -o " + out + " --step " + std::to_string(k));
     ASSERT_EQ(r.status, 0) << r.out;
     const codec::Volume back = codec::readVolume(out);
     const codec::Volume expected = want(k);
@@ -46,8 +47,7 @@ void expectStepsDecompressTo(const std::string& vwz, int steps, const test::Temp
 
 TEST(TimeSeries, A4dNiftiRoundTripsLosslesslyThroughRawAndVqStepByStep) {
   test::TempDir dir;
-  const CliRun g =
-      runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("blobs.nii.gz"));
+  const CliRun g = runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("blobs.nii.gz"));
   ASSERT_EQ(g.status, 0) << g.out;
   EXPECT_EQ(codec::niftiStepCount(dir.path("blobs.nii.gz")), kSteps);
   for (const char* c : {"raw", "vq"}) {
@@ -75,9 +75,9 @@ TEST(TimeSeries, A4dNiftiRoundTripsLosslesslyThroughRawAndVqStepByStep) {
   // A series needs --step to decompress; a step past the end is refused.
   expectOneLineError(runVoxwall("decompress " + dir.path("vq.vwz") + " -o " + dir.path("x.nrrd")),
                      "voxwall: " + dir.path("vq.vwz") + " holds 4 steps: give --step K");
-  expectOneLineError(runVoxwall("decompress " + dir.path("vq.vwz") + " -o " + dir.path("x.nrrd") +
-                                " --step 4"),
-                     "voxwall: --step 4: ");
+  expectOneLineError(
+      runVoxwall("decompress " + dir.path("vq.vwz") + " -o " + dir.path("x.nrrd") + " --step 4"),
+      "voxwall: --step 4: ");
 }
 
 // The 4D NIfTI of nibabel's test data (python3-nibabel): two int16 steps of an fMRI run.
@@ -109,9 +109,9 @@ TEST(TimeSeries, AFilePatternAndAFileListCompressInNumberOrder) {
   ASSERT_EQ(list.status, 0) << list.out;
   expectStepsDecompressTo(dir.path("l.vwz"), 2, dir, [](int k) { return blobs(k == 0 ? 2 : 0); });
 
-  expectOneLineError(runVoxwall("compress -q '" + dir.path("none_%04d.nrrd") + "' -o " +
-                                dir.path("n.vwz")),
-                     "voxwall: " + dir.path("none_%04d.nrrd") + ": no file in ");
+  expectOneLineError(
+      runVoxwall("compress -q '" + dir.path("none_%04d.nrrd") + "' -o " + dir.path("n.vwz")),
+      "voxwall: " + dir.path("none_%04d.nrrd") + ": no file in ");
 }
 
 TEST(TimeSeries, ARawFileOfSeveralVolumesCompressesWithTime) {
@@ -129,8 +129,8 @@ TEST(TimeSeries, ARawFileOfSeveralVolumesCompressesWithTime) {
   ASSERT_EQ(r.status, 0) << r.out;
   expectStepsDecompressTo(dir.path("r.vwz"), 3, dir, blobs);
   // Four volumes do not fit in the file.
-  const CliRun four = runVoxwall("compress -q " + dir.path("three.raw") + layout +
-                                 " --time 4 -o " + dir.path("r4.vwz"));
+  const CliRun four = runVoxwall("compress -q " + dir.path("three.raw") + layout + " --time 4 -o " +
+                                 dir.path("r4.vwz"));
   expectOneLineError(four, "voxwall: " + dir.path("three.raw") + ": truncated");
 }
 
@@ -140,9 +140,9 @@ TEST(TimeSeries, StepsThatDisagreeAreRefusedNamingTheFirst) {
   codec::writeVolume(blobs(0), dir.path("a.nrrd"));
   codec::writeVolume(blobs(1), dir.path("b.nrrd"));
   codec::writeVolume(codec::generateOrbitingBlobs(20, 2, kSteps), dir.path("c.nrrd"));
-  const CliRun r = runVoxwall("compress -q -o " + dir.path("x.vwz") + " --time-files " +
-                              dir.path("a.nrrd") + " " + dir.path("b.nrrd") + " " +
-                              dir.path("c.nrrd"));
+  const CliRun r =
+      runVoxwall("compress -q -o " + dir.path("x.vwz") + " --time-files " + dir.path("a.nrrd") +
+                 " " + dir.path("b.nrrd") + " " + dir.path("c.nrrd"));
   expectOneLineError(r, "voxwall: " + dir.path("c.nrrd") + ": step 2 (c.nrrd) is 20x20x20 uint8");
   EXPECT_NE(r.out.find("but step 0 (a.nrrd) is 24x24x24 uint8"), std::string::npos) << r.out;
   EXPECT_FALSE(std::filesystem::exists(dir.path("x.vwz")));
@@ -202,16 +202,16 @@ TEST(TimeSeries, RenderTimeWritesAFrameAStepEqualToSingleStepRenders) {
                          dir.path("s.nrrd"))
                   .status,
               0);
-    ASSERT_EQ(runVoxwall("compress -q " + dir.path("s.nrrd") + " -o " + step + " --codec vq")
-                  .status,
-              0);
+    ASSERT_EQ(
+        runVoxwall("compress -q " + dir.path("s.nrrd") + " -o " + step + " --codec vq").status, 0);
     const std::string out = dir.path("single" + std::to_string(k));
     const CliRun one = runVoxwall("render " + step + view + " --out " + out);
     ASSERT_EQ(one.status, 0) << one.out;
     char name[32];
     std::snprintf(name, sizeof name, "/frame_%05d.png", k);
     const Image alone = readImage(out + "/frame_00000.png");
-    test::expectImagesNear(alone, readImage(dir.path("t") + name), 0, 0, "step " + std::to_string(k));
+    test::expectImagesNear(alone, readImage(dir.path("t") + name), 0, 0,
+                           "step " + std::to_string(k));
     differ += !(alone.pixels == readImage(dir.path("w") + name).pixels);
   }
   EXPECT_GT(differ, 0) << "the series' range made no frame differ from its lone step's";
@@ -223,14 +223,16 @@ TEST(TimeSeries, RenderTimeWritesAFrameAStepEqualToSingleStepRenders) {
 TEST(TimeSeries, RenderRefusesStepsTheVolumeDoesNotHave) {
   test::TempDir dir;
   ASSERT_EQ(runVoxwall("generate blobs --steps 3 --size 16 -o " + dir.path("b.vwz")).status, 0);
-  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time 1:5 --out " +
+  expectOneLineError(
+      runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time 1:5 --out " + dir.path("f")),
+      "voxwall: --time 1:5: the volume has 3 step(s), 0 to 2");
+  expectOneLineError(
+      runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time 2:1 --out " + dir.path("f")),
+      "voxwall: --time: the last step comes before the first");
+  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") +
+                                " --size 32x32 --time-rate 2 "
+                                "--out " +
                                 dir.path("f")),
-                     "voxwall: --time 1:5: the volume has 3 step(s), 0 to 2");
-  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time 2:1 --out " +
-                                dir.path("f")),
-                     "voxwall: --time: the last step comes before the first");
-  expectOneLineError(runVoxwall("render " + dir.path("b.vwz") + " --size 32x32 --time-rate 2 "
-                                "--out " + dir.path("f")),
                      "voxwall: --time-rate plays a series on the wall (--sink)");
 }
 

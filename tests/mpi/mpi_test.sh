@@ -9,6 +9,8 @@
 #   other-volume      a rank holding a different volume is refused
 #   stall N           a rank that stops answering is named by the watchdog; the job ends
 #   codecs N          for every codec of the build: N ranks give the same frames as 1 rank
+#   time N            a time series (vq and ksvd, per-step range too): N ranks render
+#                     --time 0:3 with the same frames as 1 rank, every frame another step
 #   dry-run N         prints the rank -> tile map, hosts and memory, renders nothing
 #   memory-budget     a budget smaller than the volume is refused with the memory needed
 #   sink N CODEC      N ranks stream to a `voxwall sink` on loopback (ci-2x2 wall): every display
@@ -417,6 +419,27 @@ case $scenario in
         same_frames "nref-$name" "nmulti-$name"
       fi
       echo "$name: $n ranks equal one process"
+    done
+    ;;
+  time)
+    # Each frame's step travels in the frame task: every rank opens that step, byte for byte
+    # like one process, and consecutive frames show different steps.
+    n=$1
+    "$voxwall" generate blobs --steps 4 --size 40 -o blobs.nii > /dev/null || fail "generate"
+    for codec in vq ksvd; do
+      "$voxwall" compress blobs.nii --codec "$codec" -o "$codec.vwz" -q || fail "compress $codec"
+      for range in series per-step; do
+        args=(render "$codec.vwz" --size 97x61 --time 0:3 --range "$range" --shading -q
+          --threads 1 --path still)
+        "$voxwall" "${args[@]}" --out "ref-$codec-$range" || fail "$codec: single process"
+        run "$n" "${args[@]}" --balance dynamic --cost-cell 8 --out "multi-$codec-$range" ||
+          fail "$codec $range: mpirun -np $n exited with $?"
+        same_frames "ref-$codec-$range" "multi-$codec-$range"
+        [ "$(ls "multi-$codec-$range"/frame_*.png | wc -l)" = 4 ] || fail "not 4 frames"
+        cmp -s "multi-$codec-$range/frame_00000.png" "multi-$codec-$range/frame_00002.png" &&
+          fail "$codec: steps 0 and 2 gave the same frame"
+      done
+      echo "$codec: a series on $n ranks equals one process"
     done
     ;;
   resume)

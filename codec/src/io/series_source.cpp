@@ -51,8 +51,8 @@ std::vector<SeriesSource::Step> patternSteps(const std::string& path) {
                                 ": a file pattern holds one integer conversion (%d, %04d) and no "
                                 "other %");
   // printf with the conversion as %lld, the rest of the name as it is.
-  const std::string format = name.substr(0, c.at) + name.substr(c.at, c.length - 1) + "lld" +
-                             name.substr(c.at + c.length);
+  const std::string format =
+      name.substr(0, c.at) + name.substr(c.at, c.length - 1) + "lld" + name.substr(c.at + c.length);
   const std::string head = name.substr(0, c.at), tail = name.substr(c.at + c.length);
   std::vector<std::pair<long long, std::string>> found;
   std::error_code ec;
@@ -62,8 +62,8 @@ std::vector<SeriesSource::Step> patternSteps(const std::string& path) {
         !file.ends_with(tail))
       continue;
     const std::string digits = file.substr(head.size(), file.size() - head.size() - tail.size());
-    if (digits.size() > 15 || !std::all_of(digits.begin(), digits.end(),
-                                           [](char d) { return d >= '0' && d <= '9'; }))
+    if (digits.size() > 15 ||
+        !std::all_of(digits.begin(), digits.end(), [](char d) { return d >= '0' && d <= '9'; }))
       continue;
     const long long n = std::stoll(digits);
     if (printed(format, n) == file) found.emplace_back(n, (folder / file).string());
@@ -115,9 +115,8 @@ std::unique_ptr<VolumeSource> SeriesSource::open(int k, Progress& progress) cons
   if (source->dims != dims_ || source->type != type_ || source->spacing != spacing_)
     throw FormatError(steps_[std::size_t(k)].file,
                       "step " + std::to_string(k) + " (" + stepName(k) + ") is " +
-                          describe(source->dims, source->type, source->spacing) +
-                          ", but step 0 (" + stepName(0) + ") is " +
-                          describe(dims_, type_, spacing_) +
+                          describe(source->dims, source->type, source->spacing) + ", but step 0 (" +
+                          stepName(0) + ") is " + describe(dims_, type_, spacing_) +
                           ": every step must agree in size, type and spacing");
   return source;
 }
@@ -156,9 +155,9 @@ std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOpti
     all.dims.z *= input.rawSteps;
     checkRawFile(path, all);
     for (int k = 0; k < input.rawSteps; ++k)
-      steps.push_back({std::filesystem::path(path).filename().string() + " step " +
-                           std::to_string(k),
-                       path, k});
+      steps.push_back(
+          {std::filesystem::path(path).filename().string() + " step " + std::to_string(k), path,
+           k});
     return std::make_unique<SeriesSource>(std::move(steps), options, input.rawSteps);
   }
   if (isStepPattern(path)) {

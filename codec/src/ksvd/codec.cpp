@@ -299,8 +299,7 @@ class Encoder {
     if (!params_.dictionary) {
       stored_.resize(dict_.values.size());
       for (std::size_t i = 0; i < stored_.size(); ++i)
-        stored_[i] =
-            std::int16_t(std::lround(std::clamp(dict_.values[i], -1.0f, 1.0f) * 32767.0f));
+        stored_[i] = std::int16_t(std::lround(std::clamp(dict_.values[i], -1.0f, 1.0f) * 32767.0f));
     }
     for (std::size_t i = 0; i < stored_.size(); ++i) dict_.values[i] = float(stored_[i]) / 32767.0f;
     indexBits_ = indexBitsFor(atoms_);

@@ -3,9 +3,9 @@
 #include <cmath>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/ksvd_codec.hpp>
-#include <voxwall/codec/series_source.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
+#include <voxwall/codec/series_source.hpp>
 #include <voxwall/core/text.hpp>
 
 namespace voxwall::codec::ksvd {

@@ -76,8 +76,8 @@ void compressSeries(const CompressOptions& o, const codec::Codec& chosen,
     refuseLarger(o, chosen, compressed);
     fileBytes = codec::writeContainer(compressed, o.output);
   } catch (const std::bad_alloc&) {
-    throw voxwall::FormatError(o.output, "not enough memory to compress the series with codec " +
-                                             o.codec);
+    throw voxwall::FormatError(o.output,
+                               "not enough memory to compress the series with codec " + o.codec);
   }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -27,7 +27,8 @@ void runDecompress(const DecompressOptions& o) {
     throw std::invalid_argument(o.input + " holds " + std::to_string(steps) +
                                 " steps: give --step K (0 to " + std::to_string(steps - 1) + ")");
   const int k = std::max(o.step, 0);
-  codec::Volume v = codec::codecOf(file.info(), o.input).decode(file.stepInfo(k), file.stepSections(k));
+  codec::Volume v =
+      codec::codecOf(file.info(), o.input).decode(file.stepInfo(k), file.stepSections(k));
   v.orientation = file.info().orientation;
   codec::writeVolume(v, o.output);
   std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,

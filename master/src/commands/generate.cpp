@@ -94,8 +94,9 @@ void addGenerateCommand(CLI::App& app) {
       ->check(CLI::Range(1, int(codec::kMaxSteps)))
       ->capture_default_str();
   cmd->add_option("--level", o->level, "Menger sponge level (0-7)")->capture_default_str();
-  cmd->add_option("--size", o->size,
-                  "Voxels per side for marschner-lobb and blobs (default 64) and shepp-logan (default 256)");
+  cmd->add_option(
+      "--size", o->size,
+      "Voxels per side for marschner-lobb and blobs (default 64) and shepp-logan (default 256)");
   cmd->add_option("--type", o->type,
                   "Scalar type for marschner-lobb, shepp-logan and blobs: uint8, "
                   "uint16, int16 or float32")

@@ -345,8 +345,7 @@ class Report {
         s_.volume->steps() > 1 ? ", time step " + std::to_string(f.timeStep) : std::string();
     std::printf("frame %d/%d%s: %.1f ms, imbalance %.2f, render ms [%s], %.1f Msamples/s%s%s%s\n",
                 f.frame + 1, s_.job.frames, timeStep.c_str(), f.frameSeconds * 1e3, f.imbalance,
-                ranks.c_str(),
-                double(f.samples) / f.renderSeconds / 1e6, sinkText(f).c_str(),
+                ranks.c_str(), double(f.samples) / f.renderSeconds / 1e6, sinkText(f).c_str(),
                 f.path.empty() ? "" : " -> ", f.path.c_str());
     for (const auto& note : f.sinkNotes) std::printf("  %s\n", note.c_str());
     if (o_.verbose) {

@@ -487,10 +487,11 @@ void addCameraOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
   h.frames = cmd.add_option("--frames", o.frames,
                             "Number of frames (with --time: one a step unless given)")
                  ->capture_default_str();
-  cmd.add_option("--time", o.time,
-                 "Time steps of a series (.vwz of several steps) the frames show: FIRST:LAST[:STRIDE] "
-                 "(frame f shows step FIRST + f*STRIDE; with more --frames than steps each step "
-                 "shows for several frames), one step, or all. Default: step 0")
+  cmd.add_option(
+         "--time", o.time,
+         "Time steps of a series (.vwz of several steps) the frames show: FIRST:LAST[:STRIDE] "
+         "(frame f shows step FIRST + f*STRIDE; with more --frames than steps each step "
+         "shows for several frames), one step, or all. Default: step 0")
       ->capture_default_str();
   cmd.add_option("--time-rate", o.timeRate,
                  "On the wall (--sink): play the --time steps (default all) at this many steps a "

@@ -47,9 +47,9 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
-#include <memory>
 #include <vector>
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>

@@ -14,7 +14,8 @@
 //               interactive frame, bit 2: a refining frame; neither: a full one),
 //               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
 //               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, i32 step, u32
-//               timeStep, u32 rankCount, per rank: u32 rectCount, then i32 x, y, width, height per rect.
+//               timeStep, u32 rankCount, per rank: u32 rectCount, then i32 x, y, width, height per
+//               rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 pageHits,
 //               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, pageCoarse, u32
