@@ -68,9 +68,10 @@ class DeviceArrays {
   DeviceArrays& operator=(const DeviceArrays&) = delete;
   ~DeviceArrays() { release(); }
 
-  std::span<const codec::DeviceArray> build(const codec::RenderPayload& payload,
+  // `id`: the payload's RenderVolume::payloadId.
+  std::span<const codec::DeviceArray> build(const codec::RenderPayload& payload, std::uint64_t id,
                                             const cudaDeviceProp& prop) {
-    if (&payload == builtFor_) return handles_;
+    if (id == builtFor_) return handles_;
     release();
     for (const codec::DeviceArraySpec& spec : payload.deviceArrays()) {
       codec::DeviceArray handle;
@@ -85,7 +86,7 @@ class DeviceArrays {
       }
       handles_.push_back(handle);
     }
-    builtFor_ = &payload;
+    builtFor_ = id;
     return handles_;
   }
 
@@ -123,9 +124,9 @@ class DeviceArrays {
     for (cudaTextureObject_t t : textures_) cudaDestroyTextureObject(t);
     for (cudaArray_t a : arrays_) cudaFreeArray(a);
     textures_.clear(), arrays_.clear(), buffers_.clear(), handles_.clear();
-    builtFor_ = nullptr;
+    builtFor_ = 0;
   }
-  const codec::RenderPayload* builtFor_ = nullptr;
+  std::uint64_t builtFor_ = 0;  // RenderVolume::payloadId
   std::vector<codec::DeviceArray> handles_;
   std::vector<cudaTextureObject_t> textures_;
   std::vector<cudaArray_t> arrays_;
@@ -161,10 +162,9 @@ class CudaBackend final : public Backend {
     const auto start = std::chrono::steady_clock::now();
     const codec::RenderPayload& payload = volume.payload();
     const auto bytes = payload.bytes();
-    if (bytes.data() != uploadedFrom_ || bytes.size() != uploadedBytes_) {
+    if (volume.payloadId() != uploadedFor_) {  // another volume, or another step of it
       volumeBytes_.upload(bytes.data(), bytes.size());
-      uploadedFrom_ = bytes.data();
-      uploadedBytes_ = bytes.size();
+      uploadedFor_ = volume.payloadId();
     }
     lut_.upload(plan.lut.entries.data(), plan.lut.entries.size() * sizeof(glm::vec4));
     kernels::SkipGrid skip = plan.skip;
@@ -182,7 +182,7 @@ class CudaBackend final : public Backend {
     const dim3 block(16, 8);
     const dim3 grid((tile.width + 15) / 16, (tile.height + 7) / 8);
     const auto lut = plan.lut.view(lut_.as<glm::vec4>());
-    const auto arrays = deviceArrays_.build(payload, prop_);
+    const auto arrays = deviceArrays_.build(payload, volume.payloadId(), prop_);
     cuda::Launch launch;
     launch.grid = grid, launch.block = block;
     launch.frame = plan.ray, launch.lut = lut, launch.skip = skip;
@@ -210,8 +210,7 @@ class CudaBackend final : public Backend {
   cudaDeviceProp prop_{};
   DeviceArrays deviceArrays_;
   DeviceBuffer volumeBytes_, lut_, skipCells_, fineSkipCells_, image_;
-  const std::byte* uploadedFrom_ = nullptr;
-  std::size_t uploadedBytes_ = 0;
+  std::uint64_t uploadedFor_ = 0;  // RenderVolume::payloadId of the bytes on the device
   unsigned long long* samples_ = nullptr;
 };
 

@@ -1,6 +1,7 @@
 #include <xxhash.h>
 
 #include <algorithm>
+#include <atomic>
 #include <glm/geometric.hpp>
 #include <type_traits>
 #include <voxwall/codec/raw_codec.hpp>
@@ -112,6 +113,8 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
   // The codec sees the step as a volume of its own (its own value range).
   const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
   payload_ = c.openWith(own, sections_, renderOptions);
+  static std::atomic<std::uint64_t> payloads{0};
+  payloadId_ = ++payloads;
   ranges_ = CellRanges(payload_->rangeGrid(), info_.type);
 }
 

@@ -94,6 +94,9 @@ class RenderVolume {
   // base address (host memory when null), the arrays a device builds (render_payload.hpp).
   const codec::RenderPayload& payload() const { return *payload_; }
   ViewVariant view(const std::byte* base = nullptr) const { return payload_->view(base); }
+  // Unique to the payload in this process, never reused (an address may be, once a step's
+  // payload is let go and the next one allocated): what a device backend keys its uploads by.
+  std::uint64_t payloadId() const { return payloadId_; }
   // Whether the view traverses mip levels (--lod, nearest sampling).
   bool traversal() const;
   const std::string& source() const { return source_; }
@@ -117,6 +120,7 @@ class RenderVolume {
   codec::SectionSet sections_;
   // Validated once, in init(); points into file_ or memory_ (declared after them: destroyed first).
   std::shared_ptr<const codec::RenderPayload> payload_;
+  std::uint64_t payloadId_ = 0;
   codec::VolumeInfo info_;
   CellRanges ranges_;
   std::uint64_t storedBytes_ = 0;
