@@ -43,6 +43,16 @@ void expectStepsDecompressTo(const std::string& vwz, int steps, const test::Temp
   }
 }
 
+// `generate blobs` of kSteps steps of kSize^3, compressed with vq: the .vwz's path.
+std::string compressedBlobs(const test::TempDir& dir) {
+  const std::string nii = dir.path("b.nii"), vwz = dir.path("b.vwz");
+  const CliRun g = runVoxwall("generate blobs --steps 4 --size 24 -o " + nii);
+  EXPECT_EQ(g.status, 0) << g.out;
+  const CliRun c = runVoxwall("compress -q " + nii + " -o " + vwz + " --codec vq");
+  EXPECT_EQ(c.status, 0) << c.out;
+  return vwz;
+}
+
 }  // namespace
 
 TEST(TimeSeries, A4dNiftiRoundTripsLosslesslyThroughRawAndVqStepByStep) {
@@ -152,10 +162,8 @@ TEST(TimeSeries, StepsThatDisagreeAreRefusedNamingTheFirst) {
 // naming that step.
 TEST(TimeSeries, ACorruptStepSectionIsRefusedNamingTheStep) {
   test::TempDir dir;
-  ASSERT_EQ(runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("b.nii")).status, 0);
-  const std::string vwz = dir.path("b.vwz");
-  ASSERT_EQ(runVoxwall("compress -q " + dir.path("b.nii") + " -o " + vwz + " --codec vq").status,
-            0);
+  const std::string vwz = compressedBlobs(dir);
+  ASSERT_FALSE(::testing::Test::HasFailure());
   std::string bytes = test::readFile(vwz);
   // The first table entry of step 2.
   std::uint32_t sections = 0;
@@ -184,10 +192,8 @@ TEST(TimeSeries, ACorruptStepSectionIsRefusedNamingTheStep) {
 // they must where a step's values span less than the series'.
 TEST(TimeSeries, RenderTimeWritesAFrameAStepEqualToSingleStepRenders) {
   test::TempDir dir;
-  ASSERT_EQ(runVoxwall("generate blobs --steps 4 --size 24 -o " + dir.path("b.nii")).status, 0);
-  const std::string vwz = dir.path("b.vwz");
-  ASSERT_EQ(runVoxwall("compress -q " + dir.path("b.nii") + " -o " + vwz + " --codec vq").status,
-            0);
+  const std::string vwz = compressedBlobs(dir);
+  ASSERT_FALSE(::testing::Test::HasFailure());
   const std::string view = " --size 64x48 --path still --shading -q";
   const CliRun series =
       runVoxwall("render " + vwz + view + " --time 0:3 --range per-step --out " + dir.path("t"));

@@ -21,7 +21,7 @@ std::string describe(glm::ivec3 dims, ScalarType type, glm::dvec3 spacing) {
   return text;
 }
 
-// The printf conversion of a pattern: where it starts, its length, and its width.
+// The printf conversion of a pattern: where it starts and its length.
 struct Conversion {
   std::size_t at = std::string::npos, length = 0;
 };
@@ -73,14 +73,24 @@ std::vector<SeriesSource::Step> patternSteps(const std::string& path) {
   std::sort(found.begin(), found.end());
   std::vector<SeriesSource::Step> steps;
   for (const auto& [n, file] : found)
-    steps.push_back({std::filesystem::path(file).filename().string(), file, 0});
+    steps.push_back({std::filesystem::path(file).filename().string(), file});
+  return steps;
+}
+
+// The `count` volumes of one file, "<name> step k".
+std::vector<SeriesSource::Step> volumesOf(const std::string& path, int count,
+                                          SeriesSource::Kind kind) {
+  std::vector<SeriesSource::Step> steps;
+  const std::string name = std::filesystem::path(path).filename().string();
+  for (int k = 0; k < count; ++k)
+    steps.push_back({name + " step " + std::to_string(k), path, k, kind});
   return steps;
 }
 
 }  // namespace
 
-SeriesSource::SeriesSource(std::vector<Step> steps, ReadOptions options, int rawSteps)
-    : steps_(std::move(steps)), options_(std::move(options)), rawSteps_(rawSteps) {
+SeriesSource::SeriesSource(std::vector<Step> steps, ReadOptions options)
+    : steps_(std::move(steps)), options_(std::move(options)) {
   if (steps_.empty()) throw std::invalid_argument("a series of no steps");
   if (steps_.size() > kMaxSteps)
     throw std::invalid_argument(std::to_string(steps_.size()) +
@@ -89,17 +99,20 @@ SeriesSource::SeriesSource(std::vector<Step> steps, ReadOptions options, int raw
 
 std::unique_ptr<VolumeSource> SeriesSource::read(int k, Progress& progress) const {
   const Step& step = steps_.at(std::size_t(k));
-  if (rawSteps_ > 0) {
-    SlabLayout slab{step.file, *options_.raw};
-    slab.layout.headerBytes += std::uint64_t(step.index) * std::uint64_t(slab.layout.dims.x) *
-                               std::uint64_t(slab.layout.dims.y) *
-                               std::uint64_t(slab.layout.dims.z) * scalarBytes(slab.layout.type);
-    return slabSource(step.file, slab, progress);
-  }
-  if (volumeFormatOf(step.file) == VolumeFormat::Nifti && niftiStepCount(step.file) > 1) {
-    if (auto slab = niftiSlabLayout(step.file, step.index))
-      return slabSource(step.file, *slab, progress);
-    return memorySource(readNiftiStep(step.file, step.index));
+  switch (step.kind) {
+    case Kind::RawVolume: {
+      SlabLayout slab{step.file, *options_.raw};
+      slab.layout.headerBytes += std::uint64_t(step.index) * std::uint64_t(slab.layout.dims.x) *
+                                 std::uint64_t(slab.layout.dims.y) *
+                                 std::uint64_t(slab.layout.dims.z) * scalarBytes(slab.layout.type);
+      return slabSource(step.file, slab, progress);
+    }
+    case Kind::NiftiVolume:
+      if (auto slab = niftiSlabLayout(step.file, step.index))
+        return slabSource(step.file, *slab, progress);
+      return memorySource(readNiftiStep(step.file, step.index));
+    case Kind::File:
+      break;
   }
   return openVolumeSource(step.file, options_, progress);
 }
@@ -135,12 +148,13 @@ std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOpti
     if (input.rawSteps > 0)
       throw std::invalid_argument("--time N reads one raw file; --time-files names each step");
     for (const std::string& file : input.files) {
-      if (volumeFormatOf(file) == VolumeFormat::Nifti && niftiStepCount(file) > 1)
-        throw FormatError(file, "holds " + std::to_string(niftiStepCount(file)) +
+      const int count = volumeFormatOf(file) == VolumeFormat::Nifti ? niftiStepCount(file) : 1;
+      if (count > 1)
+        throw FormatError(file, "holds " + std::to_string(count) +
                                     " steps itself; --time-files takes one volume a file");
-      steps.push_back({std::filesystem::path(file).filename().string(), file, 0});
+      steps.push_back({std::filesystem::path(file).filename().string(), file});
     }
-    return std::make_unique<SeriesSource>(std::move(steps), options, 0);
+    return std::make_unique<SeriesSource>(std::move(steps), options);
   }
   if (input.rawSteps > 0) {
     if (!options.isRaw())
@@ -154,25 +168,17 @@ std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOpti
     RawLayout all = *options.raw;
     all.dims.z *= input.rawSteps;
     checkRawFile(path, all);
-    for (int k = 0; k < input.rawSteps; ++k)
-      steps.push_back(
-          {std::filesystem::path(path).filename().string() + " step " + std::to_string(k), path,
-           k});
-    return std::make_unique<SeriesSource>(std::move(steps), options, input.rawSteps);
+    return std::make_unique<SeriesSource>(
+        volumesOf(path, input.rawSteps, SeriesSource::Kind::RawVolume), options);
   }
-  if (isStepPattern(path)) {
-    return std::make_unique<SeriesSource>(patternSteps(path), options, 0);
-  }
+  if (isStepPattern(path)) return std::make_unique<SeriesSource>(patternSteps(path), options);
   std::error_code ec;
   if (!options.isRaw() && std::filesystem::is_regular_file(path, ec) &&
       volumeFormatOf(path) == VolumeFormat::Nifti) {
     const int count = niftiStepCount(path);
     if (count <= 1) return nullptr;
-    for (int k = 0; k < count; ++k)
-      steps.push_back(
-          {std::filesystem::path(path).filename().string() + " step " + std::to_string(k), path,
-           k});
-    return std::make_unique<SeriesSource>(std::move(steps), options, 0);
+    return std::make_unique<SeriesSource>(volumesOf(path, count, SeriesSource::Kind::NiftiVolume),
+                                          options);
   }
   return nullptr;
 }

@@ -22,13 +22,17 @@ struct SeriesInput {
 
 class SeriesSource {
  public:
+  // Where a step's voxels are: a file of its own, or one volume of a 4D NIfTI or of a raw file
+  // of several volumes (read with the ReadOptions' raw layout).
+  enum class Kind { File, NiftiVolume, RawVolume };
   struct Step {
     std::string name;  // "sim_0003.nrrd", or "fmri.nii.gz step 3"
     std::string file;  // the file it is read from
     int index = 0;     // the volume's index in that file
+    Kind kind = Kind::File;
   };
 
-  SeriesSource(std::vector<Step> steps, ReadOptions options, int rawSteps);
+  SeriesSource(std::vector<Step> steps, ReadOptions options);
   int steps() const { return int(steps_.size()); }
   const std::string& stepName(int k) const { return steps_.at(std::size_t(k)).name; }
   // Step k, read in slabs where the format allows (volume_source.hpp), else whole. Throws
@@ -40,7 +44,6 @@ class SeriesSource {
   std::unique_ptr<VolumeSource> read(int k, Progress& progress) const;
   std::vector<Step> steps_;
   ReadOptions options_;
-  int rawSteps_ = 0;
   mutable bool haveFirst_ = false;
   mutable glm::ivec3 dims_{0};
   mutable ScalarType type_ = ScalarType::UInt8;
