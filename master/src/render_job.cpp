@@ -200,6 +200,8 @@ void CameraOffset::take(const net::Control& c, const node::Orbit& path) {
     case net::ControlCommand::Reset:
       *this = {};
       break;
+    default:  // time commands (TimePlayer) move no camera
+      break;
   }
 }
 
@@ -222,6 +224,82 @@ int TimeSettings::stepOfFrame(int f, int frames) const {
 int TimeSettings::stepAt(long long i) const {
   const long long n = count();
   return first + stride * int(((i % n) + n) % n);
+}
+
+TimePlayer::TimePlayer(const TimeSettings& time, int frames, double rate, Clock::time_point start)
+    : time_(time), frames_(frames), rate_(rate), anchor_(start) {}
+
+double TimePlayer::clockPosition(Clock::time_point now) const {
+  if (!playing_) return position_;
+  return position_ + std::chrono::duration<double>(now - anchor_).count() * rate_;
+}
+
+void TimePlayer::steer(Clock::time_point now) {
+  const double n = time_.count();
+  if (rate_ > 0) {
+    position_ = clockPosition(now);
+    anchor_ = now;
+  } else if (!steered_) {
+    position_ = lastIndex_;
+  }
+  position_ -= n * std::floor(position_ / n);
+  steered_ = true;
+}
+
+bool TimePlayer::take(const net::Control& c, Clock::time_point now) {
+  switch (c.command) {
+    case net::ControlCommand::Play:
+      steer(now);
+      playing_ = true;
+      return true;
+    case net::ControlCommand::Pause:
+      steer(now);
+      playing_ = false;
+      return true;
+    case net::ControlCommand::StepBy:
+      steer(now);
+      position_ = std::floor(position_) + c.a;
+      hold_ = true;
+      return true;
+    case net::ControlCommand::Seek: {
+      steer(now);
+      const double i = std::round((c.a - time_.first) / time_.stride);
+      position_ = std::clamp(i, 0.0, double(time_.count() - 1));
+      hold_ = true;
+      return true;
+    }
+    default:
+      return false;
+  }
+}
+
+int TimePlayer::step(int f, Clock::time_point now) {
+  const long long n = time_.count();
+  long long index = 0;
+  if (rate_ > 0) {
+    index = (long long)std::floor(clockPosition(now));
+  } else if (!steered_) {
+    index = (time_.stepOfFrame(f, frames_) - time_.first) / time_.stride;
+  } else {
+    if (playing_ && !hold_ && lastFrame_ >= 0) position_ += f - lastFrame_;
+    position_ -= double(n) * std::floor(position_ / double(n));
+    index = (long long)position_;
+  }
+  hold_ = false;
+  lastFrame_ = f;
+  lastIndex_ = int(((index % n) + n) % n);
+  return time_.first + time_.stride * lastIndex_;
+}
+
+net::Playback TimePlayer::state() const {
+  net::Playback p;
+  p.step = std::uint32_t(time_.first + time_.stride * lastIndex_);
+  p.first = std::uint32_t(time_.first);
+  p.last = std::uint32_t(time_.first + time_.stride * (time_.count() - 1));
+  p.stride = std::uint32_t(time_.stride);
+  p.playing = playing_;
+  p.rate = rate_;
+  return p;
 }
 
 namespace {
@@ -344,7 +422,7 @@ class MasterLoop {
         streamer_(makeStreamer(job, 0, comm.size())),
         steering_(steeringSettings(job)),
         steps_(volume, tf, job),
-        started_(Clock::now()),
+        player_(job.time, job.frames, job.stream ? job.time.rate : 0, Clock::now()),
         timeoutMs_(job.watchdogMs) {
     if (job.balance == Balance::Dynamic)
       balancer_.emplace(job.width, job.height, slots_, job.balancer);
@@ -364,13 +442,14 @@ class MasterLoop {
     const auto frameStart = Clock::now();
     FrameSummary s;
     s.frame = f;
-    readWall(f, s);
+    readWall(f, frameStart, s);
     const FrameChoice choice = steering_.next(s.controls, frameStart);
     s.step = choice.step, s.phase = choice.phase;
     s.rects = cut(s.step);
     master::FrameTask t = task(f, s.rects, choice);
-    t.timeStep = std::uint32_t(timeStep(f, frameStart));
+    t.timeStep = std::uint32_t(player_.step(f, frameStart));
     s.timeStep = int(t.timeStep);
+    if (control_ && job_.time.count() > 1) control_->setPlayback(std::uint64_t(f), player_.state());
     auto taskBytes = master::encode(t);
     comm_.broadcast(taskBytes, timeoutMs_);
     // A command from the wall abandons a refining or full frame: every rank hears it at once.
@@ -454,26 +533,23 @@ class MasterLoop {
   }
 
  private:
-  // The time step frame f shows: by frame in a batch job, by the clock when the wall plays.
-  int timeStep(int f, Clock::time_point now) const {
-    const TimeSettings& time = job_.time;
-    if (time.rate > 0 && job_.stream)
-      return time.stepAt(
-          (long long)(std::chrono::duration<double>(now - started_).count() * time.rate));
-    return time.stepOfFrame(f, job_.frames);
-  }
-
   // What the wall sent since the last frame: its notes and camera commands. A sink that refused
   // the job (token, wall, version, a newer job) shows nothing of it: the job ends.
-  void readWall(int f, FrameSummary& s) {
+  void readWall(int f, Clock::time_point now, FrameSummary& s) {
     if (!control_) return;
     control_->setNextFrame(std::uint64_t(f));
     if (const auto why = control_->refused(); !why.empty())
       throw net::SinkRefused("wall sink " + why);
     s.sinkNotes = control_->drainNotes();
     for (const auto& c : control_->drain()) {
-      ++s.controls;
-      offset_.take(c, job_.path.at(f));
+      // Play and pause change no picture: they count as no steering.
+      if (player_.take(c, now)) {
+        s.controls +=
+            c.command == net::ControlCommand::StepBy || c.command == net::ControlCommand::Seek;
+      } else {
+        ++s.controls;
+        offset_.take(c, job_.path.at(f));
+      }
     }
   }
 
@@ -573,7 +649,7 @@ class MasterLoop {
   CameraOffset offset_;
   Steering steering_;  // each frame's step, and which frames a command abandons
   StepVolumes steps_;  // each frame's time step
-  const Clock::time_point started_;
+  TimePlayer player_;
   double slowestFrame_ = 0;
   int timeoutMs_;
 };

@@ -330,6 +330,13 @@ void ControlChannel::setNextFrame(std::uint64_t frame) {
   hello_.nextFrame = frame;
 }
 
+void ControlChannel::setPlayback(std::uint64_t frame, const Playback& playback) {
+  std::lock_guard lock(mutex_);
+  if (playback_ == playback) return;
+  playback_ = playback, playbackFrame_ = frame;
+  ++playbackVersion_;
+}
+
 std::string ControlChannel::refused() const {
   std::lock_guard lock(mutex_);
   return refused_;
@@ -376,7 +383,20 @@ void ControlChannel::run() {
     backoff = std::chrono::milliseconds(100);
     try {
       auto lastSent = Clock::now();
+      std::uint64_t playbackSent = 0;  // a new connection is told the playback again
       while (!stopping()) {
+        std::optional<std::vector<std::byte>> playback;
+        {
+          std::lock_guard lock(mutex_);
+          if (playback_ && playbackVersion_ != playbackSent) {
+            playback = encodeMessage(playbackFrame_, *playback_);
+            playbackSent = playbackVersion_;
+          }
+        }
+        if (playback) {
+          c->send(*playback);
+          lastSent = Clock::now();
+        }
         if (keepAliveMs_ > 0 &&
             Clock::now() - lastSent >= std::chrono::milliseconds(keepAliveMs_)) {
           c->send(encodeKeepAlive());

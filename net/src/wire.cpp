@@ -129,6 +129,15 @@ std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameNote& m) {
 
 std::vector<std::byte> encodeKeepAlive() { return frameMessage(MessageType::KeepAlive, 0, {}); }
 
+std::vector<std::byte> encodeMessage(std::uint64_t frame, const Playback& m) {
+  std::vector<std::byte> p;
+  ByteWriter w(p);
+  w.put(m.step), w.put(m.first), w.put(m.last), w.put(m.stride);
+  w.put(std::uint8_t(m.playing ? 1 : 0));
+  w.put(m.rate);
+  return frameMessage(MessageType::Playback, frame, p);
+}
+
 std::uint32_t checkHeader(std::span<const std::byte, kHeaderBytes> header,
                           const std::string& source, MessageType* type, std::uint64_t* frame) {
   ByteReader r(header, source, "message header");
@@ -138,7 +147,7 @@ std::uint32_t checkHeader(std::span<const std::byte, kHeaderBytes> header,
     r.fail("protocol version " + std::to_string(version) + ", this program speaks " +
            std::to_string(kWireVersion));
   const auto t = r.get<std::uint16_t>();
-  if (t < 1 || t > 8) r.fail("unknown message type " + std::to_string(t));
+  if (t < 1 || t > 9) r.fail("unknown message type " + std::to_string(t));
   if (r.get<std::uint32_t>() != 0) r.fail("unknown flags");
   const auto length = r.get<std::uint32_t>();
   if (length > kMaxPayload)
@@ -256,16 +265,36 @@ FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& s
   return m;
 }
 
+std::string controlProblem(const Control& m) {
+  if (!std::isfinite(m.a) || !std::isfinite(m.b) || std::abs(m.a) > 1e6 || std::abs(m.b) > 1e6)
+    return "control values out of range";
+  const double steps = double(kMaxPlaybackStep);
+  switch (m.command) {
+    case ControlCommand::Zoom:
+      if (!(m.a > 0)) return "zoom takes a factor above 0";
+      break;
+    case ControlCommand::StepBy:
+      if (m.a != std::trunc(m.a) || std::abs(m.a) > steps)
+        return "step takes a whole number of steps within +-" + std::to_string(kMaxPlaybackStep);
+      break;
+    case ControlCommand::Seek:
+      if (m.a != std::trunc(m.a) || m.a < 0 || m.a >= steps)
+        return "seek takes a time step 0.." + std::to_string(kMaxPlaybackStep - 1);
+      break;
+    default:
+      break;
+  }
+  return "";
+}
+
 Control decodeControl(std::span<const std::byte> payload, const std::string& source) {
   ByteReader r(payload, source, "Control");
   Control m;
   const auto c = r.get<std::uint8_t>();
-  if (c < 1 || c > 4) r.fail("unknown control command " + std::to_string(c));
+  if (c < 1 || c > 8) r.fail("unknown control command " + std::to_string(c));
   m.command = ControlCommand(c);
   m.a = r.get<double>(), m.b = r.get<double>();
-  if (!std::isfinite(m.a) || !std::isfinite(m.b) || std::abs(m.a) > 1e6 || std::abs(m.b) > 1e6)
-    r.fail("control values out of range");
-  if (m.command == ControlCommand::Zoom && !(m.a > 0)) r.fail("zoom factor must be positive");
+  if (const auto why = controlProblem(m); !why.empty()) r.fail(why);
   expectEnd(r);
   return m;
 }
@@ -286,6 +315,24 @@ FrameNote decodeFrameNote(std::span<const std::byte> payload, const std::string&
   m.status = FrameStatus(status);
   m.reason = getString(r);
   expectEnd(r);
+  return m;
+}
+
+Playback decodePlayback(std::span<const std::byte> payload, const std::string& source) {
+  ByteReader r(payload, source, "Playback");
+  Playback m;
+  m.step = r.get<std::uint32_t>(), m.first = r.get<std::uint32_t>();
+  m.last = r.get<std::uint32_t>(), m.stride = r.get<std::uint32_t>();
+  const auto flags = r.get<std::uint8_t>();
+  m.rate = r.get<double>();
+  expectEnd(r);
+  if (m.last >= kMaxPlaybackStep || m.first > m.step || m.step > m.last || m.stride < 1 ||
+      m.stride >= kMaxPlaybackStep)
+    r.fail("time step " + std::to_string(m.step) + " of " + std::to_string(m.first) + ".." +
+           std::to_string(m.last) + " stride " + std::to_string(m.stride) + " is not a range");
+  if (flags > 1) r.fail("unknown flags " + std::to_string(flags));
+  m.playing = flags & 1;
+  if (!std::isfinite(m.rate) || m.rate < 0 || m.rate > 1e6) r.fail("rate out of range");
   return m;
 }
 

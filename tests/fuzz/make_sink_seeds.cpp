@@ -58,6 +58,7 @@ int main(int argc, char** argv) {
     }
     std::vector<std::byte> jobs{std::byte{settings}};
     append(jobs, net::encodeMessage(controller));
+    append(jobs, net::encodeMessage(2, net::Playback{2, 0, 5, 1, false, 0}));
     append(jobs, tile(5, whole, net::TileCodec::Raw));  // a controller may not send tiles
     renderer.jobId = 8;
     append(jobs, net::encodeMessage(renderer));

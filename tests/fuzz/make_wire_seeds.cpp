@@ -29,6 +29,8 @@ int main(int argc, char** argv) {
       net::encodeMessage(net::Control{net::ControlCommand::Rotate, 10, -5}),
       net::encodeMessage(net::Bye{"done"}),
       net::encodeMessage(4, net::FrameNote{net::FrameStatus::Dropped, "too many frames open"}),
+      net::encodeMessage(net::Control{net::ControlCommand::Seek, 12, 0}),
+      net::encodeMessage(5, net::Playback{3, 1, 9, 2, true, 4}),
   };
   for (auto codec : {net::TileCodec::Jpeg, net::TileCodec::Raw, net::TileCodec::Deflate}) {
     net::TileCodecSettings s;

@@ -45,6 +45,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           case net::MessageType::FrameNote:
             net::describe(m->frame, net::decodeFrameNote(m->payload, "fuzz"));
             break;
+          case net::MessageType::Playback:
+            net::decodePlayback(m->payload, "fuzz");
+            break;
         }
       }
     }

@@ -156,3 +156,54 @@ TEST(Steering, CameraCommandsAreClampedAsTheyArrive) {
   EXPECT_DOUBLE_EQ(offset.apply(path).elevationDeg, 20);
   EXPECT_DOUBLE_EQ(offset.panX, 0);
 }
+
+// Time commands on a series: until one comes a batch job shows its frames' steps and a playing
+// job its clock's; pause holds, step and seek move (wrapping, onto the stride) and the next frame
+// shows it; play goes on a step a frame or by the clock.
+TEST(Steering, TimeCommandsPauseStepSeekAndPlayTheSeries) {
+  using C = net::ControlCommand;
+  using Clock = master::TimePlayer::Clock;
+  master::TimeSettings range;
+  range.first = 2, range.last = 10, range.stride = 2;  // 2, 4, 6, 8, 10
+  const Clock::time_point t0{};
+
+  master::TimePlayer byFrame(range, 5, 0, t0);
+  EXPECT_EQ(byFrame.step(0, t0), 2);
+  EXPECT_EQ(byFrame.step(1, t0), 4);
+  EXPECT_FALSE(byFrame.take({C::Rotate, 10, 0}, t0));  // not a time command
+  EXPECT_TRUE(byFrame.take({C::Pause, 0, 0}, t0));
+  EXPECT_EQ(byFrame.step(2, t0), 4);  // held
+  EXPECT_EQ(byFrame.step(3, t0), 4);
+  EXPECT_FALSE(byFrame.state().playing);
+  byFrame.take({C::StepBy, 1, 0}, t0);
+  EXPECT_EQ(byFrame.step(4, t0), 6);
+  byFrame.take({C::StepBy, -3, 0}, t0);  // 6 -> 10, wrapping back past 2
+  EXPECT_EQ(byFrame.step(5, t0), 10);
+  byFrame.take({C::Seek, 5, 0}, t0);  // off the stride: 4 and 6 are as near; rounds to 6
+  EXPECT_EQ(byFrame.step(6, t0), 6);
+  byFrame.take({C::Seek, 99, 0}, t0);  // past the range: its last step
+  EXPECT_EQ(byFrame.step(7, t0), 10);
+  byFrame.take({C::Play, 0, 0}, t0);
+  EXPECT_EQ(byFrame.step(8, t0), 2);  // on from 10, wrapping
+  EXPECT_EQ(byFrame.step(9, t0), 4);
+  const net::Playback state = byFrame.state();
+  EXPECT_EQ(state, (net::Playback{4, 2, 10, 2, true, 0}));
+  // A seek while playing shows the step sought in the next frame, then goes on.
+  byFrame.take({C::Seek, 8, 0}, t0);
+  EXPECT_EQ(byFrame.step(10, t0), 8);
+  EXPECT_EQ(byFrame.step(11, t0), 10);
+
+  // By the clock at 2 steps a second: frames do not matter, time does.
+  master::TimePlayer byClock(range, 1000, 2, t0);
+  EXPECT_EQ(byClock.step(0, t0 + 100ms), 2);
+  EXPECT_EQ(byClock.step(1, t0 + 1200ms), 6);  // index 2.4
+  EXPECT_TRUE(byClock.take({C::Pause, 0, 0}, t0 + 1300ms));
+  EXPECT_EQ(byClock.step(2, t0 + 9000ms), 6);  // paused: the clock runs on, the step does not
+  byClock.take({C::StepBy, 1, 0}, t0 + 9000ms);
+  EXPECT_EQ(byClock.step(3, t0 + 9500ms), 8);
+  byClock.take({C::Play, 0, 0}, t0 + 10000ms);
+  EXPECT_EQ(byClock.step(4, t0 + 10400ms), 8);   // index 3 + 0.8
+  EXPECT_EQ(byClock.step(5, t0 + 10600ms), 10);  // index 4.2
+  EXPECT_EQ(byClock.step(6, t0 + 11100ms), 2);   // index 5.2: wrapped
+  EXPECT_EQ(byClock.state().rate, 2);
+}

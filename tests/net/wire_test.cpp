@@ -235,6 +235,61 @@ TEST(Wire, PayloadDecodersCheckEveryField) {
 }
 
 // A reduced rectangle stands for its blocks of the virtual screen, clipped at the edges.
+// The time series' messages: where the job is (Playback), and the time commands' bounds.
+TEST(Wire, PlaybackAndTimeCommandsRoundTripAndAreBounded) {
+  const net::Playback sent{7, 3, 11, 2, false, 2.5};
+  const auto message = net::encodeMessage(90, sent);
+  const auto m = readAll(message, 3);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].type, MessageType::Playback);
+  EXPECT_EQ(m[0].frame, 90u);
+  EXPECT_EQ(net::decodePlayback(m[0].payload, "t"), sent);
+  const std::vector<std::byte> good(message.begin() + net::kHeaderBytes, message.end());
+  // step, first, last, stride at 0, 4, 8, 12; flags at 16; rate at 17.
+  const std::vector<std::pair<std::size_t, std::uint32_t>> badRanges = {
+      {0, 2},       // step before first
+      {0, 12},      // step after last
+      {12, 0},      // stride 0
+      {8, 70000}};  // last past the most steps a file holds
+  for (const auto& [offset, value] : badRanges) {
+    auto p = good;
+    poke(p, offset, value);
+    EXPECT_THROW(net::decodePlayback(p, "t"), FormatError) << offset << " = " << value;
+  }
+  auto p = good;
+  p[16] = std::byte{2};  // unknown flag
+  EXPECT_THROW(net::decodePlayback(p, "t"), FormatError);
+  for (const double rate : {-1.0, std::nan(""), 1e7}) {
+    p = good;
+    poke(p, 17, rate);
+    EXPECT_THROW(net::decodePlayback(p, "t"), FormatError) << rate;
+  }
+  p = good;
+  p.push_back(std::byte{0});
+  EXPECT_THROW(net::decodePlayback(p, "t"), FormatError);
+  p.resize(good.size() - 1);
+  EXPECT_THROW(net::decodePlayback(p, "t"), FormatError);
+
+  using C = net::ControlCommand;
+  for (const net::Control ok : {net::Control{C::Play, 0, 0}, net::Control{C::Pause, 0, 0},
+                                net::Control{C::StepBy, -3, 0}, net::Control{C::Seek, 65535, 0}}) {
+    const auto bytes = net::encodeMessage(ok);
+    EXPECT_EQ(net::decodeControl(std::span(bytes).subspan(net::kHeaderBytes), "t"), ok);
+  }
+  for (const net::Control bad : {net::Control{C::StepBy, 1.5, 0}, net::Control{C::StepBy, 70000, 0},
+                                 net::Control{C::Seek, -1, 0}, net::Control{C::Seek, 65536, 0},
+                                 net::Control{C::Seek, 2.5, 0}}) {
+    const auto bytes = net::encodeMessage(bad);
+    EXPECT_THROW(net::decodeControl(std::span(bytes).subspan(net::kHeaderBytes), "t"), FormatError)
+        << int(bad.command) << " " << bad.a;
+    EXPECT_FALSE(net::controlProblem(bad).empty());
+  }
+  auto unknown = net::encodeMessage(net::Control{C::Play, 0, 0});
+  std::vector<std::byte> u(unknown.begin() + net::kHeaderBytes, unknown.end());
+  u[0] = std::byte{9};
+  EXPECT_THROW(net::decodeControl(u, "t"), FormatError);
+}
+
 TEST(Wire, ReducedRectanglesMapOntoTheVirtualScreen) {
   EXPECT_EQ(net::reducedSide(5772, 4), 1443);
   EXPECT_EQ(net::reducedSide(4338, 4), 1085);

@@ -318,6 +318,54 @@ TEST(Sink, ForwardsCameraCommandsToTheController) {
   EXPECT_THROW(walls::parseControlLine("zoom -1"), std::invalid_argument);
 }
 
+// Time commands: a page's or stdin's play, pause, step and seek reach rank 0, and rank 0's
+// Playback reaches the sink's statistics (the pages read it there); a new job clears it, and a
+// renderer may not send one.
+TEST(Sink, TimeCommandsReachTheControllerAndItsPlaybackReachesTheSink) {
+  using C = net::ControlCommand;
+  EXPECT_EQ(walls::parseControlLine("play"), (net::Control{C::Play, 0, 0}));
+  EXPECT_EQ(walls::parseControlLine("pause"), (net::Control{C::Pause, 0, 0}));
+  EXPECT_EQ(walls::parseControlLine("step -2"), (net::Control{C::StepBy, -2, 0}));
+  EXPECT_EQ(walls::parseControlLine("seek 17"), (net::Control{C::Seek, 17, 0}));
+  for (const char* bad :
+       {"step 1.5", "step", "seek -1", "seek 65536", "play 3", "pause now", "step 1 2"})
+    EXPECT_THROW(walls::parseControlLine(bad), std::invalid_argument) << bad;
+
+  RunningSink sink(settings());
+  auto hello = renderer(0, 1);
+  hello.jobId = 31;
+  net::ControlChannel channel("127.0.0.1", sink.port(), hello);
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  EXPECT_FALSE(sink.sink().stats().playback.has_value());
+  const net::Playback playing{4, 2, 10, 2, true, 0};
+  channel.setPlayback(3, playing);
+  EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats& s) { return s.playback == playing; }))
+      << sink.log();
+  for (const char* line : {"pause", "step 1", "seek 8", "play"})
+    sink.sink().sendControl(walls::parseControlLine(line));
+  std::vector<net::Control> got;
+  test::waitUntil([&] {
+    auto more = channel.drain();
+    got.insert(got.end(), more.begin(), more.end());
+    return got.size() >= 4;
+  });
+  ASSERT_EQ(got.size(), 4u);
+  EXPECT_EQ(got[0].command, C::Pause);
+  EXPECT_EQ(got[1], (net::Control{C::StepBy, 1, 0}));
+  EXPECT_EQ(got[2], (net::Control{C::Seek, 8, 0}));
+  EXPECT_EQ(got[3].command, C::Play);
+  const net::Playback paused{6, 2, 10, 2, false, 0};
+  channel.setPlayback(4, paused);
+  EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats& s) { return s.playback == paused; }));
+
+  // A renderer that sends a Playback breaks the protocol: it is dropped, the state stays.
+  auto rank = net::Connection::open("127.0.0.1", sink.port(), hello, 2000);
+  const int dropped = sink.sink().stats().peersDropped;
+  rank->send(net::encodeMessage(5, net::Playback{2, 2, 10, 2, true, 0}));
+  EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats& s) { return s.peersDropped > dropped; }));
+  EXPECT_EQ(sink.sink().stats().playback, paused);
+}
+
 // A command is its whole line: trailing text, missing numbers or numbers with junk are refused,
 // and the refusal quotes the line so that it cannot forge a log line or drive a terminal.
 TEST(Sink, ControlLinesAreParsedWholeAndQuotedWhenRefused) {

@@ -225,7 +225,9 @@ net::Control parseControlLine(const std::string& line) {
     }
   }
   if (!word.empty()) words.push_back(std::move(word));
-  const std::string usage = "commands: rotate DAZ DEL | zoom FACTOR | pan DX DY | reset";
+  const std::string usage =
+      "commands: rotate DAZ DEL | zoom FACTOR | pan DX DY | reset | play | pause | step N | "
+      "seek STEP";
   const std::string quoted = quotedForLog(line);
   auto number = [&](const std::string& text) {
     std::size_t used = 0;
@@ -240,26 +242,30 @@ net::Control parseControlLine(const std::string& line) {
                                   " is not a number within +-1e6 (" + usage + ")");
     return v;
   };
-  net::Control c;
+  struct Form {
+    const char* name;
+    net::ControlCommand command;
+    std::size_t args;
+  };
+  static constexpr Form kForms[] = {
+      {"rotate", net::ControlCommand::Rotate, 2}, {"zoom", net::ControlCommand::Zoom, 1},
+      {"pan", net::ControlCommand::Pan, 2},       {"reset", net::ControlCommand::Reset, 0},
+      {"play", net::ControlCommand::Play, 0},     {"pause", net::ControlCommand::Pause, 0},
+      {"step", net::ControlCommand::StepBy, 1},   {"seek", net::ControlCommand::Seek, 1}};
   const std::string name = words.empty() ? "" : words[0];
-  const std::size_t args = name == "rotate" || name == "pan" ? 2 : name == "zoom" ? 1 : 0;
-  if (name == "rotate")
-    c.command = net::ControlCommand::Rotate;
-  else if (name == "pan")
-    c.command = net::ControlCommand::Pan;
-  else if (name == "zoom")
-    c.command = net::ControlCommand::Zoom;
-  else if (name == "reset")
-    c.command = net::ControlCommand::Reset;
-  else
-    throw std::invalid_argument(quoted + ": " + usage);
+  const auto form = std::find_if(std::begin(kForms), std::end(kForms),
+                                 [&](const Form& f) { return name == f.name; });
+  if (form == std::end(kForms)) throw std::invalid_argument(quoted + ": " + usage);
+  net::Control c;
+  c.command = form->command;
+  const std::size_t args = form->args;
   if (words.size() != args + 1)
     throw std::invalid_argument(quoted + ": " + name + " takes " + std::to_string(args) +
                                 (args == 1 ? " number" : " numbers") + " (" + usage + ")");
   if (args >= 1) c.a = number(words[1]);
   if (args >= 2) c.b = number(words[2]);
-  if (c.command == net::ControlCommand::Zoom && !(c.a > 0))
-    throw std::invalid_argument(quoted + ": zoom takes a factor above 0");
+  if (const auto why = net::controlProblem(c); !why.empty())
+    throw std::invalid_argument(quoted + ": " + why);
   return c;
 }
 

@@ -142,6 +142,7 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
       assembler_.startSequence(hello.nextFrame, "");
     }
     job_ = hello.jobId;
+    updateStats([](SinkStats& s) { s.playback.reset(); });
   }
   peer.markGreeted(hello, peer.name() + (hello.role == net::Role::Controller
                                              ? " (controller)"
@@ -190,6 +191,13 @@ bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t fram
         throw FormatError(peer.name(), "a controller sent a FrameEnd");
       if (net::decodeFrameEnd(payload, peer.name()).abandoned)
         assembler_.supersede(frame, "the render job abandoned it (the camera moved)");
+      return true;
+    }
+    case MessageType::Playback: {
+      if (peer.hello().role != net::Role::Controller)
+        throw FormatError(peer.name(), "a renderer sent a Playback");
+      auto playback = net::decodePlayback(payload, peer.name());
+      updateStats([&](SinkStats& s) { s.playback = playback; });
       return true;
     }
     case MessageType::Bye:

@@ -235,6 +235,9 @@ std::shared_ptr<const std::string> overviewFrameMessage(const ViewerFrame& f, co
                          {"presented", f.stats.framesPresented},
                          {"dropped", f.stats.framesDropped},
                          {"ranks_connected", f.stats.renderersConnected}};
+  if (const auto& p = f.stats.playback)
+    meta["time"] = {{"step", p->step},     {"first", p->first},     {"last", p->last},
+                    {"stride", p->stride}, {"playing", p->playing}, {"rate", p->rate}};
   std::vector<Placement> placements;
   for (const auto& s : frame.segments) placements.push_back({s.screen, s.rank});
   auto& tiles = meta["tiles"] = nlohmann::json::array();

@@ -95,8 +95,9 @@ void addSinkCommand(CLI::App& app) {
       "The display wall's data sink: accepts the tiles that `voxwall render --sink` streams, "
       "presents a frame only when every display pixel has arrived, routes each display's "
       "segments to that display's page (--http; every display switches together), writes "
-      "frames (--out), and forwards camera commands typed on stdin (rotate DAZ DEL | zoom "
-      "FACTOR | pan DX DY | reset) to the render job");
+      "frames (--out), and forwards commands typed on stdin to the render job: camera (rotate "
+      "DAZ DEL | zoom FACTOR | pan DX DY | reset) and, for a time series, time (play | pause | "
+      "step N | seek STEP)");
   addSinkOptions(*cmd, *o);
   cmd->callback([o] { runSink(*o); });
 }

@@ -5,6 +5,7 @@
 // Message sequence: master/frame_messages.hpp.
 #pragma once
 
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <string>
@@ -15,6 +16,7 @@
 #include <voxwall/master/load_balancer.hpp>
 #include <voxwall/master/steering.hpp>
 #include <voxwall/net/tile_codec.hpp>
+#include <voxwall/net/wire.hpp>
 #include <voxwall/node/renderer.hpp>
 
 namespace voxwall::master {
@@ -59,6 +61,36 @@ struct TimeSettings {
   int stepOfFrame(int f, int frames) const;
   // The range's i-th step, i taken modulo count().
   int stepAt(long long i) const;
+};
+
+// Which step each frame of a job shows, moved by the wall's time commands (play, pause, step,
+// seek). Until a command comes, a job without a rate shows TimeSettings::stepOfFrame (a batch
+// job's frames are what the command line says); a job with a rate plays by the clock from its
+// start. A command stops that: pause holds the step shown; step N and seek S move to another
+// (wrapping around the range; a seek to a step off the stride goes to the nearest in it), which
+// the next frame shows; while playing, the position then goes on a step a frame, or by the clock.
+class TimePlayer {
+ public:
+  using Clock = std::chrono::steady_clock;
+  // rate: TimeSettings::rate when the job plays by the clock, else 0.
+  TimePlayer(const TimeSettings& time, int frames, double rate, Clock::time_point start);
+  // Takes a time command; false (and nothing changes) for any other command.
+  bool take(const net::Control& command, Clock::time_point now);
+  // The step frame f shows (frames are asked for in order, each once).
+  int step(int f, Clock::time_point now);
+  // Where the player is after the last step(): for the wall's page.
+  net::Playback state() const;
+
+ private:
+  double clockPosition(Clock::time_point now) const;
+  void steer(Clock::time_point now);  // a command came: the position is the wall's from now on
+  TimeSettings time_;
+  int frames_;
+  double rate_;
+  bool steered_ = false, playing_ = true, hold_ = false;
+  double position_ = 0;  // index into the range (with a rate: at anchor_)
+  Clock::time_point anchor_;
+  int lastFrame_ = -1, lastIndex_ = 0;
 };
 
 struct JobSettings {

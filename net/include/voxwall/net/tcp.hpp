@@ -118,12 +118,13 @@ class TileStreamer {
   std::thread keeper_;
 };
 
-// Rank 0's connection for camera commands from the wall: a background thread keeps it open
-// (reconnecting with back-off) and queues every Control and FrameNote that arrives; a sink that
-// refuses the job ends the thread and refused() says why. Thread-safe.
+// Rank 0's connection for camera and time commands from the wall: a background thread keeps it
+// open (reconnecting with back-off), queues every Control and FrameNote that arrives and tells
+// the sink where a time series job is (Playback); a sink that refuses the job ends the thread
+// and refused() says why. Thread-safe.
 class ControlChannel {
  public:
-  // While connected it sends KeepAlive every keepAliveMs (it sends nothing else until Bye).
+  // While connected it sends KeepAlive every keepAliveMs, and the Playback when it changed.
   ControlChannel(std::string host, std::uint16_t port, Hello hello, int keepAliveMs = kKeepAliveMs);
   ~ControlChannel();
   std::vector<Control> drain();  // the commands received since the last call, in order
@@ -134,6 +135,9 @@ class ControlChannel {
   std::uint64_t framesPresented() const;  // frames of this job the sink said it presented
   // The frame the job renders next: a (re)connection announces it in its Hello.
   void setNextFrame(std::uint64_t frame);
+  // Where a time series job is from `frame` on: sent when it differs from the last one sent
+  // (and again after a reconnection).
+  void setPlayback(std::uint64_t frame, const Playback& playback);
 
  private:
   void run();
@@ -145,6 +149,8 @@ class ControlChannel {
   std::deque<Control> queue_;
   std::vector<std::string> notes_;
   std::uint64_t presented_ = 0;
+  std::optional<Playback> playback_;
+  std::uint64_t playbackFrame_ = 0, playbackVersion_ = 0;
   std::string refused_;
   bool stop_ = false;
   std::thread thread_;

@@ -30,13 +30,18 @@
 //   FrameEnd i32 rank, u32 tiles this rank sent for the frame, u8 flags (bit 0: the render job
 //            abandoned the frame: the camera moved while it was rendered; the sink drops it as
 //            superseded)
-//   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset), f64 a, f64 b (sink -> controller)
+//   Control  u8 command (1 rotate, 2 zoom, 3 pan, 4 reset, 5 play, 6 pause, 7 step by a whole
+//            number a, 8 seek to time step a), f64 a, f64 b (sink -> controller)
 //   Bye      str reason
 //   FrameNote u8 status (1 presented, 2 dropped, 3 refused, 4 superseded), str reason
 //            (sink -> controller;
 //            the header's frame id names the frame)
 //   KeepAlive (no payload; peer -> sink, at least every kKeepAliveInterval while nothing else
 //            is sent: the sink drops a greeted peer that sends nothing for its peer-idle time)
+//   Playback u32 step, u32 first, u32 last, u32 stride (all < kMaxPlaybackStep, first <= step
+//            <= last, stride >= 1), u8 flags (bit 0: playing), f64 rate (steps a second, 0: a step
+//            a frame, 0..1e6) (controller -> sink: where a time series job is, from the header's
+//            frame id on; sent when it changes)
 // Sequence: peer connects, sends Hello; the sink answers Welcome, or Bye with the reason (wrong
 // version, token or wall) and closes. A renderer then sends, per frame, its Tiles and a
 // FrameEnd; the controller (rank 0) receives Controls and a FrameNote for every frame of its job
@@ -49,7 +54,8 @@
 // Tile.renderMicros (interactive frames, the load overlay); 4 adds the displays and the bezel flag
 // to Welcome (segments cut at display edges, so the sink routes them without decoding),
 // Tile.phase, FrameEnd's flags and the superseded status (abandoned frames, refinement); 5 adds
-// KeepAlive (idle peers are dropped, so a silent or hung peer cannot hold the wall).
+// KeepAlive (idle peers are dropped, so a silent or hung peer cannot hold the wall); 6 adds the
+// time commands (play, pause, step, seek) and Playback (the wall page's time controls).
 // The token travels in clear text: use an SSH tunnel or a private network between the hosts.
 #pragma once
 
@@ -64,7 +70,7 @@
 namespace voxwall::net {
 
 inline constexpr std::uint32_t kWireMagic = 0x50575756;
-inline constexpr std::uint16_t kWireVersion = 5;
+inline constexpr std::uint16_t kWireVersion = 6;
 inline constexpr std::size_t kHeaderBytes = 32;
 inline constexpr std::uint32_t kMaxPayload = 64u << 20;
 inline constexpr std::size_t kMaxString = 256;
@@ -88,9 +94,21 @@ enum class MessageType : std::uint16_t {
   Bye = 6,
   FrameNote = 7,
   KeepAlive = 8,
+  Playback = 9,
 };
 enum class Role : std::uint8_t { Renderer = 1, Controller = 2 };
-enum class ControlCommand : std::uint8_t { Rotate = 1, Zoom = 2, Pan = 3, Reset = 4 };
+enum class ControlCommand : std::uint8_t {
+  Rotate = 1,
+  Zoom = 2,
+  Pan = 3,
+  Reset = 4,
+  Play = 5,
+  Pause = 6,
+  StepBy = 7,  // a: whole steps, +-kMaxPlaybackStep
+  Seek = 8,    // a: the time step, 0..kMaxPlaybackStep - 1
+};
+// Time steps a Playback or a time command may name (a .vwz holds at most 65536).
+inline constexpr std::uint32_t kMaxPlaybackStep = 65536;
 // Why a frame has its step (wire values; never reuse one).
 enum class FramePhase : std::uint8_t {
   Full = 0,         // full resolution, nothing pending
@@ -141,7 +159,16 @@ struct FrameEnd {
 };
 struct Control {
   ControlCommand command = ControlCommand::Reset;
-  double a = 0, b = 0;  // rotate: degrees of azimuth, elevation; zoom: factor; pan: x, y radii
+  // rotate: degrees of azimuth, elevation; zoom: factor; pan: x, y radii; step: steps; seek: step
+  double a = 0, b = 0;
+  bool operator==(const Control&) const = default;
+};
+// Where a time series job is: the step it shows, its range and whether it plays.
+struct Playback {
+  std::uint32_t step = 0, first = 0, last = 0, stride = 1;
+  bool playing = true;
+  double rate = 0;  // steps a second on the clock; 0: a step a frame
+  bool operator==(const Playback&) const = default;
 };
 struct Bye {
   std::string reason;
@@ -167,6 +194,7 @@ std::vector<std::byte> encodeMessage(const Control& m);
 std::vector<std::byte> encodeMessage(const Bye& m);
 std::vector<std::byte> encodeMessage(std::uint64_t frame, const FrameNote& m);
 std::vector<std::byte> encodeKeepAlive();
+std::vector<std::byte> encodeMessage(std::uint64_t frame, const Playback& m);
 
 // Header check: magic, version, type, flags, length limit, header checksum. Returns the payload
 // length. Throws FormatError(source, ...) naming what is wrong (a version mismatch says both).
@@ -183,8 +211,12 @@ Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& sou
 TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::string& source);
 FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& source);
 Control decodeControl(std::span<const std::byte> payload, const std::string& source);
+// Why a command's numbers are out of its bounds ("zoom takes a factor above 0"); empty when
+// they are within them.
+std::string controlProblem(const Control& m);
 Bye decodeBye(std::span<const std::byte> payload, const std::string& source);
 FrameNote decodeFrameNote(std::span<const std::byte> payload, const std::string& source);
+Playback decodePlayback(std::span<const std::byte> payload, const std::string& source);
 // One line for a FrameNote: "frame 12 dropped: too many frames open".
 std::string describe(std::uint64_t frame, const FrameNote& note);
 

@@ -6,7 +6,7 @@
 // overview page. It drops and reports frames it cannot complete, survives peers that join late,
 // drop, or send garbage, writes per-display images off the presentation path (and optionally a
 // mosaic, all or nothing: frame_files.hpp; a writer that falls behind skips frames, never the
-// wall) and forwards camera commands to rank 0.
+// wall) and forwards camera and time commands to rank 0.
 // Hostile peers: the protocol logic (sink_core.hpp) bounds what any peer can make it hold;
 // here, connections are capped (maxPeers), peers without a Hello are dropped after
 // helloTimeoutMs, greeted peers silent for peerIdleMs are dropped (so a squatter or a hung rank
@@ -17,6 +17,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 #include <voxwall/net/wire.hpp>
@@ -70,6 +71,9 @@ struct SinkStats {
   int displayPages = 0, displayPagesInBarrier = 0;
   int framesSwapped = 0;
   double lastSwapSpreadMs = 0;
+  // Where the current job's time series is (the controller's last Playback); none for a job of
+  // one volume.
+  std::optional<net::Playback> playback;
 };
 
 // One line per event (frame presented or dropped, peer refused or dropped).
@@ -100,8 +104,9 @@ class Sink {
   std::unique_ptr<Impl> impl_;
 };
 
-// Parses a control line typed at the sink: "rotate DAZ DEL", "zoom FACTOR", "pan DX DY",
-// "reset". Throws std::invalid_argument with a usage line.
+// Parses a control line typed at the sink (or sent by a page): "rotate DAZ DEL", "zoom FACTOR",
+// "pan DX DY", "reset", and for a time series "play", "pause", "step N" (N whole, may be
+// negative), "seek STEP". Throws std::invalid_argument with a usage line.
 net::Control parseControlLine(const std::string& line);
 
 }  // namespace voxwall::walls
