@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """Time series: each codec's file of a generated series with its model shared across the steps
-(the default) against every step coded on its own (--steps-alone), and playback: the frame time
-of `render --time` (a step a frame) against frames of one step, same view, same run.
+(the default) against every step coded on its own (--steps-alone); vq reduced with one codebook
+against a codebook a step at equal PSNR; and playback: in one `render --time` run that shows each
+step for two frames, the frames that open a new step against the frames that repeat one (same
+view, same content, same run).
 
   bench/time_series_bench.py [--voxwall build/master/voxwall] [--steps 16] [--size 96]
-                             [--codecs raw,vq,ksvd,tvq] [--ranks 2] [--frames 16]
+                             [--codecs raw,vq,ksvd,tvq] [--ranks 2] [--vq-rates 0.25,0.5]
 
-Prints two tables. Stops with an error when voxwall's output cannot be parsed."""
+Prints three tables. Stops with an error when voxwall's output cannot be parsed."""
 import argparse
 import math
 import os
@@ -46,11 +48,24 @@ def steps_of(voxwall, vwz):
     return int(size.group(1)), mean, len(lines)
 
 
-def mean_frame_ms(out):
-    m = re.search(r"mean frame ([\d.]+) ms", out)
-    if not m:
-        sys.exit("cannot parse the render's totals:\n" + out)
-    return float(m.group(1))
+def step_frames(out):
+    """(mean ms of the frames that show a new step, mean ms of those that repeat the step before),
+    the job's first frame left out (it opens the file and warms up)."""
+    new, repeat, before = [], [], None
+    for f, step, ms in re.findall(r"^frame (\d+)/\d+, time step (\d+): ([\d.]+) ms", out, re.M):
+        if int(f) > 1:
+            (new if step != before else repeat).append(float(ms))
+        before = step
+    if not new or not repeat:
+        sys.exit("cannot parse the render's frame lines:\n" + out)
+    return sum(new) / len(new), sum(repeat) / len(repeat)
+
+
+def coded(voxwall, series, vwz, args, voxels):
+    """(bits per voxel, mean PSNR) of `series` compressed with `args`."""
+    run([voxwall, "compress", "-q", series, "-o", vwz] + args)
+    size, psnr, _ = steps_of(voxwall, vwz)
+    return 8 * size / voxels, psnr
 
 
 def main():
@@ -60,7 +75,7 @@ def main():
     ap.add_argument("--size", type=int, default=96)
     ap.add_argument("--codecs", default="raw,vq,ksvd,tvq")
     ap.add_argument("--ranks", type=int, default=2)
-    ap.add_argument("--frames", type=int, default=16)
+    ap.add_argument("--vq-rates", default="0.25,0.5")
     ap.add_argument("--render-size", default="960x540")
     a = ap.parse_args()
     voxwall = os.path.abspath(a.voxwall)
@@ -93,21 +108,49 @@ def main():
                   f"{8 * s_size / voxels:.3f} | {fmt(s_psnr)} | {8 * a_size / voxels:.3f} | "
                   f"{fmt(a_psnr)} | {s_size / a_size:.2f} |")
 
-        print(f"\n## Playback on {a.ranks} rank(s), {a.render_size}, {a.frames} frames, camera "
-              "still: a step a frame against one step in every frame\n")
-        print("| codec | step a frame: mean frame ms | one step: mean frame ms | ratio |")
+        if "vq" in a.codecs.split(","):
+            print("\n## vq reduced: one codebook for every step against a codebook a step at "
+                  "equal PSNR\n")
+            print("| target bits/voxel | shared: bits/voxel | shared: mean PSNR | alone at that "
+                  "PSNR: bits/voxel | alone: mean PSNR | shared / alone size |")
+            print("| ---: | ---: | ---: | ---: | ---: | ---: |")
+            vwz = os.path.join(tmp, "vq-rate.vwz")
+            for rate in [float(r) for r in a.vq_rates.split(",")]:
+                s_bpv, s_psnr = coded(voxwall, series, vwz,
+                                      ["--codec", "vq", "--bits-per-voxel", str(rate)], voxels)
+                # The rate at which a codebook a step reaches the same mean PSNR, by bisection.
+                lo, hi, best = 0.02, 8.0, None
+                for _ in range(10):
+                    mid = math.sqrt(lo * hi)
+                    bpv, psnr = coded(voxwall, series, vwz, ["--codec", "vq", "--bits-per-voxel",
+                                                             f"{mid:.4f}", "--steps-alone"], voxels)
+                    if psnr >= s_psnr:
+                        hi, best = mid, (bpv, psnr)
+                    else:
+                        lo = mid
+                    if best and best[1] - s_psnr < 0.1:
+                        break
+                if not best:
+                    sys.exit(f"vq --steps-alone reaches no {s_psnr:.2f} dB below 8 bits/voxel")
+                print(f"| {rate} | {s_bpv:.3f} | {s_psnr:.2f} dB | {best[0]:.3f} | "
+                      f"{best[1]:.2f} dB | {s_bpv / best[0]:.2f} |")
+
+        frames = 2 * a.steps
+        print(f"\n## Playback on {a.ranks} rank(s), {a.render_size}, camera still, each step "
+              f"shown for two frames ({frames} frames): frames that open a new step against "
+              "frames that repeat the step before\n")
+        print("| codec | new step: mean frame ms | same step: mean frame ms | ratio |")
         print("| --- | ---: | ---: | ---: |")
         mpirun = ["mpirun", "--oversubscribe", "--bind-to", "none", "-np", str(a.ranks)]
         if os.geteuid() == 0:
             mpirun.insert(1, "--allow-run-as-root")
         for codec in a.codecs.split(","):
             vwz = files[(codec, "shared")]
-            common = [voxwall, "render", vwz, "--size", a.render_size, "--path", "still",
-                      "--shading", "--no-write", "--frames", str(a.frames)]
-            last = min(a.steps, a.frames) - 1
-            playing = mean_frame_ms(run(mpirun + common + ["--time", f"0:{last}"]))
-            still = mean_frame_ms(run(mpirun + common + ["--time", "0"]))
-            print(f"| {codec} | {playing:.1f} | {still:.1f} | {playing / still:.2f} |")
+            out = run(mpirun + [voxwall, "render", vwz, "--size", a.render_size, "--path", "still",
+                                "--shading", "--no-write", "--frames", str(frames), "--time",
+                                f"0:{a.steps - 1}"])
+            new, same = step_frames(out)
+            print(f"| {codec} | {new:.1f} | {same:.1f} | {new / same:.2f} |")
 
 
 if __name__ == "__main__":

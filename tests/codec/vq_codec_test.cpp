@@ -1,13 +1,18 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <random>
+#include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/series_source.hpp>
+#include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 #include <voxwall/core/errors.hpp>
 
 #include "support/sections.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace voxwall;
 using namespace voxwall::codec;
@@ -447,4 +452,53 @@ TEST(VqCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
               ASSERT_LE(value, g.hi[cell]);
             }
       }
+}
+
+// A series coded with one codebook: each step's view reads its offset volume from its own data
+// and the codewords from the shared book, on the host and from the one buffer a device backend
+// uploads (joinedBytes, the book at deviceBookAt) alike; a step without its book, or with a book
+// cut short, is refused naming the section.
+TEST(VqSeries, StepsReadTheSharedBookWhereverItLies) {
+  test::TempDir dir;
+  std::vector<SeriesSource::Step> steps;
+  std::vector<Volume> volumes;
+  for (int k = 0; k < 3; ++k) {
+    volumes.push_back(mixed<std::uint16_t>({13, 9, 10}, 0, 4095, 3 + k % 2));
+    const std::string file = dir.path("s" + std::to_string(k) + ".nrrd");
+    writeVolume(volumes.back(), file);
+    steps.push_back({file, file, 0, SeriesSource::Kind::File});
+  }
+  const SeriesSource series(steps, {});
+  Progress quiet;
+  const CompressedSeries coded = vq::encodeSeries(series, {}, quiet);
+  // The book is shared (so are the params: lossless, every step's are alike).
+  EXPECT_TRUE(std::any_of(coded.shared.begin(), coded.shared.end(),
+                          [](const auto& s) { return s.first == vq::kBook; }));
+  for (int k = 0; k < 3; ++k) {
+    const CompressedVolume step = coded.step(k);
+    const vq::Layout layout(step.info, step.view());
+    ASSERT_TRUE(layout.sharedBook());
+    const Volume host = decodeBricks(layout.view(), step.info.type, step.info.spacing);
+    EXPECT_TRUE(host.data == volumes[std::size_t(k)].data) << "step " << k;
+    const std::vector<std::byte> joined = layout.joinedBytes();
+    EXPECT_EQ(layout.deviceBookAt() % 64, 0u);
+    const Volume device = decodeBricks(layout.view(joined.data()), step.info.type, step.info.spacing);
+    EXPECT_TRUE(device.data == host.data) << "step " << k;
+  }
+  CompressedVolume bookless = coded.step(0);
+  std::erase_if(bookless.sections, [](const auto& s) { return s.first == vq::kBook; });
+  try {
+    vq::Layout(bookless.info, bookless.view("bad.vwz"));
+    ADD_FAILURE() << "a step without its book was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("book"), std::string::npos) << e.what();
+  }
+  CompressedVolume cut = coded.step(1);
+  section(cut, vq::kBook).resize(64);
+  try {
+    vq::Layout(cut.info, cut.view("bad.vwz"));
+    ADD_FAILURE() << "a book cut short was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("section 'book'"), std::string::npos) << e.what();
+  }
 }

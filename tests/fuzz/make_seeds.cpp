@@ -1,10 +1,14 @@
-// Writes every registered codec's sample files, and a series of steps of each codec's, as the
-// fuzzer's seed corpus: make_seeds DIR
+// Writes every registered codec's sample files, a series of steps of each codec's, and a series
+// each codec coded as one (encodeSeries: a model shared by the steps where the codec keeps one),
+// as the fuzzer's seed corpus: make_seeds DIR
 #include <cstdio>
 #include <filesystem>
 #include <string>
 #include <voxwall/codec/container.hpp>
+#include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/registry.hpp>
+#include <voxwall/codec/series_source.hpp>
+#include <voxwall/codec/volume_io.hpp>
 
 int main(int argc, char** argv) {
   using namespace voxwall::codec;
@@ -19,7 +23,25 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "vwz_make_seeds: %s: %s\n", dir.c_str(), ec.message().c_str());
     return 1;
   }
+  // Three small steps, the first again last (so that a codebook shared by the steps pays even
+  // lossless), as files a SeriesSource reads.
+  std::vector<SeriesSource::Step> steps;
+  for (int k = 0; k < 3; ++k) {
+    const std::string file = dir + "/step" + std::to_string(k) + ".nrrd";
+    writeVolume(generateOrbitingBlobs(12, k % 2, 2), file);
+    steps.push_back({file, file, 0, SeriesSource::Kind::File});
+  }
+  const SeriesSource series(steps, {});
+  voxwall::Progress quiet;
   for (const Codec* codec : codecs()) {
+    try {
+      std::string report;
+      writeContainer(codec->encodeSeries(series, {}, quiet, report),
+                     dir + "/" + std::string(codec->name()) + "-coded-series.vwz");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "vwz_make_seeds: %s series: %s\n", std::string(codec->name()).c_str(),
+                   e.what());
+    }
     const auto samples = codec->samples();
     for (const CodecSample& sample : samples)
       writeContainer(sample.volume, dir + "/" + sample.name + ".vwz");
@@ -36,5 +58,6 @@ int main(int argc, char** argv) {
     } catch (const std::invalid_argument&) {
     }
   }
+  for (const auto& step : steps) std::filesystem::remove(step.file, ec);
   return 0;
 }

@@ -48,6 +48,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           case net::MessageType::Playback:
             net::decodePlayback(m->payload, "fuzz");
             break;
+          case net::MessageType::KeepAlive:
+            break;
         }
       }
     }

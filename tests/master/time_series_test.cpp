@@ -271,3 +271,65 @@ TEST(TimeSeries, KsvdSharesOneDictionaryAcrossTheSteps) {
     EXPECT_GT(withShared, 35.0) << "step " << k;
   }
 }
+
+// vq codes a series with one codebook (the unique bricks of every step), stored once. Lossless,
+// it keeps it where it is smaller than a codebook a step: steps that repeat bricks (here two
+// volumes, each twice, at a size that is not whole bricks, so each step is padded alone) come
+// back exactly from a smaller file; moving blobs, which repeat no brick, keep a codebook a step.
+// Reduced, one codebook is kept, and info says each step's own PSNR.
+TEST(TimeSeries, VqSharesOneCodebookAcrossTheSteps) {
+  test::TempDir dir;
+  constexpr int kSide = 30, kN = 5;
+  const std::string a = dir.path("a.nrrd"), b = dir.path("b.nrrd");
+  ASSERT_EQ(runVoxwall("generate marschner-lobb --size 30 -o " + a).status, 0);
+  ASSERT_EQ(runVoxwall("generate blobs --size 30 -o " + b).status, 0);
+  const std::string files = " --time-files " + a + " " + b + " " + a + " " + b;
+  const std::string shared = dir.path("shared.vwz"), alone = dir.path("alone.vwz");
+  const CliRun s = runVoxwall("compress" + files + " -o " + shared + " --codec vq");
+  ASSERT_EQ(s.status, 0) << s.out;
+  EXPECT_NE(s.out.find("one codebook of"), std::string::npos) << s.out;
+  EXPECT_EQ(s.out.find("a codebook a step:"), std::string::npos) << s.out;
+  const CliRun r = runVoxwall("compress -q" + files + " -o " + alone + " --codec vq --steps-alone");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const auto sharedFile = codec::ContainerFile::open(shared);
+  const auto aloneFile = codec::ContainerFile::open(alone);
+  EXPECT_GT(sharedFile.sharedBytes(), 0u);
+  EXPECT_LT(sharedFile.fileBytes(), aloneFile.fileBytes());
+  expectStepsDecompressTo(shared, 4, dir, [&](int k) { return codec::readVolume(k % 2 ? b : a); });
+  const CliRun info = runVoxwall("info " + shared);
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("one for every step"), std::string::npos) << info.out;
+
+  ASSERT_EQ(runVoxwall("generate blobs --steps 5 --size 30 -o " + dir.path("m.nii")).status, 0);
+  const auto want = [](int k) { return codec::generateOrbitingBlobs(kSide, k, kN); };
+  const std::string moving = dir.path("moving.vwz"), movingAlone = dir.path("moving-alone.vwz");
+  const CliRun m = runVoxwall("compress -q " + dir.path("m.nii") + " -o " + moving + " --codec vq");
+  ASSERT_EQ(m.status, 0) << m.out;
+  ASSERT_EQ(runVoxwall("compress -q " + dir.path("m.nii") + " -o " + movingAlone +
+                       " --codec vq --steps-alone")
+                .status,
+            0);
+  EXPECT_LE(codec::ContainerFile::open(moving).fileBytes(),
+            codec::ContainerFile::open(movingAlone).fileBytes());
+  expectStepsDecompressTo(moving, kN, dir, want);
+
+  const std::string lossy = dir.path("lossy.vwz");
+  const CliRun l = runVoxwall("compress -q " + dir.path("m.nii") + " -o " + lossy +
+                              " --codec vq --reduction 8");
+  ASSERT_EQ(l.status, 0) << l.out;
+  const auto lossyFile = codec::ContainerFile::open(lossy);
+  EXPECT_GT(lossyFile.sharedBytes(), 0u);
+  const codec::Codec& vq = codec::codecOf(lossyFile.info(), lossy);
+  const CliRun lossyInfo = runVoxwall("info " + lossy);
+  ASSERT_EQ(lossyInfo.status, 0) << lossyInfo.out;
+  for (int k = 0; k < kN; ++k) {
+    const double got =
+        codec::psnr(want(k), vq.decode(lossyFile.stepInfo(k), lossyFile.stepSections(k)));
+    EXPECT_GT(got, 30.0) << "step " << k;
+    EXPECT_LT(got, 200.0) << "step " << k << " is lossless at --reduction 8";
+    // info says each step's own PSNR, as measured here (to its two decimals).
+    char said[48];
+    std::snprintf(said, sizeof said, "PSNR %.2f dB", got);
+    EXPECT_NE(lossyInfo.out.find(said), std::string::npos) << said << "\n" << lossyInfo.out;
+  }
+}

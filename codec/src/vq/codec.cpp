@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <unordered_map>
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/metrics.hpp>
@@ -502,6 +503,156 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   return out;
 }
 
+// ---- a series with one codebook -----------------------------------------------------------
+
+namespace {
+
+// The steps of a series one above the other along z, each padded to whole bricks by repeating
+// its last slice, so that its bricks are the ones it has alone. Steps are opened as the encoder
+// reaches them (one at a time: it reads in z order); each was opened once first for its header
+// and value range.
+class StackedSteps final : public VolumeSource {
+ public:
+  StackedSteps(const SeriesSource& series, Progress& progress) : series_(series) {
+    for (int k = 0; k < series.steps(); ++k) {
+      const auto step = series.open(k, progress);
+      headers_.push_back(step->headerVolume());
+      finite = finite && step->finite;
+      if (k == 0) {
+        dims = step->dims, spacing = step->spacing, orientation = step->orientation;
+        type = step->type, valueMin = step->valueMin, valueMax = step->valueMax;
+      }
+      valueMin = std::min(valueMin, step->valueMin);
+      valueMax = std::max(valueMax, step->valueMax);
+    }
+    stepDepth_ = (dims.z + 3) / 4 * 4;
+    dims.z = stepDepth_ * series.steps();
+  }
+  bool streams() const override { return true; }
+  const Volume* inMemory() const override { return nullptr; }
+  int stepDepth() const { return stepDepth_; }
+  // Step k's header: its size, type, geometry and value range, no data.
+  const Volume& header(int k) const { return headers_.at(std::size_t(k)); }
+
+ protected:
+  void read(int z0, int count, std::byte* out) const override {
+    std::lock_guard lock(mutex_);
+    const int depth = header(0).dims.z;
+    while (count > 0) {
+      const int k = z0 / stepDepth_, local = z0 % stepDepth_;
+      const int run = std::min(count, stepDepth_ - local);
+      if (!open_ || openStep_ != k) {
+        open_.reset();
+        // Quietly: the encoder's own progress is under way (the ranges were read, and said, when
+        // the steps were first opened).
+        voxwall::Progress quiet;
+        open_ = series_.open(k, quiet);
+        openStep_ = k;
+      }
+      // Slices past the step's last repeat it (readSlices does, from a slice inside it).
+      const int first = std::min(local, depth - 1);
+      const std::size_t bytes = sliceBytes();
+      if (local < depth) {
+        open_->readSlices(first, run, std::span(out, std::size_t(run) * bytes));
+      } else {
+        open_->readSlices(depth - 1, 1, std::span(out, bytes));
+        for (int i = 1; i < run; ++i) std::copy_n(out, bytes, out + std::size_t(i) * bytes);
+      }
+      out += std::size_t(run) * bytes;
+      z0 += run, count -= run;
+    }
+  }
+
+ private:
+  const SeriesSource& series_;
+  std::vector<Volume> headers_;
+  int stepDepth_ = 4;
+  mutable std::mutex mutex_;
+  mutable std::unique_ptr<VolumeSource> open_;
+  mutable int openStep_ = -1;
+};
+
+// Fields of the params section (the layout in vq_codec.hpp).
+constexpr std::size_t kFlagsAt = 8, kIndexTableAt = 32, kCodebookAt = 40, kPsnrAt = 56;
+
+template <class T>
+T fieldOf(const std::vector<std::byte>& params, std::size_t at) {
+  T v;
+  std::memcpy(&v, params.data() + at, sizeof v);
+  return v;
+}
+template <class T>
+void setField(std::vector<std::byte>& params, std::size_t at, T v) {
+  std::memcpy(params.data() + at, &v, sizeof v);
+}
+
+}  // namespace
+
+CompressedSeries encodeSeries(const SeriesSource& series, const Params& params, Progress& progress,
+                              std::vector<EncodeStats>* statsOut) {
+  const int steps = series.steps();
+  progress.setPrefix("reading the steps' ranges: ");
+  const StackedSteps stacked(series, progress);
+  progress.setPrefix("");
+  EncodeStats whole;
+  CompressedVolume tall = encode(stacked, params, progress, &whole);
+  const Layout tallLayout(tall.info, tall.view());  // validates what is cut below
+  const std::vector<std::byte>& tallParams = tall.sections[0].second;
+  const std::vector<std::byte>& tallData = tall.sections[1].second;
+  const auto indexTableAt = fieldOf<std::uint64_t>(tallParams, kIndexTableAt);
+  const auto codebookAt = fieldOf<std::uint64_t>(tallParams, kCodebookAt);
+  const int offsetBits = int(fieldOf<std::uint32_t>(tallParams, 12));
+
+  // The shared book: the index table and codebook, which start at indexTableAt (64-aligned).
+  std::vector<std::byte> book(tallData.begin() + std::ptrdiff_t(indexTableAt), tallData.end());
+  const glm::ivec3 d = stacked.header(0).dims;
+  const glm::ivec3 b = (d + 3) / 4;
+  const std::uint64_t perStep = std::uint64_t(b.x) * std::uint64_t(b.y) * std::uint64_t(b.z);
+  const auto* tallBase = reinterpret_cast<const std::uint8_t*>(tallData.data());
+
+  std::vector<CompressedVolume> coded;
+  std::vector<EncodeStats> stats;
+  const bool lossless = std::isinf(whole.psnr);
+  progress.begin("cutting the series into steps", std::uint64_t(steps));
+  for (int k = 0; k < steps; ++k) {
+    CompressedVolume step;
+    step.info = volumeInfo(stacked.header(k), VqCodecEntry::kId);
+    std::vector<std::byte> data(align64(packedBytes(perStep, offsetBits) + kPad), std::byte{0});
+    packInto(data, 0, std::size_t(perStep), offsetBits, [&](std::size_t i) {
+      return kernels::readBits(tallBase, (std::uint64_t(k) * perStep + i) * std::uint64_t(offsetBits),
+                               offsetBits);
+    });
+    std::vector<std::byte> p = tallParams;
+    setField(p, kFlagsAt, fieldOf<std::uint32_t>(p, kFlagsAt) | std::uint32_t(kSharedBook));
+    setField(p, kIndexTableAt, std::uint64_t(0));
+    setField(p, kCodebookAt, codebookAt - indexTableAt);
+    EncodeStats s = whole;
+    s.bricks = perStep;
+    s.offsetVolumeBytes = packedBytes(perStep, offsetBits);
+    s.psnr = std::numeric_limits<double>::infinity();
+    if (!lossless) {
+      // This step's quality, on the decoder's output against the step itself.
+      SectionSet view{"<memory>", {{kParams, p}, {kData, data}, {kBook, book}}};
+      VolumeInfo info = step.info;
+      info.steps = steps;
+      const auto source = series.open(k, progress);
+      s.psnr = brickPsnr(*source, Layout(info, view).view());
+    }
+    setField(p, kPsnrAt, s.psnr);
+    step.sections.emplace_back(kParams, std::move(p));
+    step.sections.emplace_back(kData, std::move(data));
+    coded.push_back(std::move(step));
+    stats.push_back(s);
+    progress.advance();
+  }
+  progress.end();
+  tall = {};
+  CompressedSeries out = makeSeries(std::move(coded));
+  out.shared.emplace_back(kBook, std::move(book));
+  if (statsOut) *statsOut = std::move(stats);
+  return out;
+}
+
 // ---- reading ------------------------------------------------------------------------------
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
@@ -528,8 +679,9 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   if (info.type != ScalarType::UInt8 && bits_ == 8) fail("16-bit types are coded at 12 or 16 bits");
   if (info.type != ScalarType::Int16 && bias_ != 0) fail("bias on unsigned data");
   if (bias_ < -32768 || bias_ > 32767) fail("bias out of range");
-  if (flags_ > 3 || flags_ == kIndirect) fail("flags " + std::to_string(flags_));
+  if (flags_ > 7 || (flags_ & 3) == kIndirect) fail("flags " + std::to_string(flags_));
   const bool compressed = flags_ & kCompressed, indirect = flags_ & kIndirect;
+  const bool shared = flags_ & kSharedBook;
   if (offsetBits_ < 1 || offsetBits_ > 57) fail("offset bits " + std::to_string(offsetBits_));
   if (indirect ? (addressBits_ < 1 || addressBits_ > 57) : addressBits_ != 0)
     fail("address bits " + std::to_string(addressBits_));
@@ -537,19 +689,24 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const glm::ivec3 bricks = (info.dims + 3) / 4;
   const std::uint64_t n =
       std::uint64_t(bricks.x) * std::uint64_t(bricks.y) * std::uint64_t(bricks.z);
-  if (codewords_ < 1 || codewords_ > n)
-    fail(std::to_string(codewords_) + " codewords for " + std::to_string(n) + " bricks");
+  // A shared book holds the codewords of every step of a series (counted by the walk below).
+  const std::uint64_t maxCodewords = shared ? std::uint64_t(1) << 32 : n;
+  if (codewords_ < 1 || codewords_ > maxCodewords)
+    fail(std::to_string(codewords_) + " codewords for " + std::to_string(maxCodewords) +
+         " bricks");
   data_ = sections.get(kData, "data");
-  ByteReader dr(data_, src, "section 'data'");
-  auto dfail = [&](const std::string& what) { dr.fail(what); };
-  const std::uint64_t size = data_.size();
+  book_ = shared ? sections.get(kBook, "book") : data_;
+  ByteReader br(book_, src, shared ? "section 'book'" : "section 'data'");
+  auto dfail = [&](const std::string& what) { br.fail(what); };
+  const std::uint64_t size = book_.size();
   const std::uint64_t offsetBytes = (n * std::uint64_t(offsetBits_) + 7) / 8;
   const std::uint64_t tableEnd =
       indirect ? indexTableAt_ + (codewords_ * std::uint64_t(addressBits_) + 7) / 8 : 0;
   if (indexTableAt_ > size || codebookAt_ > size)
     dfail("array offsets past the section's " + std::to_string(size) + " bytes");
   if (indexTableAt_ % 64 || codebookAt_ % 64) dfail("arrays not aligned to 64 bytes");
-  if (offsetBytes + kPad > indexTableAt_) dfail("offset volume overlaps the next array");
+  if (shared ? offsetBytes + kPad > data_.size() : offsetBytes + kPad > indexTableAt_)
+    ByteReader(data_, src, "section 'data'").fail("offset volume overlaps the next array");
   if (indirect ? tableEnd + kPad > codebookAt_ : codebookAt_ != indexTableAt_)
     dfail("index table does not fit");
   if (codebookAt_ > size || codebookBytes_ > size - codebookAt_ ||
@@ -559,6 +716,7 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   if (!compressed && codebookBytes_ != codewords_ * std::uint64_t(8 * bits_))
     dfail("plain codebook size does not match its codewords");
   const auto* base = reinterpret_cast<const std::uint8_t*>(data_.data());
+  const auto* book = reinterpret_cast<const std::uint8_t*>(book_.data());
 
   // Walk the codebook: every codeword well-formed, the count right.
   std::vector<std::uint64_t> starts;
@@ -569,14 +727,14 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
       if (starts.size() == codewords_)
         dfail("more codewords than the header's " + std::to_string(codewords_));
       starts.push_back(pos);
-      pos += codewordLength(base + codebookAt_ + pos, codebookBytes_ - pos, bits_, src);
+      pos += codewordLength(book + codebookAt_ + pos, codebookBytes_ - pos, bits_, src);
     }
     if (starts.size() != codewords_)
       dfail(std::to_string(starts.size()) + " codewords, the header says " +
             std::to_string(codewords_));
     if (indirect)
       for (std::uint64_t i = 0; i < codewords_; ++i)
-        if (kernels::readBits(base + indexTableAt_, i * std::uint64_t(addressBits_),
+        if (kernels::readBits(book + indexTableAt_, i * std::uint64_t(addressBits_),
                               addressBits_) != starts[i])
           dfail("index table entry " + std::to_string(i) + " is not codeword " + std::to_string(i));
   }
@@ -593,6 +751,9 @@ kernels::VqView Layout::view(const std::byte* base) const {
   kernels::VqView v;
   kernels::VqDecoder& d = v.decoder;
   d.data = reinterpret_cast<const std::uint8_t*>(base ? base : data_.data());
+  d.book = !sharedBook() ? d.data
+           : base        ? d.data + deviceBookAt()
+                         : reinterpret_cast<const std::uint8_t*>(book_.data());
   d.indexTableAt = indexTableAt_, d.codebookAt = codebookAt_;
   d.bricksX = (info_.dims.x + 3) / 4, d.bricksY = (info_.dims.y + 3) / 4;
   d.bits = bits_, d.offsetBits = offsetBits_, d.addressBits = addressBits_;
@@ -601,6 +762,15 @@ kernels::VqView Layout::view(const std::byte* base) const {
   v.setDims(info_.dims.x, info_.dims.y, info_.dims.z);
   v.cacheId = cacheId_;
   return v;
+}
+
+std::uint64_t Layout::deviceBookAt() const { return sharedBook() ? align64(data_.size()) : 0; }
+
+std::vector<std::byte> Layout::joinedBytes() const {
+  std::vector<std::byte> out(deviceBookAt() + book_.size(), std::byte{0});
+  std::copy(data_.begin(), data_.end(), out.begin());
+  if (sharedBook()) std::copy(book_.begin(), book_.end(), out.begin() + std::ptrdiff_t(deviceBookAt()));
+  return out;
 }
 
 RangeGrid Layout::rangeGrid() const { return brickRangeGrid(view()); }

@@ -2,6 +2,7 @@
 // samples.
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
@@ -15,11 +16,19 @@ class Payload final : public RenderPayload {
  public:
   Payload(const VolumeInfo& info, const SectionSet& sections) : layout_(info, sections) {}
   RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
-  std::span<const std::byte> bytes() const override { return layout_.dataBytes(); }
+  // A series' step with the shared book: its data and the book joined, made when a device backend
+  // first asks (a CPU rank reads both where they are mapped).
+  std::span<const std::byte> bytes() const override {
+    if (!layout_.sharedBook()) return layout_.dataBytes();
+    std::call_once(joinOnce_, [this] { joined_ = layout_.joinedBytes(); });
+    return joined_;
+  }
   AnyView view(const std::byte* base) const override { return layout_.view(base); }
 
  private:
   Layout layout_;
+  mutable std::once_flag joinOnce_;
+  mutable std::vector<std::byte> joined_;
 };
 
 std::string encodeReport(const Params& p, const EncodeStats& s) {
@@ -88,6 +97,46 @@ class VqCodec final : public Codec {
   // Streams: a row of bricks in memory at a time, besides the unique bricks.
   CompressedVolume encodeSource(const VolumeSource& source, const CodecOptionValues& options,
                                 Progress& progress, std::string& report) const override {
+    const Params p = paramsOf(options);
+    EncodeStats s;
+    CompressedVolume out = vq::encode(source, p, progress, &s);
+    report = encodeReport(p, s);
+    return out;
+  }
+
+  // One codebook for every step (the unique bricks of all steps, or k-means over them), stored
+  // once: the bricks a series keeps from step to step are coded once.
+  CompressedSeries encodeSeries(const SeriesSource& series, const CodecOptionValues& options,
+                                Progress& progress, std::string& report) const override {
+    if (options.stepsAlone || series.steps() == 1)
+      return Codec::encodeSeries(series, options, progress, report);
+    const Params p = paramsOf(options);
+    std::vector<EncodeStats> s;
+    CompressedSeries out = vq::encodeSeries(series, p, progress, &s);
+    report = encodeReport(p, s.front());
+    report += formatLine(
+        "\n  one codebook of %llu codewords for every step, stored once (--steps-alone: a "
+        "codebook a step)",
+        (unsigned long long)s.front().codewords);
+    // Lossless, one codebook gains only where steps repeat bricks exactly, and its offset
+    // entries are wider: both are coded (fast, streaming) and the smaller kept.
+    if (p.reduction == 1 && p.targetBitsPerVoxel == 0) {
+      std::string aloneReport;
+      CompressedSeries alone = Codec::encodeSeries(series, options, progress, aloneReport);
+      if (alone.payloadBytes() < out.payloadBytes()) {
+        report = aloneReport + formatLine(
+                                   "\n  a codebook a step: %llu bytes, smaller than one codebook "
+                                   "for every step (%llu bytes)",
+                                   (unsigned long long)alone.payloadBytes(),
+                                   (unsigned long long)out.payloadBytes());
+        return alone;
+      }
+    }
+    return out;
+  }
+
+ private:
+  static Params paramsOf(const CodecOptionValues& options) {
     Params p;
     p.reduction = options.integer("--reduction", 1, 1, 1 << 20);
     p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
@@ -99,11 +148,10 @@ class VqCodec final : public Codec {
       throw std::invalid_argument("give --reduction or --bits-per-voxel, not both");
     p.compressedCodebook = codebook == "compressed";
     p.threads = options.threads;
-    EncodeStats s;
-    CompressedVolume out = vq::encode(source, p, progress, &s);
-    report = encodeReport(p, s);
-    return out;
+    return p;
   }
+
+ public:
 
   Volume decode(const VolumeInfo& info, const SectionSet& sections) const override {
     return vq::decode(info, sections);
@@ -119,8 +167,9 @@ class VqCodec final : public Codec {
                               b3.y, b3.z, (unsigned long long)layout.codewords(), layout.bits())});
     lines.push_back(
         {"codebook",
-         formatLine("%s, %s (%s)", compressed ? "RBUC-compressed" : "plain bit-packed",
+         formatLine("%s, %s%s (%s)", compressed ? "RBUC-compressed" : "plain bit-packed",
                     humanBytes(double(layout.codebookBytes())).c_str(),
+                    layout.sharedBook() ? ", one for every step" : "",
                     !compressed                    ? "offset volume holds indices"
                     : (layout.flags() & kIndirect) ? "indirect mapping: index table"
                                                    : "direct mapping: byte addresses")});

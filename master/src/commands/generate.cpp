@@ -52,7 +52,10 @@ void generateSeries(const GenerateOptions& o, codec::ScalarType type) {
 
 void runGenerate(const GenerateOptions& o) {
   const auto type = codec::parseScalarType(o.type);
-  if (o.kind == "blobs") return generateSeries(o, type);
+  // One step of blobs goes wherever a volume can (a series' pattern or 4D file too).
+  const bool series = o.output.ends_with(".nii") || o.output.ends_with(".nii.gz") ||
+                      codec::isStepPattern(o.output);
+  if (o.kind == "blobs" && (o.steps > 1 || series)) return generateSeries(o, type);
   if (o.steps != 1)
     throw std::invalid_argument("--steps needs a time-varying volume (blobs), not " + o.kind);
   codec::Volume v;
@@ -62,6 +65,8 @@ void runGenerate(const GenerateOptions& o) {
     v = codec::generateMarschnerLobb(o.size ? o.size : 64, type);
   } else if (o.kind == "shepp-logan") {
     v = codec::generateSheppLogan(o.size ? o.size : 256, type);
+  } else if (o.kind == "blobs") {
+    v = codec::generateOrbitingBlobs(o.size ? o.size : 64, 0, 1, type);
   } else {
     throw std::invalid_argument("unknown volume '" + o.kind +
                                 "' (expected menger, marschner-lobb, shepp-logan or blobs)");

@@ -13,16 +13,21 @@
 // Sections (ids within the codec's own, VqCodecEntry::kId):
 //   1 params (little-endian):
 //       u32 bits (8, 12, 16)          i32 bias (added to every decoded value)
-//       u32 flags: bit 0 compressed codebook, bit 1 indirect mapping
+//       u32 flags: bit 0 compressed codebook, bit 1 indirect mapping, bit 2 shared book
 //       u32 offsetBits (bits per offset-volume entry, 1..57)
 //       u32 addressBits (bits per index-table entry, 0 unless indirect, else 1..57)
 //       u32 reduction (K of --reduction, 1 for lossless)
 //       u64 codewords
-//       u64 indexTableAt, u64 codebookAt, u64 codebookBytes (byte offsets/sizes in `data`)
+//       u64 indexTableAt, u64 codebookAt, u64 codebookBytes (byte offsets/sizes in `data`, or
+//           in `book` with a shared book)
 //       f64 psnr of the decoded volume against the input in dB (+inf when lossless)
 //   2 data: the offset volume (entries bit-packed LSB first, bricks x fastest), then the index
 //       table, then the codebook; each array starts at a multiple of 64 bytes and is followed by
 //       at least 8 zero bytes (the decoders read 8 bytes at a time).
+//   3 book (with flag bit 2 only): the index table and the codebook, laid out as in `data`;
+//       `data` then holds the offset volume alone. A time series coded with one codebook
+//       (encodeSeries) has a book every step shares, stored once in the file, and its own
+//       params (its PSNR) and offset volume per step.
 //
 // An offset-volume entry is the codeword's index (plain codebook; compressed codebook with
 // indirect mapping, where the index table maps it to a byte address) or the codeword's byte
@@ -52,12 +57,13 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/vq_view.hpp>
 #include <voxwall/codec/range_grid.hpp>
+#include <voxwall/codec/series_source.hpp>
 #include <voxwall/core/progress.hpp>
 
 namespace voxwall::codec::vq {
 
-enum SectionId : std::uint32_t { kParams = 1, kData = 2 };
-enum Flags : std::uint32_t { kCompressed = 1, kIndirect = 2 };
+enum SectionId : std::uint32_t { kParams = 1, kData = 2, kBook = 3 };
+enum Flags : std::uint32_t { kCompressed = 1, kIndirect = 2, kSharedBook = 4 };
 
 struct Params {
   int reduction = 1;               // keep 1/K of the unique bricks: 1 (lossless) or 2..1024
@@ -90,6 +96,14 @@ CompressedVolume encode(const Volume& volume, const Params& params, Progress& pr
 // in memory is the unique bricks (the lossless codebook, or k-means' input) and 4 bytes per brick.
 CompressedVolume encode(const VolumeSource& volume, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
+
+// A time series with one codebook for every step: the steps stacked along z (each padded to
+// whole bricks) are coded as one volume (lossless, or reduced by k-means over the unique bricks
+// of every step), then cut into steps that share the index table and codebook (section `book`).
+// `stats` (optional) gets one entry a step: bricks, codewords and bytes of the shared book, and
+// the step's PSNR. Throws as encode() does.
+CompressedSeries encodeSeries(const SeriesSource& series, const Params& params, Progress& progress,
+                              std::vector<EncodeStats>* stats = nullptr);
 
 // Data bit depth the codec uses for a volume (8, 12 or 16) and its bias.
 int bitDepth(const Volume& volume);
@@ -125,7 +139,14 @@ class Layout {
  public:
   Layout(const VolumeInfo& info, const SectionSet& sections);
   std::span<const std::byte> dataBytes() const { return data_; }
-  // The view with its data at `base` (host memory by default, or a device copy of dataBytes()).
+  // Whether the index table and codebook are in a book of their own (a series' shared one).
+  bool sharedBook() const { return flags_ & kSharedBook; }
+  // What a device backend uploads: dataBytes(), or with a shared book the data and the book in
+  // one buffer (the book at deviceBookAt()).
+  std::vector<std::byte> joinedBytes() const;
+  std::uint64_t deviceBookAt() const;
+  // The view with its data at `base` (host memory by default, or a device copy of dataBytes(),
+  // or of joinedBytes() with a shared book).
   kernels::VqView view(const std::byte* base = nullptr) const;
   // Value ranges per 4^3 brick, dilated by one brick (a superset of the one-voxel dilation).
   RangeGrid rangeGrid() const;
@@ -140,7 +161,7 @@ class Layout {
 
  private:
   VolumeInfo info_;
-  std::span<const std::byte> data_;
+  std::span<const std::byte> data_, book_;  // book_ == data_ unless the book is shared
   int bits_ = 8, bias_ = 0, offsetBits_ = 1, addressBits_ = 0, reduction_ = 1;
   std::uint32_t flags_ = 0;
   std::uint64_t codewords_ = 0, indexTableAt_ = 0, codebookAt_ = 0, codebookBytes_ = 0;

@@ -105,15 +105,17 @@ VOXWALL_HD_INLINE void vqDecodePlain(const std::uint8_t* p, int bits, std::uint1
     out[i] = std::uint16_t(readBits(p, std::uint64_t(i) * std::uint64_t(bits), bits));
 }
 
-// The codec's half of the view (a CachedBrickView decoder). `data` holds the offset volume, the
-// index table (indirect mapping only) and the codebook at the byte offsets below; it points into
-// host or device memory and is not owned.
+// The codec's half of the view (a CachedBrickView decoder). `data` holds the offset volume,
+// `book` the index table (indirect mapping only) and the codebook at the byte offsets below: the
+// same bytes in a single volume's file, a section of its own that a series' steps share; they
+// point into host or device memory and are not owned.
 struct VqDecoder {
   static constexpr int kBrickSide = 4;  // 4^3 bricks
   using Value = std::uint16_t;          // the data's unsigned values
 
   const std::uint8_t* data = nullptr;
-  std::uint64_t indexTableAt = 0, codebookAt = 0;  // byte offsets into data
+  const std::uint8_t* book = nullptr;
+  std::uint64_t indexTableAt = 0, codebookAt = 0;  // byte offsets into book
   int bricksX = 0, bricksY = 0;
   int bits = 8;         // data bit depth
   int offsetBits = 1;   // bits per offset-volume entry
@@ -130,11 +132,11 @@ struct VqDecoder {
     const std::uint64_t entry = readBits(data, brick * std::uint64_t(offsetBits), offsetBits);
     if (!compressed) return entry * std::uint64_t(8 * bits);  // 64 voxels of `bits` bits
     if (!indirect) return entry;
-    return readBits(data + indexTableAt, entry * std::uint64_t(addressBits), addressBits);
+    return readBits(book + indexTableAt, entry * std::uint64_t(addressBits), addressBits);
   }
 
   VOXWALL_HD_INLINE void decode(std::uint64_t address, std::uint16_t* out) const {
-    const std::uint8_t* p = data + codebookAt + address;
+    const std::uint8_t* p = book + codebookAt + address;
     if (compressed)
       vqDecodeCodeword(p, bits, out);
     else
