@@ -482,7 +482,8 @@ TEST(VqSeries, StepsReadTheSharedBookWhereverItLies) {
     EXPECT_TRUE(host.data == volumes[std::size_t(k)].data) << "step " << k;
     const std::vector<std::byte> joined = layout.joinedBytes();
     EXPECT_EQ(layout.deviceBookAt() % 64, 0u);
-    const Volume device = decodeBricks(layout.view(joined.data()), step.info.type, step.info.spacing);
+    const Volume device =
+        decodeBricks(layout.view(joined.data()), step.info.type, step.info.spacing);
     EXPECT_TRUE(device.data == host.data) << "step " << k;
   }
   CompressedVolume bookless = coded.step(0);

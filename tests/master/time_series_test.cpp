@@ -314,8 +314,8 @@ TEST(TimeSeries, VqSharesOneCodebookAcrossTheSteps) {
   expectStepsDecompressTo(moving, kN, dir, want);
 
   const std::string lossy = dir.path("lossy.vwz");
-  const CliRun l = runVoxwall("compress -q " + dir.path("m.nii") + " -o " + lossy +
-                              " --codec vq --reduction 8");
+  const CliRun l =
+      runVoxwall("compress -q " + dir.path("m.nii") + " -o " + lossy + " --codec vq --reduction 8");
   ASSERT_EQ(l.status, 0) << l.out;
   const auto lossyFile = codec::ContainerFile::open(lossy);
   EXPECT_GT(lossyFile.sharedBytes(), 0u);

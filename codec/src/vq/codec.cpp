@@ -619,8 +619,8 @@ CompressedSeries encodeSeries(const SeriesSource& series, const Params& params, 
     step.info = volumeInfo(stacked.header(k), VqCodecEntry::kId);
     std::vector<std::byte> data(align64(packedBytes(perStep, offsetBits) + kPad), std::byte{0});
     packInto(data, 0, std::size_t(perStep), offsetBits, [&](std::size_t i) {
-      return kernels::readBits(tallBase, (std::uint64_t(k) * perStep + i) * std::uint64_t(offsetBits),
-                               offsetBits);
+      return kernels::readBits(
+          tallBase, (std::uint64_t(k) * perStep + i) * std::uint64_t(offsetBits), offsetBits);
     });
     std::vector<std::byte> p = tallParams;
     setField(p, kFlagsAt, fieldOf<std::uint32_t>(p, kFlagsAt) | std::uint32_t(kSharedBook));
@@ -692,8 +692,7 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   // A shared book holds the codewords of every step of a series (counted by the walk below).
   const std::uint64_t maxCodewords = shared ? std::uint64_t(1) << 32 : n;
   if (codewords_ < 1 || codewords_ > maxCodewords)
-    fail(std::to_string(codewords_) + " codewords for " + std::to_string(maxCodewords) +
-         " bricks");
+    fail(std::to_string(codewords_) + " codewords for " + std::to_string(maxCodewords) + " bricks");
   data_ = sections.get(kData, "data");
   book_ = shared ? sections.get(kBook, "book") : data_;
   ByteReader br(book_, src, shared ? "section 'book'" : "section 'data'");
@@ -769,7 +768,8 @@ std::uint64_t Layout::deviceBookAt() const { return sharedBook() ? align64(data_
 std::vector<std::byte> Layout::joinedBytes() const {
   std::vector<std::byte> out(deviceBookAt() + book_.size(), std::byte{0});
   std::copy(data_.begin(), data_.end(), out.begin());
-  if (sharedBook()) std::copy(book_.begin(), book_.end(), out.begin() + std::ptrdiff_t(deviceBookAt()));
+  if (sharedBook())
+    std::copy(book_.begin(), book_.end(), out.begin() + std::ptrdiff_t(deviceBookAt()));
   return out;
 }
 

@@ -152,7 +152,6 @@ class VqCodec final : public Codec {
   }
 
  public:
-
   Volume decode(const VolumeInfo& info, const SectionSet& sections) const override {
     return vq::decode(info, sections);
   }

@@ -53,8 +53,8 @@ void generateSeries(const GenerateOptions& o, codec::ScalarType type) {
 void runGenerate(const GenerateOptions& o) {
   const auto type = codec::parseScalarType(o.type);
   // One step of blobs goes wherever a volume can (a series' pattern or 4D file too).
-  const bool series = o.output.ends_with(".nii") || o.output.ends_with(".nii.gz") ||
-                      codec::isStepPattern(o.output);
+  const bool series =
+      o.output.ends_with(".nii") || o.output.ends_with(".nii.gz") || codec::isStepPattern(o.output);
   if (o.kind == "blobs" && (o.steps > 1 || series)) return generateSeries(o, type);
   if (o.steps != 1)
     throw std::invalid_argument("--steps needs a time-varying volume (blobs), not " + o.kind);
