@@ -7,12 +7,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <memory>
 #include <sstream>
 #include <string_view>
 #include <vector>
+#include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/errors.hpp>
@@ -211,17 +213,42 @@ Orientation orientationOf(Nrrd* nin, unsigned first) {
   return o;
 }
 
+// The time steps of a 4D NRRD: the size of its last (slowest) axis when the first is not a
+// single-sample axis and the last is not a space or domain axis (its kind is time, list or
+// unsaid); 1 for a 3D volume. Throws for more steps than a .vwz holds.
+int timeStepsOf(const Nrrd& n, const std::string& path) {
+  if (n.dim != 4 || n.axis[0].size == 1) return 1;
+  const int kind = n.axis[3].kind;
+  if (kind != nrrdKindTime && kind != nrrdKindList && kind != nrrdKindUnknown) return 1;
+  if (n.axis[3].size > kMaxSteps)
+    throw FormatError(path, "holds " + std::to_string(n.axis[3].size) +
+                                " time steps, more than a .vwz file holds (" +
+                                std::to_string(kMaxSteps) + ")");
+  return int(n.axis[3].size);
+}
+
+// The volume of `nin` starting at element `offset` (a time step's first), in voxwall's type for
+// its NRRD type; its geometry from the axes from `first` on.
+Volume volumeOf(Nrrd* nin, unsigned first, std::size_t offset, const std::string& path);
+
 }  // namespace
 
-std::optional<SlabLayout> nrrdSlabLayout(const std::string& path) {
+std::optional<SlabLayout> nrrdSlabLayout(const std::string& path, int step) {
   checkNrrdHeader(path);
   std::unique_ptr<Nrrd, NrrdNuker> header(nrrdNew());
   std::unique_ptr<NrrdIoState, IoStateDeleter> io(nrrdIoStateNew());
   io->skipData = AIR_TRUE;
   if (nrrdLoad(header.get(), path.c_str(), io.get())) throw FormatError(path, teemError());
+  const int steps = timeStepsOf(*header, path);
+  if (step < 0 && steps > 1)
+    throw FormatError(path, "holds " + std::to_string(steps) +
+                                " time steps: `voxwall compress` makes one .vwz of them");
+  if (step >= steps)
+    throw std::invalid_argument(path + ": no step " + std::to_string(step) + " (it holds " +
+                                std::to_string(steps) + ")");
   const unsigned first = header->dim == 4 && header->axis[0].size == 1 ? 1 : 0;
-  if (header->dim - first != 3 || io->encoding != nrrdEncodingRaw || io->lineSkip != 0 ||
-      io->byteSkip < -1 || (io->dataFNArr && io->dataFNArr->len > 1))
+  if (header->dim - first != (steps > 1 ? 4u : 3u) || io->encoding != nrrdEncodingRaw ||
+      io->lineSkip != 0 || io->byteSkip < -1 || (io->dataFNArr && io->dataFNArr->len > 1))
     return std::nullopt;
   SlabLayout slab;
   RawLayout& l = slab.layout;
@@ -261,8 +288,9 @@ std::optional<SlabLayout> nrrdSlabLayout(const std::string& path) {
   std::error_code ec;
   const std::uint64_t have = fs::file_size(slab.file, ec);
   if (ec) throw FormatError(path, slab.file + ": " + ec.message());
-  const std::uint64_t need = std::uint64_t(l.dims.x) * std::uint64_t(l.dims.y) *
-                             std::uint64_t(l.dims.z) * scalarBytes(l.type);
+  const std::uint64_t stepBytes = std::uint64_t(l.dims.x) * std::uint64_t(l.dims.y) *
+                                  std::uint64_t(l.dims.z) * scalarBytes(l.type);
+  const std::uint64_t need = stepBytes * std::uint64_t(steps);
   // "byte skip: -1" means the voxels are the file's last bytes.
   l.headerBytes =
       io->byteSkip == -1 ? have - std::min(have, need) : start + std::uint64_t(io->byteSkip);
@@ -270,64 +298,101 @@ std::optional<SlabLayout> nrrdSlabLayout(const std::string& path) {
     throw FormatError(path, "truncated: the header needs " + std::to_string(need) +
                                 " bytes of data, the file holds " +
                                 std::to_string(have - std::min(have, l.headerBytes)));
+  if (step > 0) l.headerBytes += std::uint64_t(step) * stepBytes;
   return slab;
 }
 
-Volume readNrrd(const std::string& path) {
+namespace {
+
+// Step `step` of a NRRD file (-1: the file must hold one volume).
+Volume readNrrdVolume(const std::string& path, int step) {
   checkNrrdHeader(path);
   std::unique_ptr<Nrrd, NrrdNuker> nin(nrrdNew());
   if (nrrdLoad(nin.get(), path.c_str(), nullptr)) throw FormatError(path, teemError());
+  const int steps = timeStepsOf(*nin, path);
+  if (step < 0 && steps > 1)
+    throw FormatError(path, "holds " + std::to_string(steps) +
+                                " time steps: `voxwall compress` makes one .vwz of them");
+  if (step >= steps)
+    throw std::invalid_argument(path + ": no step " + std::to_string(step) + " (it holds " +
+                                std::to_string(steps) + ")");
   unsigned first = 0;
   // Allow a leading axis of size 1 (e.g. a single-component "vector" axis).
   if (nin->dim == 4 && nin->axis[0].size == 1) first = 1;
-  if (nin->dim - first != 3)
-    throw FormatError(path, "has " + std::to_string(nin->dim) + " axes; a 3D volume is needed");
+  if (nin->dim - first != (steps > 1 ? 4u : 3u))
+    throw FormatError(path, "has " + std::to_string(nin->dim) +
+                                " axes; a 3D volume or a series of them (a fourth axis, time) is "
+                                "needed");
+  const std::size_t voxels = std::size_t(nin->axis[first].size) *
+                             std::size_t(nin->axis[first + 1].size) *
+                             std::size_t(nin->axis[first + 2].size);
+  return volumeOf(nin.get(), first, std::size_t(std::max(step, 0)) * voxels, path);
+}
+
+Volume volumeOf(Nrrd* nin, unsigned first, std::size_t offset, const std::string& path) {
   const glm::ivec3 dims(int(nin->axis[first].size), int(nin->axis[first + 1].size),
                         int(nin->axis[first + 2].size));
   checkDims(dims, path);
-  const glm::dvec3 spacing = spacingOf(nin.get(), first);
+  const glm::dvec3 spacing = spacingOf(nin, first);
+  const void* data =
+      static_cast<const char*>(nin->data) + offset * std::size_t(nrrdElementSize(nin));
   Volume v;
   auto make = [&](ScalarType t) { v = Volume::allocate(dims, t, spacing); };
   switch (nin->type) {
     case nrrdTypeUChar:
       make(ScalarType::UInt8);
-      convert<unsigned char, std::uint8_t>(nin->data, v);
+      convert<unsigned char, std::uint8_t>(data, v);
       break;
     case nrrdTypeChar:
       make(ScalarType::Int16);
-      convert<signed char, std::int16_t>(nin->data, v);
+      convert<signed char, std::int16_t>(data, v);
       break;
     case nrrdTypeUShort:
       make(ScalarType::UInt16);
-      convert<unsigned short, std::uint16_t>(nin->data, v);
+      convert<unsigned short, std::uint16_t>(data, v);
       break;
     case nrrdTypeShort:
       make(ScalarType::Int16);
-      convert<short, std::int16_t>(nin->data, v);
+      convert<short, std::int16_t>(data, v);
       break;
     case nrrdTypeInt:
       make(ScalarType::Float32);
-      convert<int, float>(nin->data, v);
+      convert<int, float>(data, v);
       break;
     case nrrdTypeUInt:
       make(ScalarType::Float32);
-      convert<unsigned, float>(nin->data, v);
+      convert<unsigned, float>(data, v);
       break;
     case nrrdTypeFloat:
       make(ScalarType::Float32);
-      convert<float, float>(nin->data, v);
+      convert<float, float>(data, v);
       break;
     case nrrdTypeDouble:
       make(ScalarType::Float32);
-      convert<double, float>(nin->data, v);
+      convert<double, float>(data, v);
       break;
     default:
       throw FormatError(path, "unsupported NRRD type " + std::to_string(nin->type));
   }
-  v.orientation = orientationOf(nin.get(), first);
+  v.orientation = orientationOf(nin, first);
   v.computeRange();
   return v;
 }
+
+}  // namespace
+
+Volume readNrrd(const std::string& path) { return readNrrdVolume(path, -1); }
+
+int nrrdStepCount(const std::string& path) {
+  checkNrrdHeader(path);
+  std::unique_ptr<Nrrd, NrrdNuker> header(nrrdNew());
+  std::unique_ptr<NrrdIoState, IoStateDeleter> io(nrrdIoStateNew());
+  io->skipData = AIR_TRUE;
+  if (nrrdLoad(header.get(), path.c_str(), io.get())) throw FormatError(path, teemError());
+  return timeStepsOf(*header, path);
+}
+
+Volume readNrrdStep(const std::string& path, int step) { return readNrrdVolume(path, step); }
 
 void writeNrrd(const Volume& volume, const std::string& path) {
   int type = nrrdTypeUChar;

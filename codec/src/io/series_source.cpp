@@ -107,10 +107,13 @@ std::unique_ptr<VolumeSource> SeriesSource::read(int k, Progress& progress) cons
                                  std::uint64_t(slab.layout.dims.z) * scalarBytes(slab.layout.type);
       return slabSource(step.file, slab, progress);
     }
-    case Kind::NiftiVolume:
-      if (auto slab = niftiSlabLayout(step.file, step.index))
+    case Kind::FileVolume: {
+      const bool nrrd = volumeFormatOf(step.file) == VolumeFormat::Nrrd;
+      if (auto slab =
+              nrrd ? nrrdSlabLayout(step.file, step.index) : niftiSlabLayout(step.file, step.index))
         return slabSource(step.file, *slab, progress);
-      return memorySource(readNiftiStep(step.file, step.index));
+      return memorySource(readVolumeStep(step.file, step.index));
+    }
     case Kind::File:
       break;
   }
@@ -148,7 +151,7 @@ std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOpti
     if (input.rawSteps > 0)
       throw std::invalid_argument("--time N reads one raw file; --time-files names each step");
     for (const std::string& file : input.files) {
-      const int count = volumeFormatOf(file) == VolumeFormat::Nifti ? niftiStepCount(file) : 1;
+      const int count = volumeStepCount(file);
       if (count > 1)
         throw FormatError(file, "holds " + std::to_string(count) +
                                     " steps itself; --time-files takes one volume a file");
@@ -173,11 +176,10 @@ std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOpti
   }
   if (isStepPattern(path)) return std::make_unique<SeriesSource>(patternSteps(path), options);
   std::error_code ec;
-  if (!options.isRaw() && std::filesystem::is_regular_file(path, ec) &&
-      volumeFormatOf(path) == VolumeFormat::Nifti) {
-    const int count = niftiStepCount(path);
+  if (!options.isRaw() && std::filesystem::is_regular_file(path, ec)) {
+    const int count = volumeStepCount(path);
     if (count <= 1) return nullptr;
-    return std::make_unique<SeriesSource>(volumesOf(path, count, SeriesSource::Kind::NiftiVolume),
+    return std::make_unique<SeriesSource>(volumesOf(path, count, SeriesSource::Kind::FileVolume),
                                           options);
   }
   return nullptr;

@@ -42,6 +42,23 @@ Volume readAnyVolume(const std::string& path, const ReadOptions& options) {
 
 }  // namespace
 
+int volumeStepCount(const std::string& path) {
+  if (std::filesystem::is_directory(path)) return 1;
+  switch (volumeFormatOf(path)) {
+    case VolumeFormat::Nifti:
+      return niftiStepCount(path);
+    case VolumeFormat::Nrrd:
+      return nrrdStepCount(path);
+    default:
+      return 1;
+  }
+}
+
+Volume readVolumeStep(const std::string& path, int step) {
+  return volumeFormatOf(path) == VolumeFormat::Nrrd ? readNrrdStep(path, step)
+                                                    : readNiftiStep(path, step);
+}
+
 Volume readVolume(const std::string& path, const ReadOptions& options) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);

@@ -1,4 +1,5 @@
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/registry.hpp>
@@ -81,14 +82,14 @@ void runInfo(const InfoOptions& o) {
     }
     return;
   }
-  if (o.raw.dims.empty() && codec::volumeFormatOf(o.input) == codec::VolumeFormat::Nifti &&
-      codec::niftiStepCount(o.input) > 1) {
-    // A NIfTI series: its first step, and how many there are.
-    codec::Volume v = codec::readNiftiStep(o.input, 0);
+  if (o.raw.dims.empty() && std::filesystem::is_regular_file(o.input) &&
+      codec::volumeStepCount(o.input) > 1) {
+    // A 4D NIfTI or NRRD series: its first step, and how many there are.
+    codec::Volume v = codec::readVolumeStep(o.input, 0);
     o.raw.applyOverrides(v);
     std::printf("file        %s\n", o.input.c_str());
     std::printf("steps       %d (step 0 below; `voxwall compress` makes one .vwz of them)\n",
-                codec::niftiStepCount(o.input));
+                codec::volumeStepCount(o.input));
     printVolumeLines(v.dims, v.type, v.spacing, v.orientation, v.valueMin, v.valueMax);
     return;
   }

@@ -22,9 +22,9 @@ struct SeriesInput {
 
 class SeriesSource {
  public:
-  // Where a step's voxels are: a file of its own, or one volume of a 4D NIfTI or of a raw file
-  // of several volumes (read with the ReadOptions' raw layout).
-  enum class Kind { File, NiftiVolume, RawVolume };
+  // Where a step's voxels are: a file of its own, or one volume of a 4D NIfTI or NRRD file or of
+  // a raw file of several volumes (read with the ReadOptions' raw layout).
+  enum class Kind { File, FileVolume, RawVolume };
   struct Step {
     std::string name;  // "sim_0003.nrrd", or "fmri.nii.gz step 3"
     std::string file;  // the file it is read from

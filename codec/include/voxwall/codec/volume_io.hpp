@@ -60,6 +60,14 @@ Volume readNifti(const std::string& path);
 int niftiStepCount(const std::string& path);
 Volume readNiftiStep(const std::string& path, int step);
 Volume readNrrd(const std::string& path);
+// A NRRD file's time steps: the size of its fourth, slowest axis when that axis is of kind time
+// or list (or says no kind) and the first axis is not a single sample, else 1; and one of them.
+// readNrrd refuses a file of several steps, naming how many.
+int nrrdStepCount(const std::string& path);
+Volume readNrrdStep(const std::string& path, int step);
+// The time steps of a 4D NIfTI or NRRD file (1 for any other volume file), and one of them.
+int volumeStepCount(const std::string& path);
+Volume readVolumeStep(const std::string& path, int step);
 Volume readSliceStack(const std::string& path);
 
 // A DICOM series: from a folder (searched with its sub-folders), the folder of a DICOMDIR, or one

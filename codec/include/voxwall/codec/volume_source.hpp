@@ -96,8 +96,9 @@ struct SlabLayout {
 // For a NRRD file with raw encoding and one data file, and an uncompressed single-file or
 // .hdr/.img NIfTI file without scaling; nullopt for any other file of those formats (which
 // readVolume reads whole). Throws FormatError for files readVolume refuses too.
-std::optional<SlabLayout> nrrdSlabLayout(const std::string& path);
-// `step` >= 0: that volume of a NIfTI series (niftiStepCount); -1: the file must hold one volume.
+// `step` >= 0: that volume of a NRRD or NIfTI series (nrrdStepCount, niftiStepCount); -1: the
+// file must hold one volume.
+std::optional<SlabLayout> nrrdSlabLayout(const std::string& path, int step = -1);
 std::optional<SlabLayout> niftiSlabLayout(const std::string& path, int step = -1);
 
 // The voxels `slab` describes, read from the file in slabs (the first pass finds their range,
