@@ -16,7 +16,6 @@ Exits 0 when every check passed; one line saying what failed and 1 otherwise.
 """
 import argparse
 import os
-import re
 import shlex
 import subprocess
 import sys
@@ -25,28 +24,9 @@ import tempfile
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 
-from webtest import Failure, Processes, chromium, psnr, rgba_rows, wait
+from webtest import Failure, Processes, chromium, page_frame, psnr, sink_ports, wait
 
 STEPS = 6
-
-
-def page_frame(driver):
-    """The newest frame the page drew: its metadata and its pixels as RGB rows."""
-    got = driver.execute_script("""
-        const s = window.voxwall;
-        if (!s.bitmap || !s.meta) return null;
-        const c = document.createElement('canvas');
-        c.width = s.bitmap.width; c.height = s.bitmap.height;
-        const g = c.getContext('2d');
-        g.drawImage(s.bitmap, 0, 0);
-        const px = g.getImageData(0, 0, c.width, c.height).data;
-        let bin = '';
-        for (let i = 0; i < px.length; i += 32768)
-          bin += String.fromCharCode.apply(null, px.subarray(i, i + 32768));
-        return {meta: s.meta, width: c.width, height: c.height, rgba: btoa(bin)};""")
-    if not got:
-        return None
-    return got["meta"], rgba_rows(got)
 
 
 def main():
@@ -71,13 +51,11 @@ def main():
         procs.start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
                      "127.0.0.1:0", "--no-stdin"], "sink.log")
 
-        def sink_ports():
-            text = open(sink_log).read()
-            tiles = re.search(r"listening on 127\.0\.0\.1:(\d+)", text)
-            page = re.search(r"wall page at (http://127\.0\.0\.1:\d+/)", text)
-            return (tiles.group(1), page.group(1)) if tiles and page else None
-
-        tile_port, url = wait("the sink to listen", sink_ports, 30)
+        tile_port, url = wait("the sink to listen", lambda: sink_ports(sink_log), 30)
+        # The browser first: a job playing a series renders without a pause, and chromium starts
+        # slowly on a busy machine.
+        driver = chromium(work, "time")
+        driver.get(url)
         # Interactive reduction off (--interactive-step 1): every frame is a full one, so frames
         # of one step can be compared pixel for pixel.
         procs.start([args.mpiexec, *shlex.split(args.preflags), "-np", "2", args.voxwall,
@@ -86,8 +64,6 @@ def main():
                      "--interactive-step", "1", "--time", "all", "--time-rate", "4", "-q"],
                     "render.log")
 
-        driver = chromium(work, "time")
-        driver.get(url)
         script = lambda js: driver.execute_script("return " + js + ";")
         time_state = lambda: script("window.voxwall.time")
         wait("frames with the series' time on the page",

@@ -16,7 +16,6 @@ Exits 0 when every check passed; one line saying what failed and 1 otherwise.
 """
 import argparse
 import os
-import re
 import shlex
 import subprocess
 import sys
@@ -27,27 +26,8 @@ from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.actions.action_builder import ActionBuilder
 from selenium.webdriver.common.by import By
 
-from webtest import (Failure, Processes, chromium, psnr, read_png, rgba_rows, sink_file,
-                     wait)
-
-
-def page_frame(driver):
-    """The newest frame the page drew: its metadata and its pixels as RGB rows."""
-    got = driver.execute_script("""
-        const s = window.voxwall;
-        if (!s.bitmap || !s.meta) return null;
-        const c = document.createElement('canvas');
-        c.width = s.bitmap.width; c.height = s.bitmap.height;
-        const g = c.getContext('2d');
-        g.drawImage(s.bitmap, 0, 0);
-        const px = g.getImageData(0, 0, c.width, c.height).data;
-        let bin = '';
-        for (let i = 0; i < px.length; i += 32768)
-          bin += String.fromCharCode.apply(null, px.subarray(i, i + 32768));
-        return {meta: s.meta, width: c.width, height: c.height, rgba: btoa(bin)};""")
-    if not got:
-        return None
-    return got["meta"], rgba_rows(got)
+from webtest import (Failure, Processes, chromium, page_frame, psnr, read_png, sink_file,
+                     sink_ports, wait)
 
 
 def check_against_sink(driver, wall_dir, sink_log, condition, what):
@@ -107,13 +87,7 @@ def main():
         procs.start([args.voxwall, "sink", "--wall", wall, "--listen", "127.0.0.1:0", "--http",
                      "127.0.0.1:0", "--out", wall_dir, "--mosaic", "--no-stdin"], "sink.log")
 
-        def sink_ports():
-            text = open(sink_log).read()
-            tiles = re.search(r"listening on 127\.0\.0\.1:(\d+)", text)
-            page = re.search(r"wall page at (http://127\.0\.0\.1:\d+/)", text)
-            return (tiles.group(1), page.group(1)) if tiles and page else None
-
-        tile_port, url = wait("the sink to listen", sink_ports, 30)
+        tile_port, url = wait("the sink to listen", lambda: sink_ports(sink_log), 30)
         procs.start([args.mpiexec, *shlex.split(args.preflags), "-np", "2", args.voxwall,
                      "render", volume, "--wall", wall, "--sink", "127.0.0.1:" + tile_port,
                      "--frames", "100000", "--path", "still", "--threads", "1", "--settle", "1",

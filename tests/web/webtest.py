@@ -80,6 +80,34 @@ def psnr(a, b):
     return math.inf if se == 0 else 10 * math.log10(255 * 255 * n / se)
 
 
+def sink_ports(sink_log):
+    """The tile port and the page's address a `voxwall sink --http` on loopback printed to
+    `sink_log`, once it has."""
+    text = open(sink_log).read()
+    tiles = re.search(r"listening on 127\.0\.0\.1:(\d+)", text)
+    page = re.search(r"wall page at (http://127\.0\.0\.1:\d+/)", text)
+    return (tiles.group(1), page.group(1)) if tiles and page else None
+
+
+def page_frame(driver):
+    """The newest frame the page drew: its metadata and its pixels as RGB rows."""
+    got = driver.execute_script("""
+        const s = window.voxwall;
+        if (!s.bitmap || !s.meta) return null;
+        const c = document.createElement('canvas');
+        c.width = s.bitmap.width; c.height = s.bitmap.height;
+        const g = c.getContext('2d');
+        g.drawImage(s.bitmap, 0, 0);
+        const px = g.getImageData(0, 0, c.width, c.height).data;
+        let bin = '';
+        for (let i = 0; i < px.length; i += 32768)
+          bin += String.fromCharCode.apply(null, px.subarray(i, i + 32768));
+        return {meta: s.meta, width: c.width, height: c.height, rgba: btoa(bin)};""")
+    if not got:
+        return None
+    return got["meta"], rgba_rows(got)
+
+
 def wait(what, condition, seconds):
     deadline = time.time() + seconds
     while time.time() < deadline:

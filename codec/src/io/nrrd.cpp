@@ -227,6 +227,18 @@ int timeStepsOf(const Nrrd& n, const std::string& path) {
   return int(n.axis[3].size);
 }
 
+// timeStepsOf, when `step` is one of them (or -1 for a file of one volume); else throws.
+int stepsAllowing(const Nrrd& n, int step, const std::string& path) {
+  const int steps = timeStepsOf(n, path);
+  if (step < 0 && steps > 1)
+    throw FormatError(path, "holds " + std::to_string(steps) +
+                                " time steps: `voxwall compress` makes one .vwz of them");
+  if (step >= steps)
+    throw std::invalid_argument(path + ": no step " + std::to_string(step) + " (it holds " +
+                                std::to_string(steps) + ")");
+  return steps;
+}
+
 // The volume of `nin` starting at element `offset` (a time step's first), in voxwall's type for
 // its NRRD type; its geometry from the axes from `first` on.
 Volume volumeOf(Nrrd* nin, unsigned first, std::size_t offset, const std::string& path);
@@ -239,13 +251,7 @@ std::optional<SlabLayout> nrrdSlabLayout(const std::string& path, int step) {
   std::unique_ptr<NrrdIoState, IoStateDeleter> io(nrrdIoStateNew());
   io->skipData = AIR_TRUE;
   if (nrrdLoad(header.get(), path.c_str(), io.get())) throw FormatError(path, teemError());
-  const int steps = timeStepsOf(*header, path);
-  if (step < 0 && steps > 1)
-    throw FormatError(path, "holds " + std::to_string(steps) +
-                                " time steps: `voxwall compress` makes one .vwz of them");
-  if (step >= steps)
-    throw std::invalid_argument(path + ": no step " + std::to_string(step) + " (it holds " +
-                                std::to_string(steps) + ")");
+  const int steps = stepsAllowing(*header, step, path);
   const unsigned first = header->dim == 4 && header->axis[0].size == 1 ? 1 : 0;
   if (header->dim - first != (steps > 1 ? 4u : 3u) || io->encoding != nrrdEncodingRaw ||
       io->lineSkip != 0 || io->byteSkip < -1 || (io->dataFNArr && io->dataFNArr->len > 1))
@@ -309,13 +315,7 @@ Volume readNrrdVolume(const std::string& path, int step) {
   checkNrrdHeader(path);
   std::unique_ptr<Nrrd, NrrdNuker> nin(nrrdNew());
   if (nrrdLoad(nin.get(), path.c_str(), nullptr)) throw FormatError(path, teemError());
-  const int steps = timeStepsOf(*nin, path);
-  if (step < 0 && steps > 1)
-    throw FormatError(path, "holds " + std::to_string(steps) +
-                                " time steps: `voxwall compress` makes one .vwz of them");
-  if (step >= steps)
-    throw std::invalid_argument(path + ": no step " + std::to_string(step) + " (it holds " +
-                                std::to_string(steps) + ")");
+  const int steps = stepsAllowing(*nin, step, path);
   unsigned first = 0;
   // Allow a leading axis of size 1 (e.g. a single-component "vector" axis).
   if (nin->dim == 4 && nin->axis[0].size == 1) first = 1;
