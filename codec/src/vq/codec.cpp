@@ -635,7 +635,8 @@ CompressedSeries encodeSeries(const SeriesSource& series, const Params& params, 
       SectionSet view{"<memory>", {{kParams, p}, {kData, data}, {kBook, book}}};
       VolumeInfo info = step.info;
       info.steps = steps;
-      const auto source = series.open(k, progress);
+      voxwall::Progress quiet;  // inside this loop's progress
+      const auto source = series.open(k, quiet);
       s.psnr = brickPsnr(*source, Layout(info, view).view());
     }
     setField(p, kPsnrAt, s.psnr);
