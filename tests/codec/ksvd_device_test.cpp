@@ -40,10 +40,21 @@ TEST(KsvdDevice, TwoPhaseDecompressionMatchesTheHostDecoder) {
       const std::vector<float> host = ksvd::decompressBricks(layout, bricks);
       const std::vector<float> device = ksvd::decompressBricksOnDevice(layout, bricks);
       ASSERT_EQ(host.size(), device.size());
-      // The same sums in the same order; the device may fuse multiply-adds.
+      // The same sums in the same order; the device may fuse multiply-adds, which moves a sum
+      // by a rounding of the float: integer data, rounded after the sum, then lands on the
+      // neighbouring integer where the sum was within that of a half (on an H200, 1 voxel of the
+      // Menger sponge at block side 8). Such voxels are counted and must stay rare.
       const float tolerance = 1e-5f * float(v.valueMax - v.valueMin);
-      for (std::size_t i = 0; i < host.size(); ++i)
+      const bool integral = v.type != ScalarType::Float32;
+      std::size_t roundedApart = 0;
+      for (std::size_t i = 0; i < host.size(); ++i) {
+        if (integral && std::abs(host[i] - device[i]) == 1.0f) {
+          ++roundedApart;
+          continue;
+        }
         ASSERT_NEAR(host[i], device[i], tolerance) << "value " << i;
+      }
+      EXPECT_LE(roundedApart, host.size() / 10000) << roundedApart << " of " << host.size();
     }
 }
 
