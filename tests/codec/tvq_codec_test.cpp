@@ -198,6 +198,51 @@ TEST(TvqCodec, AssociatedCodebookDecodeEqualsDequantizeAndInverseTransform) {
   }
 }
 
+// The host view reads the sections where they lie and makes a sub-volume's associated codebooks
+// when a block of it is first decoded: a block holds only its sub-volume's; the range grid and
+// decode() make their own and free them; the joined (device) buffer decodes every block alike.
+TEST(TvqCodec, TheHostViewMakesASubvolumesCodebooksWhenItsBlocksAreFirstDecoded) {
+  const Volume v = generateSheppLogan(40);
+  Params p = quick();
+  p.subvolumeVoxels = 16;  // 3^3 sub-volumes
+  const CompressedVolume cv = encodeQuiet(v, p);
+  const Layout layout(cv.info, cv.view());
+  EXPECT_EQ(layout.subvolumes(), 27);
+  EXPECT_EQ(layout.associatedResidentBytes(), 0u);
+  (void)layout.rangeGrid();
+  const Volume decoded = layout.decode();
+  EXPECT_EQ(layout.associatedResidentBytes(), 0u);
+
+  const kernels::TvqView host = layout.view();
+  float block[64];
+  host.decoder.decode(host.decoder.key(5, 5, 5), block);  // the middle sub-volume's
+  const std::uint64_t one = layout.associatedResidentBytes();
+  EXPECT_GT(one, 0u);
+  EXPECT_LT(one * 4, layout.associatedBytes());
+  host.decoder.decode(host.decoder.key(4, 6, 7), block);  // the same sub-volume
+  EXPECT_EQ(layout.associatedResidentBytes(), one);
+
+  const std::vector<std::byte> joined = layout.joinedBytes();
+  const kernels::TvqView device = layout.view(joined.data());
+  const int blocks = 10;
+  for (int bz = 0; bz < blocks; ++bz)
+    for (int by = 0; by < blocks; ++by)
+      for (int bx = 0; bx < blocks; ++bx) {
+        float a[64], b[64];
+        host.decoder.decode(host.decoder.key(bx, by, bz), a);
+        device.decoder.decode(device.decoder.key(bx, by, bz), b);
+        for (int i = 0; i < 64; ++i) {
+          const int x = bx * 4 + i % 4, y = by * 4 + i / 4 % 4, z = bz * 4 + i / 16;
+          ASSERT_EQ(a[i], b[i]) << bx << "," << by << "," << bz << " voxel " << i;
+          ASSERT_EQ(double(a[i]), decoded.valueAt(decoded.index(x, y, z)))
+              << x << "," << y << "," << z;
+        }
+      }
+  // Every sub-volume with a coded block (one of only background blocks never needs its books).
+  EXPECT_GT(layout.associatedResidentBytes(), one);
+  EXPECT_LE(layout.associatedResidentBytes(), layout.associatedBytes());
+}
+
 TEST(TvqCodec, ProgressiveLevelsImprovePsnrMonotonically) {
   const Volume v = generateSheppLogan(40);
   EncodeStats s;

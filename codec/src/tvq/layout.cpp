@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <new>
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/tvq_codec.hpp>
 #include <voxwall/core/bytes.hpp>
@@ -19,8 +22,11 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const std::uint64_t subCount = readParams(sections);
   readBasis(sections);
   const auto [words, recordBytes] = readSubvolumes(sections, subCount);
-  buildRenderBuffer(sections, words, recordBytes);
+  buildTable(sections, words, recordBytes);
+  books_ = std::make_unique<Books>(*this);
 }
+
+Layout::~Layout() = default;
 
 std::uint64_t Layout::readParams(const SectionSet& sections) {
   const std::string& src = sections.source;
@@ -148,72 +154,93 @@ std::pair<std::uint64_t, std::uint64_t> Layout::readSubvolumes(const SectionSet&
   return {words, recordBytes};
 }
 
-void Layout::buildRenderBuffer(const SectionSet& sections, std::uint64_t words,
-                               std::uint64_t recordBytes) {
+// Sub-volumes' associated codebooks, each made the first time a block of it is decoded (any
+// render thread; the others wait for it) and kept until the object goes.
+class Layout::Books {
+ public:
+  explicit Books(const Layout& layout) : layout_(layout), slots_(layout.table_.size()) {}
+  ~Books() {
+    for (auto& slot : slots_) std::free(slot.load(std::memory_order_relaxed));
+  }
+  Books(const Books&) = delete;
+  Books& operator=(const Books&) = delete;
+
+  static const std::uint8_t* fetch(const void* owner, std::uint64_t s) {
+    return static_cast<const Books*>(owner)->get(s);
+  }
+  const std::uint8_t* get(std::uint64_t s) const {
+    if (auto* p = slots_[s].load(std::memory_order_acquire)) return p;
+    std::lock_guard lock(locks_[s % locks_.size()]);
+    if (auto* p = slots_[s].load(std::memory_order_relaxed)) return p;
+    const std::uint64_t bytes = layout_.subBooksBytes(s);
+    auto* p = static_cast<std::uint8_t*>(std::calloc(std::max<std::uint64_t>(bytes, 1), 1));
+    if (!p) throw std::bad_alloc();
+    layout_.associateCodebooks(s, reinterpret_cast<float*>(p));
+    resident_.fetch_add(bytes, std::memory_order_relaxed);
+    slots_[s].store(p, std::memory_order_release);
+    return p;
+  }
+  std::uint64_t resident() const { return resident_.load(std::memory_order_relaxed); }
+
+ private:
+  const Layout& layout_;
+  mutable std::vector<std::atomic<std::uint8_t*>> slots_;
+  mutable std::array<std::mutex, 64> locks_;
+  mutable std::atomic<std::uint64_t> resident_{0};
+};
+
+void Layout::buildTable(const SectionSet& sections, std::uint64_t words,
+                        std::uint64_t recordBytes) {
   const std::string& src = sections.source;
   const std::uint64_t subCount = subvolumes_.size();
   const Grid grid(info_.dims, s_);
-  const auto occupancy = sections.get(kOccupancy, "occupancy");
-  ByteReader orr(occupancy, src, "section 'occupancy'");
-  if (occupancy.size() != words * 8)
-    orr.fail(std::to_string(occupancy.size()) + " bytes, the sub-volumes need " +
+  occupancy_ = sections.get(kOccupancy, "occupancy");
+  ByteReader orr(occupancy_, src, "section 'occupancy'");
+  if (occupancy_.size() != words * 8)
+    orr.fail(std::to_string(occupancy_.size()) + " bytes, the sub-volumes need " +
              std::to_string(words * 8));
-  const auto records = sections.get(kRecords, "records");
-  ByteReader rr(records, src, "section 'records'");
-  if (records.size() != recordBytes)
-    rr.fail(std::to_string(records.size()) + " bytes, the coded blocks need " +
+  records_ = sections.get(kRecords, "records");
+  ByteReader rr(records_, src, "section 'records'");
+  if (records_.size() != recordBytes)
+    rr.fail(std::to_string(records_.size()) + " bytes, the coded blocks need " +
             std::to_string(recordBytes));
-
-  // The render buffer: the sub-volume table, each sub-volume's associated codebooks (zero
-  // vector first), occupancy words with their ranks, then the records.
-  auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
-  std::uint64_t at = subvolumesAt_ = 0;
-  at += subCount * sizeof(kernels::TvqSubvolume);
-  std::vector<kernels::TvqSubvolume> table(subCount);
-  for (std::uint64_t i = 0; i < subCount; ++i)
-    for (int p = 0; p < 3; ++p) {
-      std::uint64_t n = 1;
-      for (std::uint32_t c : subvolumes_[i].chapters[std::size_t(p)]) n += c;
-      table[i].codebookAt[p] = at = align8(at);
-      at += n * kBlockVoxels * sizeof(float);
-    }
-  const std::uint64_t occupancyAt = at = align8(at);
-  at += words * 8;
-  const std::uint64_t rankAt = at;
-  at += words * 4;
-  const std::uint64_t recordsAt = at = align8(at);
-  at += recordBytes + 8;  // readBits reads 8 bytes past the last record's byte
-  render_.assign(at, std::byte{0});
-  std::memcpy(render_.data() + occupancyAt, occupancy.data(), occupancy.size());
-  if (!records.empty()) std::memcpy(render_.data() + recordsAt, records.data(), records.size());
+  table_.assign(subCount, kernels::TvqSubvolume{});
+  ranks_.assign(words, 0);
+  std::uint64_t at = 0;  // in the associated codebooks of every sub-volume, one after the other
   for (std::uint64_t i = 0; i < subCount; ++i) {
     const Sub& sub = subvolumes_[i];
-    kernels::TvqSubvolume& t = table[i];
+    kernels::TvqSubvolume& t = table_[i];
+    for (int p = 0; p < 3; ++p) {
+      std::uint64_t n = 1;  // the zero vector first
+      for (std::uint32_t c : sub.chapters[std::size_t(p)]) n += c;
+      t.codebookAt[p] = at;
+      at += n * kBlockVoxels * sizeof(float);
+    }
     const glm::ivec3 first = grid.first(i), extent = grid.extent(i);
     for (int a = 0; a < 3; ++a) t.firstBlock[a] = first[a], t.blocks[a] = extent[a];
     for (int p = 0; p < 3; ++p) t.codeBits[p] = sub.bits[std::size_t(p)];
     t.recordBits = dcBits_ + sub.bits[0] + sub.bits[1] + sub.bits[2];
     t.background = float(dcLo_ + double(sub.background) * dcStep_);
-    t.occupancyAt = occupancyAt + sub.firstWord * 8;
-    t.rankAt = rankAt + sub.firstWord * 4;
-    t.recordsAt = recordsAt + sub.firstRecordByte;
-    rankOccupancy(i, t, Grid::volume(extent), orr);
-    // Associated codebooks: each codevector taken back through the inverse transform (section
-    // 4.3, equation 5), so that decoding never does.
-    associateCodebooks(sub, t);
-    checkRecords(i, t, rr);
+    t.occupancyAt = sub.firstWord * 8;
+    t.rankAt = sub.firstWord * 4;
+    t.recordsAt = sub.firstRecordByte;
+    rankOccupancy(i, Grid::volume(extent), orr);
+    checkRecords(i, rr);
   }
-  // The table goes into the render buffer as the kernels read it (memory, not a file format).
-  std::memcpy(render_.data() + subvolumesAt_, table.data(),
-              table.size() * sizeof(kernels::TvqSubvolume));
+  booksBytes_ = at;
+}
+
+std::uint64_t Layout::subBooksBytes(std::uint64_t s) const {
+  return (s + 1 < table_.size() ? table_[s + 1].codebookAt[0] : booksBytes_) -
+         table_[s].codebookAt[0];
 }
 
 // The rank of every occupancy word of sub-volume i (coded blocks before it), checking the words
 // against the sub-volume's size and coded count.
-void Layout::rankOccupancy(std::uint64_t i, const kernels::TvqSubvolume& t, std::uint64_t local,
-                           const ByteReader& orr) {
-  const auto* w = reinterpret_cast<const std::uint64_t*>(render_.data() + t.occupancyAt);
-  auto* rank = reinterpret_cast<std::uint32_t*>(render_.data() + t.rankAt);
+void Layout::rankOccupancy(std::uint64_t i, std::uint64_t local, const ByteReader& orr) {
+  const kernels::TvqSubvolume& t = table_[i];
+  const auto* w = reinterpret_cast<const std::uint64_t*>(occupancy_.data() + t.occupancyAt);
+  std::uint32_t* rank = ranks_.data() + t.rankAt / 4;
   std::uint64_t seen = 0;
   for (std::uint64_t j = 0; j < (local + 63) / 64; ++j) {
     rank[j] = std::uint32_t(seen);
@@ -228,10 +255,9 @@ void Layout::rankOccupancy(std::uint64_t i, const kernels::TvqSubvolume& t, std:
 }
 
 // Every record's codes name a codevector of its partition.
-void Layout::checkRecords(std::uint64_t i, const kernels::TvqSubvolume& t,
-                          const ByteReader& rr) const {
+void Layout::checkRecords(std::uint64_t i, const ByteReader& rr) const {
   kernels::TvqDecoder d;
-  d.data = reinterpret_cast<const std::uint8_t*>(render_.data());
+  d.records = reinterpret_cast<const std::uint8_t*>(records_.data());
   d.dcBits = dcBits_;
   std::array<std::uint64_t, 3> limit{};
   for (int p = 0; p < 3; ++p) {
@@ -240,7 +266,7 @@ void Layout::checkRecords(std::uint64_t i, const kernels::TvqSubvolume& t,
   }
   for (std::uint64_t j = 0; j < subvolumes_[i].coded; ++j) {
     std::uint32_t dc, k[3];
-    d.codes(t, j, dc, k);
+    d.codes(table_[i], j, dc, k);
     for (int p = 0; p < 3; ++p)
       if (k[p] >= limit[std::size_t(p)])
         rr.fail("sub-volume " + std::to_string(i) + ", record " + std::to_string(j) + ": code " +
@@ -249,11 +275,14 @@ void Layout::checkRecords(std::uint64_t i, const kernels::TvqSubvolume& t,
   }
 }
 
-// Each codevector of `sub` taken back through the inverse transform into the render buffer.
-void Layout::associateCodebooks(const Sub& sub, const kernels::TvqSubvolume& t) {
+// Each codevector of sub-volume s taken back through the inverse transform (section 4.3,
+// equation 5), so that decoding never does; `out` holds its partitions from codebookAt[0] on.
+void Layout::associateCodebooks(std::uint64_t s, float* out) const {
+  const Sub& sub = subvolumes_[s];
+  const kernels::TvqSubvolume& t = table_[s];
   const std::int16_t* book = reinterpret_cast<const std::int16_t*>(codebooks_.data());
   for (int p = 0; p < 3; ++p) {
-    float* out = reinterpret_cast<float*>(render_.data() + t.codebookAt[p]) + kBlockVoxels;
+    float* o = out + (t.codebookAt[p] - t.codebookAt[0]) / sizeof(float) + kBlockVoxels;
     std::uint64_t value = sub.codebookAt[std::size_t(p)];
     for (int c = 0; c < chapterCount(p); ++c) {
       const auto ks = chapterCoefficients(basis_, p, firstChapterClass(p) + c);
@@ -263,23 +292,74 @@ void Layout::associateCodebooks(const Sub& sub, const kernels::TvqSubvolume& t) 
           std::memcpy(&q, book + value++, 2);
           const float coef = float(q) * sub.scale[std::size_t(p)];
           const float* row = basis_.row(k);
-          for (int j = 0; j < kBlockVoxels; ++j) out[j] += coef * row[j];
+          for (int j = 0; j < kBlockVoxels; ++j) o[j] += coef * row[j];
         }
-        out += kBlockVoxels;
+        o += kBlockVoxels;
       }
     }
   }
 }
 
+std::uint64_t Layout::associatedResidentBytes() const { return books_->resident(); }
+
+namespace {
+// Where each part lies in the joined buffer: the table, the codebooks, the ranks, the occupancy
+// words, the records (and 8 bytes more).
+struct Joined {
+  std::uint64_t books, ranks, occupancy, records, end;
+};
+Joined joinedLayout(std::uint64_t subCount, std::uint64_t books, std::uint64_t words,
+                    std::uint64_t records) {
+  auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
+  Joined j;
+  j.books = subCount * sizeof(kernels::TvqSubvolume);
+  j.ranks = align8(j.books + books);
+  j.occupancy = align8(j.ranks + words * 4);
+  j.records = j.occupancy + words * 8;
+  j.end = j.records + records + 8;
+  return j;
+}
+}  // namespace
+
+std::vector<std::byte> Layout::joinedBytes() const {
+  const Joined j = joinedLayout(table_.size(), booksBytes_, ranks_.size(), records_.size());
+  std::vector<std::byte> out(j.end, std::byte{0});
+  if (!table_.empty()) std::memcpy(out.data(), table_.data(), j.books);
+  parallelFor(table_.size(), 0, [&](std::size_t s) {
+    associateCodebooks(s, reinterpret_cast<float*>(out.data() + j.books + table_[s].codebookAt[0]));
+  });
+  if (!ranks_.empty()) std::memcpy(out.data() + j.ranks, ranks_.data(), ranks_.size() * 4);
+  if (!occupancy_.empty())
+    std::memcpy(out.data() + j.occupancy, occupancy_.data(), occupancy_.size());
+  if (!records_.empty()) std::memcpy(out.data() + j.records, records_.data(), records_.size());
+  return out;
+}
+
 kernels::TvqView Layout::view(const std::byte* base, int partitions) const {
+  kernels::TvqView v = viewWith(*books_, partitions);
+  if (!base) return v;
+  const Joined j = joinedLayout(table_.size(), booksBytes_, ranks_.size(), records_.size());
+  const auto* b = reinterpret_cast<const std::uint8_t*>(base);
+  auto& d = v.decoder;
+  d.table = reinterpret_cast<const kernels::TvqSubvolume*>(b);
+  d.books = b + j.books, d.ranks = b + j.ranks, d.occupancy = b + j.occupancy;
+  d.records = b + j.records;
+  d.lazyBooks = nullptr, d.lazyOwner = nullptr;
+  return v;
+}
+
+kernels::TvqView Layout::viewWith(const Books& books, int partitions) const {
   if (partitions < 0 || partitions > 3)
     throw std::invalid_argument("tvq: progressive level out of range");
   kernels::TvqView v;
   v.setDims(info_.dims.x, info_.dims.y, info_.dims.z);
   v.cacheId = cacheId_ + std::uint64_t(partitions);
   auto& d = v.decoder;
-  d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
-  d.subvolumesAt = subvolumesAt_;
+  d.table = table_.data();
+  d.ranks = reinterpret_cast<const std::uint8_t*>(ranks_.data());
+  d.occupancy = reinterpret_cast<const std::uint8_t*>(occupancy_.data());
+  d.records = reinterpret_cast<const std::uint8_t*>(records_.data());
+  d.lazyBooks = &Books::fetch, d.lazyOwner = &books;
   d.subvolumeBlocks = s_;
   d.subvolumesX = grid_.x, d.subvolumesY = grid_.y;
   d.dcBits = dcBits_;
@@ -329,11 +409,13 @@ bool Layout::coefficients(int bx, int by, int bz, float* c) const {
 }
 
 RangeGrid Layout::rangeGrid(int partitions) const {
-  return brickRangeGrid(view(nullptr, partitions));
+  const Books scratch(*this);
+  return brickRangeGrid(viewWith(scratch, partitions));
 }
 
 Volume Layout::decode(int partitions) const {
-  return decodeBricks(view(nullptr, partitions), info_.type, info_.spacing);
+  const Books scratch(*this);
+  return decodeBricks(viewWith(scratch, partitions), info_.type, info_.spacing);
 }
 
 Volume decode(const VolumeInfo& info, const SectionSet& sections) {

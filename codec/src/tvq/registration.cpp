@@ -1,6 +1,7 @@
 // The tvq codec's registry entry: its compress and render options, report, info lines, render
 // payload and samples.
 #include <cmath>
+#include <mutex>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/render_payload.hpp>
@@ -18,7 +19,12 @@ class Payload final : public RenderPayload {
   Payload(const VolumeInfo& info, const SectionSet& sections, int partitions)
       : layout_(info, sections), partitions_(partitions) {}
   RangeGrid rangeGrid() const override { return layout_.rangeGrid(partitions_); }
-  std::span<const std::byte> bytes() const override { return layout_.renderBytes(); }
+  // Everything joined in one buffer, made when a device backend first asks (a CPU rank reads the
+  // sections where they are mapped and makes a sub-volume's codebooks when its rays reach it).
+  std::span<const std::byte> bytes() const override {
+    std::call_once(joinOnce_, [this] { joined_ = layout_.joinedBytes(); });
+    return joined_;
+  }
   AnyView view(const std::byte* base) const override {
     return AnyView(layout_.view(base, partitions_));
   }
@@ -26,6 +32,8 @@ class Payload final : public RenderPayload {
  private:
   Layout layout_;
   int partitions_;
+  mutable std::once_flag joinOnce_;
+  mutable std::vector<std::byte> joined_;
 };
 
 std::string psnrText(double v) {

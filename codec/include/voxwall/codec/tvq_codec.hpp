@@ -47,6 +47,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -167,10 +168,17 @@ Basis kltBasis(std::uint64_t count, const std::function<void(std::uint64_t, floa
 // voxels) of the coefficients `c` (coefficient 0 ignored: the mean is coded apart).
 int classify(const Basis& basis, const float* c, double maxError2, bool classified);
 
-// The sections of a tvq-coded volume, validated, and the render buffer built from them.
+// The sections of a tvq-coded volume, validated, and what the view reads. On the host the view
+// reads the occupancy and records where the sections lie (a mapped file's pages come in where
+// rays go) and each sub-volume's associated codebooks are made the first time a block of it is
+// decoded, so a rank holds the codebooks of the sub-volumes its rays reach. A device gets all of
+// it joined in one buffer (joinedBytes).
 class Layout {
  public:
   Layout(const VolumeInfo& info, const SectionSet& sections);
+  ~Layout();
+  Layout(const Layout&) = delete;
+  Layout& operator=(const Layout&) = delete;
   Transform transform() const { return transform_; }
   bool classified() const { return classified_; }
   int dcBits() const { return dcBits_; }
@@ -182,13 +190,20 @@ class Layout {
   std::uint64_t codedBlocks() const { return coded_; }
   std::uint64_t codevectors(int partition) const { return codevectors_[std::size_t(partition)]; }
   const Basis& basis() const { return basis_; }
-  std::span<const std::byte> renderBytes() const { return render_; }
-  // The view with the render buffer at `base` (host when null), adding the first `partitions`
-  // partitions to the mean (the progressive level; 3: all).
+  // Everything the view reads, in one buffer for a device: the sub-volume table, every
+  // sub-volume's associated codebooks, the occupancy ranks, the occupancy words and the records.
+  std::vector<std::byte> joinedBytes() const;
+  // The bytes of every sub-volume's associated codebooks (what a host view holds once its rays
+  // have reached every sub-volume), and of those made so far.
+  std::uint64_t associatedBytes() const { return booksBytes_; }
+  std::uint64_t associatedResidentBytes() const;
+  // The view over joinedBytes() at `base`, or the host view when null, adding the first
+  // `partitions` partitions to the mean (the progressive level; 3: all).
   kernels::TvqView view(const std::byte* base = nullptr, int partitions = 3) const;
   // Block (bx, by, bz)'s 64 coefficients as the file states them (the slow path: dequantized
   // codevectors, the mean as coefficient 0), and whether the block has a record.
   bool coefficients(int bx, int by, int bz, float* c) const;
+  // Both decode every block with codebooks of their own, freed when they return.
   RangeGrid rangeGrid(int partitions = 3) const;
   Volume decode(int partitions = 3) const;
 
@@ -201,19 +216,20 @@ class Layout {
     std::array<std::vector<std::uint32_t>, 3> chapters;
     std::array<std::uint64_t, 3> codebookAt{};  // into section 4, in i16 values
   };
-  // The constructor's steps: each section checked, then the render buffer built from them.
+  class Books;  // associated codebooks made on first use
+  // The constructor's steps: each section checked, then the table and ranks built from them.
   std::uint64_t readParams(const SectionSet& sections);  // returns the sub-volume count
   void readBasis(const SectionSet& sections);
   // Returns the occupancy words and record bytes the table needs.
   std::pair<std::uint64_t, std::uint64_t> readSubvolumes(const SectionSet& sections,
                                                          std::uint64_t subCount);
-  void buildRenderBuffer(const SectionSet& sections, std::uint64_t words,
-                         std::uint64_t recordBytes);
-  void associateCodebooks(const Sub& sub, const kernels::TvqSubvolume& t);
-  void rankOccupancy(std::uint64_t i, const kernels::TvqSubvolume& t, std::uint64_t local,
-                     const ByteReader& occupancy);
-  void checkRecords(std::uint64_t i, const kernels::TvqSubvolume& t,
-                    const ByteReader& records) const;
+  void buildTable(const SectionSet& sections, std::uint64_t words, std::uint64_t recordBytes);
+  // Sub-volume s's associated codebooks into `out` (zeroed, codebookAt[0] of the table there).
+  void associateCodebooks(std::uint64_t s, float* out) const;
+  std::uint64_t subBooksBytes(std::uint64_t s) const;  // sub-volume s's associated codebooks
+  void rankOccupancy(std::uint64_t i, std::uint64_t local, const ByteReader& occupancy);
+  void checkRecords(std::uint64_t i, const ByteReader& records) const;
+  kernels::TvqView viewWith(const Books& books, int partitions) const;
   VolumeInfo info_;
   Transform transform_ = Transform::Klt;
   bool classified_ = true;
@@ -225,10 +241,12 @@ class Layout {
   glm::ivec3 blocks_{}, grid_{};
   Basis basis_;
   std::vector<Sub> subvolumes_;
-  std::vector<std::byte> render_;
-  std::uint64_t subvolumesAt_ = 0;
+  std::vector<kernels::TvqSubvolume> table_;
+  std::vector<std::uint32_t> ranks_;
+  std::span<const std::byte> codebooks_, occupancy_, records_;
+  std::uint64_t booksBytes_ = 0;
+  std::unique_ptr<Books> books_;  // the host view's
   std::uint64_t cacheId_ = 0;
-  std::span<const std::byte> codebooks_;
 };
 
 // The codec's registry entry (registry.hpp).

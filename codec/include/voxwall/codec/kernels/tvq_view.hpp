@@ -4,8 +4,8 @@
 // *associated* codebook: a codevector already taken back through the inverse transform (the
 // paper's vector reprojection, section 4.3), so a voxel is P look-ups and P - 1 additions plus
 // the mean, and no block ever needs an inverse transform or a class test. The caches, corners and
-// sampling are CachedBrickView's. The file layout is in tvq_codec.hpp; this is the layout of the
-// render buffer the codec's Layout builds from it.
+// sampling are CachedBrickView's. The file layout is in tvq_codec.hpp; this is how the codec's
+// Layout lays out what the view reads.
 #pragma once
 
 #include <cmath>
@@ -19,8 +19,8 @@ namespace voxwall::codec::kernels {
 
 inline constexpr int kTvqPartitions = 3;  // lowpass, bandpass, highpass
 
-// One sub-volume of the render buffer: where its codebooks, occupancy and records are, and how
-// its records are packed. Offsets are in bytes from the buffer's start.
+// One sub-volume: where its codebooks, occupancy and records are, and how its records are packed.
+// Each offset is in bytes from the start of its own array (TvqDecoder).
 struct TvqSubvolume {
   std::uint64_t codebookAt[kTvqPartitions];  // associated codebooks: (1 + codevectors) x 64 float
   std::uint64_t occupancyAt;                 // u64 words, bit i: local block i is coded
@@ -36,16 +36,28 @@ struct TvqSubvolume {
 static_assert(sizeof(TvqSubvolume) == 96);
 static_assert(std::is_trivially_copyable_v<TvqSubvolume>);
 
-// The codec's half of the view. `data` is the render buffer (host or device memory, not owned):
-// the sub-volume table at subvolumesAt, then the arrays the table points at.
+// Where a host view finds a sub-volume's associated codebooks when they are made on first use
+// (tvq::Layout): the start of sub-volume s's codebooks (partition p at codebookAt[p] -
+// codebookAt[0] from it). Called from the render threads; never on a device.
+using TvqBooksFn = const std::uint8_t* (*)(const void* owner, std::uint64_t s);
+
+// The codec's half of the view. The arrays (host or device memory, not owned): the sub-volume
+// table, the associated codebooks, the occupancy words' ranks, the occupancy words and the
+// records. On the host the occupancy and records are the file's sections where they lie, and the
+// codebooks come from `lazyBooks` when it is set.
 struct TvqDecoder {
   static constexpr int kBrickSide = 4;
   static constexpr int kVoxels = 64;
   using Value = float;
   static constexpr std::uint64_t kUncoded = 0xFFFFFFFFull;  // the local part of an uncoded key
 
-  const std::uint8_t* data = nullptr;
-  std::uint64_t subvolumesAt = 0;
+  const TvqSubvolume* table = nullptr;
+  const std::uint8_t* books = nullptr;  // null on the host when lazyBooks is set
+  const std::uint8_t* ranks = nullptr;
+  const std::uint8_t* occupancy = nullptr;
+  const std::uint8_t* records = nullptr;
+  TvqBooksFn lazyBooks = nullptr;
+  const void* lazyOwner = nullptr;
   int subvolumeBlocks = 64;  // a sub-volume's side in blocks
   int subvolumesX = 1, subvolumesY = 1;
   int dcBits = 8;
@@ -54,9 +66,7 @@ struct TvqDecoder {
   int partitions = kTvqPartitions;  // progressive level: partitions added to the mean (0..3)
   bool integral = false;            // integer data: decoded voxels round to integers
 
-  VOXWALL_HD_INLINE const TvqSubvolume& subvolume(std::uint64_t s) const {
-    return reinterpret_cast<const TvqSubvolume*>(data + subvolumesAt)[s];
-  }
+  VOXWALL_HD_INLINE const TvqSubvolume& subvolume(std::uint64_t s) const { return table[s]; }
 
   // The sub-volume in the high 32 bits; in the low 32 the block's record among the sub-volume's
   // coded blocks, or kUncoded for a block that is the sub-volume's background.
@@ -73,24 +83,35 @@ struct TvqDecoder {
             std::uint64_t(sv.blocks[0]) +
         std::uint64_t(bx - sv.firstBlock[0]);
     const std::uint64_t word =
-        reinterpret_cast<const std::uint64_t*>(data + sv.occupancyAt)[local >> 6];
+        reinterpret_cast<const std::uint64_t*>(occupancy + sv.occupancyAt)[local >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (local & 63);
     if (!(word & bit)) return (s << 32) | kUncoded;
     const std::uint32_t before =
-        reinterpret_cast<const std::uint32_t*>(data + sv.rankAt)[local >> 6];
+        reinterpret_cast<const std::uint32_t*>(ranks + sv.rankAt)[local >> 6];
     return (s << 32) | std::uint64_t(before + popcount64(word & (bit - 1)));
+  }
+
+  // `bits` bits from bit `bit` of p, LSB first, reading only the bytes they lie in (a record may
+  // end a section that the file maps).
+  static VOXWALL_HD_INLINE std::uint32_t field(const std::uint8_t* p, std::uint64_t bit, int bits) {
+    const std::uint8_t* q = p + (bit >> 3);
+    const int shift = int(bit & 7);
+    const int bytes = (shift + bits + 7) >> 3;
+    std::uint64_t word = 0;
+    for (int i = 0; i < bytes; ++i) word |= std::uint64_t(q[i]) << (8 * i);
+    return std::uint32_t((word >> shift) & ((std::uint64_t(1) << bits) - 1));
   }
 
   // The codes of record `r` of sub-volume `sv`: the quantized mean and one code per partition.
   VOXWALL_HD_INLINE void codes(const TvqSubvolume& sv, std::uint64_t r, std::uint32_t& dc,
                                std::uint32_t* k) const {
-    const std::uint8_t* records = data + sv.recordsAt;
+    const std::uint8_t* p = records + sv.recordsAt;
     std::uint64_t bit = r * std::uint64_t(sv.recordBits);
-    dc = std::uint32_t(readBits(records, bit, dcBits));
+    dc = field(p, bit, dcBits);
     bit += std::uint64_t(dcBits);
-    for (int p = 0; p < kTvqPartitions; ++p) {
-      k[p] = std::uint32_t(readBits(records, bit, sv.codeBits[p]));
-      bit += std::uint64_t(sv.codeBits[p]);
+    for (int q = 0; q < kTvqPartitions; ++q) {
+      k[q] = field(p, bit, sv.codeBits[q]);
+      bit += std::uint64_t(sv.codeBits[q]);
     }
   }
 
@@ -107,8 +128,13 @@ struct TvqDecoder {
     codes(sv, r, dc, k);
     const float mean = dcLo + float(dc) * dcStep;
     for (int i = 0; i < kVoxels; ++i) out[i] = mean;
+    const std::uint8_t* base = books;
+    std::uint64_t first = 0;
+#if !defined(__CUDA_ARCH__)
+    if (lazyBooks) base = lazyBooks(lazyOwner, key >> 32), first = sv.codebookAt[0];
+#endif
     for (int p = 0; p < partitions; ++p) {
-      const float* v = reinterpret_cast<const float*>(data + sv.codebookAt[p]) +
+      const float* v = reinterpret_cast<const float*>(base + (sv.codebookAt[p] - first)) +
                        std::size_t(k[p]) * std::size_t(kVoxels);
       for (int i = 0; i < kVoxels; ++i) out[i] += v[i];
     }
