@@ -380,6 +380,41 @@ TEST(KsvdPyramid, LevelsHalveTheResolutionAndDecodeCloseToTheBoxFilteredVolume) 
   EXPECT_EQ(ksvd::Layout(one.info, one.view()).levels(), 1);
 }
 
+// A host view reads the pairs where the section lies (no copy: a rank's pages of them come in
+// where its rays go); the joined buffer a device gets decodes every block of every level alike.
+TEST(KsvdPyramid, TheHostViewReadsThePairsInTheirSectionAndDecodesLikeTheJoinedBuffer) {
+  const Volume v = generateMarschnerLobb(40);
+  Progress quiet;
+  ksvd::Params p = quick(4);
+  p.levels = 0;
+  const auto c = ksvd::encode(v, p, quiet);
+  const SectionSet sections = c.view();
+  const auto pairs = sections.get(ksvd::kPairs, "pairs");
+  ASSERT_FALSE(pairs.empty());
+  const ksvd::Layout layout(c.info, sections);
+  ASSERT_GT(layout.levels(), 1);
+  const std::vector<std::byte> joined = layout.joinedBytes();
+  EXPECT_GE(joined.size(), layout.renderBufferBytes() + pairs.size());
+  const auto host = layout.view<4>();
+  const auto device = layout.view<4>(joined.data());
+  int blocks = 0;
+  for (int l = 0; l < layout.levels(); ++l) {
+    const auto& h = host.level[l].decoder;
+    const auto& d = device.level[l].decoder;
+    EXPECT_EQ(static_cast<const void*>(h.pairs), static_cast<const void*>(pairs.data()));
+    for (int bz = 0; bz < (layout.levelDims(l).z + 3) / 4; ++bz)
+      for (int by = 0; by < (layout.levelDims(l).y + 3) / 4; ++by)
+        for (int bx = 0; bx < (layout.levelDims(l).x + 3) / 4; ++bx, ++blocks) {
+          float a[64], b[64];
+          h.decode(h.key(bx, by, bz), a);
+          d.decode(d.key(bx, by, bz), b);
+          for (int i = 0; i < 64; ++i)
+            ASSERT_EQ(a[i], b[i]) << "level " << l << " block " << bx << "," << by << "," << bz;
+        }
+  }
+  EXPECT_GT(blocks, 1000);
+}
+
 TEST(KsvdPyramid, FilesWithoutTheLevelsSectionReadAsOneLevel) {
   // Files written before the pyramid have no section 6: level 0 alone.
   const Volume v = generateSheppLogan(40);

@@ -109,7 +109,7 @@ std::vector<float> decompressBricksOnDevice(const Layout& layout,
   const std::size_t brickVoxels = std::size_t(n * m) * std::size_t(n * m) * std::size_t(n * m);
   std::vector<float> out(bricks.size() * brickVoxels);
   if (bricks.empty()) return out;
-  const auto bytes = layout.renderBytes();
+  const auto bytes = layout.joinedBytes();
   DeviceMemory data(bytes.size()), jobMemory(jobs.size() * sizeof(Job)),
       outMemory(out.size() * sizeof(float));
   check(cudaMemcpy(data.ptr, bytes.data(), bytes.size(), cudaMemcpyHostToDevice), "upload");

@@ -163,8 +163,8 @@ void Layout::readLevels(const SectionSet& sections) {
         .fail(std::to_string(codedBricks_) + " coded bricks of " + std::to_string(nBricks));
 }
 
-// The render buffer: float atoms, brick records, block tables, pairs (levels one after the
-// other in each), each section's size checked first.
+// The render buffer: float atoms, brick records, block tables (levels one after the other in
+// each), each section's size checked first; the pairs stay in their section.
 void Layout::buildRenderBuffer(const SectionSet& sections) {
   const std::string& src = sections.source;
   const int m = m_ * m_ * m_;
@@ -198,7 +198,8 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
   bricksAt_ = align8(std::uint64_t(k_) * std::uint64_t(m) * 4);
   blocksAt_ = align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick));
   pairsAt_ = align8(blocksAt_ + nBlocks * 4);
-  render_.assign(pairsAt_ + pairBytes.size() + 8, std::byte{0});
+  render_.assign(pairsAt_, std::byte{0});
+  pairBytes_ = pairBytes;
   auto* atoms = reinterpret_cast<float*>(render_.data() + atomsAt_);
   for (std::size_t i = 0; i < std::size_t(k_) * std::size_t(m); ++i) {
     std::int16_t v;
@@ -228,8 +229,13 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
             std::to_string(codedBricks_));
   if (t.pairSeen != pairs_)
     pr.fail(std::to_string(t.pairSeen) + " pairs used, the header says " + std::to_string(pairs_));
-  if (!pairBytes.empty())
-    std::memcpy(render_.data() + pairsAt_, pairBytes.data(), pairBytes.size());
+}
+
+std::vector<std::byte> Layout::joinedBytes() const {
+  std::vector<std::byte> out(pairsAt_ + pairBytes_.size() + 8, std::byte{0});
+  std::memcpy(out.data(), render_.data(), render_.size());
+  if (!pairBytes_.empty()) std::memcpy(out.data() + pairsAt_, pairBytes_.data(), pairBytes_.size());
+  return out;
 }
 
 std::uint64_t Layout::bricks() const {
@@ -252,7 +258,8 @@ kernels::KsvdView<Side> Layout::view(const std::byte* base) const {
     lv.cacheId = cacheId_;
     auto& d = lv.decoder;
     d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
-    d.atomsAt = atomsAt_, d.pairsAt = pairsAt_;
+    d.pairs = base ? d.data + pairsAt_ : reinterpret_cast<const std::uint8_t*>(pairBytes_.data());
+    d.atomsAt = atomsAt_;
     d.bricksAt = bricksAt_ + level.firstBrick * sizeof(kernels::KsvdBrick);
     d.blocksAt = blocksAt_ + level.firstBlock * 4;
     d.keyBase = level.firstBlock;

@@ -1,6 +1,7 @@
 // The ksvd codec's registry entry: its compress options and report, info lines, render payload
 // and samples.
 #include <cmath>
+#include <mutex>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/ksvd_codec.hpp>
 #include <voxwall/codec/metrics.hpp>
@@ -15,13 +16,20 @@ class Payload final : public RenderPayload {
  public:
   Payload(const VolumeInfo& info, const SectionSet& sections) : layout_(info, sections) {}
   RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
-  std::span<const std::byte> bytes() const override { return layout_.renderBytes(); }
+  // The render buffer and the pairs joined, made when a device backend first asks (a CPU rank
+  // reads the pairs where the file is mapped).
+  std::span<const std::byte> bytes() const override {
+    std::call_once(joinOnce_, [this] { joined_ = layout_.joinedBytes(); });
+    return joined_;
+  }
   AnyView view(const std::byte* base) const override {
     return layout_.withView([](const auto& v) { return AnyView(v); }, base);
   }
 
  private:
   Layout layout_;
+  mutable std::once_flag joinOnce_;
+  mutable std::vector<std::byte> joined_;
 };
 
 std::string encodeReport(const EncodeStats& s, const Volume& v, bool sizeTarget) {

@@ -192,8 +192,12 @@ class Layout {
   glm::ivec3 levelDims(int level) const { return levels_.at(std::size_t(level)).dims; }
   glm::ivec3 levelBricks(int level) const { return levels_.at(std::size_t(level)).bricks; }
   double levelPsnr(int level) const { return levels_.at(std::size_t(level)).psnr; }
-  std::span<const std::byte> renderBytes() const { return render_; }
-  // The view for this block side, with the render buffer at `base` (host when null).
+  // The render buffer (atoms, bricks, blocks) and the pairs joined, for a device; a host view
+  // reads the pairs where the section lies.
+  std::vector<std::byte> joinedBytes() const;
+  // The bytes a host view holds beside the file's sections (the render buffer).
+  std::uint64_t renderBufferBytes() const { return render_.size(); }
+  // The view for this block side, over joinedBytes() at `base` (the host view when null).
   template <int Side>
   kernels::KsvdView<Side> view(const std::byte* base = nullptr) const;
   // Calls f(view<M>(base)) for the file's block side M.
@@ -228,7 +232,8 @@ class Layout {
   double tolerance_ = 0, psnr_ = 0;
   std::vector<LevelInfo> levels_;
   std::vector<std::byte> render_;
-  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, blocksAt_ = 0, pairsAt_ = 0;
+  std::span<const std::byte> pairBytes_;                                   // section 'pairs'
+  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, blocksAt_ = 0, pairsAt_ = 0;  // pairs: when joined
   std::uint64_t cacheId_ = 0;
 };
 

@@ -42,8 +42,9 @@ VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* p, int indexBits, int& ato
 //   the level's bricks (KsvdBrick per brick, x fastest) at bricksAt,
 //   the level's blocks (u32 per block, x fastest over the level: the first pair relative to the
 //     brick's firstPair in bits 0..23, the pair count in bits 24..31) at blocksAt,
-//   pairs (3 bytes each, every level's) at pairsAt.
 // Offsets are multiples of 8 bytes; the buffer points into host or device memory, not owned.
+// The pairs (3 bytes each, every level's) are at `pairs`: on the host the file's section where
+// it lies (its pages come in where rays go), on a device after the buffer.
 // Keys are block indices plus keyBase (the blocks of the levels before), so the blocks of
 // different levels never share a key in the block cache.
 template <int Side>
@@ -53,7 +54,8 @@ struct KsvdDecoder {
   using Value = float;
 
   const std::uint8_t* data = nullptr;
-  std::uint64_t atomsAt = 0, bricksAt = 0, blocksAt = 0, pairsAt = 0;
+  const std::uint8_t* pairs = nullptr;
+  std::uint64_t atomsAt = 0, bricksAt = 0, blocksAt = 0;
   int blocksX = 0, blocksY = 0;
   int bricksX = 0, bricksY = 0;
   int blocksPerBrick = 1;  // N: bricks are N^3 blocks
@@ -92,7 +94,7 @@ struct KsvdDecoder {
       return code;
     }
     const std::uint32_t entry = reinterpret_cast<const std::uint32_t*>(data + blocksAt)[block];
-    code.pairs = data + pairsAt + 3 * (code.brick.firstPair + (entry & 0xFFFFFFu));
+    code.pairs = pairs + 3 * (code.brick.firstPair + (entry & 0xFFFFFFu));
     code.count = int(entry >> 24);
     return code;
   }
