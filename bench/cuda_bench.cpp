@@ -1,8 +1,9 @@
 // The CUDA backend against the CPU backend on the same volumes, views and frames: per volume and
 // shading, the first frame (which uploads the volume), then the median of the next frames, the
-// samples per second of each backend, the CPU/CUDA ratio, and how far the two pictures are apart
-// (PSNR and the largest channel difference). Needs a CUDA device: without one it says why and
-// exits with status 2.
+// samples per second of each backend, the CPU/CUDA ratio, and how far the pictures are apart
+// (PSNR and the largest channel difference). CUDA runs both ways of sampling a compressed volume
+// (node::DeviceDecode): decoded whole into raw bricks, and decoding blocks per ray. Needs a CUDA
+// device: without one it says why and exits with status 2.
 //
 //   voxwall_bench_cuda [--frames N] [--size WxH] [--cpu-threads N] [--phantom N]... FILE...
 //
@@ -112,7 +113,7 @@ std::pair<double, int> compare(const Image& a, const Image& b) {
 }
 
 void bench(const std::string& name, const node::RenderVolume& volume, node::Backend& cpu,
-           node::Backend& gpu, const Options& o) {
+           node::Backend& whole, node::Backend& perRay, const Options& o) {
   const auto& info = volume.info();
   node::Orbit orbit;  // 3/4 view
   const auto camera = node::orbitCamera(orbit, node::boundingRadius(info));
@@ -122,12 +123,17 @@ void bench(const std::string& name, const node::RenderVolume& volume, node::Back
     s.shading = shading;
     const auto plan = node::planFrame(volume, camera, o.width, o.height, tf, s);
     const Timed c = timeFrames(cpu, volume, plan, o);
-    const Timed g = timeFrames(gpu, volume, plan, o);
+    const Timed g = timeFrames(whole, volume, plan, o);
+    const Timed r = timeFrames(perRay, volume, plan, o);
     const auto [psnr, worst] = compare(c.image, g.image);
+    const auto [psnrPerRay, worstPerRay] = compare(c.image, r.image);
     const auto rate = [](const Timed& t) { return double(t.samples) / (t.medianMs * 1e6); };
-    std::printf("| %s | %s | %.1f | %.2f | %.1f | %.2f | %.1f | %.2f | %.1f | %.1f | %d |\n",
-                name.c_str(), shading ? "shaded" : "plain", double(g.samples) / 1e6, c.medianMs,
-                g.firstMs, g.medianMs, c.medianMs / g.medianMs, rate(c), rate(g), psnr, worst);
+    std::printf(
+        "| %s | %s | %.1f | %.2f | %.1f | %.2f | %.2f | %.1f | %.2f | %.2f | %.2f | %.1f / %d | "
+        "%.1f / %d |\n",
+        name.c_str(), shading ? "shaded" : "plain", double(g.samples) / 1e6, c.medianMs, g.firstMs,
+        g.medianMs, r.medianMs, c.medianMs / g.medianMs, rate(c), rate(g), rate(r), psnr, worst,
+        psnrPerRay, worstPerRay);
     std::fflush(stdout);
   }
 }
@@ -143,23 +149,26 @@ int main(int argc, char** argv) {
   }
   try {
     auto cpu = node::makeCpuBackend(o.cpuThreads);
-    auto gpu = node::makeCudaBackend();
+    auto whole = node::makeCudaBackend(node::DeviceDecode::Whole);
+    auto perRay = node::makeCudaBackend(node::DeviceDecode::PerRay);
     std::printf(
         "%s against %s, %dx%d, ct-soft, 3/4 view; times: median of %d frames after the "
-        "first\n\n",
-        gpu->name().c_str(), cpu->name().c_str(), o.width, o.height, o.frames);
+        "first (which uploads; with --device-decode whole it also decodes on the host)\n\n",
+        whole->name().c_str(), cpu->name().c_str(), o.width, o.height, o.frames);
     std::printf(
-        "| volume | shading | Msamples | CPU ms | CUDA first ms | CUDA ms | CPU/CUDA | "
-        "CPU Gsamples/s | CUDA Gsamples/s | PSNR dB | max diff |\n");
-    std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+        "| volume | shading | Msamples | CPU ms | CUDA first ms | CUDA ms | CUDA per-ray ms "
+        "| CPU / CUDA | CPU Gsamples/s | CUDA Gsamples/s | per-ray Gsamples/s | CUDA vs "
+        "CPU: PSNR dB / max diff | per-ray vs CPU |\n");
+    std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (int n : o.phantoms) {
       const auto volume = node::RenderVolume::fromVolume(codec::generateSheppLogan(n));
-      bench("phantom " + std::to_string(n) + "^3 uint8 raw", volume, *cpu, *gpu, o);
+      bench("phantom " + std::to_string(n) + "^3 uint8 raw", volume, *cpu, *whole, *perRay, o);
     }
     for (const std::string& file : o.files) {
       const auto volume = node::RenderVolume::open(file);
       const auto slash = file.find_last_of('/');
-      bench(slash == std::string::npos ? file : file.substr(slash + 1), volume, *cpu, *gpu, o);
+      bench(slash == std::string::npos ? file : file.substr(slash + 1), volume, *cpu, *whole,
+            *perRay, o);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "voxwall_bench_cuda: %s\n", e.what());

@@ -173,8 +173,8 @@ DecodeCacheUse cpuDecodeCacheUse(const Backend& backend) {
 
 std::size_t cpuPacketLanes() { return cpu::packetLanes(); }
 
-std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads) {
-  if (kind == BackendKind::Cuda) return makeCudaBackend();
+std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads, DeviceDecode decode) {
+  if (kind == BackendKind::Cuda) return makeCudaBackend(decode);
   return makeCpuBackend(threads);
 }
 

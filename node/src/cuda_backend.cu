@@ -1,7 +1,8 @@
-// The CUDA backend: uploads the compressed volume once, the transfer-function table and the
-// skip grid per frame, and launches one thread per pixel running the same raycastPixel as the
-// CPU backend. Only allocation, upload, launch and download live here (docs/architecture.md);
-// the kernel is compiled per view type (cuda_launch.hpp).
+// The CUDA backend: uploads the volume once (decoded whole as raw bricks where they fit, else the
+// compressed bytes: DeviceDecode), the transfer-function table and the skip grid per frame, and
+// launches one thread per pixel running the same raycastPixel as the CPU backend. Only allocation,
+// upload, launch and download live here (docs/architecture.md); the kernel is compiled per view
+// type (cuda_launch.hpp).
 #include <cuda_runtime.h>
 
 #include <chrono>
@@ -52,6 +53,7 @@ class DeviceBuffer {
   T* as() const {
     return static_cast<T*>(ptr_);
   }
+  std::size_t capacity() const { return capacity_; }
 
  private:
   void* ptr_ = nullptr;
@@ -135,7 +137,7 @@ class DeviceArrays {
 
 class CudaBackend final : public Backend {
  public:
-  CudaBackend() {
+  explicit CudaBackend(DeviceDecode decode) : decode_(decode) {
     int device = 0;
     VOXWALL_CUDA_CHECK(cudaGetDevice(&device));
     cudaDeviceProp prop{};
@@ -160,11 +162,14 @@ class CudaBackend final : public Backend {
       return stopped;
     }
     const auto start = std::chrono::steady_clock::now();
-    const codec::RenderPayload& payload = volume.payload();
-    const auto bytes = payload.bytes();
-    if (volume.payloadId() != uploadedFor_) {  // another volume, or another step of it
+    // Mip levels (nearest sampling, level of detail) are the compressed view's alone.
+    const bool whole = !plan.ray.nearest && plan.ray.lodAngle <= 0.0f && decodesWhole(volume);
+    const codec::RenderPayload& payload = whole ? *volume.decodedPayload() : volume.payload();
+    const std::uint64_t payloadId = whole ? volume.decodedPayloadId() : volume.payloadId();
+    if (payloadId != uploadedFor_) {  // another volume, or another step of it
+      const auto bytes = payload.bytes();
       volumeBytes_.upload(bytes.data(), bytes.size());
-      uploadedFor_ = volume.payloadId();
+      uploadedFor_ = payloadId;
     }
     lut_.upload(plan.lut.entries.data(), plan.lut.entries.size() * sizeof(glm::vec4));
     kernels::SkipGrid skip = plan.skip;
@@ -182,7 +187,7 @@ class CudaBackend final : public Backend {
     const dim3 block(16, 8);
     const dim3 grid((tile.width + 15) / 16, (tile.height + 7) / 8);
     const auto lut = plan.lut.view(lut_.as<glm::vec4>());
-    const auto arrays = deviceArrays_.build(payload, volume.payloadId(), prop_);
+    const auto arrays = deviceArrays_.build(payload, payloadId, prop_);
     cuda::Launch launch;
     launch.grid = grid, launch.block = block;
     launch.frame = plan.ray, launch.lut = lut, launch.skip = skip;
@@ -206,7 +211,24 @@ class CudaBackend final : public Backend {
   }
 
  private:
+  // Whether `volume` is sampled decoded whole: asked for, possible, and its bricks fit in what the
+  // device has free (beside what this backend holds, which an upload replaces), with an eighth
+  // of the device to spare. Decided once per volume.
+  bool decodesWhole(const RenderVolume& volume) {
+    if (volume.payloadId() == decidedFor_) return whole_;
+    decidedFor_ = volume.payloadId();
+    whole_ = false;
+    if (decode_ != DeviceDecode::Whole || volume.decodedBytes() == 0) return false;
+    std::size_t free = 0, total = 0;
+    VOXWALL_CUDA_CHECK(cudaMemGetInfo(&free, &total));
+    whole_ = volume.decodedBytes() + total / 8 <= free + volumeBytes_.capacity();
+    return whole_;
+  }
+
   std::string name_;
+  DeviceDecode decode_;
+  std::uint64_t decidedFor_ = 0;  // RenderVolume::payloadId of the last decodesWhole() decision
+  bool whole_ = false;
   cudaDeviceProp prop_{};
   DeviceArrays deviceArrays_;
   DeviceBuffer volumeBytes_, lut_, skipCells_, fineSkipCells_, image_;
@@ -230,10 +252,10 @@ bool cudaAvailable(std::string* reason) {
   return true;
 }
 
-std::unique_ptr<Backend> makeCudaBackend() {
+std::unique_ptr<Backend> makeCudaBackend(DeviceDecode decode) {
   std::string reason;
   if (!cudaAvailable(&reason)) throw CudaError(reason);
-  return std::make_unique<CudaBackend>();
+  return std::make_unique<CudaBackend>(decode);
 }
 
 }  // namespace voxwall::node

@@ -8,7 +8,7 @@ bool cudaAvailable(std::string* reason) {
   return false;
 }
 
-std::unique_ptr<Backend> makeCudaBackend() {
+std::unique_ptr<Backend> makeCudaBackend(DeviceDecode) {
   throw CudaError("this build has no CUDA backend (configured with VOXWALL_CUDA=OFF)");
 }
 

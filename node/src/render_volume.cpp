@@ -3,12 +3,21 @@
 #include <algorithm>
 #include <atomic>
 #include <glm/geometric.hpp>
+#include <mutex>
 #include <type_traits>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/progress.hpp>
 #include <voxwall/node/render_volume.hpp>
 
 namespace voxwall::node {
+namespace {
+std::uint64_t nextPayloadId() {
+  static std::atomic<std::uint64_t> payloads{0};
+  return ++payloads;
+}
+}  // namespace
 
 CellRanges::CellRanges(const codec::RangeGrid& grid, codec::ScalarType type)
     : cellVoxels_(grid.cellVoxels), cells_(grid.cells), type_(type) {
@@ -113,9 +122,42 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
   // The codec sees the step as a volume of its own (its own value range).
   const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
   payload_ = c.openWith(own, sections_, renderOptions);
-  static std::atomic<std::uint64_t> payloads{0};
-  payloadId_ = ++payloads;
+  payloadId_ = nextPayloadId();
   ranges_ = CellRanges(payload_->rangeGrid(), info_.type);
+  if (info_.codec != codec::raw::RawCodecEntry::kId && info_.steps == 1 &&
+      renderOptions.flags().empty())
+    decoded_ = std::make_shared<Decoded>();
+}
+
+struct RenderVolume::Decoded {
+  std::once_flag once;
+  codec::CompressedVolume raw;
+  std::unique_ptr<codec::RenderPayload> payload;
+  std::uint64_t id = 0;
+};
+
+const codec::RenderPayload* RenderVolume::decodedPayload() const {
+  if (!decoded_) return nullptr;
+  std::call_once(decoded_->once, [this] {
+    const codec::Codec& c = codec::codecOf(info_, sections_.source);
+    const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
+    Progress quiet;
+    decoded_->raw = codec::raw::encode(c.decode(own, sections_), {}, quiet);
+    decoded_->payload = codec::codecOf(decoded_->raw.info, sections_.source)
+                            .open(decoded_->raw.info, decoded_->raw.view(sections_.source));
+    decoded_->id = nextPayloadId();
+  });
+  return decoded_->payload.get();
+}
+
+std::uint64_t RenderVolume::decodedPayloadId() const { return decodedPayload() ? decoded_->id : 0; }
+
+std::uint64_t RenderVolume::decodedBytes() const {
+  if (!decoded_) return 0;
+  const int b = codec::raw::Params{}.brickVoxels;
+  const glm::u64vec3 bricks = (glm::u64vec3(info_.dims) + std::uint64_t(b - 1)) / std::uint64_t(b);
+  return bricks.x * bricks.y * bricks.z * std::uint64_t(b + 1) * std::uint64_t(b + 1) *
+         std::uint64_t(b + 1) * std::uint64_t(codec::scalarBytes(info_.type));
 }
 
 bool RenderVolume::traversal() const {

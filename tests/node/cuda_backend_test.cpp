@@ -47,11 +47,13 @@ INSTANTIATE_TEST_SUITE_P(ScalarTypes, BackendEquivalence,
                          });
 
 // Every registered codec's view (each of its sample files that can be rendered) on the device
-// against the CPU: the same per-ray code through the payload's device view and arrays.
+// against the CPU: the same per-ray code through the payload's device view and arrays, and
+// through the raw bricks of the volume decoded whole.
 TEST(BackendEquivalence, EveryCodecsViewMatchesTheCpu) {
   std::string reason;
   if (!cudaAvailable(&reason)) GTEST_SKIP() << reason;
-  int rendered = 0;
+  auto perRay = makeCudaBackend(DeviceDecode::PerRay), whole = makeCudaBackend();
+  int rendered = 0, decoded = 0;
   for (const codec::Codec* c : codec::codecs())
     for (codec::CodecSample& sample : c->samples()) {
       SCOPED_TRACE(sample.name);
@@ -69,15 +71,20 @@ TEST(BackendEquivalence, EveryCodecsViewMatchesTheCpu) {
         RenderSettings s;
         s.shading = shading;
         const auto plan = planFrame(*volume, cam, 64, 48, tf, s);
-        Image cpu, gpu;
+        Image cpu, gpu, gpuWhole;
         const Rect tile{0, 0, 64, 48};
         makeCpuBackend(2)->render(*volume, plan, tile, cpu);
-        makeCudaBackend()->render(*volume, plan, tile, gpu);
+        perRay->render(*volume, plan, tile, gpu);
+        whole->render(*volume, plan, tile, gpuWhole);
         test::expectImagesNear(cpu, gpu, 3, 45.0, sample.name + (shading ? " shaded" : ""));
+        test::expectImagesNear(cpu, gpuWhole, 3, 45.0,
+                               sample.name + (shading ? " shaded" : "") + " decoded whole");
       }
       ++rendered;
+      decoded += volume->decodedPayload() != nullptr;
     }
   EXPECT_GE(rendered, int(codec::codecs().size()));
+  EXPECT_GE(decoded, int(codec::codecs().size()) - 1);  // all but raw's
 }
 
 TEST(CudaBackend, WithoutADeviceItRefusesWithAReason) {

@@ -1,12 +1,16 @@
 // Whole-image properties of the CPU backend.
 #include <gtest/gtest.h>
 
+#include <optional>
+#include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/core/errors.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "support/image_expect.hpp"
+#include "support/orbit_render.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace voxwall;
@@ -231,4 +235,41 @@ TEST(Render, CellRangesHoldTheVolumesTypeRoundedOutwards) {
   EXPECT_EQ(lo[1], 12.4f);  // float data keeps its ranges exactly
   EXPECT_EQ(hi[2], 300.0f);
   EXPECT_TRUE(std::isnan(lo[3]));
+}
+
+// What a CUDA backend samples with DeviceDecode::Whole: every codec's volume decoded by its codec
+// and bricked raw renders as its compressed view does (the views sample exactly the decoded
+// values), and decodedBytes() is the size of those bricks. Raw volumes, series and --lod have none.
+TEST(RenderVolume, TheVolumeDecodedWholeRendersLikeItsCompressedView) {
+  const auto tf = TransferFunction::preset("ct-soft");
+  int decoded = 0;
+  for (const codec::Codec* c : codec::codecs())
+    for (codec::CodecSample& sample : c->samples()) {
+      SCOPED_TRACE(sample.name);
+      const codec::CompressedVolume file = sample.volume;
+      std::optional<RenderVolume> volume;
+      try {
+        volume = RenderVolume::fromCompressed(std::move(sample.volume));
+      } catch (const FormatError&) {
+        continue;  // a file the codec holds but cannot render (RGBA svmm)
+      }
+      const codec::Volume voxels = c->decode(file.info, file.view());
+      const codec::RenderPayload* whole = volume->decodedPayload();
+      if (volume->info().codec == codec::raw::RawCodecEntry::kId) {
+        EXPECT_EQ(whole, nullptr);
+        EXPECT_EQ(volume->decodedBytes(), 0u);
+        continue;
+      }
+      ASSERT_NE(whole, nullptr);
+      EXPECT_EQ(volume->decodedBytes(), whole->bytes().size());
+      EXPECT_NE(volume->decodedPayloadId(), volume->payloadId());
+      const auto reference = RenderVolume::fromVolume(voxels);
+      const auto rescaled = tf.rescaled(volume->info().valueMin, volume->info().valueMax);
+      for (bool shading : {false, true})
+        test::expectImagesNear(test::renderOrbit(reference, 48, 40, rescaled, shading),
+                               test::renderOrbit(*volume, 48, 40, rescaled, shading), 1, 60,
+                               sample.name + (shading ? " shaded" : ""));
+      ++decoded;
+    }
+  EXPECT_GE(decoded, int(codec::codecs().size()) - 1);
 }

@@ -115,7 +115,10 @@ std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Commu
                    "share; mpirun --bind-to none lets it use them\n",
                    comm.rank(), threads, share);
   }
-  if (o.backend == "cuda") return node::makeBackend(node::BackendKind::Cuda, threads);
+  if (o.backend == "cuda")
+    return node::makeBackend(
+        node::BackendKind::Cuda, threads,
+        o.deviceDecode == "per-ray" ? node::DeviceDecode::PerRay : node::DeviceDecode::Whole);
   return node::makeCpuBackend(threads, o.simd == "on", decodeCacheBytes(o));
 }
 

@@ -326,6 +326,8 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   render.lodUnderPressure = o.lodUnderPressure;
   if (o.backend != "cpu" && o.backend != "cuda")
     throw std::invalid_argument("--backend: expected cpu or cuda");
+  if (o.deviceDecode != "whole" && o.deviceDecode != "per-ray")
+    throw std::invalid_argument("--device-decode: expected whole or per-ray");
   return render;
 }
 
@@ -561,6 +563,13 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
           "levels");
   addCodecFlags(cmd, &codec::Codec::renderOptions, o.codecFlags);
   cmd.add_option("--backend", o.backend, "cpu or cuda")->capture_default_str();
+  cmd.add_option("--device-decode", o.deviceDecode,
+                 "CUDA backend, compressed volume: whole decodes it once on the host and uploads "
+                 "raw bricks where they fit in the device's free memory (raw speed on the device; "
+                 "host memory about 1.2x the voxels); per-ray uploads the compressed bytes and "
+                 "decodes blocks per ray (device memory: the compressed size). A time series, "
+                 "--lod, --sampling nearest and --progressive are always per ray")
+      ->capture_default_str();
   cmd.add_option("--threads", o.threads,
                  "CPU backend threads per rank (0 = the host's cores shared by its ranks)")
       ->capture_default_str();

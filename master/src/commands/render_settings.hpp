@@ -20,6 +20,7 @@ namespace voxwall::cli {
 struct RenderOptions {
   std::string input, size = "1920x1080", tf = "mri", tfRange, camera = "30,20,2.6", out = "frames";
   std::string backend = "cpu", background = "black", format = "png", tiles = "1x1";
+  std::string deviceDecode = "whole";  // --device-decode
   std::string path = "orbit", balance = "dynamic", memoryBudget, pan, view;
   std::string sink, token, wall, subsampling = "420", tileCodec = "jpeg";
   int surface = 0;      // of a multi-surface Tide configuration

@@ -99,6 +99,16 @@ class RenderVolume {
   std::uint64_t payloadId() const { return payloadId_; }
   // Whether the view traverses mip levels (--lod, nearest sampling).
   bool traversal() const;
+  // The volume decoded whole by its codec and bricked like a raw volume, made on the first call
+  // and kept (host memory about 1.2x the voxels'; the decode itself briefly holds the voxels
+  // once more): what a device backend samples at raw speed instead of decoding blocks per ray.
+  // Null where it cannot stand in for payload(): a raw volume, a time series or codec render
+  // flags (--progressive); nor can it for frames that sample mip levels (RayFrame::nearest,
+  // lodAngle). Thread-safe.
+  const codec::RenderPayload* decodedPayload() const;
+  std::uint64_t decodedPayloadId() const;  // as payloadId(), for decodedPayload()
+  // The bytes decodedPayload()'s bricks take, from the volume's size (0 where there is none).
+  std::uint64_t decodedBytes() const;
   const std::string& source() const { return source_; }
   // xxHash64 of the volume's description and every section's bytes (of every step): two ranks
   // with the same fingerprint render the same pixels. Reads the whole file.
@@ -121,6 +131,8 @@ class RenderVolume {
   // Validated once, in init(); points into file_ or memory_ (declared after them: destroyed first).
   std::shared_ptr<const codec::RenderPayload> payload_;
   std::uint64_t payloadId_ = 0;
+  struct Decoded;
+  std::shared_ptr<Decoded> decoded_;  // null: no decodedPayload()
   codec::VolumeInfo info_;
   CellRanges ranges_;
   std::uint64_t storedBytes_ = 0;

@@ -71,6 +71,13 @@ struct TileStats {
 
 enum class BackendKind { Cpu, Cuda };
 
+// How the CUDA backend samples a compressed volume. Whole: decoded once on the host by its codec
+// and uploaded as raw bricks (RenderVolume::decodedPayload) where those fit in the device's free
+// memory; a GPU samples raw bricks one to two orders of magnitude faster than it decodes blocks
+// per ray (docs/benchmarks.md). PerRay, and Whole where the bricks do not fit or the volume has
+// no decoded form: the compressed bytes are uploaded and each ray decodes the blocks it reaches.
+enum class DeviceDecode { Whole, PerRay };
+
 // CUDA failures: the call, the error string and where.
 class CudaError : public std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -97,8 +104,10 @@ class Backend {
                                Image& out, CostGrid* costs, const std::atomic<bool>* stop) = 0;
 };
 
-// threads: CPU worker threads (0 = all cores). Cuda throws CudaError when no device is usable.
-std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0);
+// threads: CPU worker threads (0 = all cores); decode: how a CUDA backend samples a compressed
+// volume. Cuda throws CudaError when no device is usable.
+std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0,
+                                     DeviceDecode decode = DeviceDecode::Whole);
 // packets: trace SIMD packets of neighbouring rays where the CPU has an instruction set the build
 // compiled them for (AVX2, AVX-512); false, or no such set: one ray at a time (the same per-ray
 // code, as CUDA runs it). Both give the same picture to rounding.
@@ -134,7 +143,7 @@ std::size_t cpuPacketLanes();
 // for a name not in the list.
 std::vector<std::string> cpuPacketTargets();
 void restrictCpuPacketTarget(const std::string& name);
-std::unique_ptr<Backend> makeCudaBackend();
+std::unique_ptr<Backend> makeCudaBackend(DeviceDecode decode = DeviceDecode::Whole);
 // Whether the CUDA backend can run here; otherwise `reason` says why (not built, no device...).
 bool cudaAvailable(std::string* reason = nullptr);
 
