@@ -28,3 +28,12 @@ echo "== The wall's frame rate at the sink: a bigeye stream to 12 display pages,
   --replay "$build/bench/voxwall_bench_wall_replay" --chromium 4 --chromium-rate 3
 echo "== Big volumes: the MRI upsampled 3x (0.95 Gvox): compress, frames vs raw, memory per rank, page cache"
 /usr/bin/python3 bench/scale_bench.py --voxwall "$build/master/voxwall"
+if nvidia-smi -L > /dev/null 2>&1 && [ -x "$build/bench/voxwall_bench_cuda" ]; then
+  echo "== CUDA against the CPU on the MRI template, raw and each codec's default file"
+  work=$(mktemp -d)
+  mri=/usr/share/mricron/templates/ch2better.nii.gz
+  for c in vq svmm ksvd tvq; do "$build/master/voxwall" compress "$mri" --codec $c -o "$work/mri-$c.vwz"; done
+  "$build/bench/voxwall_bench_cuda" --phantom 768 "$mri" "$work"/mri-*.vwz
+  "$build/bench/voxwall_bench_cuda" --frames 3 --size 5760x4320 "$mri" "$work/mri-tvq.vwz"
+  rm -rf "$work"
+fi
