@@ -3,6 +3,7 @@
 // and framePath() are declared for everyone in <voxwall/master/render_job.hpp>.
 #pragma once
 
+#include <chrono>
 #include <future>
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
@@ -13,6 +14,11 @@
 #include <voxwall/master/render_job.hpp>
 
 namespace voxwall::master {
+
+// Seconds from `t` to now on the steady clock.
+inline double since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
 
 // Writes frames in a background thread, one at a time: push() waits for the previous frame.
 // After each frame is in place, its size and hash go into the job manifest (written atomically),

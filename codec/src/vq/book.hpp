@@ -17,6 +17,9 @@
 
 namespace voxwall::codec::vq {
 
+// The bit depth for data of this type and range (8, 12 or 16).
+int bitDepth(ScalarType type, double lo, double hi);
+
 // The bits of every value of a plain (uncompressed) codeword, x fastest.
 void plainCodeword(const Brick& b, int bits, std::vector<std::uint8_t>& out);
 
