@@ -18,7 +18,7 @@ namespace {
 // Empty space, a noisy slab, smooth ramps and a few constant boxes: every path of the encoder
 // (dropped blocks on several levels, kept blocks, padding) is taken.
 template <class T>
-Volume mixed(glm::ivec3 dims, int lo, int hi, unsigned seed) {
+Volume svmmMixed(glm::ivec3 dims, int lo, int hi, unsigned seed) {
   const ScalarType type = std::is_same_v<T, std::uint8_t>    ? ScalarType::UInt8
                           : std::is_same_v<T, std::uint16_t> ? ScalarType::UInt16
                                                              : ScalarType::Int16;
@@ -98,9 +98,9 @@ TEST(SvmmCodec, QualityMapsToDelta) {
 TEST(SvmmCodec, LosslessAtQuality100ForEveryScalarType) {
   const glm::ivec3 dims(37, 29, 23);  // not a multiple of any block or root width
   const Volume volumes[] = {
-      mixed<std::uint8_t>(dims, 0, 255, 1), mixed<std::uint16_t>(dims, 0, 4095, 2),
-      mixed<std::uint16_t>(dims, 0, 65535, 3), mixed<std::int16_t>(dims, -32768, 32767, 4),
-      mixed<std::int16_t>(dims, -1024, 3071, 5)};
+      svmmMixed<std::uint8_t>(dims, 0, 255, 1), svmmMixed<std::uint16_t>(dims, 0, 4095, 2),
+      svmmMixed<std::uint16_t>(dims, 0, 65535, 3), svmmMixed<std::int16_t>(dims, -32768, 32767, 4),
+      svmmMixed<std::int16_t>(dims, -1024, 3071, 5)};
   for (const Volume& v : volumes)
     for (const Shape& s : kShapes) {
       const std::string what = std::string(scalarName(v.type)) + " w=" + std::to_string(s.w) +
@@ -141,7 +141,7 @@ TEST(SvmmCodec, LosslessRgbaAtQuality100) {
 }
 
 TEST(SvmmCodec, RangeGridFromTheLeavesEqualsTheDecodedVolumes) {
-  const Volume v = mixed<std::uint16_t>({45, 38, 30}, 100, 3000, 47);
+  const Volume v = svmmMixed<std::uint16_t>({45, 38, 30}, 100, 3000, 47);
   for (int q : {100, 80}) {
     Progress quiet;
     const auto c = svmm::encode(v, params(4, 4, q), quiet);
@@ -182,7 +182,7 @@ TEST(SvmmCodec, OneBrightVoxelKeepsOnePathOfBlocks) {
 }
 
 TEST(SvmmCodec, LossyErrorIsBoundedAndSizeShrinksWithQuality) {
-  const Volume v = mixed<std::uint8_t>({48, 40, 36}, 0, 255, 9);
+  const Volume v = svmmMixed<std::uint8_t>({48, 40, 36}, 0, 255, 9);
   std::uint64_t lastBytes = ~0ull;
   double lastPsnr = std::numeric_limits<double>::infinity();
   for (int q : {100, 95, 90, 80, 65, 30}) {
@@ -212,7 +212,7 @@ TEST(SvmmCodec, LossyErrorIsBoundedAndSizeShrinksWithQuality) {
 }
 
 TEST(SvmmCodec, BaseBlockCompressionKeepsOccupancyAndShrinks) {
-  const Volume v = mixed<std::uint8_t>({40, 36, 32}, 0, 255, 11);
+  const Volume v = svmmMixed<std::uint8_t>({40, 36, 32}, 0, 255, 11);
   Progress quiet;
   for (int w : {2, 4, 8}) {
     svmm::EncodeStats plain, packed;
@@ -243,16 +243,18 @@ TEST(SvmmCodec, WindowsOfOneRowWriteTheSameFileAndItsPsnr) {
     return p;
   };
   std::vector<Case> cases;
-  cases.push_back({mixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(4, 8, 100), "u8 w4"});
-  cases.push_back({mixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(4, 8, 70), "u8 w4 q70"});
+  cases.push_back({svmmMixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(4, 8, 100), "u8 w4"});
   cases.push_back(
-      {mixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(2, 4, 90, true), "u8 stepped q90"});
-  cases.push_back({mixed<std::uint8_t>({40, 36, 34}, 0, 255, 5), params(4, 4, 100, false, true),
+      {svmmMixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(4, 8, 70), "u8 w4 q70"});
+  cases.push_back(
+      {svmmMixed<std::uint8_t>({37, 30, 29}, 0, 255, 3), params(2, 4, 90, true), "u8 stepped q90"});
+  cases.push_back({svmmMixed<std::uint8_t>({40, 36, 34}, 0, 255, 5), params(4, 4, 100, false, true),
                    "u8 w4 base compression"});
-  cases.push_back({mixed<std::uint16_t>({33, 27, 31}, 0, 4095, 7), params(8, 4, 85), "u16 w8 q85"});
   cases.push_back(
-      {mixed<std::int16_t>({30, 31, 26}, -1024, 3071, 9), params(4, 16, 95), "i16 level 1 root"});
-  cases.push_back({mixed<std::uint8_t>({12, 9, 7}, 0, 255, 1), params(4, 32), "u8 one level"});
+      {svmmMixed<std::uint16_t>({33, 27, 31}, 0, 4095, 7), params(8, 4, 85), "u16 w8 q85"});
+  cases.push_back({svmmMixed<std::int16_t>({30, 31, 26}, -1024, 3071, 9), params(4, 16, 95),
+                   "i16 level 1 root"});
+  cases.push_back({svmmMixed<std::uint8_t>({12, 9, 7}, 0, 255, 1), params(4, 32), "u8 one level"});
   for (const Case& c : cases) {
     SCOPED_TRACE(c.what);
     Progress quiet;
@@ -303,7 +305,7 @@ std::vector<glm::vec3> positions(glm::ivec3 dims, int n, unsigned seed) {
 }  // namespace
 
 TEST(SvmmView, TrilinearSamplesEqualTheDecodedVolumes) {
-  const Volume v = mixed<std::uint8_t>({41, 35, 30}, 0, 255, 13);
+  const Volume v = svmmMixed<std::uint8_t>({41, 35, 30}, 0, 255, 13);
   for (int q : {100, 80}) {
     Progress quiet;
     const auto c = svmm::encode(v, params(4, 8, q), quiet);
@@ -324,7 +326,7 @@ TEST(SvmmView, TrilinearSamplesEqualTheDecodedVolumes) {
 }
 
 TEST(SvmmView, ConstantRegionsHoldOneValue) {
-  const Volume v = mixed<std::uint8_t>({64, 48, 40}, 0, 255, 19);
+  const Volume v = svmmMixed<std::uint8_t>({64, 48, 40}, 0, 255, 19);
   Progress quiet;
   for (bool nearest : {false, true}) {
     const auto c = svmm::encode(v, params(4, 8, 90), quiet);
@@ -363,7 +365,7 @@ TEST(SvmmView, ConstantRegionsHoldOneValue) {
 }
 
 TEST(SvmmView, NearestModeReadsTheNearestVoxel) {
-  const Volume v = mixed<std::uint8_t>({33, 30, 27}, 0, 255, 31);
+  const Volume v = svmmMixed<std::uint8_t>({33, 30, 27}, 0, 255, 31);
   Progress quiet;
   const auto c = svmm::encode(v, params(0, 4, 100, true), quiet);
   const svmm::Layout layout(c.info, c.view());
@@ -385,7 +387,7 @@ TEST(SvmmView, NearestModeReadsTheNearestVoxel) {
 
 TEST(SvmmView, LevelOfDetailReadsBlockAverages) {
   // w = 4: a level-1 voxel is the rounded mean of a 4^3 block of the volume.
-  const Volume v = mixed<std::uint8_t>({32, 32, 32}, 0, 255, 41);
+  const Volume v = svmmMixed<std::uint8_t>({32, 32, 32}, 0, 255, 41);
   Progress quiet;
   const auto c = svmm::encode(v, params(4, 2), quiet);
   const svmm::Layout layout(c.info, c.view());
@@ -422,7 +424,7 @@ CompressedVolume withParamsPatch(CompressedVolume c, std::size_t at, std::uint32
   return c;
 }
 
-void expectRefused(const CompressedVolume& c, const std::string& needle) {
+void expectSvmmRefused(const CompressedVolume& c, const std::string& needle) {
   const auto bytes = serialized(c);
   try {
     const auto file = ContainerFile::parse(bytes, "bad.vwz");
@@ -438,32 +440,32 @@ void expectRefused(const CompressedVolume& c, const std::string& needle) {
 }  // namespace
 
 TEST(SvmmCodec, RefusesCorruptSections) {
-  const Volume v = mixed<std::uint8_t>({40, 36, 32}, 0, 255, 43);
+  const Volume v = svmmMixed<std::uint8_t>({40, 36, 32}, 0, 255, 43);
   Progress quiet;
   const auto c = svmm::encode(v, params(4, 8, 90), quiet);
   const svmm::Layout ok(c.info, c.view());
   ASSERT_GE(ok.levels(), 3);
   // params: format 0, flags 4, bias 8, quality 12, delta 16, peak 24, r 32, stepped 36,
   // levels 40, root 44..55, then 32 bytes per level: width, shift, blocks, offset, bytes.
-  expectRefused(withParamsPatch(c, 0, 7), "voxel format");
-  expectRefused(withParamsPatch(c, 0, 2), "does not match scalar type");
-  expectRefused(withParamsPatch(c, 4, 2), "flags");
-  expectRefused(withParamsPatch(c, 40, 17), "levels");
-  expectRefused(withParamsPatch(c, 40, 2), "level 1: block width");
-  expectRefused(withParamsPatch(c, 44, 6), "root grid");
-  expectRefused(withParamsPatch(c, 56, 3), "block width");
-  expectRefused(withParamsPatch(c, 56 + 32 + 4, 3), "shift");
-  expectRefused(withParamsPatch(c, 56 + 8, ok.blocks()[0] + 1), "blocks do not fill");
-  expectRefused(withParamsPatch(c, 56 + 16, 3), "outside the section or overlapping");
+  expectSvmmRefused(withParamsPatch(c, 0, 7), "voxel format");
+  expectSvmmRefused(withParamsPatch(c, 0, 2), "does not match scalar type");
+  expectSvmmRefused(withParamsPatch(c, 4, 2), "flags");
+  expectSvmmRefused(withParamsPatch(c, 40, 17), "levels");
+  expectSvmmRefused(withParamsPatch(c, 40, 2), "level 1: block width");
+  expectSvmmRefused(withParamsPatch(c, 44, 6), "root grid");
+  expectSvmmRefused(withParamsPatch(c, 56, 3), "block width");
+  expectSvmmRefused(withParamsPatch(c, 56 + 32 + 4, 3), "shift");
+  expectSvmmRefused(withParamsPatch(c, 56 + 8, ok.blocks()[0] + 1), "blocks do not fill");
+  expectSvmmRefused(withParamsPatch(c, 56 + 16, 3), "outside the section or overlapping");
   {
     auto t = c;
     t.sections[0].second.resize(50);
-    expectRefused(t, "section 'params'");
+    expectSvmmRefused(t, "section 'params'");
   }
   {
     auto t = c;
     t.sections.pop_back();
-    expectRefused(t, "missing section");
+    expectSvmmRefused(t, "missing section");
   }
   {
     // A child offset nibble of the root (level 2's first non-terminal sub-block) changed.
@@ -486,7 +488,7 @@ TEST(SvmmCodec, RefusesCorruptSections) {
       }
     }
     ASSERT_TRUE(patched);
-    expectRefused(t, "sub-block offset");
+    expectSvmmRefused(t, "sub-block offset");
   }
   {
     // A terminal flag cleared: the level points to more blocks than the next one has.
@@ -506,7 +508,7 @@ TEST(SvmmCodec, RefusesCorruptSections) {
       }
     }
     ASSERT_GT(flipped, 0u);
-    expectRefused(t, "level 1");
+    expectSvmmRefused(t, "level 1");
   }
 }
 
@@ -535,7 +537,7 @@ TEST(SvmmView, BlockPoolShapeAndPlacement) {
 TEST(SvmmView, PooledLevelsReadTheSameVoxels) {
   // The CUDA backend's layout, on the host: every poolable level read from its pool image.
   for (bool bc : {false, true}) {
-    const Volume v = mixed<std::uint16_t>({45, 37, 29}, 0, 4095, 53);
+    const Volume v = svmmMixed<std::uint16_t>({45, 37, 29}, 0, 4095, 53);
     Progress quiet;
     const auto c = svmm::encode(v, params(0, 4, 90, true, bc), quiet);
     const svmm::Layout layout(c.info, c.view());

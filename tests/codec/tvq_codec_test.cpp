@@ -19,7 +19,7 @@ using namespace voxwall::codec::tvq;
 
 namespace {
 
-Params quick() {
+Params quickTvq() {
   Params p;
   p.codeBits = 12, p.iterations = 4, p.subvolumeVoxels = 32;
   return p;
@@ -159,7 +159,7 @@ TEST(TvqCodec, AnExactlyLowpassVolumeIsCodedLpAndReconstructedWithinTolerance) {
               data[v.index(bx * 4 + xx, by * 4 + y, bz * 4 + z)] = x[j];
       }
   v.computeRange();
-  Params p = quick();
+  Params p = quickTvq();
   p.transform = Transform::Dct, p.dcBits = 16, p.fidelity = 1e-4;
   EncodeStats s;
   const CompressedVolume cv = encodeQuiet(v, p, &s);
@@ -171,7 +171,7 @@ TEST(TvqCodec, AnExactlyLowpassVolumeIsCodedLpAndReconstructedWithinTolerance) {
 TEST(TvqCodec, AssociatedCodebookDecodeEqualsDequantizeAndInverseTransform) {
   for (Transform t : {Transform::Klt, Transform::Dct}) {
     const Volume v = generateSheppLogan(30, ScalarType::Int16);
-    Params p = quick();
+    Params p = quickTvq();
     p.transform = t, p.subvolumeVoxels = 16;
     const CompressedVolume cv = encodeQuiet(v, p);
     const Layout layout(cv.info, cv.view());
@@ -203,7 +203,7 @@ TEST(TvqCodec, AssociatedCodebookDecodeEqualsDequantizeAndInverseTransform) {
 // decode() make their own and free them; the joined (device) buffer decodes every block alike.
 TEST(TvqCodec, TheHostViewMakesASubvolumesCodebooksWhenItsBlocksAreFirstDecoded) {
   const Volume v = generateSheppLogan(40);
-  Params p = quick();
+  Params p = quickTvq();
   p.subvolumeVoxels = 16;  // 3^3 sub-volumes
   const CompressedVolume cv = encodeQuiet(v, p);
   const Layout layout(cv.info, cv.view());
@@ -246,7 +246,7 @@ TEST(TvqCodec, TheHostViewMakesASubvolumesCodebooksWhenItsBlocksAreFirstDecoded)
 TEST(TvqCodec, ProgressiveLevelsImprovePsnrMonotonically) {
   const Volume v = generateSheppLogan(40);
   EncodeStats s;
-  const CompressedVolume cv = encodeQuiet(v, quick(), &s);
+  const CompressedVolume cv = encodeQuiet(v, quickTvq(), &s);
   const Layout layout(cv.info, cv.view());
   double last = 0;
   for (int l = 0; l < kProgressiveLevels; ++l) {
@@ -262,7 +262,7 @@ TEST(TvqCodec, Float32AndInt16RoundTripWithinTheStoredPsnr) {
   for (ScalarType type : {ScalarType::Float32, ScalarType::Int16, ScalarType::UInt16}) {
     Volume v = generateMarschnerLobb(28, type);
     EncodeStats s;
-    const CompressedVolume cv = encodeQuiet(v, quick(), &s);
+    const CompressedVolume cv = encodeQuiet(v, quickTvq(), &s);
     EXPECT_EQ(cv.info.type, type);
     const Volume d = decode(cv.info, cv.view());
     EXPECT_EQ(d.type, type);
@@ -283,7 +283,7 @@ TEST(TvqCodec, EmptySpaceIsUncodedAndCostsAboutABitPerBlock) {
             ball.as<std::uint8_t>()[ball.index(x, y, z)];
   v.computeRange();
   EncodeStats s;
-  Params p = quick();
+  Params p = quickTvq();
   p.subvolumeVoxels = 64;
   const CompressedVolume cv = encodeQuiet(v, p, &s);
   EXPECT_EQ(s.blocks, 16u * 16 * 16);
@@ -297,7 +297,7 @@ TEST(TvqCodec, MoreCodeBitsGiveMoreQualityAndTheRateTargetIsMet) {
   const Volume v = generateSheppLogan(48);
   double last = 0;
   for (int bits : {4, 10, 16}) {
-    Params p = quick();
+    Params p = quickTvq();
     p.codeBits = bits;
     EncodeStats s;
     encodeQuiet(v, p, &s);
@@ -307,7 +307,7 @@ TEST(TvqCodec, MoreCodeBitsGiveMoreQualityAndTheRateTargetIsMet) {
   // The KLT basis (16 KiB) is half a bit per voxel of this small volume.
   const Volume big = generateSheppLogan(64);
   for (double target : {0.6, 1.0}) {
-    Params p = quick();
+    Params p = quickTvq();
     p.targetBitsPerVoxel = target;
     EncodeStats s;
     const CompressedVolume cv = encodeQuiet(big, p, &s);
@@ -318,12 +318,12 @@ TEST(TvqCodec, MoreCodeBitsGiveMoreQualityAndTheRateTargetIsMet) {
     EXPECT_LE(8.0 * double(cv.payloadBytes()) / double(big.voxelCount()), target);
     EXPECT_GT(bpv, target * 0.9);
   }
-  Params tiny = quick();
+  Params tiny = quickTvq();
   tiny.targetBitsPerVoxel = 0.001;
   EXPECT_THROW(encodeQuiet(v, tiny), std::invalid_argument);
   // A target above the largest file (13-bit codes everywhere) is refused with that file's size,
   // not met silently by a smaller one.
-  Params huge = quick();
+  Params huge = quickTvq();
   huge.targetBitsPerVoxel = 6;
   try {
     encodeQuiet(big, huge);
@@ -341,7 +341,7 @@ TEST(TvqCodec, MoreCodeBitsGiveMoreQualityAndTheRateTargetIsMet) {
 TEST(TvqCodec, ClassesSortTheBlocksAndWithoutThemEveryCodedBlockIsHpXyz) {
   const Volume v = generateMarschnerLobb(48);  // smooth: many lowpass blocks
   EncodeStats with, without;
-  Params p = quick();
+  Params p = quickTvq();
   p.codeBits = 14, p.fidelity = 0.02;
   encodeQuiet(v, p, &with);
   p.classified = false;
@@ -363,7 +363,7 @@ TEST(TvqCodec, ClassesSortTheBlocksAndWithoutThemEveryCodedBlockIsHpXyz) {
 TEST(TvqCodec, RefusesBadParameters) {
   const Volume v = generateSheppLogan(12);
   auto refuses = [&](auto change) {
-    Params p = quick();
+    Params p = quickTvq();
     change(p);
     EXPECT_THROW(encodeQuiet(v, p), std::invalid_argument);
   };
@@ -375,12 +375,12 @@ TEST(TvqCodec, RefusesBadParameters) {
   refuses([](Params& p) { p.fidelity = 1.5; });
   Volume nan = Volume::allocate({8, 8, 8}, ScalarType::Float32);
   nan.as<float>()[3] = std::nanf("");
-  EXPECT_THROW(encodeQuiet(nan, quick()), std::invalid_argument);
+  EXPECT_THROW(encodeQuiet(nan, quickTvq()), std::invalid_argument);
 }
 
 TEST(TvqCorrupt, BadSectionsAreRefusedWithTheirName) {
   const Volume v = generateSheppLogan(20);
-  Params p = quick();
+  Params p = quickTvq();
   p.subvolumeVoxels = 16;
   const CompressedVolume good = encodeQuiet(v, p);
   ASSERT_NO_THROW(Layout(good.info, good.view()));

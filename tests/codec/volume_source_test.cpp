@@ -20,7 +20,7 @@ using voxwall::test::TempDir;
 
 namespace {
 
-Volume patterned(ScalarType type) { return voxwall::test::patterned(type, {13, 7, 11}); }
+Volume patternedVolume(ScalarType type) { return voxwall::test::patterned(type, {13, 7, 11}); }
 
 std::string bytesOf(const Volume& v, bool bigEndian) {
   std::string s(reinterpret_cast<const char*>(v.data.data()), v.data.size());
@@ -62,7 +62,7 @@ TEST(VolumeSource, ARawFileIsReadInSlabsWithItsHeaderAndByteOrder) {
   for (const ScalarType type :
        {ScalarType::UInt8, ScalarType::UInt16, ScalarType::Int16, ScalarType::Float32})
     for (const bool big : {false, true}) {
-      const Volume v = patterned(type);
+      const Volume v = patternedVolume(type);
       const std::string path = dir.path("v.raw");
       test::writeFile(path, std::string(17, 'h') + bytesOf(v, big));
       RawLayout layout{v.dims, type, v.spacing, big, 17};
@@ -93,7 +93,7 @@ TEST(VolumeSource, AnUncompressedNiftiIsReadInSlabsAndAGzippedOneWhole) {
   TempDir dir;
   Progress quiet;
   for (const ScalarType type : {ScalarType::UInt8, ScalarType::Int16, ScalarType::Float32}) {
-    const Volume v = patterned(type);
+    const Volume v = patternedVolume(type);
     writeVolume(v, dir.path("v.nii"));
     const auto layout = niftiSlabLayout(dir.path("v.nii"));
     ASSERT_TRUE(layout.has_value());
@@ -124,7 +124,7 @@ TEST(VolumeSource, AnUncompressedNiftiIsReadInSlabsAndAGzippedOneWhole) {
 TEST(VolumeSource, ARawEncodedNrrdIsReadInSlabsAttachedOrDetached) {
   TempDir dir;
   Progress quiet;
-  const Volume v = patterned(ScalarType::UInt16);
+  const Volume v = patternedVolume(ScalarType::UInt16);
   const std::string header =
       "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 13 7 11\n"
       "spacings: 0.5 0.75 1.25\nendian: big\nencoding: raw\n";

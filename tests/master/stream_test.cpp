@@ -56,9 +56,9 @@ master::JobSettings streamJob(std::uint16_t port, net::TileCodec codec, int fram
   return job;
 }
 
-void runJob(int ranks, const master::JobSettings& job,
-            const std::function<void(const master::FrameSummary&)>& onFrame = {},
-            const std::function<std::unique_ptr<node::Backend>()>& makeBackend = {}) {
+void runStreamingJob(int ranks, const master::JobSettings& job,
+                     const std::function<void(const master::FrameSummary&)>& onFrame = {},
+                     const std::function<std::unique_ptr<node::Backend>()>& makeBackend = {}) {
   const auto errors = test::runRanks(ranks, [&](master::Communicator& comm) {
     auto backend = makeBackend ? makeBackend() : node::makeCpuBackend(1);
     master::runRenderJob(comm, *backend, volume(), tf(), {}, job, onFrame);
@@ -128,7 +128,7 @@ TEST(Stream, FourRanksLosslessEqualCropsOfTheSingleRankRender) {
   test::TempDir dir;
   auto sink = startSink(dir.path("wall"));
   const auto job = streamJob(sink->port(), net::TileCodec::Deflate, 3);
-  runJob(4, job);
+  runStreamingJob(4, job);
   ASSERT_TRUE(waitSettled(*sink, 3));
   sink->stop();
   const auto stats = sink->sink().stats();
@@ -183,7 +183,7 @@ TEST(Stream, JpegTilesKeep40Decibels) {
   test::TempDir dir;
   auto sink = startSink(dir.path("wall"));
   const auto job = streamJob(sink->port(), net::TileCodec::Jpeg, 2);
-  runJob(3, job);
+  runStreamingJob(3, job);
   ASSERT_TRUE(waitSettled(*sink, 2));
   sink->stop();
   EXPECT_GE(checkShownFrames(dir.path("wall"), job, 40.0), 1);
@@ -196,7 +196,7 @@ TEST(Stream, ControlFromTheWallMovesTheCamera) {
   auto job = streamJob(sink->port(), net::TileCodec::Deflate, 4);
   job.path = master::CameraPath::orbit({}, 0);  // a still camera
   job.interactiveStep = 1;  // full frames while steered, to compare them exactly (mpi.interactive)
-  runJob(2, job, [&](const master::FrameSummary& f) {
+  runStreamingJob(2, job, [&](const master::FrameSummary& f) {
     if (f.frame != 0) return;
     // Wait for rank 0's control connection, then send the command.
     for (int i = 0; i < 500 && !sink->sink().stats().controllerConnected; ++i)
@@ -228,7 +228,7 @@ TEST(Stream, SinkRestartLosesOnlyFramesInFlight) {
   const int frames = 30;
   auto job = streamJob(port, net::TileCodec::Deflate, frames);
   std::string downtimeError;
-  runJob(3, job, [&](const master::FrameSummary& f) {
+  runStreamingJob(3, job, [&](const master::FrameSummary& f) {
     if (f.frame > 5 && f.frame < 10 && downtimeError.empty()) downtimeError = f.streamError;
     if (f.frame == 5) first->stop();  // the sink process dies
     if (f.frame == 10) second = startSink(dir.path("b"), port);
@@ -257,7 +257,7 @@ TEST(Stream, SteeredFramesAreInteractiveUntilTheCameraSettles) {
   job.interactiveStep = 4;
   job.settleSeconds = 0.3;
   std::vector<int> steps;
-  runJob(2, job, [&](const master::FrameSummary& f) {
+  runStreamingJob(2, job, [&](const master::FrameSummary& f) {
     steps.push_back(f.step);
     if (f.frame == 0) {
       for (int i = 0; i < 500 && !sink->sink().stats().controllerConnected; ++i)
@@ -340,7 +340,7 @@ std::vector<master::FrameSummary> runWithFrameOneAbandoned(const master::JobSett
   std::atomic<int> stalling{0}, unfinished{0};
   std::vector<master::FrameSummary> frames;
   std::thread commander;
-  runJob(
+  runStreamingJob(
       2, job,
       [&](const master::FrameSummary& f) {
         frames.push_back(f);
@@ -437,7 +437,7 @@ TEST(Stream, BatchJobsNeverAbandonOrRefine) {
   std::atomic<bool> stall{false};
   std::atomic<int> stalling{0}, stopped{0};
   std::vector<master::FrameSummary> frames;
-  runJob(
+  runStreamingJob(
       2, job,
       [&](const master::FrameSummary& f) {
         frames.push_back(f);

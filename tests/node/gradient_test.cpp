@@ -18,7 +18,7 @@ using namespace voxwall::node;
 
 namespace {
 
-const std::string kDir = std::string(VOXWALL_TEST_DATA_DIR) + "/reference/";
+const std::string kReferenceDir = std::string(VOXWALL_TEST_DATA_DIR) + "/reference/";
 
 // Walks `rays` random rays through the volume at a quarter-voxel step; at every sample compares
 // the hook's gradient with the six-sample one. Returns how many samples the hook answered.
@@ -70,17 +70,26 @@ int compareAlongRays(const View& view, int rays, float scale) {
   return answered;
 }
 
+// The view types the volumes below produce: compareAlongRays is compiled for these only (every
+// view type of every codec would make this file the slowest of the build).
+template <class... Views>
+void compareTheViewOf(const RenderVolume& volume, float scale) {
+  const ViewVariant view = volume.view();
+  const bool covered = (([&] {
+                          const auto* v = std::get_if<Views>(&view);
+                          if (v) {
+                            EXPECT_GT(compareAlongRays(*v, 300, scale), 5000);
+                          }
+                          return v != nullptr;
+                        }()) ||
+                        ...);
+  EXPECT_TRUE(covered) << "view type " << view.index() << " is not one this test compiles";
+}
+
 void expectHookMatchesSixSamples(const RenderVolume& volume, float scale) {
-  std::visit(
-      [&](const auto& view) {
-        using View = std::decay_t<decltype(view)>;
-        if constexpr (codec::kernels::GradientView<View>) {
-          EXPECT_GT(compareAlongRays(view, 300, scale), 5000);
-        } else {
-          ADD_FAILURE() << "this view has no gradient hook";
-        }
-      },
-      volume.view());
+  namespace k = codec::kernels;
+  compareTheViewOf<k::RawView<std::uint8_t>, k::RawView<float>, k::VqView, k::SvmmView,
+                   k::KsvdView6>(volume, scale);
 }
 
 }  // namespace
@@ -97,7 +106,8 @@ TEST(CellGradients, RawViewsMatchSixSamples) {
 TEST(CellGradients, CompressedViewsMatchSixSamples) {
   for (const char* codec : {"vq", "svmm", "ksvd"}) {
     SCOPED_TRACE(codec);
-    expectHookMatchesSixSamples(RenderVolume::open(kDir + "phantom64_" + codec + ".vwz"), 255);
+    expectHookMatchesSixSamples(RenderVolume::open(kReferenceDir + "phantom64_" + codec + ".vwz"),
+                                255);
   }
 }
 
@@ -105,9 +115,10 @@ TEST(CellGradients, ShadedFramesMatchTheSixSampleFramesForEveryCodec) {
   const auto tf = TransferFunction::preset("ct-soft").rescaled(0, 255);
   for (const char* codec : {"raw", "vq", "svmm", "ksvd"}) {
     SCOPED_TRACE(codec);
-    const RenderVolume volume = std::string(codec) == "raw"
-                                    ? RenderVolume::fromVolume(codec::generateMarschnerLobb(41), 8)
-                                    : RenderVolume::open(kDir + "phantom64_" + codec + ".vwz");
+    const RenderVolume volume =
+        std::string(codec) == "raw"
+            ? RenderVolume::fromVolume(codec::generateMarschnerLobb(41), 8)
+            : RenderVolume::open(kReferenceDir + "phantom64_" + codec + ".vwz");
     Image frame[2];
     for (int cell = 0; cell < 2; ++cell) {
       RenderSettings settings;

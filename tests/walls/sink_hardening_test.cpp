@@ -28,16 +28,13 @@ using namespace voxwall;
 
 namespace {
 
-const auto testWall = test::twoDisplayWall;
-const auto settings = [] { return test::twoDisplaySink(); };
-
-net::Hello renderer(int rank, int ranks, std::uint64_t job = 0) {
+net::Hello rendererHello(int rank, int ranks, std::uint64_t job = 0) {
   net::Hello h{net::Role::Renderer, rank, ranks, "t2x1", ""};
   h.jobId = job;
   return h;
 }
 
-net::TileMessage solidTile(const voxwall::Rect& rect, std::uint32_t rgb) {
+net::TileMessage solidTileMessage(const voxwall::Rect& rect, std::uint32_t rgb) {
   voxwall::Image image(rect.width, rect.height);
   for (auto& p : image.pixels) p = rgb | 0xff000000u;
   net::TileCodecSettings s;
@@ -47,7 +44,7 @@ net::TileMessage solidTile(const voxwall::Rect& rect, std::uint32_t rgb) {
 }
 
 const net::TileMessage& wholeScreen() {
-  static const auto tile = solidTile({0, 0, 44, 10}, 0x808080);
+  static const auto tile = solidTileMessage({0, 0, 44, 10}, 0x808080);
   return tile;
 }
 
@@ -91,18 +88,18 @@ bool closedWithin(int fd, int ms) {
 
 // Defect 1: x + width overflowed a signed int and the sink wrote far outside its frame.
 TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
-  test::SinkRunner sink(settings());
-  auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  test::SinkRunner sink(test::twoDisplaySink());
+  auto c = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
   for (const voxwall::Rect r :
        {voxwall::Rect{2147483647 - 50, 0, 100, 10}, voxwall::Rect{0, 2147483647 - 5, 44, 10}}) {
-    auto tile = solidTile({0, 0, r.width, r.height}, 0xff);
+    auto tile = solidTileMessage({0, 0, r.width, r.height}, 0xff);
     tile.rect = r;
     c->send(net::encodeMessage(1, tile));
   }
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.peersDropped >= 1; }))
       << sink.log();
   EXPECT_NE(sink.log().find("is not on the 44x10 screen"), std::string::npos) << sink.log();
-  auto good = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  auto good = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
   good->send(net::encodeMessage(2, wholeScreen()));
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
       << sink.log();
@@ -110,8 +107,8 @@ TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
 
 // Defect 2: a second job's first frames were silently discarded as "old".
 TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
-  test::SinkRunner sink(settings());
-  auto first = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
+  test::SinkRunner sink(test::twoDisplaySink());
+  auto first = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 111), 2000);
   for (int f : {5, 6}) {
     first->send(net::encodeMessage(std::uint64_t(f), wholeScreen()));
     ASSERT_TRUE(
@@ -119,7 +116,7 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   }
   // While job 111 is connected, another job is refused, with the reason.
   try {
-    net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+    net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 222), 2000);
     FAIL() << "a second job was let in while the first was running";
   } catch (const net::SinkRefused& e) {
     EXPECT_NE(std::string(e.what()).find("is showing on this wall"), std::string::npos) << e.what();
@@ -129,7 +126,7 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   std::unique_ptr<net::Connection> second;
   test::waitUntil([&] {
     try {
-      second = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+      second = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 222), 2000);
     } catch (const net::SinkRefused&) {
       // the Bye is still in flight
     }
@@ -147,7 +144,7 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   second.reset();
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.renderersConnected == 0; }));
   try {
-    net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
+    net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 111), 2000);
     FAIL() << "the ended job took the wall back";
   } catch (const net::SinkRefused& e) {
     EXPECT_NE(std::string(e.what()).find("has ended"), std::string::npos) << e.what();
@@ -158,15 +155,15 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
 // every other render job was refused. A greeted peer silent for the peer-idle time is dropped,
 // and once its job has no peer left another job takes the wall.
 TEST(SinkHardening, ASilentPeerIsDroppedAfterTheIdleTimeAndAnotherJobTakesTheWall) {
-  auto s = settings();
+  auto s = test::twoDisplaySink();
   s.peerIdleMs = 300;
   test::SinkRunner sink(s);
-  auto squatter = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 111), 2000);
+  auto squatter = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 111), 2000);
   std::unique_ptr<net::Connection> job;
   std::string refusal;
   ASSERT_TRUE(test::waitUntil([&] {
     try {
-      job = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1, 222), 2000);
+      job = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 222), 2000);
     } catch (const net::SinkRefused& e) {
       refusal = e.what();  // while the squatter is still there
     }
@@ -184,13 +181,13 @@ TEST(SinkHardening, ASilentPeerIsDroppedAfterTheIdleTimeAndAnotherJobTakesTheWal
 // Ranks between frames and rank 0, which sends nothing but Bye, say KeepAlive: they stay
 // connected through many idle times.
 TEST(SinkHardening, KeepAlivesHoldAQuietStreamerAndControllerConnected) {
-  auto s = settings();
+  auto s = test::twoDisplaySink();
   s.peerIdleMs = 400;
   test::SinkRunner sink(s);
-  net::TileStreamer streamer("127.0.0.1", sink.port(), renderer(0, 1, 333), 1000, 40);
+  net::TileStreamer streamer("127.0.0.1", sink.port(), rendererHello(0, 1, 333), 1000, 40);
   ASSERT_TRUE(streamer.beginFrame(0));
   ASSERT_TRUE(streamer.endFrame());
-  auto control = renderer(0, 1, 333);
+  auto control = rendererHello(0, 1, 333);
   control.role = net::Role::Controller;
   net::ControlChannel channel("127.0.0.1", sink.port(), control, 40);
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.controllerConnected; }));
@@ -207,10 +204,10 @@ TEST(SinkHardening, KeepAlivesHoldAQuietStreamerAndControllerConnected) {
 
 // Defect 2: one complete tile with frame id 2^64 - 1 made the sink discard every later frame.
 TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
-  test::SinkRunner sink(settings());
-  net::ControlChannel control("127.0.0.1", sink.port(), renderer(0, 1));
+  test::SinkRunner sink(test::twoDisplaySink());
+  net::ControlChannel control("127.0.0.1", sink.port(), rendererHello(0, 1));
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
-  auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  auto c = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
   c->send(net::encodeMessage(1, wholeScreen()));
   ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }));
   c->send(net::encodeMessage(~std::uint64_t(0), wholeScreen()));
@@ -234,12 +231,12 @@ TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
 
 // Defect 3: under a descriptor limit, one failed accept ended accepting for good.
 TEST(SinkHardening, KeepsAcceptingAfterRunningOutOfFileDescriptors) {
-  auto s = settings();
+  auto s = test::twoDisplaySink();
   s.helloTimeoutMs = 1500;
   test::SinkRunner sink(s);
   {  // One whole frame first: every code path a peer takes has run once (sanitizers need file
      // descriptors to check some things the first time, and there will be none to spare).
-    auto warm = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 3000);
+    auto warm = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 3000);
     warm->send(net::encodeMessage(1, wholeScreen()));
     ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }));
   }
@@ -260,14 +257,14 @@ TEST(SinkHardening, KeepsAcceptingAfterRunningOutOfFileDescriptors) {
   // Once the flood is released, a real peer still gets in: the accept loop went on after the
   // error (it used to end there for good).
   for (const int fd : flood) ::close(fd);
-  auto good = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 3000);
+  auto good = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 3000);
   good->send(net::encodeMessage(2, wholeScreen()));
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 2; }))
       << sink.log();
 }
 
 TEST(SinkHardening, DropsPeersThatSayNoHelloAndCapsConnections) {
-  auto s = settings();
+  auto s = test::twoDisplaySink();
   s.helloTimeoutMs = 200;
   s.maxPeers = 2;
   test::SinkRunner sink(s);
@@ -284,14 +281,14 @@ TEST(SinkHardening, DropsPeersThatSayNoHelloAndCapsConnections) {
   for (const int fd : {a, b, c}) ::close(fd);
   EXPECT_NE(sink.log().find("sent no Hello within 200 ms"), std::string::npos) << sink.log();
   EXPECT_NE(sink.log().find("peers connected (--max-peers)"), std::string::npos) << sink.log();
-  EXPECT_NO_THROW(net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000));
+  EXPECT_NO_THROW(net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000));
 }
 
 // 256 connections that never said Hello (re-opened as they were dropped) left no place for a
 // render job's ranks. One address now holds at most 16 such connections, and the refusals are
 // counted in the log instead of a line each.
 TEST(SinkHardening, SilentConnectionsFromOneHostLeaveRoomForAnother) {
-  test::SinkRunner sink(settings());
+  test::SinkRunner sink(test::twoDisplaySink());
   std::vector<int> silent;
   for (int i = 0; i < 300; ++i) {
     const int fd = rawConnect(sink.port(), "127.0.0.2");
@@ -299,7 +296,7 @@ TEST(SinkHardening, SilentConnectionsFromOneHostLeaveRoomForAnother) {
     silent.push_back(fd);
   }
   EXPECT_TRUE(sink.waitForLog("connections from 127.0.0.2 have not said Hello")) << sink.log();
-  auto rank = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  auto rank = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
   rank->send(net::encodeMessage(0, wholeScreen()));
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }))
       << sink.log();
@@ -314,10 +311,10 @@ TEST(SinkHardening, SilentConnectionsFromOneHostLeaveRoomForAnother) {
 
 // Defect 4: a header claiming 64 MiB was allocated and zeroed before Hello or any payload.
 TEST(SinkHardening, RefusesALargePayloadBeforeHello) {
-  test::SinkRunner sink(settings());
+  test::SinkRunner sink(test::twoDisplaySink());
   const int fd = rawConnect(sink.port());
   ASSERT_GE(fd, 0);
-  auto hello = net::encodeMessage(renderer(0, 1));
+  auto hello = net::encodeMessage(rendererHello(0, 1));
   const std::uint32_t claimed = 64u << 20;
   std::memcpy(hello.data() + 12, &claimed, 4);
   const std::uint32_t checksum = XXH32(hello.data(), 28, 0);
@@ -336,7 +333,7 @@ TEST(SinkHardening, OpenFramesHoldWhatArrivedNotAWallEach) {
                                   [&](const walls::FrameEvent& e) { events.push_back(e); });
   std::uint64_t peak = 0;
   for (std::uint64_t f = 0; f < 10; ++f) {
-    EXPECT_FALSE(assembler.addTile(f, solidTile({int(f), 0, 1, 1}, 0xff), 0, "t"));
+    EXPECT_FALSE(assembler.addTile(f, solidTileMessage({int(f), 0, 1, 1}, 0xff), 0, "t"));
     peak = std::max(peak, assembler.heldBytes());
   }
   // A coverage bit per screen pixel and the tile with its bookkeeping: about 3 MiB a frame on
@@ -347,12 +344,13 @@ TEST(SinkHardening, OpenFramesHoldWhatArrivedNotAWallEach) {
 }
 
 TEST(SinkHardening, OpenFramesStayUnderTheMemoryLimit) {
-  const auto wall = testWall();  // 44x10: one frame = 1760 bytes of pixels + 56 of bitmap
+  const auto wall =
+      test::twoDisplayWall();  // 44x10: one frame = 1760 bytes of pixels + 56 of bitmap
   std::vector<walls::FrameEvent> events;
   walls::FrameAssembler assembler(wall, {64, 4000, walls::kDefaultFrameWindow},
                                   [&](const walls::FrameEvent& e) { events.push_back(e); });
   for (std::uint64_t f = 0; f < 8; ++f) {
-    assembler.addTile(f, solidTile({0, 0, 22, 10}, 0xff), 0, "t");
+    assembler.addTile(f, solidTileMessage({0, 0, 22, 10}, 0xff), 0, "t");
     EXPECT_LE(assembler.heldBytes(), 4000u);
   }
   ASSERT_FALSE(events.empty());
@@ -362,7 +360,7 @@ TEST(SinkHardening, OpenFramesStayUnderTheMemoryLimit) {
 }
 
 TEST(SinkHardening, FrameIdsOutsideTheJobsWindowAreRefused) {
-  const auto wall = testWall();
+  const auto wall = test::twoDisplayWall();
   std::vector<walls::FrameEvent> events;
   walls::FrameAssembler assembler(wall, {4, 0, 100},
                                   [&](const walls::FrameEvent& e) { events.push_back(e); });
@@ -373,7 +371,7 @@ TEST(SinkHardening, FrameIdsOutsideTheJobsWindowAreRefused) {
   EXPECT_EQ(events[0].note.status, net::FrameStatus::Refused);
   EXPECT_NE(events[0].note.reason.find("where the job starts"), std::string::npos);
   // A frame far ahead but inside the window opens, and goes when frame 3 completes far behind.
-  assembler.addTile(99, solidTile({0, 0, 22, 10}, 0xff), 0, "t");
+  assembler.addTile(99, solidTileMessage({0, 0, 22, 10}, 0xff), 0, "t");
   EXPECT_TRUE(assembler.addTile(3, wholeScreen(), 0, "t"));
   EXPECT_EQ(assembler.openFrames(), 1u);  // 99 - 3 is inside the window
   EXPECT_TRUE(assembler.addTile(4, wholeScreen(), 0, "t"));
@@ -399,10 +397,10 @@ TEST(SinkHardening, SecretsCompareWholly) {
 
 // Defect 5: a refused renderer kept rendering; refusal is now final and distinguishable.
 TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
-  auto s = settings();
+  auto s = test::twoDisplaySink();
   s.token = "right";
   test::SinkRunner sink(s);
-  auto hello = renderer(0, 1);
+  auto hello = rendererHello(0, 1);
   hello.token = "wrong";
   net::TileStreamer streamer("127.0.0.1", sink.port(), hello);
   EXPECT_FALSE(streamer.sendFrame(0, {}, 0));
@@ -417,10 +415,10 @@ TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
 // (even with the right token) for a back-off that doubles, and the log counts the guesses instead
 // of a line each; once the back-off passed, the right token is accepted.
 TEST(SinkHardening, WrongTokensBackOffPerAddressAndAreCountedNotLoggedEach) {
-  auto s = settings();
+  auto s = test::twoDisplaySink();
   s.token = "right";
   test::SinkRunner sink(s);
-  auto bad = renderer(0, 1);
+  auto bad = rendererHello(0, 1);
   bad.token = "wrong";
   int heard = 0;  // wrong tokens the sink listened to; the others were refused unheard
   auto guess = [&] {
@@ -443,7 +441,7 @@ TEST(SinkHardening, WrongTokensBackOffPerAddressAndAreCountedNotLoggedEach) {
     ++lines;
   EXPECT_GE(lines, 1) << log;
   EXPECT_LE(lines, 4) << log;
-  auto good = renderer(0, 1);
+  auto good = rendererHello(0, 1);
   good.token = "right";
   {
     net::TileStreamer early("127.0.0.1", sink.port(), good);
@@ -460,9 +458,9 @@ TEST(SinkHardening, WrongTokensBackOffPerAddressAndAreCountedNotLoggedEach) {
 // Defect 7: frames appear whole (marker last); what a killed sink left is cleared at start.
 TEST(SinkHardening, FrameFilesAppearWholeAndLeftoversAreCleared) {
   test::TempDir dir;
-  const auto wall = testWall();
+  const auto wall = test::twoDisplayWall();
   walls::FrameAssembler assembler(wall, {}, {});
-  const auto frame = assembler.addTile(3, solidTile({0, 0, 44, 10}, 0x604020), 0, "t");
+  const auto frame = assembler.addTile(3, solidTileMessage({0, 0, 44, 10}, 0x604020), 0, "t");
   ASSERT_TRUE(frame.has_value());
   walls::FrameFileSettings files;
   files.mosaic = true;
