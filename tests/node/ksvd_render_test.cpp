@@ -92,7 +92,7 @@ TEST(KsvdRender, LevelOfDetailAndNearestSamplingMatchSvmmsLevels) {
   const codec::Volume v = codec::generateMarschnerLobb(96);
   const auto tf = TransferFunction::preset("cool-warm").rescaled(0, 255);
   codec::ksvd::Params p;
-  p.blockSide = 4, p.atoms = 256, p.sparsity = 48, p.iterations = 4;  // near-lossless
+  p.blockSide = 4, p.atoms = 256, p.sparsity = 48, p.iterations = 1;  // near-lossless
   voxwall::Progress quiet;
   codec::ksvd::EncodeStats stats;
   codec::writeContainer(codec::ksvd::encode(v, p, quiet, &stats), dir.path("ml.vwz"));
