@@ -7,8 +7,6 @@ namespace voxwall::codec::vq {
 
 namespace {
 
-constexpr int kN = kernels::kVqBrickVoxels;
-
 // Brick (bx, by) of a row from `window`, the row's 4 slices (x fastest), minus `bias`.
 template <class T>
 void gatherBrick(glm::ivec3 dims, const T* window, int bias, int bx, int by, Brick& out) {

@@ -17,6 +17,8 @@
 
 namespace voxwall::codec::vq {
 
+inline constexpr int kN = kernels::kVqBrickVoxels;  // voxels in a brick
+
 // The bit depth for data of this type and range (8, 12 or 16).
 int bitDepth(ScalarType type, double lo, double hi);
 

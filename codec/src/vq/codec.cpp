@@ -25,7 +25,6 @@ namespace voxwall::codec::vq {
 
 namespace {
 
-constexpr int kN = kernels::kVqBrickVoxels;
 constexpr std::size_t kPad = 8;  // zero bytes after every array (8-byte reads)
 
 // Writes `count` entries of `bits` bits, value(i) each, into a zero-initialised buffer at byte

@@ -14,8 +14,6 @@ namespace voxwall::codec::vq {
 
 namespace {
 
-constexpr int kN = kernels::kVqBrickVoxels;
-
 int widthOf(std::uint32_t v) { return int(std::bit_width(v)); }  // 0 for 0
 
 // Appends `count` values of `bits` bits, LSB first, to a byte-aligned stream.
