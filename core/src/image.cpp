@@ -1,6 +1,3 @@
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,6 +6,7 @@
 #include <stdexcept>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/image.hpp>
+#include <voxwall/core/image_files.hpp>
 
 namespace voxwall {
 
@@ -47,45 +45,20 @@ std::vector<std::byte> encodeImage(const Image& image, const std::string& path,
     std::copy(c, c + 4, rgba.begin() + std::ptrdiff_t(i * 4));
   }
   // Encoded in memory: OpenImageIO's writers do not all report a full disk, our writer does.
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw FormatError(path, "cannot write images of this type: " + OIIO::geterror());
-  if (!out->supports("ioproxy"))
-    throw FormatError(path, "cannot write " + std::string(out->format_name()) + " images safely");
-  const bool exr = out->format_name() == std::string("openexr");
-  OIIO::ImageSpec spec(image.width, image.height, 4,
-                       exr ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::UINT8);
-  std::vector<unsigned char> encoded;
-  OIIO::Filesystem::IOVecOutput memory(encoded);
-  if (!out->set_ioproxy(&memory) || !out->open(path, spec) ||
-      !out->write_image(OIIO::TypeDesc::FLOAT, rgba.data()) || !out->close())
-    throw FormatError(path, "cannot encode image: " + out->geterror());
-  std::vector<std::byte> bytes(encoded.size());
-  std::memcpy(bytes.data(), encoded.data(), encoded.size());
+  std::vector<std::byte> bytes;
+  std::string error;
+  if (!image_files::api().encodeRgba(path, image.width, image.height, rgba.data(), bytes, error))
+    throw FormatError(path, error);
   return bytes;
 }
 
 std::vector<std::byte> encodeOpaqueImage(const Image& image, const std::string& path,
                                          const ImageEncoding& encoding) {
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw FormatError(path, "cannot write images of this type: " + OIIO::geterror());
-  if (!out->supports("ioproxy"))
-    throw FormatError(path, "cannot write " + std::string(out->format_name()) + " images safely");
-  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-  spec.attribute("png:compressionLevel", std::clamp(encoding.pngLevel, 0, 9));
-  // libpng's "up" filter alone (PNG_FILTER_UP): on bigeye frames of a volume it encoded 2.4x
-  // faster than the default adaptive choice among all five filters, and the files were no
-  // bigger (measured with bench/wall_fps.py's --out runs).
-  constexpr int kPngFilterUp = 0x20;
-  spec.attribute("png:filter", kPngFilterUp);
-  spec.attribute("Compression", "jpeg:" + std::to_string(std::clamp(encoding.jpegQuality, 1, 100)));
-  std::vector<unsigned char> encoded;
-  OIIO::Filesystem::IOVecOutput memory(encoded);
-  // RGB from RGBA in place: 4 bytes between pixels, the alpha byte skipped.
-  if (!out->set_ioproxy(&memory) || !out->open(path, spec) ||
-      !out->write_image(OIIO::TypeDesc::UINT8, image.pixels.data(), 4) || !out->close())
-    throw FormatError(path, "cannot encode image: " + out->geterror());
-  std::vector<std::byte> bytes(encoded.size());
-  std::memcpy(bytes.data(), encoded.data(), encoded.size());
+  std::vector<std::byte> bytes;
+  std::string error;
+  if (!image_files::api().encodeRgb8(path, image.width, image.height, image.pixels.data(),
+                                     encoding.pngLevel, encoding.jpegQuality, bytes, error))
+    throw FormatError(path, error);
   return bytes;
 }
 
@@ -97,16 +70,13 @@ voxwall::FileDigest writeImage(const Image& image, const std::string& path,
 }
 
 Image readImage(const std::string& path) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) throw FormatError(path, "cannot open image: " + OIIO::geterror());
-  const auto& spec = in->spec();
-  if (spec.nchannels < 3) throw FormatError(path, "not an RGB(A) image");
-  std::vector<float> data(std::size_t(spec.width) * std::size_t(spec.height) *
-                          std::size_t(spec.nchannels));
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, data.data()))
-    throw FormatError(path, "cannot read image: " + in->geterror());
+  image_files::Layout spec;
+  std::vector<float> data;
+  std::string error;
+  if (!image_files::api().readFloats(path, spec, data, error)) throw FormatError(path, error);
+  if (spec.channels < 3) throw FormatError(path, "not an RGB(A) image");
   Image img(spec.width, spec.height);
-  const int n = spec.nchannels;
+  const int n = spec.channels;
   auto q = [](float v) { return std::uint32_t(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f)); };
   for (std::size_t i = 0; i < img.pixels.size(); ++i) {
     const float* c = &data[i * std::size_t(n)];

@@ -1,11 +1,11 @@
-// A stack of 2D greyscale slices through OpenImageIO: a directory of images (sorted by name,
-// numbers compared by value) or one multi-page TIFF.
-#include <OpenImageIO/imageio.h>
-
+// A stack of 2D greyscale slices through OpenImageIO (core's image-file module): a directory of
+// images (sorted by name, numbers compared by value) or one multi-page TIFF.
 #include <algorithm>
 #include <filesystem>
+#include <memory>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/image_files.hpp>
 
 #include "../file_util.hpp"
 
@@ -41,32 +41,43 @@ bool isSliceImage(const fs::path& p) {
   return ext == "tif" || ext == "tiff" || ext == "png" || ext == "pgm" || ext == "exr";
 }
 
-ScalarType typeFor(const OIIO::TypeDesc& format) {
-  if (format == OIIO::TypeDesc::UINT8) return ScalarType::UInt8;
-  if (format == OIIO::TypeDesc::UINT16) return ScalarType::UInt16;
-  if (format == OIIO::TypeDesc::INT16) return ScalarType::Int16;
+ScalarType typeFor(image_files::Pixel format) {
+  switch (format) {
+    case image_files::Pixel::UInt8:
+      return ScalarType::UInt8;
+    case image_files::Pixel::UInt16:
+      return ScalarType::UInt16;
+    case image_files::Pixel::Int16:
+      return ScalarType::Int16;
+    case image_files::Pixel::Float32:
+    case image_files::Pixel::Other:
+      break;
+  }
   return ScalarType::Float32;
 }
 
-OIIO::TypeDesc oiioType(ScalarType t) {
+image_files::Pixel pixelOf(ScalarType t) {
   switch (t) {
     case ScalarType::UInt8:
-      return OIIO::TypeDesc::UINT8;
+      return image_files::Pixel::UInt8;
     case ScalarType::UInt16:
-      return OIIO::TypeDesc::UINT16;
+      return image_files::Pixel::UInt16;
     case ScalarType::Int16:
-      return OIIO::TypeDesc::INT16;
+      return image_files::Pixel::Int16;
     case ScalarType::Float32:
-      return OIIO::TypeDesc::FLOAT;
+      break;
   }
-  return OIIO::TypeDesc::FLOAT;
+  return image_files::Pixel::Float32;
 }
 
-// Appends one slice's pixels to `v` at slice z after checking it matches the first slice.
-void readSlice(OIIO::ImageInput& in, const std::string& file, int subimage, Volume& v, int z) {
-  const OIIO::ImageSpec& spec = in.spec();
-  if (spec.nchannels != 1)
-    throw FormatError(file, "has " + std::to_string(spec.nchannels) +
+// Appends subimage `subimage` of `in` to `v` at slice z after checking it matches the first slice.
+void readSlice(const image_files::Reader& in, const std::string& file, int subimage, Volume& v,
+               int z) {
+  image_files::Layout spec;
+  if (!in.subimage(subimage, spec))
+    throw FormatError(file, "cannot seek to page " + std::to_string(subimage));
+  if (spec.channels != 1)
+    throw FormatError(file, "has " + std::to_string(spec.channels) +
                                 " channels; slices must be single-channel greyscale");
   if (spec.width != v.dims.x || spec.height != v.dims.y || spec.depth > 1)
     throw FormatError(file, "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
@@ -74,8 +85,7 @@ void readSlice(OIIO::ImageInput& in, const std::string& file, int subimage, Volu
                                 std::to_string(v.dims.y));
   std::byte* dst = v.data.data() + std::size_t(z) * std::size_t(v.dims.x) * std::size_t(v.dims.y) *
                                        scalarBytes(v.type);
-  if (!in.read_image(subimage, 0, 0, 1, oiioType(v.type), dst))
-    throw FormatError(file, "cannot read pixels: " + in.geterror());
+  in.readChannel0(subimage, pixelOf(v.type), dst, file);
 }
 
 }  // namespace
@@ -94,14 +104,12 @@ Volume readSliceStack(const std::string& path) {
     files.push_back(path);
   }
 
-  auto first = OIIO::ImageInput::open(files[0]);
-  if (!first) throw FormatError(files[0], "cannot open image: " + OIIO::geterror());
+  auto first = std::make_unique<image_files::Reader>(files[0]);
+  image_files::Layout spec0, page;
+  if (!first->subimage(0, spec0)) throw FormatError(files[0], "holds no image");
   int pages = 1;
-  if (files.size() == 1) {
-    while (first->seek_subimage(pages, 0)) ++pages;
-    first->seek_subimage(0, 0);
-  }
-  const OIIO::ImageSpec spec0 = first->spec();
+  if (files.size() == 1)
+    while (first->subimage(pages, page)) ++pages;
   const int depth = files.size() > 1 ? int(files.size()) : pages;
   const glm::ivec3 dims(spec0.width, spec0.height, depth);
   checkDims(dims, path);
@@ -109,16 +117,11 @@ Volume readSliceStack(const std::string& path) {
   if (files.size() > 1) {
     first.reset();
     for (int z = 0; z < depth; ++z) {
-      auto in = OIIO::ImageInput::open(files[std::size_t(z)]);
-      if (!in) throw FormatError(files[std::size_t(z)], "cannot open image: " + OIIO::geterror());
-      readSlice(*in, files[std::size_t(z)], 0, v, z);
+      const image_files::Reader in(files[std::size_t(z)]);
+      readSlice(in, files[std::size_t(z)], 0, v, z);
     }
   } else {
-    for (int z = 0; z < depth; ++z) {
-      if (!first->seek_subimage(z, 0))
-        throw FormatError(path, "cannot seek to page " + std::to_string(z));
-      readSlice(*first, path + " page " + std::to_string(z), z, v, z);
-    }
+    for (int z = 0; z < depth; ++z) readSlice(*first, path + " page " + std::to_string(z), z, v, z);
   }
   v.computeRange();
   return v;
