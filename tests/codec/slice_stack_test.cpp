@@ -10,24 +10,14 @@
 #include "support/format_error_expect.hpp"
 #include "support/patterned_volume.hpp"
 #include "support/temp_dir.hpp"
+#include "support/volume_expect.hpp"
 
 using namespace voxwall;
 using namespace voxwall::codec;
 using voxwall::test::expectFormatError;
+using voxwall::test::expectSameVoxels;
 using voxwall::test::patterned;
 using voxwall::test::TempDir;
-
-namespace {
-
-void expectSameVoxels(const Volume& a, const Volume& b) {
-  ASSERT_EQ(a.dims, b.dims);
-  ASSERT_EQ(a.type, b.type);
-  EXPECT_EQ(a.data, b.data);
-  EXPECT_EQ(a.valueMin, b.valueMin);
-  EXPECT_EQ(a.valueMax, b.valueMax);
-}
-
-}  // namespace
 
 TEST(SliceStack, SliceDirectoryReadsInNaturalOrder) {
   TempDir dir;
