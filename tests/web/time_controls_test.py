@@ -123,27 +123,34 @@ def main():
         if back_db < 40:
             raise Failure(f"back at step {held}, the picture is {back_db:.1f} dB from before")
 
-        # The slider with the keyboard: End seeks the last step, Home the first.
+        # The slider with the keyboard: End seeks the last step, Home the first. A key that
+        # leaves the slider where it is sends nothing, so the first key moves it: from the last
+        # step, Home comes first.
         slider = driver.find_element(By.ID, "timeSlider")
-        for key, want in ((Keys.END, STEPS - 1), (Keys.HOME, 0)):
+        keys = [(Keys.END, STEPS - 1), (Keys.HOME, 0)]
+        if held == STEPS - 1:
+            keys.reverse()
+        for key, want in keys:
             slider.send_keys(key)
             wait(f"the slider's seek to step {want}", lambda: time_state()["step"] == want, 30)
         seeks = [line for line in script("window.voxwall.sent") if line.startswith("seek")]
-        if seeks[-2:] != [f"seek {STEPS - 1}", "seek 0"]:
-            raise Failure(f"the slider sent {seeks}, not seek {STEPS - 1} then seek 0")
+        expected = [f"seek {want}" for _, want in keys]
+        if seeks[-2:] != expected:
+            raise Failure(f"the slider sent {seeks}, not {' then '.join(expected)}")
+        last_sought = keys[-1][1]
 
         # The space key plays again: the job says so and the step moves on.
         driver.find_element(By.ID, "wall").click()  # focus off the slider
         driver.find_element(By.TAG_NAME, "body").send_keys(" ")
         wait("the job to play again", lambda: time_state()["playing"], 30)
-        wait("the step to move on again", lambda: time_state()["step"] != 0, 30)
+        wait("the step to move on again", lambda: time_state()["step"] != last_sought, 30)
 
         render_log = procs.log("render.log")
         if "error" in render_log.lower():
             raise Failure("the render job logged an error: " + render_log.strip()[-300:])
         print(f"time controls: played from step {first}; paused at step {held} (frames "
               f"{same_db:.1f} dB apart); +1 changed the picture ({moved_db:.1f} dB), -1 came "
-              f"back ({back_db:.1f} dB); the slider sought {STEPS - 1} and 0; space played again")
+              f"back ({back_db:.1f} dB); the slider sent {seeks[-2:]}; space played again")
         return 0
     except (Failure, subprocess.SubprocessError) as e:
         return procs.fail(e, ("sink.log", "render.log"))
