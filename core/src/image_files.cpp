@@ -21,9 +21,11 @@ std::vector<std::string> candidates() {
   return out;
 }
 
-const Api& load() {
+}  // namespace
+
+const Api& loadModule(const std::vector<std::string>& paths) {
   std::string tried;
-  for (const auto& path : candidates()) {
+  for (const auto& path : paths) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) {
       tried += (tried.empty() ? "" : ", ") + path + " (missing)";
@@ -40,16 +42,16 @@ const Api& load() {
     const auto entry = reinterpret_cast<Entry>(::dlsym(module, kEntryPoint));
     const Api* api = entry ? entry() : nullptr;
     if (api && api->version == kApiVersion) return *api;
-    tried += (tried.empty() ? "" : ", ") + path + " (another version of voxwall's)";
+    tried += (tried.empty() ? "" : ", ") + path +
+             (entry ? " (another version of voxwall's)" : " (not voxwall's image-file module)");
   }
   throw std::runtime_error("cannot load voxwall's image-file module " + std::string(kModuleFile) +
                            " (OpenImageIO), needed to read or write images: tried " + tried);
 }
 
-}  // namespace
-
 const Api& api() {
-  static const Api& loaded = load();  // a throw leaves it unset: the next call tries again
+  // A throw leaves it unset: the next call tries again.
+  static const Api& loaded = loadModule(candidates());
   return loaded;
 }
 

@@ -418,6 +418,7 @@ class MasterLoop {
     if (const auto why = control_->refused(); !why.empty())
       throw net::SinkRefused("wall sink " + why);
     s.sinkNotes = control_->drainNotes();
+    s.controlsPending = [channel = control_.get()] { return channel->pending(); };
     for (const auto& c : control_->drain()) {
       // Play and pause change no picture: they count as no steering.
       if (player_.take(c, now)) {

@@ -1,4 +1,5 @@
 // The image-file module: OpenImageIO is loaded by the first image read or written, not at start.
+#include <dlfcn.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -7,6 +8,7 @@
 #include <string>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/image.hpp>
+#include <voxwall/core/image_files.hpp>
 
 namespace {
 
@@ -53,4 +55,32 @@ TEST(ImageFiles, AFileThatIsNoImageIsRefusedNamingIt) {
     EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
   }
   std::filesystem::remove(path);
+}
+
+// Where the module cannot be loaded, the error names every place tried and why each was passed
+// over, and nothing is loaded.
+TEST(ImageFiles, AModuleThatCannotBeLoadedIsRefusedNamingEveryPlaceTried) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("voxwall-no-module-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string missing = (dir / "libvoxwall_image_files.so").string();
+  const std::string text = (dir / "text.so").string();
+  std::ofstream(text) << "not a shared library";
+  Dl_info libc{};
+  ASSERT_NE(::dladdr(reinterpret_cast<void*>(&::getpid), &libc), 0);
+  const std::string other = libc.dli_fname;  // a library, but not the module
+  try {
+    voxwall::image_files::loadModule({missing, text, other});
+    ADD_FAILURE() << "loaded a module from none";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("cannot load voxwall's image-file module libvoxwall_image_files.so", 0),
+              0u)
+        << what;
+    EXPECT_NE(what.find(missing + " (missing)"), std::string::npos) << what;
+    EXPECT_NE(what.find(text + " ("), std::string::npos) << what;
+    EXPECT_NE(what.find(other + " (not voxwall's image-file module)"), std::string::npos) << what;
+  }
+  fs::remove_all(dir);
 }

@@ -133,6 +133,11 @@ TEST(RenderSettings, RendererOptions) {
   o.sampling = "nearest";
   o.backend = "opengl";
   expectRefused([&] { (void)renderSettings(o); }, "--backend");
+  o.backend = "cuda";
+  o.deviceDecode = "lazy";
+  expectRefused([&] { (void)renderSettings(o); }, "--device-decode: expected whole or per-ray");
+  o.deviceDecode = "per-ray";
+  (void)renderSettings(o);  // both settings are read on any machine; the device is found later
   o.backend = "cpu";
   o.shading = o.noSkip = o.lod = true;
   const auto r = renderSettings(o);

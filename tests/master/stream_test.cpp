@@ -12,6 +12,7 @@
 #include "support/fake_communicator.hpp"
 #include "support/sink_runner.hpp"
 #include "support/temp_dir.hpp"
+#include "support/wait_until.hpp"
 
 using namespace voxwall;
 namespace fs = std::filesystem;
@@ -97,6 +98,17 @@ bool waitSettled(test::SinkRunner& sink, int frames) {
     return s.framesPresented + s.framesDropped + s.framesSuperseded >= frames &&
            s.framesWritten + s.framesNotWritten == s.framesPresented;
   });
+}
+
+// Rank 0, after a frame, sends the wall a command and waits until it has arrived on rank 0: the
+// next frame takes it.
+void steerOnce(test::SinkRunner& sink, const master::FrameSummary& f) {
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }))
+      << "rank 0's control connection did not come up";
+  sink.sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
+  ASSERT_TRUE(f.controlsPending);
+  ASSERT_TRUE(test::waitUntil([&] { return f.controlsPending() >= 1; }))
+      << "the command did not reach rank 0";
 }
 
 // Checks every frame the sink wrote against the single-rank render; returns how many it wrote.
@@ -197,12 +209,7 @@ TEST(Stream, ControlFromTheWallMovesTheCamera) {
   job.path = master::CameraPath::orbit({}, 0);  // a still camera
   job.interactiveStep = 1;  // full frames while steered, to compare them exactly (mpi.interactive)
   runStreamingJob(2, job, [&](const master::FrameSummary& f) {
-    if (f.frame != 0) return;
-    // Wait for rank 0's control connection, then send the command.
-    for (int i = 0; i < 500 && !sink->sink().stats().controllerConnected; ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    sink->sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    if (f.frame == 0) steerOnce(*sink, f);
   });
   ASSERT_TRUE(waitSettled(*sink, 4));
   sink->stop();
@@ -260,11 +267,10 @@ TEST(Stream, SteeredFramesAreInteractiveUntilTheCameraSettles) {
   runStreamingJob(2, job, [&](const master::FrameSummary& f) {
     steps.push_back(f.step);
     if (f.frame == 0) {
-      for (int i = 0; i < 500 && !sink->sink().stats().controllerConnected; ++i)
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      sink->sink().sendControl(net::Control{net::ControlCommand::Rotate, 40, 0});
-      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      steerOnce(*sink, f);
     } else {
+      // Time passes between frames (not a wait on anything): 0.3 s after the command the
+      // camera has settled, well before the last frame.
       std::this_thread::sleep_for(std::chrono::milliseconds(150));
     }
   });

@@ -52,6 +52,11 @@ inline constexpr const char* kEntryPoint = "voxwall_image_files_api";
 // it looked when it cannot be loaded.
 const Api& api();
 
+// Loads the first of `paths` that is voxwall's image-file module of this version; otherwise
+// throws std::runtime_error naming every path and why it was passed over (missing, not
+// loadable, not the module, another version). api() calls it with its two places.
+const Api& loadModule(const std::vector<std::string>& paths);
+
 // An image file open for reading, subimage by subimage; throws FormatError("<path>: ...").
 class Reader {
  public:

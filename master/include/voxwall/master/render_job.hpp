@@ -156,6 +156,9 @@ struct FrameSummary {
   net::FramePhase phase = net::FramePhase::Full;  // interactive (steered), refining or full
   bool abandoned = false;              // the camera moved while it rendered: given up, not shown
   std::vector<std::string> sinkNotes;  // what the sink said about earlier frames (drops, refusals)
+  // Streaming to a sink: how many of the wall's commands have arrived on rank 0 since this
+  // frame took its own; callable until the job ends (a test waits on it before the next frame).
+  std::function<std::size_t()> controlsPending;
 };
 
 struct RankMemory {
