@@ -16,6 +16,11 @@ void Progress::setPrefix(std::string prefix) {
   prefix_ = std::move(prefix);
 }
 
+std::string Progress::prefix() {
+  std::lock_guard lock(mutex_);
+  return prefix_;
+}
+
 void Progress::advance(std::uint64_t n) {
   std::lock_guard lock(mutex_);
   done_ += n;

@@ -193,24 +193,35 @@ TEST(KsvdCoreset, WeightedStatisticsMatchTheFullSet) {
   EXPECT_GT(pickedSpread / double(set.count()), 1.1 * fullSpread / double(n));
 }
 
+// Pairs of every width a file may have, packed into one stream back to back (most start inside
+// a byte), read back one by one; the stream is exactly the bytes its bits need.
 TEST(KsvdPacking, PairsRoundTripAtTheirLimits) {
-  for (int bits : {1, 8, 10, 16}) {
-    const int qmax = ksvd::maxQuantized(bits);
-    EXPECT_EQ(qmax, (1 << (23 - bits)) - 1);
-    for (int atom : {0, 1, (1 << bits) - 1})
-      for (int q : {-qmax, -1, 0, 1, qmax}) {
-        const std::uint32_t word = ksvd::packPair(atom, q, bits);
-        ASSERT_LT(word, 1u << 24);
-        const std::uint8_t bytes[3] = {std::uint8_t(word), std::uint8_t(word >> 8),
-                                       std::uint8_t(word >> 16)};
-        int a = -1, b = 0;
-        kernels::ksvdUnpack(bytes, bits, a, b);
-        EXPECT_EQ(a, atom) << bits;
-        EXPECT_EQ(b, q) << bits;
+  for (int indexBits : {1, 8, 10, 16})
+    for (int coefBits : {2, 7, 24 - indexBits}) {
+      const int qmax = ksvd::maxQuantized(coefBits);
+      EXPECT_EQ(qmax, (1 << (coefBits - 1)) - 1);
+      std::vector<std::pair<int, int>> sent;
+      std::vector<std::byte> stream;
+      for (int atom : {0, 1, (1 << indexBits) - 1})
+        for (int q : {-qmax, -1, 0, 1, qmax}) {
+          const std::uint32_t word = ksvd::packPair(atom, q, indexBits, coefBits);
+          ASSERT_LT(word, 1u << (indexBits + coefBits));
+          ksvd::appendPair(stream, sent.size(), word, indexBits + coefBits);
+          sent.emplace_back(atom, q);
+        }
+      EXPECT_EQ(stream.size(), (sent.size() * std::size_t(indexBits + coefBits) + 7) / 8);
+      for (std::size_t i = 0; i < sent.size(); ++i) {
+        int a = -1, q = 0;
+        kernels::ksvdUnpack(reinterpret_cast<const std::uint8_t*>(stream.data()), i, indexBits,
+                            coefBits, a, q);
+        EXPECT_EQ(a, sent[i].first) << indexBits << "+" << coefBits << " pair " << i;
+        EXPECT_EQ(q, sent[i].second) << indexBits << "+" << coefBits << " pair " << i;
       }
-    EXPECT_THROW(ksvd::packPair(1 << bits, 0, bits), std::invalid_argument);
-    EXPECT_THROW(ksvd::packPair(0, qmax + 1, bits), std::invalid_argument);
-  }
+      EXPECT_THROW(ksvd::packPair(1 << indexBits, 0, indexBits, coefBits), std::invalid_argument);
+      EXPECT_THROW(ksvd::packPair(0, qmax + 1, indexBits, coefBits), std::invalid_argument);
+    }
+  EXPECT_THROW(ksvd::packPair(0, 0, 10, 15), std::invalid_argument);  // 25 bits
+  EXPECT_THROW(ksvd::packPair(0, 0, 10, 1), std::invalid_argument);
 }
 
 TEST(KsvdCodec, EmptyAndConstantBricksAreDetectedAndCostNothing) {
@@ -428,6 +439,102 @@ TEST(KsvdPyramid, FilesWithoutTheLevelsSectionReadAsOneLevel) {
   EXPECT_EQ(layout.decode().data, before.data);
 }
 
+// Files written before the coefficient's width was stored end their params at the PSNR and hold
+// 3-byte pairs: the same bits as a stored width of 24 less the index's.
+TEST(KsvdCodec, FilesWithoutTheCoefficientWidthReadAsThreeBytePairs) {
+  const Volume v = generateSheppLogan(40);
+  Progress quiet;
+  auto c = ksvd::encode(v, quick(4), quiet);
+  const ksvd::Layout stored(c.info, c.view());
+  const int indexBits = 5;  // quick(): 32 atoms
+  ASSERT_EQ(stored.atoms(), 32);
+  ASSERT_EQ(stored.coefficientBits(), 24 - indexBits);
+  EXPECT_EQ(section(c, ksvd::kPairs).size(), 3 * stored.pairs());
+  const Volume before = stored.decode();
+  section(c, ksvd::kParams).resize(64);
+  const ksvd::Layout old(c.info, c.view());
+  EXPECT_EQ(old.coefficientBits(), 24 - indexBits);
+  EXPECT_EQ(old.decode().data, before.data);
+}
+
+// Narrower coefficients make a smaller pair stream of the same pairs' atoms, and the decoder
+// reads them at any width: each width's file decodes to what its encoder measured.
+TEST(KsvdCodec, NarrowCoefficientsPackThePairsTighter) {
+  const Volume v = generateMarschnerLobb(40);
+  Progress quiet;
+  ksvd::Params wide = quick(4);
+  ksvd::Params narrow = wide;
+  narrow.coefficientBits = 6;
+  ksvd::EncodeStats ws, ns;
+  const auto w = ksvd::encode(v, wide, quiet, &ws);
+  const auto n = ksvd::encode(v, narrow, quiet, &ns);
+  EXPECT_EQ(ns.coefficientBits, 6);
+  EXPECT_EQ(ws.coefficientBits, 24 - ns.indexBits);
+  EXPECT_EQ(ns.pairBytes, (ns.pairs * std::uint64_t(ns.indexBits + 6) + 7) / 8);
+  EXPECT_LT(ns.pairBytes, ws.pairBytes * 12 / 24 + 1);
+  EXPECT_LT(ns.psnr, ws.psnr);  // coarser coefficients
+  EXPECT_GT(ns.psnr, 20.0);
+  const ksvd::Layout layout(n.info, n.view());
+  EXPECT_EQ(layout.coefficientBits(), 6);
+  EXPECT_NEAR(psnr(v, layout.decode()), ns.psnr, 1e-9);
+  ksvd::Params tooWide = wide;
+  tooWide.coefficientBits = 20;  // 5 index bits + 20 > 24
+  try {
+    (void)ksvd::encode(v, tooWide, quiet);
+    ADD_FAILURE() << "a 25-bit pair was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("--coefficient-bits 20 leaves no room"), std::string::npos)
+        << e.what();
+  }
+}
+
+// Through the registry, a size target without --block codes blocks of 4^3 and of 6^3 and keeps
+// the higher PSNR; where blocks of 4^3 cannot meet the target (their count table alone is a byte
+// per block: noise, no constant bricks), 6^3, and the report says why. A --block that cannot meet
+// the target is refused. The coefficient width follows the rate.
+TEST(KsvdCodec, SizeTargetsKeepTheBetterBlockSide) {
+  const Codec& codec = codecNamed("ksvd");
+  auto encode = [&](const Volume& v, double bits, int block, std::string& report) {
+    CodecOptionValues o;
+    o.set("--bits-per-voxel", std::to_string(bits));
+    o.set("--iterations", "2"), o.set("--levels", "1");
+    if (block) o.set("--block", std::to_string(block));
+    Progress quiet;
+    return codec.encode(v, o, quiet, report);
+  };
+  Volume noise = Volume::allocate({80, 80, 80}, ScalarType::Float32);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  for (float& x : noise.as<float>()) x = uniform(rng);
+  noise.computeRange();
+  std::string report;
+  const auto fellBack = encode(noise, 0.36, 0, report);
+  const ksvd::Layout six(fellBack.info, fellBack.view());
+  EXPECT_EQ(six.blockSide(), 6);
+  EXPECT_EQ(six.coefficientBits(), 8);  // 0.35..0.75 bits per voxel
+  EXPECT_NE(report.find("blocks of 6^3, since --bits-per-voxel 0.36 is below the smallest ksvd "
+                        "file of this volume with "),
+            std::string::npos)
+      << report;
+  EXPECT_NE(report.find("and blocks of 4^3"), std::string::npos) << report;
+  EXPECT_THROW(encode(noise, 0.36, 4, report), ksvd::SizeTargetTooSmall);
+
+  const Volume phantom = generateSheppLogan(80);
+  std::string r4, r6;
+  const auto four = encode(phantom, 0.5, 4, r4), sixOnly = encode(phantom, 0.5, 6, r6);
+  const double psnr4 = ksvd::Layout(four.info, four.view()).psnr();
+  const double psnr6 = ksvd::Layout(sixOnly.info, sixOnly.view()).psnr();
+  ASSERT_NE(psnr4, psnr6);
+  const auto best = encode(phantom, 0.5, 0, report);
+  const ksvd::Layout kept(best.info, best.view());
+  EXPECT_EQ(kept.blockSide(), psnr4 > psnr6 ? 4 : 6);
+  EXPECT_EQ(kept.psnr(), std::max(psnr4, psnr6));
+  EXPECT_EQ(kept.coefficientBits(), 8);
+  EXPECT_NE(report.find("both coded, --block codes one"), std::string::npos) << report;
+  const auto low = encode(phantom, 0.3, 0, report);
+  EXPECT_EQ(ksvd::Layout(low.info, low.view()).coefficientBits(), 7);
+}
+
 TEST(KsvdCodec, RefusesBadParameters) {
   const Volume v = generateMenger(2);
   Progress quiet;
@@ -441,6 +548,8 @@ TEST(KsvdCodec, RefusesBadParameters) {
   refused([](ksvd::Params& p) { p.sparsity = 0; });
   refused([](ksvd::Params& p) { p.tolerance = -0.1; });
   refused([](ksvd::Params& p) { p.levels = 9; });
+  refused([](ksvd::Params& p) { p.coefficientBits = 1; });
+  refused([](ksvd::Params& p) { p.coefficientBits = 24; });
   Volume nan = Volume::allocate({8, 8, 8}, ScalarType::Float32);
   nan.as<float>()[3] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(ksvd::encode(nan, quick(), quiet), std::invalid_argument);
@@ -495,6 +604,18 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
     auto c = small();
     poke<std::uint32_t>(section(c, ksvd::kParams), 16, 9);
     expectKsvdRefused(c, "index bits 9 for 12 atoms");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 64, 21);  // 4 + 21 bits: over 3 bytes
+    expectKsvdRefused(c, "coefficient bits 21 with 4 index bits");
+    poke<std::uint32_t>(section(c, ksvd::kParams), 64, 1);
+    expectKsvdRefused(c, "coefficient bits 1 with 4 index bits");
+  }
+  {
+    auto c = small();
+    section(c, ksvd::kParams).resize(72);
+    expectKsvdRefused(c, "4 bytes past the params");
   }
   {
     auto c = small();

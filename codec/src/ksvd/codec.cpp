@@ -88,8 +88,9 @@ struct BrickRecord {
 
 // The coded bricks' block codes at one tolerance.
 struct CodedBricks {
-  std::vector<std::vector<std::uint8_t>> counts, pairs;
-  std::vector<float> steps;  // per coded brick, in value units
+  std::vector<std::vector<std::uint8_t>> counts;
+  std::vector<std::vector<std::uint32_t>> pairs;  // per coded brick, packPair's words
+  std::vector<float> steps;                       // per coded brick, in value units
   std::uint64_t pairCount = 0;
 };
 
@@ -247,14 +248,25 @@ class Encoder {
       if (params_.targetBitsPerVoxel > 0)  // and the dictionary at most a quarter of the file
         while (atoms_ > 16 && double(atoms_) * m_ * 2 > budgetBytes() / 4) atoms_ /= 2;
     }
+    if (params_.targetBitsPerVoxel > 0 &&
+        double(fixedBytes_) + double(atoms_) * m_ * 2 > budgetBytes())
+      throw SizeTargetTooSmall(formatLine(
+          "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms and "
+          "blocks of %d^3: the dictionary and the brick and count tables alone take %.3g bits "
+          "per voxel",
+          params_.targetBitsPerVoxel, atoms_, params_.blockSide,
+          8.0 * (double(fixedBytes_) + double(atoms_) * m_ * 2) / double(volume_.voxelCount())));
     sparsity_ = std::min(params_.sparsity, m_);
     // Training codes blocks with the sparsity the file will have on average: S, or with a size
     // target the pairs per block the budget leaves after the dictionary and the tables.
     trainSparsity_ = sparsity_;
     if (params_.targetBitsPerVoxel > 0 && !candidates_.empty()) {
       const double perBlock = (budgetBytes() - double(fixedBytes_) - double(atoms_) * m_ * 2) /
-                              (3.0 * double(candidates_.size()));
-      trainSparsity_ = int(std::clamp(std::lround(perBlock), 1l, long(sparsity_)));
+                              (pairBytes(indexBitsFor(atoms_)) * double(candidates_.size()));
+      // At least 2: the DC atom is every block's first pair, so training with 1 leaves the
+      // learned atoms unused (at 0.35 bits per voxel on the MRI, blocks of 4^3 lost 2.6 dB).
+      trainSparsity_ =
+          int(std::clamp(std::lround(perBlock), std::min(2l, long(sparsity_)), long(sparsity_)));
     }
     sparsity_ = std::max(1, std::min(sparsity_, 255));
     coresetSize_ = kDefaultCoreset;
@@ -303,7 +315,26 @@ class Encoder {
     }
     for (std::size_t i = 0; i < stored_.size(); ++i) dict_.values[i] = float(stored_[i]) / 32767.0f;
     indexBits_ = indexBitsFor(atoms_);
-    qmax_ = maxQuantized(indexBits_);
+    coefBits_ = coefficientBits(indexBits_);
+    qmax_ = maxQuantized(coefBits_);
+  }
+
+  // The coefficient's width with `indexBits` of atom index, and a pair's bytes in the stream.
+  int coefficientBits(int indexBits) const {
+    const int room = kMaxPairBits - indexBits;
+    if (params_.coefficientBits == 0)
+      return params_.targetBitsPerVoxel > 0
+                 ? coefficientBitsFor(params_.targetBitsPerVoxel, indexBits)
+                 : room;
+    if (params_.coefficientBits > room)
+      throw std::invalid_argument(formatLine(
+          "ksvd codec: --coefficient-bits %d leaves no room for the atom index: a pair is at "
+          "most %d bits and %d atoms need %d, so at most %d",
+          params_.coefficientBits, kMaxPairBits, atoms_, indexBits, room));
+    return params_.coefficientBits;
+  }
+  double pairBytes(int indexBits) const {
+    return double(indexBits + coefficientBits(indexBits)) / 8.0;
   }
 
   // Coding: every block of every coded brick, brick by brick, at a per-block tolerance.
@@ -316,7 +347,7 @@ class Encoder {
     parallelFor(coded_.size(), params_.threads,
                 [&](std::size_t c) { codeBrick(coder, maxResidual2, c, out); });
     progress_.end();
-    for (const auto& p : out.pairs) out.pairCount += p.size() / 3;
+    for (const auto& p : out.pairs) out.pairCount += p.size();
     return out;
   }
 
@@ -339,7 +370,7 @@ class Encoder {
     const float step = maxAbs > 0 ? maxAbs / float(qmax_) : 1.0f / float(qmax_);
     out.steps[c] = step * scale_;
     std::vector<std::uint8_t>& counts = out.counts[c];
-    std::vector<std::uint8_t>& pairs = out.pairs[c];
+    std::vector<std::uint32_t>& pairs = out.pairs[c];
     counts.assign(std::size_t(perBrick_), 0);
     for (std::size_t i = 0; i < inGrid.size(); ++i) {
       const SparseCode& code = codes[i];
@@ -347,9 +378,7 @@ class Encoder {
       for (std::size_t s = 0; s < code.atoms.size(); ++s) {
         const int q = std::clamp(int(std::lround(code.coefficients[s] / step)), -qmax_, qmax_);
         if (q == 0) continue;  // adds nothing: a block equal to its brick's minimum has none
-        const std::uint32_t word = packPair(code.atoms[s], q, indexBits_);
-        pairs.push_back(std::uint8_t(word)), pairs.push_back(std::uint8_t(word >> 8));
-        pairs.push_back(std::uint8_t(word >> 16));
+        pairs.push_back(packPair(code.atoms[s], q, indexBits_, coefBits_));
         ++count;
       }
       counts[std::size_t(inGrid[i])] = std::uint8_t(count);
@@ -372,18 +401,19 @@ class Encoder {
   void codeForSize(const Coder& coder) {
     const double fixed = double(fixedBytes_) + double(atoms_) * m_ * 2;
     auto fits = [&](const CodedBricks& c) {
-      return fixed + 3.0 * double(c.pairCount) <= budgetBytes();
+      return fixed + double(pairStreamBytes(c.pairCount, indexBits_ + coefBits_)) <= budgetBytes();
     };
     result_ = codeAt(coder, 0, "sparse coding (rate search)");
     if (fits(result_)) return;
     double lo = 0, hi = 0.5;
     CodedBricks loosest = codeAt(coder, hi, "sparse coding (rate search)");
     if (!fits(loosest))
-      throw std::invalid_argument(formatLine(
-          "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms "
-          "(%.3g bits per voxel)",
-          params_.targetBitsPerVoxel, atoms_,
-          8.0 * (fixed + 3.0 * double(loosest.pairCount)) / double(volume_.voxelCount())));
+      throw SizeTargetTooSmall(formatLine(
+          "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms and "
+          "blocks of %d^3 (%.3g bits per voxel)",
+          params_.targetBitsPerVoxel, atoms_, params_.blockSide,
+          8.0 * (fixed + double(pairStreamBytes(loosest.pairCount, indexBits_ + coefBits_))) /
+              double(volume_.voxelCount())));
     result_ = std::move(loosest);
     for (int it = 0; it < 10; ++it) {
       const double mid = 0.5 * (lo + hi);
@@ -411,6 +441,7 @@ class Encoder {
     w.put<std::uint64_t>(stats_.coreset);
     w.put<double>(blockTolerance_);
     w.put<double>(psnr);
+    w.put<std::uint32_t>(std::uint32_t(coefBits_));
     return bytes;
   }
   std::vector<std::byte> levelsSection(const std::vector<double>& psnrs) const {
@@ -442,12 +473,11 @@ class Encoder {
       out.sections.emplace_back(kBricks, std::move(bytes));
     }
     {
-      std::vector<std::byte> counts, pairs;
-      counts.reserve(coded_.size() * std::size_t(perBrick_)), pairs.reserve(result_.pairCount * 3);
-      for (std::size_t c = 0; c < coded_.size(); ++c) {
+      std::vector<std::byte> counts;
+      counts.reserve(coded_.size() * std::size_t(perBrick_));
+      for (std::size_t c = 0; c < coded_.size(); ++c)
         for (std::uint8_t v : result_.counts[c]) counts.push_back(std::byte(v));
-        for (std::uint8_t v : result_.pairs[c]) pairs.push_back(std::byte(v));
-      }
+      std::vector<std::byte> pairs = packedPairs();
       out.sections.emplace_back(kCounts, std::move(counts));
       out.sections.emplace_back(kPairs, std::move(pairs));
     }
@@ -458,15 +488,27 @@ class Encoder {
     stats_.codedBlocks = candidates_.size();
     stats_.pairs = result_.pairCount, stats_.atoms = atoms_, stats_.sparsity = sparsity_;
     stats_.trainSparsity = trainSparsity_;
+    stats_.indexBits = indexBits_, stats_.coefficientBits = coefBits_;
     stats_.iterations = params_.iterations;
     stats_.levels = levels_;
     stats_.levelPairs = 0;
     for (std::size_t c = 0; c < coded_.size(); ++c)
-      if (coded_[c] >= grids_[0].brickCount()) stats_.levelPairs += result_.pairs[c].size() / 3;
+      if (coded_[c] >= grids_[0].brickCount()) stats_.levelPairs += result_.pairs[c].size();
     stats_.dictionaryBytes = out.sections[1].second.size();
     stats_.brickBytes = out.sections[2].second.size() + out.sections[5].second.size();
     stats_.countBytes = out.sections[3].second.size();
     stats_.pairBytes = out.sections[4].second.size();
+    return out;
+  }
+
+  // The pair stream: every coded brick's pairs, indexBits + coefBits bits each, LSB-first.
+  std::vector<std::byte> packedPairs() const {
+    const int bits = indexBits_ + coefBits_;
+    std::vector<std::byte> out;
+    out.reserve(pairStreamBytes(result_.pairCount, bits));
+    std::uint64_t n = 0;
+    for (const auto& brick : result_.pairs)
+      for (const std::uint32_t word : brick) appendPair(out, n++, word, bits);
     return out;
   }
 
@@ -506,6 +548,7 @@ class Encoder {
   std::uint64_t trainable_ = 0;
   std::uint64_t fixedBytes_ = 0;
   int atoms_ = 0, sparsity_ = 1, trainSparsity_ = 1;
+  int coefBits_ = 0;
   std::uint64_t coresetSize_ = 0;
   Dictionary dict_;
   std::vector<std::int16_t> stored_;
@@ -545,9 +588,26 @@ void checkParams(const Params& params) {
     throw std::invalid_argument("K-SVD iterations must be in 0..10000");
   if (!(params.coreset >= 0) || !std::isfinite(params.coreset))
     throw std::invalid_argument("--coreset must be a count or a fraction in (0, 1]");
+  if (params.coefficientBits != 0 &&
+      (params.coefficientBits < kMinCoefficientBits || params.coefficientBits > kMaxPairBits - 1))
+    throw std::invalid_argument("--coefficient-bits must be in " +
+                                std::to_string(kMinCoefficientBits) + ".." +
+                                std::to_string(kMaxPairBits - 1));
 }
 
 }  // namespace
+
+// Measured on the MRI (ch2better, docs/ksvd.md): at a size target, fewer coefficient bits buy
+// more pairs, which pays until the coefficients' rounding dominates the error: 7 bits were best
+// at 0.25 bits per voxel, 8 at 0.5 and 10 at 1, against 14 (3-byte pairs) by 1.9, 3.1 and 1.0 dB.
+int coefficientBitsFor(double bitsPerVoxel, int indexBits) {
+  const int room = kMaxPairBits - indexBits;
+  const int bits = bitsPerVoxel < 0.35   ? 7
+                   : bitsPerVoxel < 0.75 ? 8
+                   : bitsPerVoxel < 1.5  ? 10
+                                         : room;
+  return std::clamp(bits, std::min(kMinCoefficientBits, room), room);
+}
 
 std::vector<std::int16_t> learnDictionary(const Volume& volume, const Params& params,
                                           Progress& progress) {

@@ -15,6 +15,15 @@ inline constexpr int kMaxAtoms = 1 << 16;
 
 inline int indexBitsFor(int atoms) { return std::max(1, int(std::bit_width(unsigned(atoms - 1)))); }
 
+// A pair is indexBits + coefficient bits wide, at most kMaxPairBits (the 3-byte pairs of files
+// from before the width was stored); the pair stream is that many bits per pair, LSB-first,
+// padded with zero bits to a whole byte.
+inline constexpr int kMinCoefficientBits = 2;
+inline constexpr int kMaxPairBits = 24;
+inline std::uint64_t pairStreamBytes(std::uint64_t pairs, int pairBits) {
+  return (pairs * std::uint64_t(pairBits) + 7) / 8;
+}
+
 // The bricking of a volume: blocks of M^3 voxels, bricks of N^3 blocks.
 struct Grid {
   int m = 6, n = 5;

@@ -24,7 +24,7 @@ struct BrickTables {
   kernels::KsvdBrick* brickOut;
   std::uint32_t* blockOut;
   std::uint64_t perBrick;
-  int atoms, sparsity, indexBits;
+  int atoms, sparsity, indexBits, coefBits;
   std::uint64_t codedBricks, pairCount;
   std::uint64_t codedSeen = 0, pairSeen = 0;
 };
@@ -44,10 +44,9 @@ void checkPairs(BrickTables& t, const std::string& which, int j, int count) {
     t.pairs.fail("the blocks need more than the header's " + std::to_string(t.pairCount) +
                  " pairs");
   for (int p = 0; p < count; ++p) {
-    const std::uint8_t* q = t.pairBytes + 3 * (t.pairSeen + std::uint64_t(p));
-    const int atom =
-        int((std::uint32_t(q[0]) | (std::uint32_t(q[1]) << 8) | (std::uint32_t(q[2]) << 16)) &
-            ((1u << t.indexBits) - 1u));
+    int atom = 0, q = 0;
+    kernels::ksvdUnpack(t.pairBytes, t.pairSeen + std::uint64_t(p), t.indexBits, t.coefBits, atom,
+                        q);
     if (atom >= t.atoms)
       t.pairs.fail("pair " + std::to_string(t.pairSeen + std::uint64_t(p)) + " names atom " +
                    std::to_string(atom) + " of " + std::to_string(t.atoms));
@@ -118,6 +117,10 @@ void Layout::readParams(const SectionSet& sections) {
   coreset_ = r.get<std::uint64_t>();
   tolerance_ = r.get<double>();
   psnr_ = r.get<double>();
+  // The coefficient's width: absent in files written before it was stored (3-byte pairs).
+  coefBits_ = r.remaining() >= 4 ? int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64))
+                                 : 24 - indexBits_;
+  if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes past the params");
   auto fail = [&](const std::string& what) { r.fail(what); };
   if (m_ != 4 && m_ != 6 && m_ != 8) fail("block side " + std::to_string(m_) + " (4, 6 or 8)");
   if (n_ != blocksPerBrick(m_))
@@ -127,6 +130,10 @@ void Layout::readParams(const SectionSet& sections) {
   if (s_ < 1 || s_ > std::min(m, 255)) fail("sparsity " + std::to_string(s_));
   if (indexBits_ != indexBitsFor(k_))
     fail("index bits " + std::to_string(indexBits_) + " for " + std::to_string(k_) + " atoms");
+  if (coefBits_ < kMinCoefficientBits || indexBits_ + coefBits_ > kMaxPairBits)
+    fail("coefficient bits " + std::to_string(coefBits_) + " with " + std::to_string(indexBits_) +
+         " index bits (" + std::to_string(kMinCoefficientBits) + ".." +
+         std::to_string(kMaxPairBits) + " - index bits)");
   if (!(tolerance_ >= 0 && tolerance_ < 1)) fail("tolerance out of range");
   if (std::isnan(psnr_)) fail("PSNR is not a number");
 }
@@ -189,9 +196,11 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
             " coded bricks of " + std::to_string(perBrick) + " blocks");
   const auto pairBytes = sections.get(kPairs, "pairs");
   ByteReader pr(pairBytes, src, "section 'pairs'");
-  if (pairs_ > pairBytes.size() / 3 || pairBytes.size() != pairs_ * 3)
+  const int pairBits = indexBits_ + coefBits_;
+  if (pairs_ > pairBytes.size() * 8 / std::uint64_t(pairBits) ||
+      pairBytes.size() != pairStreamBytes(pairs_, pairBits))
     pr.fail(std::to_string(pairBytes.size()) + " bytes for " + std::to_string(pairs_) +
-            " pairs of 3 bytes");
+            " pairs of " + std::to_string(pairBits) + " bits");
 
   auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
   atomsAt_ = 0;
@@ -217,6 +226,7 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
                 k_,
                 s_,
                 indexBits_,
+                coefBits_,
                 codedBricks_,
                 pairs_};
   for (std::size_t l = 0; l < levels_.size(); ++l) {
@@ -265,7 +275,7 @@ kernels::KsvdView<Side> Layout::view(const std::byte* base) const {
     d.keyBase = level.firstBlock;
     d.blocksX = level.blocks.x, d.blocksY = level.blocks.y;
     d.bricksX = level.bricks.x, d.bricksY = level.bricks.y;
-    d.blocksPerBrick = n_, d.indexBits = indexBits_;
+    d.blocksPerBrick = n_, d.indexBits = indexBits_, d.coefBits = coefBits_;
     d.integral = info_.type != ScalarType::Float32;
   }
   return v;

@@ -10,6 +10,8 @@
 #include <stdexcept>
 #include <voxwall/core/parallel.hpp>
 
+#include "format.hpp"
+
 namespace voxwall::codec::ksvd {
 
 // ---- OMP --------------------------------------------------------------------------------
@@ -375,13 +377,22 @@ Dictionary trainDictionary(const TrainingSet& set, const TrainParams& params, Pr
   return d;
 }
 
-std::uint32_t packPair(int atom, int q, int indexBits) {
-  if (indexBits < 1 || indexBits > 16 || atom < 0 || atom >= (1 << indexBits) ||
-      std::abs(q) > maxQuantized(indexBits))
+std::uint32_t packPair(int atom, int q, int indexBits, int coefBits) {
+  if (indexBits < 1 || indexBits > 16 || coefBits < kMinCoefficientBits ||
+      indexBits + coefBits > kMaxPairBits || atom < 0 || atom >= (1 << indexBits) ||
+      std::abs(q) > maxQuantized(coefBits))
     throw std::invalid_argument("ksvd pair out of range");
-  const int coefBits = 24 - indexBits;
   const std::uint32_t raw = std::uint32_t(q) & ((1u << coefBits) - 1u);
   return std::uint32_t(atom) | (raw << indexBits);
+}
+
+void appendPair(std::vector<std::byte>& stream, std::uint64_t pairs, std::uint32_t word,
+                int pairBits) {
+  const std::uint64_t bit = pairs * std::uint64_t(pairBits);
+  stream.resize(pairStreamBytes(pairs + 1, pairBits), std::byte{0});
+  const std::uint64_t shifted = std::uint64_t(word & ((1u << pairBits) - 1u)) << (bit % 8);
+  for (int b = 0; b * 8 < int(bit % 8) + pairBits; ++b)
+    stream[bit / 8 + std::uint64_t(b)] |= std::byte(std::uint8_t(shifted >> (8 * b)));
 }
 
 }  // namespace voxwall::codec::ksvd

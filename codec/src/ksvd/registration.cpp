@@ -9,6 +9,8 @@
 #include <voxwall/codec/series_source.hpp>
 #include <voxwall/core/text.hpp>
 
+#include "format.hpp"
+
 namespace voxwall::codec::ksvd {
 namespace {
 
@@ -40,10 +42,11 @@ std::string encodeReport(const EncodeStats& s, const Volume& v, bool sizeTarget)
       (unsigned long long)s.codedBlocks, (unsigned long long)s.pairs,
       s.codedBlocks ? double(s.pairs) / double(s.codedBlocks) : 0.0, s.sparsity);
   report += formatLine(
-      "\n  dictionary %d atoms (%s), pairs %s, brick table and counts %s: %.3f bits per voxel",
+      "\n  dictionary %d atoms (%s), pairs %s (%d bits: %d for the atom, %d for the "
+      "coefficient), brick table and counts %s: %.3f bits per voxel",
       s.atoms, humanBytes(double(s.dictionaryBytes)).c_str(),
-      humanBytes(double(s.pairBytes)).c_str(),
-      humanBytes(double(s.brickBytes + s.countBytes)).c_str(),
+      humanBytes(double(s.pairBytes)).c_str(), s.indexBits + s.coefficientBits, s.indexBits,
+      s.coefficientBits, humanBytes(double(s.brickBytes + s.countBytes)).c_str(),
       bitsPerVoxel(s.dictionaryBytes + s.pairBytes + s.brickBytes + s.countBytes, v));
   report += formatLine(
       "\n  K-SVD: %d iterations at sparsity %d on a coreset of %llu of %llu blocks in %.2fs "
@@ -80,12 +83,20 @@ class KsvdCodec final : public Codec {
 
   std::vector<CodecOption> options() const override {
     return {
-        {"--block", "ksvd codec: block side M in voxels (4, 6 or 8)", "6"},
+        {"--block",
+         "ksvd codec: block side M in voxels (4, 6 or 8; default 6; with --bits-per-voxel, "
+         "without it, 4 and 6 are both coded and the higher PSNR kept)",
+         ""},
         {"--atoms",
          "ksvd codec: dictionary atoms K (2..65536; default 1024, at most one per 16 coded blocks "
          "and, with --bits-per-voxel, a quarter of the file)",
          ""},
         {"--sparsity", "ksvd codec: pairs (atom, coefficient) per block at most, S", "8"},
+        {"--coefficient-bits",
+         "ksvd codec: bits of a pair's quantized coefficient (2..23, at most 24 less the atom "
+         "index's; default: 24 less the index's, or with --bits-per-voxel 7 below 0.35 bits per "
+         "voxel, 8 below 0.75, 10 below 1.5)",
+         ""},
         {"--tolerance",
          "ksvd codec: stop a block's code at this RMS error, as a fraction of the value range "
          "(the paper uses 0.015); also the spread below which a brick is stored as constant",
@@ -101,20 +112,22 @@ class KsvdCodec final : public Codec {
         {"--bits-per-voxel",
          "ksvd codec: the smallest per-block tolerance whose file fits this size (and the "
          "default dictionary at most a quarter of it); --sparsity caps the pairs per block, 16 "
-         "by default",
+         "by default; --coefficient-bits defaults to a width for the rate, --block to the better "
+         "of 4 and 6",
          ""}};
   }
 
   static Params paramsOf(const CodecOptionValues& options) {
     Params p;
+    p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
     p.blockSide = options.integer("--block", 6, 4, 8);
     p.atoms = options.integer("--atoms", 0, 2, 1 << 16);
     p.sparsity = options.integer("--sparsity", 8, 1, 255);
+    p.coefficientBits = options.integer("--coefficient-bits", 0, 2, 23);
     p.tolerance = options.number("--tolerance", 0, 0, 0.999);
     p.coreset = options.number("--coreset", 0, 1e-9, 1e15);
     p.iterations = options.integer("--iterations", 25, 0, 10000);
     p.levels = options.integer("--levels", 0, 1, kernels::kKsvdMaxLevels);
-    p.targetBitsPerVoxel = options.number("--bits-per-voxel", 0, 1e-9, 64);
     // With a size target, --sparsity caps the pairs per block (16 unless given).
     if (p.targetBitsPerVoxel > 0 && !options.given("--sparsity")) p.sparsity = 16;
     if (p.coreset > 1 && p.coreset != std::floor(p.coreset))
@@ -126,10 +139,53 @@ class KsvdCodec final : public Codec {
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string& report) const override {
     const Params p = paramsOf(options);
+    if (p.targetBitsPerVoxel > 0 && !options.given("--block"))
+      return encodeBest(volume, p, progress, report);
     EncodeStats s;
     CompressedVolume out = ksvd::encode(volume, p, progress, &s);
     report = encodeReport(s, volume, p.targetBitsPerVoxel > 0);
     return out;
+  }
+
+  // A size target without --block: blocks of 4^3 and of 6^3 both coded, the higher PSNR kept.
+  // Which wins depends on the data and the rate (docs/ksvd.md): small blocks carry more detail
+  // per pair but a count byte per 64 voxels, which noise (no constant bricks) pays everywhere.
+  static CompressedVolume encodeBest(const Volume& volume, Params p, Progress& progress,
+                                     std::string& report) {
+    struct Try {
+      int side;
+      CompressedVolume out;
+      EncodeStats stats;
+      std::string refused;
+    };
+    std::vector<Try> tries;
+    const std::string outer = progress.prefix();
+    for (int side : {4, 6}) {
+      Try t{side, {}, {}, {}};
+      p.blockSide = side;
+      progress.setPrefix(outer + formatLine("blocks of %d^3: ", side));
+      try {
+        t.out = ksvd::encode(volume, p, progress, &t.stats);
+      } catch (const SizeTargetTooSmall& e) {
+        t.refused = e.what();
+      }
+      tries.push_back(std::move(t));
+    }
+    progress.setPrefix(outer);
+    const auto better = [](const Try& a, const Try& b) {
+      return a.refused.empty() && (!b.refused.empty() || a.stats.psnr >= b.stats.psnr);
+    };
+    Try& best = better(tries[0], tries[1]) ? tries[0] : tries[1];
+    const Try& other = &best == &tries[0] ? tries[1] : tries[0];
+    if (!best.refused.empty()) throw SizeTargetTooSmall(tries[1].refused);
+    report = encodeReport(best.stats, volume, true);
+    report += other.refused.empty()
+                  ? formatLine(
+                        "\n  blocks of %d^3 (PSNR %.2f dB) over %d^3 (%.2f dB): both coded, "
+                        "--block codes one",
+                        best.side, best.stats.psnr, other.side, other.stats.psnr)
+                  : formatLine("\n  blocks of %d^3, since %s", best.side, other.refused.c_str());
+    return std::move(best.out);
   }
 
   // One dictionary for every step, learned on a coreset drawn from up to kTrainingSteps steps
@@ -195,8 +251,10 @@ class KsvdCodec final : public Codec {
                                               layout.atoms(), m * m * m, layout.iterations(),
                                               (unsigned long long)layout.coreset())});
     lines.push_back(
-        {"pairs", formatLine("%llu, at most %d per block%s", (unsigned long long)layout.pairs(),
-                             layout.sparsity(),
+        {"pairs", formatLine("%llu of %d bits (a %d-bit coefficient), at most %d per block%s",
+                             (unsigned long long)layout.pairs(),
+                             indexBitsFor(layout.atoms()) + layout.coefficientBits(),
+                             layout.coefficientBits(), layout.sparsity(),
                              layout.tolerance() > 0
                                  ? formatLine(", tolerance %g", layout.tolerance()).c_str()
                                  : "")});
@@ -226,8 +284,8 @@ class KsvdCodec final : public Codec {
     Progress quiet;
     Params small;  // quick to train: tiny dictionaries and few iterations
     small.atoms = 16, small.sparsity = 4, small.iterations = 3, small.blockSide = 4;
-    Params six = small;
-    six.blockSide = 6, six.tolerance = 0.02;
+    Params six = small;  // 11-bit pairs: pairs start inside bytes
+    six.blockSide = 6, six.tolerance = 0.02, six.coefficientBits = 7;
     Params eight = small;
     eight.blockSide = 8, eight.atoms = 8, eight.sparsity = 3;
     std::vector<CodecSample> out;

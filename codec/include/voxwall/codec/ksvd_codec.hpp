@@ -30,14 +30,18 @@
 //       f64 tolerance (per-block RMS error target, relative to the value range; 0: none;
 //           with a size target, the tolerance that met it)
 //       f64 psnr of the decoded volume against the input in dB (+inf when exact)
+//       u32 coefBits (bits of a pair's quantized coefficient: 2..24 - indexBits; absent in files
+//           written before it was stored, whose pairs are 3 bytes: 24 - indexBits)
 //   2 dictionary: K atoms of M^3 i16 (x fastest), each entry atom value x 32767, rounded
 //   3 bricks: per brick (x fastest), 16 bytes: f32 min, f32 max, f32 step (the coefficient
 //       quantum; 0 for a constant brick, whose every voxel is min == max), u32 coded index (the
 //       number of coded bricks before it; 0xFFFFFFFF for a constant brick)
 //   4 counts: per coded brick, its N^3 blocks' pair counts (u8, 0..S; 0 past the volume's edge
 //       and for a block equal to its brick's minimum), blocks x fastest
-//   5 pairs: per coded brick, block and pair, 3 bytes: the atom index in the low indexBits
-//       bits, the quantized coefficient (two's complement) in the other 24 - indexBits bits
+//   5 pairs: per coded brick, block and pair, indexBits + coefBits bits packed LSB-first (pair p
+//       from bit p x (indexBits + coefBits); the last byte padded with zero bits): the atom index
+//       in the low indexBits bits, the quantized coefficient (two's complement) in the coefBits
+//       above
 //   6 levels (absent in files from before the pyramid, which hold level 0 only):
 //       u32 levels (1..8), then per level f64 PSNR of the decoded level against that level of
 //       the input's pyramid, in dB (peak = the level's value range; +inf when exact)
@@ -49,6 +53,7 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 #include <voxwall/codec/codec.hpp>
@@ -75,7 +80,10 @@ struct Params {
   double tolerance = 0;           // > 0: stop a block's code at this RMS error (x the value range)
   double coreset = 0;             // training blocks: > 1 a count, (0, 1] a fraction, 0 the default
   double targetBitsPerVoxel = 0;  // > 0: the smallest tolerance whose file fits this size
-  int iterations = 25;            // K-SVD iterations
+  // Bits of a pair's quantized coefficient (2..24 - index bits); 0: 24 - index bits, or with a
+  // size target the width that measured best at that rate (coefficientBitsFor).
+  int coefficientBits = 0;
+  int iterations = 25;  // K-SVD iterations
   int levels = 0;   // pyramid levels (1: level 0 only); 0: until a level fits in one brick, <= 8
   int threads = 0;  // 0: every usable core
   std::uint64_t seed = 1;  // coreset and dictionary initialisation
@@ -92,7 +100,8 @@ struct EncodeStats {
   std::uint64_t levelPairs = 0;   // pairs of the levels above 0
   std::vector<double> levelPsnr;  // per level, as section 6
   int atoms = 0, sparsity = 0, iterations = 0;
-  int trainSparsity = 0;  // the sparsity K-SVD trained with
+  int indexBits = 0, coefficientBits = 0;  // a pair's two fields
+  int trainSparsity = 0;                   // the sparsity K-SVD trained with
   double psnr = 0;
   double trainSeconds = 0, codeSeconds = 0;
   double trainingRmse = 0;  // weighted RMS error on the coreset after training (x value range)
@@ -105,7 +114,14 @@ struct EncodeStats {
 std::vector<std::int16_t> learnDictionary(const Volume& volume, const Params& params,
                                           Progress& progress);
 
-// Throws std::invalid_argument for bad parameters.
+// A size target below the smallest file the settings can make (with a smaller block side, or
+// fewer atoms, a smaller one may exist).
+struct SizeTargetTooSmall : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+// Throws std::invalid_argument for bad parameters (SizeTargetTooSmall for a size target the
+// settings cannot meet).
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
 
@@ -169,10 +185,17 @@ Dictionary trainDictionary(const TrainingSet& set, const TrainParams& params, Pr
                            double* rmse = nullptr,
                            const std::function<void(int, const Dictionary&)>& afterIteration = {});
 
-// A 24-bit pair: index in the low indexBits bits, q in the rest (|q| < 2^(23 - indexBits)).
-std::uint32_t packPair(int atom, int q, int indexBits);
-// The largest |q| a pair holds.
-inline int maxQuantized(int indexBits) { return (1 << (23 - indexBits)) - 1; }
+// A pair of indexBits + coefBits bits: the index in the low indexBits bits, q in the coefBits
+// above (|q| <= maxQuantized(coefBits)); throws std::invalid_argument when either does not fit.
+std::uint32_t packPair(int atom, int q, int indexBits, int coefBits);
+// Appends a packed pair to a pair stream of pairBits-bit pairs (the pairs section's layout) that
+// holds `pairs` pairs so far; the stream's size stays a whole number of bytes.
+void appendPair(std::vector<std::byte>& stream, std::uint64_t pairs, std::uint32_t word,
+                int pairBits);
+// The largest |q| a coefficient of coefBits bits holds.
+inline int maxQuantized(int coefBits) { return (1 << (coefBits - 1)) - 1; }
+// The coefficient width a size target of `bitsPerVoxel` codes with when none is given.
+int coefficientBitsFor(double bitsPerVoxel, int indexBits);
 
 // The sections of a ksvd-coded volume, validated, and the render buffer built from them.
 class Layout {
@@ -182,6 +205,7 @@ class Layout {
   int atoms() const { return k_; }
   int sparsity() const { return s_; }
   int iterations() const { return iterations_; }
+  int coefficientBits() const { return coefBits_; }
   std::uint64_t codedBricks() const { return codedBricks_; }
   std::uint64_t pairs() const { return pairs_; }
   std::uint64_t coreset() const { return coreset_; }
@@ -227,7 +251,7 @@ class Layout {
   void readLevels(const SectionSet& sections);
   void buildRenderBuffer(const SectionSet& sections);
   VolumeInfo info_;
-  int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, iterations_ = 0;
+  int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, coefBits_ = 0, iterations_ = 0;
   std::uint64_t codedBricks_ = 0, pairs_ = 0, coreset_ = 0;
   double tolerance_ = 0, psnr_ = 0;
   std::vector<LevelInfo> levels_;

@@ -20,6 +20,7 @@ class Progress {
   void begin(std::string stage, std::uint64_t total);
   // Put before every later stage's name (e.g. "step 3/64: " while a series is encoded).
   void setPrefix(std::string prefix);
+  std::string prefix();
   void advance(std::uint64_t n = 1);
   void end();
 

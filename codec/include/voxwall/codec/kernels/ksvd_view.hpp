@@ -24,13 +24,21 @@ struct KsvdBrick {
 };
 static_assert(sizeof(KsvdBrick) == 24);
 
-// Unpacks a 24-bit pair: the atom index in the low `indexBits` bits, the quantized coefficient
-// (two's complement) in the high 24 - indexBits bits.
-VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* p, int indexBits, int& atom, int& q) {
-  const std::uint32_t word =
-      std::uint32_t(p[0]) | (std::uint32_t(p[1]) << 8) | (std::uint32_t(p[2]) << 16);
+// Pair `index` of a pair stream: pairs of indexBits + coefBits (<= 24) bits each, packed
+// LSB-first from bit index x (indexBits + coefBits) of `stream`; a pair is the atom index in its
+// low indexBits bits and the quantized coefficient (two's complement) in the coefBits above.
+// Reads only the bytes the pair lies in. Files from before the width was stored hold 3-byte
+// pairs: coefBits = 24 - indexBits, the same layout.
+VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* stream, std::uint64_t index, int indexBits,
+                                  int coefBits, int& atom, int& q) {
+  const int pairBits = indexBits + coefBits;
+  const std::uint64_t bit = index * std::uint64_t(pairBits);
+  const std::uint8_t* p = stream + bit / 8;
+  const int shift = int(bit % 8), bytes = (shift + pairBits + 7) / 8;  // <= 4
+  std::uint32_t word = 0;
+  for (int b = 0; b < bytes; ++b) word |= std::uint32_t(p[b]) << (8 * b);
+  word = (word >> shift) & ((1u << pairBits) - 1u);
   atom = int(word & ((1u << indexBits) - 1u));
-  const int coefBits = 24 - indexBits;
   const std::uint32_t raw = word >> indexBits;
   const std::uint32_t sign = 1u << (coefBits - 1);
   q = int(raw ^ sign) - int(sign);  // sign-extends coefBits bits
@@ -43,7 +51,8 @@ VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* p, int indexBits, int& ato
 //   the level's blocks (u32 per block, x fastest over the level: the first pair relative to the
 //     brick's firstPair in bits 0..23, the pair count in bits 24..31) at blocksAt,
 // Offsets are multiples of 8 bytes; the buffer points into host or device memory, not owned.
-// The pairs (3 bytes each, every level's) are at `pairs`: on the host the file's section where
+// The pairs (every level's, indexBits + coefBits bits each, as ksvdUnpack reads them) are at
+// `pairs`: on the host the file's section where
 // it lies (its pages come in where rays go), on a device after the buffer.
 // Keys are block indices plus keyBase (the blocks of the levels before), so the blocks of
 // different levels never share a key in the block cache.
@@ -59,7 +68,7 @@ struct KsvdDecoder {
   int blocksX = 0, blocksY = 0;
   int bricksX = 0, bricksY = 0;
   int blocksPerBrick = 1;  // N: bricks are N^3 blocks
-  int indexBits = 10;
+  int indexBits = 10, coefBits = 14;
   std::uint64_t keyBase = 0;
   bool integral = false;  // integer data: decoded voxels round to integers
 
@@ -74,7 +83,7 @@ struct KsvdDecoder {
   // a constant brick, every voxel `brick.lo`).
   struct BlockCode {
     KsvdBrick brick;
-    const std::uint8_t* pairs;
+    std::uint64_t firstPair;  // in the pair stream
     int count;
   };
   VOXWALL_HD_INLINE BlockCode locate(std::uint64_t key) const {
@@ -90,11 +99,11 @@ struct KsvdDecoder {
     BlockCode code;
     code.brick = reinterpret_cast<const KsvdBrick*>(data + bricksAt)[brickIndex];
     if (code.brick.step == 0.0f) {
-      code.pairs = nullptr, code.count = 0;
+      code.firstPair = 0, code.count = 0;
       return code;
     }
     const std::uint32_t entry = reinterpret_cast<const std::uint32_t*>(data + blocksAt)[block];
-    code.pairs = pairs + 3 * (code.brick.firstPair + (entry & 0xFFFFFFu));
+    code.firstPair = code.brick.firstPair + (entry & 0xFFFFFFu);
     code.count = int(entry >> 24);
     return code;
   }
@@ -112,7 +121,7 @@ struct KsvdDecoder {
   // phase 1, pair t (< code.count) of the block, unpacked and dequantized;
   VOXWALL_HD_INLINE void pairOf(const BlockCode& code, int t, int& atom, float& coefficient) const {
     int q = 0;
-    ksvdUnpack(code.pairs + 3 * t, indexBits, atom, q);
+    ksvdUnpack(pairs, code.firstPair + std::uint64_t(t), indexBits, coefBits, atom, q);
     coefficient = float(q) * code.brick.step;
   }
   // phase 2, voxel v (< Side^3) from the block's pairs (as pairOf gave them), summed in pair
