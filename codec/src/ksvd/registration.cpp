@@ -84,8 +84,8 @@ class KsvdCodec final : public Codec {
   std::vector<CodecOption> options() const override {
     return {
         {"--block",
-         "ksvd codec: block side M in voxels (4, 6 or 8; default 6; with --bits-per-voxel, "
-         "without it, 4 and 6 are both coded and the higher PSNR kept)",
+         "ksvd codec: block side M in voxels (4, 6 or 8; default 6, but a --bits-per-voxel "
+         "target without --block codes 4 and 6 and keeps the higher PSNR)",
          ""},
         {"--atoms",
          "ksvd codec: dictionary atoms K (2..65536; default 1024, at most one per 16 coded blocks "
