@@ -535,6 +535,21 @@ TEST(KsvdCodec, SizeTargetsKeepTheBetterBlockSide) {
   EXPECT_EQ(ksvd::Layout(low.info, low.view()).coefficientBits(), 7);
 }
 
+// A size target leaving about one pair per block on average still trains with two: the DC atom
+// is every block's first pair, so training with one would never use a learned atom.
+TEST(KsvdCodec, ATightSizeTargetTrainsWithAtLeastTwoPairsPerBlock) {
+  const Volume v = generateSheppLogan(80);
+  Progress quiet;
+  ksvd::Params p = quick(4);
+  p.sparsity = 16;
+  p.targetBitsPerVoxel = 0.3;
+  ksvd::EncodeStats s;
+  (void)ksvd::encode(v, p, quiet, &s);
+  ASSERT_GT(s.codedBlocks, 0u);
+  ASSERT_LT(double(s.pairs) / double(s.codedBlocks), 1.5);  // the budget's average rounds to 1
+  EXPECT_EQ(s.trainSparsity, 2);
+}
+
 TEST(KsvdCodec, RefusesBadParameters) {
   const Volume v = generateMenger(2);
   Progress quiet;

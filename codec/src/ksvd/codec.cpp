@@ -250,12 +250,8 @@ class Encoder {
     }
     if (params_.targetBitsPerVoxel > 0 &&
         double(fixedBytes_) + double(atoms_) * m_ * 2 > budgetBytes())
-      throw SizeTargetTooSmall(formatLine(
-          "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms and "
-          "blocks of %d^3: the dictionary and the brick and count tables alone take %.3g bits "
-          "per voxel",
-          params_.targetBitsPerVoxel, atoms_, params_.blockSide,
-          8.0 * (double(fixedBytes_) + double(atoms_) * m_ * 2) / double(volume_.voxelCount())));
+      throw tooSmall(double(fixedBytes_) + double(atoms_) * m_ * 2,
+                     ": the dictionary and the brick and count tables alone take");
     sparsity_ = std::min(params_.sparsity, m_);
     // Training codes blocks with the sparsity the file will have on average: S, or with a size
     // target the pairs per block the budget leaves after the dictionary and the tables.
@@ -317,6 +313,15 @@ class Encoder {
     indexBits_ = indexBitsFor(atoms_);
     coefBits_ = coefficientBits(indexBits_);
     qmax_ = maxQuantized(coefBits_);
+  }
+
+  // The refusal of a size target below the smallest file of these settings (`bytes`).
+  SizeTargetTooSmall tooSmall(double bytes, const char* what) const {
+    return SizeTargetTooSmall(formatLine(
+        "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms and "
+        "blocks of %d^3%s %.3g bits per voxel",
+        params_.targetBitsPerVoxel, atoms_, params_.blockSide, what,
+        8.0 * bytes / double(volume_.voxelCount())));
   }
 
   // The coefficient's width with `indexBits` of atom index, and a pair's bytes in the stream.
@@ -408,12 +413,8 @@ class Encoder {
     double lo = 0, hi = 0.5;
     CodedBricks loosest = codeAt(coder, hi, "sparse coding (rate search)");
     if (!fits(loosest))
-      throw SizeTargetTooSmall(formatLine(
-          "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms and "
-          "blocks of %d^3 (%.3g bits per voxel)",
-          params_.targetBitsPerVoxel, atoms_, params_.blockSide,
-          8.0 * (fixed + double(pairStreamBytes(loosest.pairCount, indexBits_ + coefBits_))) /
-              double(volume_.voxelCount())));
+      throw tooSmall(fixed + double(pairStreamBytes(loosest.pairCount, indexBits_ + coefBits_)),
+                     ": its smallest file takes");
     result_ = std::move(loosest);
     for (int it = 0; it < 10; ++it) {
       const double mid = 0.5 * (lo + hi);

@@ -253,7 +253,7 @@ class KsvdCodec final : public Codec {
     lines.push_back(
         {"pairs", formatLine("%llu of %d bits (a %d-bit coefficient), at most %d per block%s",
                              (unsigned long long)layout.pairs(),
-                             indexBitsFor(layout.atoms()) + layout.coefficientBits(),
+                             layout.indexBits() + layout.coefficientBits(),
                              layout.coefficientBits(), layout.sparsity(),
                              layout.tolerance() > 0
                                  ? formatLine(", tolerance %g", layout.tolerance()).c_str()

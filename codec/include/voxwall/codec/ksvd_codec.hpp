@@ -205,6 +205,7 @@ class Layout {
   int atoms() const { return k_; }
   int sparsity() const { return s_; }
   int iterations() const { return iterations_; }
+  int indexBits() const { return indexBits_; }
   int coefficientBits() const { return coefBits_; }
   std::uint64_t codedBricks() const { return codedBricks_; }
   std::uint64_t pairs() const { return pairs_; }
