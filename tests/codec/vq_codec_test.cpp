@@ -500,3 +500,32 @@ TEST(VqSeries, StepsReadTheSharedBookWhereverItLies) {
     EXPECT_NE(std::string(e.what()).find("section 'book'"), std::string::npos) << e.what();
   }
 }
+
+// A shared book may hold up to 2^32 codewords, but never more than its bytes can: a count past
+// them is refused before anything is allocated for it (the walk once reserved 8 bytes for each
+// codeword the header claimed, 32 GiB for a fuzzed count). Steps of noise: every brick its own
+// codeword, so the book is mapped directly (an indirect one's index table would not fit first).
+TEST(VqSeries, ACodewordCountPastTheSharedBookIsRefusedBeforeAnythingIsReserved) {
+  test::TempDir dir;
+  std::vector<SeriesSource::Step> steps;
+  std::mt19937 rng(5);
+  for (int k = 0; k < 2; ++k) {
+    Volume v = Volume::allocate({16, 16, 16}, ScalarType::UInt8);
+    for (auto& value : v.as<std::uint8_t>()) value = std::uint8_t(rng());
+    v.computeRange();
+    const std::string file = dir.path(std::string("n") + std::to_string(k) + ".nrrd");
+    writeVolume(v, file);
+    steps.push_back({file, file, 0, SeriesSource::Kind::File});
+  }
+  Progress quiet;
+  const CompressedSeries coded = vq::encodeSeries(SeriesSource(steps, {}), {}, quiet);
+  CompressedVolume many = coded.step(1);
+  {
+    const vq::Layout layout(many.info, many.view());
+    ASSERT_TRUE(layout.sharedBook());
+    ASSERT_FALSE(layout.flags() & vq::kIndirect);
+  }
+  poke<std::uint64_t>(section(many, vq::kParams), 24, (std::uint64_t(1) << 32) - 1);
+  test::expectFormatError([&] { vq::Layout(many.info, many.view("bad.vwz")); }, "bad.vwz",
+                          "more codewords than the codebook's");
+}

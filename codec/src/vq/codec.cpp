@@ -568,9 +568,14 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const auto* base = reinterpret_cast<const std::uint8_t*>(data_.data());
   const auto* book = reinterpret_cast<const std::uint8_t*>(book_.data());
 
-  // Walk the codebook: every codeword well-formed, the count right.
+  // Walk the codebook: every codeword well-formed, the count right. A codeword has its minimum
+  // and maximum at least, which bounds the count before anything is reserved for it.
   std::vector<std::uint64_t> starts;
   if (compressed) {
+    const std::uint64_t fewestBytes = std::uint64_t(2 * bits_ + 7) / 8;
+    if (codewords_ > codebookBytes_ / fewestBytes)
+      dfail("more codewords than the codebook's " + std::to_string(codebookBytes_) +
+            " bytes can hold (the header says " + std::to_string(codewords_) + ")");
     starts.reserve(codewords_);
     std::uint64_t pos = 0;
     while (pos < codebookBytes_) {
