@@ -37,6 +37,47 @@ Volume roundTrip(const Volume& v, const zfp::Params& p, zfp::EncodeStats* stats 
   return out;
 }
 
+// The index's entries (params offset 20 holds their width; 0 in files with a u32 each), as
+// u32s: bit 31 the stored flag, below it the brick's offset in its row. `rows`: the u64 row
+// starts before them, one more than the rows.
+int entryBits(const CompressedVolume& c) {
+  std::uint32_t bits;
+  std::memcpy(&bits, section(const_cast<CompressedVolume&>(c), zfp::kParams).data() + 20, 4);
+  return bits == 0 ? 32 : int(bits);
+}
+std::vector<std::uint32_t> entries(CompressedVolume& c, std::size_t rows) {
+  const auto& index = section(c, zfp::kIndex);
+  const int bits = entryBits(c);
+  std::vector<std::uint32_t> out;
+  for (std::uint64_t at = 8 * rows * 8; at + std::uint64_t(bits) <= 8 * index.size();
+       at += std::uint64_t(bits)) {
+    std::uint64_t e = 0;
+    for (int b = 0; b < bits; ++b)
+      e |= std::uint64_t((std::to_integer<unsigned>(index[(at + b) / 8]) >> ((at + b) % 8)) & 1)
+           << b;
+    out.push_back(std::uint32_t(e & ((std::uint64_t(1) << (bits - 1)) - 1)) |
+                  ((e >> (bits - 1)) & 1 ? 1u << 31 : 0u));
+  }
+  return out;
+}
+// Writes `e` back at `bits` bits each (the params' width set to match; 0 for u32 entries).
+void setEntries(CompressedVolume& c, std::size_t rows, const std::vector<std::uint32_t>& e,
+                int bits = 0) {
+  if (bits == 0) bits = entryBits(c);
+  auto& index = section(c, zfp::kIndex);
+  index.resize(8 * rows);
+  index.resize(8 * rows + (e.size() * std::size_t(bits) + 7) / 8, std::byte{0});
+  for (std::size_t i = 0; i < e.size(); ++i) {
+    const std::uint64_t v =
+        (e[i] & ~(1u << 31)) | (e[i] >> 31 ? std::uint64_t(1) << (bits - 1) : 0);
+    for (int b = 0; b < bits; ++b) {
+      const std::uint64_t at = 8 * 8 * rows + i * std::size_t(bits) + std::size_t(b);
+      if ((v >> b) & 1) index[at / 8] |= std::byte(1u << (at % 8));
+    }
+  }
+  poke(section(c, zfp::kParams), 20, std::uint32_t(bits == 32 ? 0 : bits));
+}
+
 double maxError(const Volume& a, const Volume& b) {
   double e = 0;
   for (std::size_t i = 0; i < a.voxelCount(); ++i)
@@ -194,9 +235,8 @@ TEST(ZfpCodec, CorruptSectionsAreRefusedWithOneError) {
   refused("params cut short", [](CompressedVolume& c) { section(c, zfp::kParams).resize(40); });
   refused("a value range that is not finite",
           [](CompressedVolume& c) { poke(section(c, zfp::kParams), 56, std::nan("")); });
-  // 37^3 voxels: 3 x 3 x 3 bricks, 9 rows along x; the index is 10 u64 row offsets, then a u32
-  // per brick.
-  const std::size_t entries = 8 * 10;
+  // 37^3 voxels: 3 x 3 x 3 bricks, 9 rows along x; the index is 10 u64 row offsets, then an
+  // entry per brick.
   refused("a row past the stream",
           [](CompressedVolume& c) { poke(section(c, zfp::kIndex), 8, std::uint64_t(1) << 40); });
   refused("rows out of order", [](CompressedVolume& c) {
@@ -204,21 +244,31 @@ TEST(ZfpCodec, CorruptSectionsAreRefusedWithOneError) {
     std::memcpy(&second, section(c, zfp::kIndex).data() + 16, 8);
     poke(section(c, zfp::kIndex), 8, second + 1);
   });
+  const int width = entryBits(good);
   refused("a brick that ends before it starts", [&](CompressedVolume& c) {
-    poke(section(c, zfp::kIndex), entries + 4, std::uint32_t(0x7fff0000));
+    auto e = entries(c, 10);
+    e[1] = (1u << (width - 1)) - 1;  // the farthest offset the width holds: past brick 2's
+    setEntries(c, 10, e);
   });
-  refused("a first brick that does not start its row",
-          [&](CompressedVolume& c) { poke(section(c, zfp::kIndex), entries, std::uint32_t(64)); });
-  refused("an index one entry short", [](CompressedVolume& c) {
-    section(c, zfp::kIndex).resize(section(c, zfp::kIndex).size() - 4);
+  refused("a first brick that does not start its row", [](CompressedVolume& c) {
+    auto e = entries(c, 10);
+    e[0] = 1;
+    setEntries(c, 10, e);
   });
+  refused("an index one byte short", [](CompressedVolume& c) {
+    section(c, zfp::kIndex).resize(section(c, zfp::kIndex).size() - 1);
+  });
+  refused("index entries of 1 bit",
+          [](CompressedVolume& c) { poke(section(c, zfp::kParams), 20, std::uint32_t(1)); });
+  refused("index entries of 33 bits",
+          [](CompressedVolume& c) { poke(section(c, zfp::kParams), 20, std::uint32_t(33)); });
   refused("a brick stream cut short", [](CompressedVolume& c) {
     section(c, zfp::kStream).resize(section(c, zfp::kStream).size() - 8);
   });
-  refused("a brick marked stored with a zfp stream's length", [&](CompressedVolume& c) {
-    std::uint32_t e;
-    std::memcpy(&e, section(c, zfp::kIndex).data() + entries, 4);
-    poke(section(c, zfp::kIndex), entries, e | (1u << 31));
+  refused("a brick marked stored with a zfp stream's length", [](CompressedVolume& c) {
+    auto e = entries(c, 10);
+    e[0] |= 1u << 31;
+    setEntries(c, 10, e);
   });
   refused("bricks of no bits in an empty stream", [](CompressedVolume& c) {
     auto& index = section(c, zfp::kIndex);
@@ -228,6 +278,28 @@ TEST(ZfpCodec, CorruptSectionsAreRefusedWithOneError) {
   refused("a missing stream", [](CompressedVolume& c) {
     std::erase_if(c.sections, [](const auto& s) { return s.first == zfp::kStream; });
   });
+}
+
+// The index's entries are as wide as the largest offset in a row needs (plus the stored flag),
+// not a u32 each; a file written before the width was stored (0 in its place, a u32 per entry)
+// decodes to the same voxels.
+TEST(ZfpCodec, IndexEntriesArePackedAndFilesWithU32EntriesStillRead) {
+  for (const Volume& v : everyType()) {
+    zfp::EncodeStats s;
+    CompressedVolume c;
+    const Volume d = roundTrip(v, {}, &s, &c);
+    const std::size_t rows = std::size_t((v.dims.y + 15) / 16) * std::size_t((v.dims.z + 15) / 16);
+    const int bits = entryBits(c);
+    EXPECT_LT(bits, 32) << scalarName(v.type);
+    EXPECT_EQ(s.indexBytes, 8 * (rows + 1) + (s.bricks * std::uint64_t(bits) + 7) / 8);
+    EXPECT_EQ(section(c, zfp::kIndex).size(), s.indexBytes);
+    const auto e = entries(c, rows + 1);
+    ASSERT_EQ(e.size(), s.bricks) << scalarName(v.type);
+    CompressedVolume old = c;
+    setEntries(old, rows + 1, e, 32);
+    EXPECT_EQ(section(old, zfp::kIndex).size(), 8 * (rows + 1) + 4 * s.bricks);
+    EXPECT_TRUE(zfp::decode(old.info, old.view()).data == d.data) << scalarName(v.type);
+  }
 }
 
 TEST(ZfpCodec, GarbageStreamBytesDecodeInsideTheValueRange) {

@@ -46,7 +46,7 @@ class Encoder {
       stats->mode = mode_, stats->setting = setting_;
       stats->bricks = bricks_, stats->storedBricks = stored_;
       stats->streamBytes = streamBytes;
-      stats->indexBytes = Index::bytes(rowBases_.size() - 1, bricks_);
+      stats->indexBytes = Index::bytes(rowBases_.size() - 1, bricks_, entryBits());
       stats->bitsPerVoxel =
           8.0 * double(out.payloadBytes()) / double(std::max<std::size_t>(1, source_.voxelCount()));
       stats->psnr = psnr_, stats->maxError = maxError_;
@@ -260,18 +260,37 @@ class Encoder {
     ByteWriter w(out);
     w.put(std::uint32_t(mode_));
     w.put(zfp_.minbits), w.put(zfp_.maxbits), w.put(zfp_.maxprec), w.put(zfp_.minexp);
-    w.put(std::uint32_t(0));
+    w.put(std::uint32_t(entryBits()));
     w.put(setting_), w.put(psnr_), w.put(maxError_);
     w.put(stored_);
     w.put(lo_), w.put(hi_);
     return out;
   }
 
+  // The narrowest entry that holds every brick's offset in its row, and the stored flag.
+  int entryBits() const {
+    std::uint32_t largest = 0;
+    for (std::uint32_t e : entries_) largest = std::max(largest, e & ~kStoredFlag);
+    return Index::bitsFor(largest);
+  }
+
+  // The row starts, then the entries packed LSB first at entryBits() bits each.
   std::vector<std::byte> indexSection() const {
     std::vector<std::byte> out;
     ByteWriter w(out);
     for (std::uint64_t base : rowBases_) w.put(base);
-    for (std::uint32_t e : entries_) w.put(e);
+    const int bits = entryBits();
+    const std::size_t at = out.size();
+    out.resize(Index::bytes(rowBases_.size() - 1, entries_.size(), bits), std::byte{0});
+    const std::uint64_t flagAt = std::uint64_t(1) << (bits - 1);
+    for (std::size_t i = 0; i < entries_.size(); ++i) {
+      const std::uint64_t e =
+          (entries_[i] & ~kStoredFlag) | (entries_[i] & kStoredFlag ? flagAt : 0);
+      const std::uint64_t bit = std::uint64_t(i) * std::uint64_t(bits);
+      for (int b = 0; b < bits; ++b)
+        if ((e >> b) & 1)
+          out[at + (bit + std::uint64_t(b)) / 8] |= std::byte(1u << ((bit + std::uint64_t(b)) % 8));
+    }
     return out;
   }
 

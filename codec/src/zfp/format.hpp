@@ -29,19 +29,34 @@ BrickShape brickShape(glm::ivec3 dims, std::uint64_t brick);
 glm::ivec3 brickGrid(glm::ivec3 dims);
 
 // The index section (zfp_codec.hpp): rows + 1 u64 bit offsets of the rows of bricks along x, then
-// a u32 per brick. Reads host memory; the Layout has checked it.
+// an entry of `entryBits` bits per brick, packed LSB first (32: one u32 each, as in files from
+// before the width was stored). Reads host memory; the Layout has checked it.
 struct Index {
   const std::uint8_t* at = nullptr;
   std::uint64_t rows = 0, bricksX = 0;
+  int entryBits = 32;
   std::uint64_t rowBase(std::uint64_t r) const {
     std::uint64_t v;
     std::memcpy(&v, at + 8 * r, 8);
     return v;
   }
+  // Brick `brick`'s entry as a u32: kStoredFlag when stored, its offset in its row below it.
   std::uint32_t entry(std::uint64_t brick) const {
-    std::uint32_t v;
-    std::memcpy(&v, at + 8 * (rows + 1) + 4 * brick, 4);
-    return v;
+    const std::uint8_t* entries = at + 8 * (rows + 1);
+    if (entryBits == 32) {
+      std::uint32_t v;
+      std::memcpy(&v, entries + 4 * brick, 4);
+      return v;
+    }
+    // The bytes that hold the entry's bits only: the section ends with the last entry's byte.
+    const std::uint64_t bit = brick * std::uint64_t(entryBits);
+    const int shift = int(bit % 8), bytes = (shift + entryBits + 7) / 8;
+    std::uint64_t word = 0;
+    for (int i = 0; i < bytes; ++i)
+      word |= std::uint64_t(entries[bit / 8 + std::uint64_t(i)]) << (8 * i);
+    word >>= shift;
+    const std::uint64_t offset = word & ((std::uint64_t(1) << (entryBits - 1)) - 1);
+    return std::uint32_t(offset) | ((word >> (entryBits - 1)) & 1 ? kStoredFlag : 0);
   }
   bool stored(std::uint64_t brick) const { return entry(brick) & kStoredFlag; }
   std::uint64_t begin(std::uint64_t brick) const {
@@ -50,8 +65,14 @@ struct Index {
   std::uint64_t end(std::uint64_t brick) const {
     return (brick + 1) % bricksX ? begin(brick + 1) : rowBase(brick / bricksX + 1);
   }
-  static std::uint64_t bytes(std::uint64_t rows, std::uint64_t bricks) {
-    return 8 * (rows + 1) + 4 * bricks;
+  static std::uint64_t bytes(std::uint64_t rows, std::uint64_t bricks, int entryBits) {
+    return 8 * (rows + 1) + (bricks * std::uint64_t(entryBits) + 7) / 8;
+  }
+  // The narrowest entry for offsets up to `largestOffset` (the stored flag above them): 2..32.
+  static int bitsFor(std::uint64_t largestOffset) {
+    int bits = 1;
+    while (bits < 31 && (largestOffset >> bits)) ++bits;
+    return bits + 1;
   }
 };
 

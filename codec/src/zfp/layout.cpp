@@ -262,7 +262,7 @@ namespace voxwall::codec::kernels {
 
 void zfpDecodeBrick(const ZfpDecoder& d, std::uint64_t brick, float* out) {
   using namespace voxwall::codec::zfp;
-  const Index index{d.index, d.rows, std::uint64_t(d.bricksX)};
+  const Index index{d.index, d.rows, std::uint64_t(d.bricksX), d.entryBits};
   const BrickShape s = brickShape({d.dimX, d.dimY, d.dimZ}, brick);
   const ScalarType type = ScalarType(d.type);
   std::fill(out, out + kBrickVoxels, 0.0f);
@@ -293,7 +293,7 @@ void Layout::readParams(const SectionSet& sections) {
   const auto mode = r.get<std::uint32_t>();
   zfp_.minbits = r.get<std::uint32_t>(), zfp_.maxbits = r.get<std::uint32_t>();
   zfp_.maxprec = r.get<std::uint32_t>(), zfp_.minexp = r.get<std::int32_t>();
-  const auto reserved = r.get<std::uint32_t>();
+  const auto entryBits = r.get<std::uint32_t>();
   setting_ = r.get<double>(), psnr_ = r.get<double>(), maxError_ = r.get<double>();
   storedBricks_ = r.get<std::uint64_t>();
   lo_ = r.get<double>(), hi_ = r.get<double>();
@@ -306,7 +306,10 @@ void Layout::readParams(const SectionSet& sections) {
     fail("zfp parameters (" + std::to_string(zfp_.minbits) + ", " + std::to_string(zfp_.maxbits) +
          ", " + std::to_string(zfp_.maxprec) + ", " + std::to_string(zfp_.minexp) + ") are not " +
          std::string(modeName(mode_)));
-  if (reserved != 0) fail("the reserved field is not 0");
+  // 0 in files from before the entries were packed: a u32 each.
+  if (entryBits == 1 || entryBits > 32)
+    fail("index entries of " + std::to_string(entryBits) + " bits (2..32, or 0 for 32)");
+  entryBits_ = entryBits == 0 ? 32 : int(entryBits);
   if (!(lo_ <= hi_) || !std::isfinite(lo_) || !std::isfinite(hi_) ||
       std::abs(lo_) > std::numeric_limits<float>::max() ||
       std::abs(hi_) > std::numeric_limits<float>::max())
@@ -322,9 +325,11 @@ void Layout::checkIndex(const SectionSet& sections) {
   stream_ = sections.get(kStream, "stream");
   ByteReader r(index_, sections.source, "section 'index'");
   auto fail = [&](const std::string& what) { r.fail(what); };
-  if (index_.size() != Index::bytes(rows_, bricks_))
+  const std::uint64_t expected = Index::bytes(rows_, bricks_, entryBits_);
+  if (index_.size() != expected)
     fail(std::to_string(index_.size()) + " bytes for " + std::to_string(rows_) + " rows and " +
-         std::to_string(bricks_) + " bricks, not " + std::to_string(Index::bytes(rows_, bricks_)));
+         std::to_string(bricks_) + " bricks of " + std::to_string(entryBits_) + " bits, not " +
+         std::to_string(expected));
   const Index index = this->index();
   const std::uint64_t streamBits = index.rowBase(rows_);
   if (index.rowBase(0) != 0) fail("the first row does not start at bit 0");
@@ -361,7 +366,7 @@ void Layout::checkIndex(const SectionSet& sections) {
 
 Index Layout::index() const {
   return {reinterpret_cast<const std::uint8_t*>(index_.data()), rows_,
-          std::uint64_t(brickGrid(info_.dims).x)};
+          std::uint64_t(brickGrid(info_.dims).x), entryBits_};
 }
 
 kernels::ZfpView Layout::view() const {
@@ -370,6 +375,7 @@ kernels::ZfpView Layout::view() const {
   d.index = reinterpret_cast<const std::uint8_t*>(index_.data());
   d.stream = reinterpret_cast<const std::uint8_t*>(stream_.data());
   d.rows = rows_;
+  d.entryBits = entryBits_;
   const glm::ivec3 g = brickGrid(info_.dims);
   d.bricksX = g.x, d.bricksY = g.y;
   d.dimX = info_.dims.x, d.dimY = info_.dims.y, d.dimZ = info_.dims.z;

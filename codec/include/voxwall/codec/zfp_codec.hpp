@@ -6,15 +6,16 @@
 // Every scalar type goes through zfp's float path (integers are exact in a float); a decoded value
 // is clamped to the input's value range (lo, hi below) and, for integer types, rounded.
 // A brick whose zfp stream would be larger than its voxels stored as they are is stored as they
-// are: no file is larger than the raw data plus the index (4 bytes per brick, 8 per row of bricks)
-// and the headers.
+// are: no file is larger than the raw data plus the index (at most 4 bytes per brick, 8 per row of
+// bricks) and the headers.
 //
 // Sections (ids within the codec's own, ZfpCodecEntry::kId):
 //   1 params (72 bytes, little-endian):
 //       u32 mode (1 fixed accuracy, 2 fixed precision, 3 fixed rate, 4 reversible)
 //       u32 minbits, u32 maxbits, u32 maxprec, i32 minexp   (zfp's expert parameters: together
 //           they are the mode; a reader sets them with zfp_stream_set_params)
-//       u32 reserved (0)
+//       u32 entry bits W (2..32: the index's bits per brick; 0 in files from before the entries
+//           were packed, which have a u32 each, as W = 32)
 //       f64 setting (the tolerance, precision or rate asked for; 0 for reversible)
 //       f64 psnr of the decoded volume against the input, dB (+inf when equal)
 //       f64 max error (the largest |decoded - input| over every voxel)
@@ -22,9 +23,12 @@
 //       f64 lo, f64 hi (the input's smallest and largest value: finite, lo <= hi)
 //   2 index: for the R = bricksY x bricksZ rows of bricks along x, R + 1 u64: the bit at which
 //       each row starts in `stream` (the first 0, the last the stream's length in bits, each at
-//       most 2^31 - 1 bits after the one before); then for each brick (x fastest) a u32: bit 31
-//       set when the brick is stored as it is, bits 0..30 where it starts, in bits after its row.
-//       A brick ends where the next one of its row starts, the last one where the next row does.
+//       most 2^31 - 1 bits after the one before); then for each brick (x fastest) an entry of W
+//       bits, packed LSB first with no padding between them (the section ends with the byte that
+//       holds the last entry's last bit): its top bit set when the brick is stored as it is, the
+//       W - 1 bits below it where the brick starts, in bits after its row's start. The encoder
+//       writes the narrowest W that holds the largest such offset. A brick ends where the next
+//       one of its row starts, the last one where the next row does.
 //   3 stream: the bricks' bits back to back, LSB first in little-endian 64-bit words (zfp's bit
 //       stream), padded with zeros to a whole word: each brick either zfp's stream of its
 //       nx x ny x nz voxels (nx = min(16, dimX - 16 bx), ...), its 4^3 blocks in zfp_compress's
@@ -103,6 +107,7 @@ class Layout {
   kernels::ZfpStreamParams zfp_;
   double setting_ = 0, psnr_ = 0, maxError_ = 0, lo_ = 0, hi_ = 0;
   std::uint64_t bricks_ = 0, rows_ = 0, storedBricks_ = 0;
+  int entryBits_ = 32;
   std::uint64_t cacheId_ = 0;  // unique per Layout: keys the views' decoded-brick caches
 };
 

@@ -33,6 +33,7 @@ struct ZfpDecoder {
   const std::uint8_t* index = nullptr;   // the index section (zfp_codec.hpp)
   const std::uint8_t* stream = nullptr;  // the stream section
   std::uint64_t rows = 0;                // rows of bricks along x: bricksY x bricksZ
+  int entryBits = 32;                    // the index's bits per brick
   int bricksX = 0, bricksY = 0;
   int dimX = 0, dimY = 0, dimZ = 0;
   std::uint32_t type = 1;  // the volume's ScalarType
