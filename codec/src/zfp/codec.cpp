@@ -105,10 +105,10 @@ class Encoder {
     const double smallest =
         sampleBitsPerVoxel(streamParams(Mode::Accuracy, std::ldexp(1.0, coarse)));
     if (smallest > target)
-      throw std::invalid_argument(
-          formatLine("--bits-per-voxel %g is below the smallest zfp file of this volume, about "
-                     "%.3g bits per voxel (its index alone is %.3g); ask for more, or use --rate",
-                     target, smallest, 32.0 * double(bricks_) / double(source_.voxelCount())));
+      throw std::invalid_argument(formatLine(
+          "--bits-per-voxel %g is below the smallest zfp file of this volume, about "
+          "%.3g bits per voxel (its index alone is %.3g); ask for more, or use --rate",
+          target, smallest, sampleIndexBits_ * double(bricks_) / double(source_.voxelCount())));
     int fine = coarse - 60;  // coarse fits, fine (2^-50 of the largest magnitude) need not
     while (coarse - fine > 1) {
       const int mid = (coarse + fine) / 2;
@@ -150,11 +150,17 @@ class Encoder {
     std::vector<std::uint64_t> bits(sample_.size());
     parallelFor(sample_.size(), params_.threads, [&](std::size_t i) {
       bits[i] = std::min(compressBrick(p, sample_[i].data(), sampleShapes_[i]).bits,
-                         storedBits(source_.type, sampleShapes_[i])) +
-                32;  // its index entry
+                         storedBits(source_.type, sampleShapes_[i]));
     });
     double total = 0;
-    for (std::uint64_t b : bits) total += double(b);
+    std::uint64_t largest = 0;
+    for (std::uint64_t b : bits) total += double(b), largest = std::max(largest, b);
+    // A brick's share of the index: its entry, as wide as a row of the sample's largest bricks
+    // needs, and its row's start.
+    sampleIndexBits_ =
+        double(Index::bitsFor(std::min(largest * std::uint64_t(grid_.x - 1), kMaxRowBits))) +
+        64.0 / double(grid_.x);
+    total += sampleIndexBits_ * double(bits.size());
     return total / double(std::max<std::uint64_t>(1, sampleVoxels_));
   }
 
@@ -307,6 +313,7 @@ class Encoder {
   std::vector<BrickShape> sampleShapes_;
   std::uint64_t sampleVoxels_ = 0;
   int searchSteps_ = 0;
+  double sampleIndexBits_ = 32;  // a brick's share of the index, at the last sampled setting
   std::vector<std::byte> stream_;
   std::vector<std::uint64_t> rowBases_;
   std::uint64_t streamBits_ = 0;
