@@ -73,13 +73,28 @@ def check_pictures(pages, wall_dir, sink_log, exact, what):
     return results
 
 
+def shown_after(pages, names, after):
+    return {n: [(h["seq"], h["frame"]) for h in history(pages[n]) if h["seq"] > after]
+            for n in names}
+
+
+def common_frames(pages, names, after=-1):
+    """The (swap, frame) pairs every page of `names` showed after swap `after`."""
+    return set.intersection(*(set(s) for s in shown_after(pages, names, after).values()))
+
+
 def check_together(pages, names, after=-1):
-    """The pages `names` switched together: between the first and the last frame they all
-    showed after swap `after`, each showed the same frames (the same frame id at each swap) and
-    none showed one the others did not (the swap timeout is long here, so no page in the barrier
+    """The pages `names` switched together: once they have shown three frames in common after
+    swap `after` (waited for: a busy machine delays a page), between the first and the last
+    frame they all showed each showed the same frames (the same frame id at each swap) and none
+    showed one the others did not (the swap timeout is long here, so no page in the barrier
     leaves it)."""
-    shown = {n: [(h["seq"], h["frame"]) for h in history(pages[n]) if h["seq"] > after]
-             for n in names}
+    try:
+        wait(f"three frames shown together on all of {names}",
+             lambda: len(common_frames(pages, names, after)) >= 3, 120)
+    except Failure:
+        pass  # said below, with the count
+    shown = shown_after(pages, names, after)
     common = set.intersection(*(set(s) for s in shown.values()))
     if len(common) < 3:
         raise Failure(f"only {len(common)} frames were shown on all of {names}")

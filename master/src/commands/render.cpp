@@ -235,6 +235,23 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   if (!o.dryRun) s.backend = rankBackend(o, comm, quiet);
 }
 
+// Ends the job on an error every rank has agreed on: rank 0 writes its one line, then every rank
+// fails silently. The other ranks wait for rank 0's word that the line is written: a rank that
+// exited first with a non-zero status would have the launcher kill rank 0 before it wrote it.
+[[noreturn]] void failTogether(master::Communicator& comm, const std::string& verdict,
+                               int timeoutMs) {
+  if (comm.rank() == 0) {
+    std::fprintf(stderr, "voxwall: %s\n", verdict.c_str());
+    std::fflush(stderr);
+  }
+  try {
+    master::broadcastString(comm, "written", timeoutMs);
+  } catch (const std::exception&) {
+    // Rank 0 is gone: nothing more can be said.
+  }
+  throw SilentFailure();
+}
+
 // Setup errors are agreed on by all ranks before anyone goes on (docs/architecture.md): rank 0
 // reports the first, the others fail silently.
 void setUpTogether(const RenderOptions& o, master::Communicator& comm, bool quiet, Setup& s) {
@@ -253,8 +270,7 @@ void setUpTogether(const RenderOptions& o, master::Communicator& comm, bool quie
   error = master::agreeOnErrors(comm, error, timeoutMs);
   if (error.empty()) return;
   if (comm.size() == 1 && setupError) std::rethrow_exception(setupError);
-  if (comm.rank() != 0) throw SilentFailure();
-  throw std::runtime_error(error);
+  failTogether(comm, error, timeoutMs);
 }
 
 struct RankHosts {
@@ -288,8 +304,7 @@ RankHosts checkSameVolume(master::Communicator& comm, const Setup& s, std::uint6
   }
   verdict = master::broadcastString(comm, verdict, timeoutMs);
   if (verdict.empty()) return out;
-  if (comm.rank() != 0) throw SilentFailure();
-  throw std::runtime_error(verdict);
+  failTogether(comm, verdict, timeoutMs);
 }
 
 void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup& s,
