@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <voxwall/codec/container.hpp>
@@ -364,6 +365,32 @@ ContainerFile ContainerFile::open(const std::string& path) {
 
 void ContainerFile::releaseResident() const {
   if (mapping_ && mapping_->address) madvise(mapping_->address, mapping_->length, MADV_DONTNEED);
+}
+
+std::optional<std::uint64_t> ContainerFile::residentMappedBytes() const {
+  if (!mapping_ || !mapping_->address) return 0;
+  std::ifstream smaps("/proc/self/smaps");
+  if (!smaps) return std::nullopt;
+  const auto begin = reinterpret_cast<std::uintptr_t>(mapping_->address);
+  const std::uintptr_t end = begin + mapping_->length;
+  // An area's header ("lo-hi perms ..."), then its fields; the mapping may have been split
+  // into several areas.
+  std::uint64_t kib = 0;
+  bool inside = false, seen = false;
+  std::string line;
+  while (std::getline(smaps, line)) {
+    unsigned long long lo = 0, hi = 0;  // hi: read, not needed
+    char space = 0;
+    if (std::sscanf(line.c_str(), "%llx-%llx%c", &lo, &hi, &space) == 3 && space == ' ') {
+      inside = lo >= begin && lo < end;  // (an area ends on a page boundary)
+      seen = seen || inside;
+      continue;
+    }
+    unsigned long long n = 0;
+    if (inside && std::sscanf(line.c_str(), "Rss: %llu kB", &n) == 1) kib += n;
+  }
+  if (!seen) return std::nullopt;
+  return kib * 1024;
 }
 
 ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::string& source) {

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/master/render_job.hpp>
 
@@ -81,6 +83,40 @@ TEST(RenderJob, SingleRankWritesOneFilePerFrameAndOrbits) {
 }
 
 // The image from N ranks equals the single-rank image pixel for pixel, for every cut.
+// A frame that decoded pages leaves none of the mapped file resident: the voxels live in the
+// pages, and the compressed bytes come back from the system's page cache only when a page is
+// decoded anew. A raw volume's rays read the file itself, which it keeps.
+TEST(RenderJob, AFrameThatDecodedPagesLeavesNoneOfTheMappedFileResident) {
+  if (node::cpuPacketLanes() == 1) GTEST_SKIP() << "no SIMD packets on this CPU: no pages";
+  test::TempDir dir;
+  master::JobSettings job = testJob("", 2);
+  job.width = 96, job.height = 80;
+  auto run = [&](const node::RenderVolume& volume) {
+    auto backend = node::makeCpuBackend(1);
+    const auto errors = test::runRanks(1, [&](master::Communicator& comm) {
+      master::runRenderJob(comm, *backend, volume, testTf(), {}, job, {});
+    });
+    if (errors[0]) std::rethrow_exception(errors[0]);
+    return node::cpuDecodeCacheUse(*backend);
+  };
+  const auto ksvd = node::RenderVolume::open(std::string(VOXWALL_TEST_DATA_DIR) +
+                                             "/reference/phantom64_ksvd.vwz");
+  const auto opened = ksvd.mappedResidentBytes();
+  if (!opened) GTEST_SKIP() << "/proc/self/smaps cannot tell what is resident here";
+  ASSERT_GT(*opened, 0u) << "opening reads every byte (checksums)";
+  const auto pages = run(ksvd);
+  ASSERT_GT(pages.misses, 0u) << "the frames decoded no pages";
+  EXPECT_EQ(ksvd.mappedResidentBytes(), std::optional<std::uint64_t>(0));
+
+  voxwall::Progress quiet;
+  codec::writeContainer(codec::raw::encode(codec::generateSheppLogan(64), {}, quiet),
+                        dir.path("raw.vwz"));
+  const auto raw = node::RenderVolume::open(dir.path("raw.vwz"));
+  raw.releaseMappedPages();
+  EXPECT_EQ(run(raw).misses, 0u);
+  EXPECT_GT(raw.mappedResidentBytes().value_or(0), 0u) << "the rays' bricks stay resident";
+}
+
 TEST(RenderJob, ManyRanksEqualOneRankPixelForPixel) {
   test::TempDir dir;
   runJob(1, testJob(dir.path("ref"), 4));

@@ -41,6 +41,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -153,6 +154,9 @@ class ContainerFile {
   // range grid), only what is read again comes back, from the system's page cache, which the
   // ranks on one host share. Spans stay valid. Nothing for parsed bytes.
   void releaseResident() const;
+  // Bytes of the mapping resident in this process now (its pages in /proc/self/smaps); 0 for
+  // parsed bytes, nullopt where /proc cannot tell.
+  std::optional<std::uint64_t> residentMappedBytes() const;
 
  private:
   struct Mapping;

@@ -113,11 +113,18 @@ class RenderVolume {
   // xxHash64 of the volume's description and every section's bytes (of every step): two ranks
   // with the same fingerprint render the same pixels. Reads the whole file.
   std::uint64_t fingerprint() const;
-  // Drops the mapped .vwz file from this process's resident memory after the passes that read
-  // all of it (opening, the range grid, the fingerprint): a rank then holds only the compressed
-  // bytes its rays read (codec::ContainerFile::releaseResident). Nothing for a volume in memory.
+  // Drops the mapped .vwz file from this process's resident memory
+  // (codec::ContainerFile::releaseResident): after the passes that read all of it (opening, the
+  // range grid, the fingerprint), and after a frame that decoded pages (node/page_cache.hpp), whose
+  // voxels then live in the pages: a rank holds the compressed bytes only while it reads them.
+  // Nothing for a volume in memory.
   void releaseMappedPages() const {
     if (file_) file_->releaseResident();
+  }
+  // Bytes of the mapped .vwz resident in this process (0 for a volume in memory; nullopt where
+  // the system cannot tell).
+  std::optional<std::uint64_t> mappedResidentBytes() const {
+    return file_ ? file_->residentMappedBytes() : std::optional<std::uint64_t>(0);
   }
 
  private:
