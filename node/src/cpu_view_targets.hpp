@@ -131,6 +131,17 @@ struct HwyLanes {
   static HWY_INLINE M byteSet(const std::uint8_t* base, I index, M m) {
     return both(m, gather(base, selectI(m, index, splatI(0))) != hn::Zero(D()));
   }
+  // Where m: is bit `index` of the words set (bit index % 32 of word index / 32)? Other lanes
+  // read word 0.
+  static HWY_INLINE M bitSet(const std::uint32_t* words, I index, M m) {
+    const I at = selectI(m, index, splatI(0));
+    const auto word = hn::BitCast(
+        DU(),
+        hn::GatherIndex(DI(), reinterpret_cast<const std::int32_t*>(words), hn::ShiftRight<5>(at)));
+    const auto bit =
+        hn::And(hn::Shr(word, hn::BitCast(DU(), hn::And(at, splatI(31)))), hn::Set(DU(), 1u));
+    return both(m, hn::RebindMask(D(), bit != hn::Zero(DU())));
+  }
 
   static HWY_INLINE kernels::Lanes4<F> lookup(const kernels::TransferLut& lut, F value) {
     // Clamped as TransferLut::lookup does (Max and Min also take a NaN to 0).

@@ -174,12 +174,13 @@ class CudaBackend final : public Backend {
     lut_.upload(plan.lut.entries.data(), plan.lut.entries.size() * sizeof(glm::vec4));
     kernels::SkipGrid skip = plan.skip;
     if (skip.empty) {
-      skipCells_.upload(plan.emptyCells.data(), plan.emptyCells.size());
+      skipCells_.upload(plan.emptyCells->data(), plan.emptyCells->size());
       skip.empty = skipCells_.as<std::uint8_t>();
     }
     if (skip.fineEmpty) {
-      fineSkipCells_.upload(plan.fineEmptyCells.data(), plan.fineEmptyCells.size());
-      skip.fineEmpty = fineSkipCells_.as<std::uint8_t>();
+      fineSkipCells_.upload(plan.fineEmptyBits->data(),
+                            plan.fineEmptyBits->size() * sizeof(std::uint32_t));
+      skip.fineEmpty = fineSkipCells_.as<std::uint32_t>();
     }
     const std::size_t pixels = std::size_t(tile.width) * std::size_t(tile.height);
     image_.reserve(pixels * sizeof(std::uint32_t));

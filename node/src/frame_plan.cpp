@@ -54,13 +54,11 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
 
   if (reuse) {
     plan.lut = reuse->lut;
-    plan.emptyCells = reuse->emptyCells;
-    plan.fineEmptyCells = reuse->fineEmptyCells;
+    plan.emptyCells = reuse->emptyCells;  // shared: the grids are never written once made
+    plan.fineEmptyBits = reuse->fineEmptyBits;
     plan.emptyFraction = reuse->emptyFraction;
     plan.fineEmptyFraction = reuse->fineEmptyFraction;
     plan.skip = reuse->skip;
-    if (plan.skip.empty) plan.skip.empty = plan.emptyCells.data();
-    if (plan.skip.fineEmpty) plan.skip.fineEmpty = plan.fineEmptyCells.data();
     return plan;
   }
   plan.lut = tf.bake(tf.domainMin(), tf.domainMax(), settings.stepVoxels, settings.lutEntries);
@@ -75,19 +73,24 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     while ((1 << factorShift) < settings.coarseCellFactor) ++factorShift;
     if ((1 << factorShift) != settings.coarseCellFactor)
       throw std::invalid_argument("coarse skip cell factor must be a power of two");
-    // Fine cells straight from the codec's ranges.
+    // Fine cells straight from the codec's ranges, a bit each.
     const std::size_t fineCount = ranges.cellCount();
-    plan.fineEmptyCells.resize(fineCount);
+    auto fineBits = std::make_shared<std::vector<std::uint32_t>>((fineCount + 31) / 32, 0u);
+    auto& bits = *fineBits;
     std::size_t fineEmpty = 0;
     ranges.forEach([&](std::size_t c, float lo, float hi) {
-      plan.fineEmptyCells[c] = plan.lut.maxOpacity(lo, hi) <= 0.0f;
-      fineEmpty += plan.fineEmptyCells[c];
+      if (plan.lut.maxOpacity(lo, hi) <= 0.0f) {
+        bits[c >> 5] |= 1u << (c & 31);
+        ++fineEmpty;
+      }
     });
+    auto isFineEmpty = [&](std::size_t c) { return (bits[c >> 5] >> (c & 31)) & 1u; };
     // A coarse cell is empty when all its fine cells are.
     const glm::ivec3 coarse = (cells + (1 << factorShift) - 1) >> factorShift;
     const std::size_t coarseCount =
         std::size_t(coarse.x) * std::size_t(coarse.y) * std::size_t(coarse.z);
-    plan.emptyCells.assign(coarseCount, 1);
+    auto emptyCells = std::make_shared<std::vector<std::uint8_t>>(coarseCount, 1);
+    auto& coarseEmpty = *emptyCells;
     for (int z = 0; z < cells.z; ++z)
       for (int y = 0; y < cells.y; ++y)
         for (int x = 0; x < cells.x; ++x) {
@@ -98,22 +101,24 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
                                  std::size_t(y >> factorShift)) *
                                     std::size_t(coarse.x) +
                                 std::size_t(x >> factorShift);
-          plan.emptyCells[c] &= plan.fineEmptyCells[fine];
+          coarseEmpty[c] &= std::uint8_t(isFineEmpty(fine));
         }
     std::size_t empty = 0;
-    for (auto e : plan.emptyCells) empty += e;
+    for (auto e : coarseEmpty) empty += e;
     plan.emptyFraction = double(empty) / double(coarseCount);
     plan.fineEmptyFraction = double(fineEmpty) / double(fineCount);
-    plan.skip.empty = plan.emptyCells.data();
+    plan.skip.empty = coarseEmpty.data();
     plan.skip.cellsX = coarse.x;
     plan.skip.cellsY = coarse.y;
     plan.skip.cellsZ = coarse.z;
     plan.skip.cellShift = shift + factorShift;
-    plan.skip.fineEmpty = plan.fineEmptyCells.data();
+    plan.skip.fineEmpty = bits.data();
     plan.skip.fineX = cells.x;
     plan.skip.fineY = cells.y;
     plan.skip.fineZ = cells.z;
     plan.skip.fineShift = shift;
+    plan.emptyCells = std::move(emptyCells);
+    plan.fineEmptyBits = std::move(fineBits);
   }
   return plan;
 }

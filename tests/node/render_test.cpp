@@ -196,8 +196,11 @@ TEST(Render, AReusedPlanRendersLikeAFreshOne) {
   const auto old = planFrame(volume, orbitCamera(first, radius), 48, 32, tf, settings);
   auto reused = planFrame(volume, orbitCamera(second, radius), 48, 32, tf, settings, &old);
   const auto fresh = planFrame(volume, orbitCamera(second, radius), 48, 32, tf, settings);
-  EXPECT_NE(reused.skip.empty, old.skip.empty);  // its own copy, not the old plan's memory
-  EXPECT_EQ(reused.emptyCells, fresh.emptyCells);
+  EXPECT_EQ(reused.skip.empty, old.skip.empty);  // the old plan's grids, shared, not copied
+  EXPECT_EQ(reused.skip.fineEmpty, old.skip.fineEmpty);
+  ASSERT_TRUE(reused.emptyCells && fresh.emptyCells && reused.fineEmptyBits && fresh.fineEmptyBits);
+  EXPECT_EQ(*reused.emptyCells, *fresh.emptyCells);
+  EXPECT_EQ(*reused.fineEmptyBits, *fresh.fineEmptyBits);
   Image a, b;
   auto backend = makeCpuBackend(1);
   backend->render(volume, reused, {0, 0, 48, 32}, a);

@@ -22,16 +22,17 @@
 
 namespace voxwall::node::kernels {
 
-// Empty-space skipping in two levels, both x fastest, 1 = the transfer function is zero over
-// the cell's value range (grown by one voxel): coarse cells of 2^cellShift voxels, which rays
-// jump over, and fine cells of 2^fineShift voxels, checked per sample inside non-empty coarse
-// cells so a transparent sample costs a byte load instead of a trilinear fetch. A null pointer
-// disables its level.
+// Empty-space skipping in two levels, both x fastest, set = the transfer function is zero over
+// the cell's value range (grown by one voxel): coarse cells of 2^cellShift voxels (a byte each),
+// which rays jump over, and fine cells of 2^fineShift voxels (a bit each: bit c % 32 of word
+// c / 32, an eighth of a byte grid's memory on every rank), checked per sample inside non-empty
+// coarse cells so a transparent sample costs a word load instead of a trilinear fetch. A null
+// pointer disables its level.
 struct SkipGrid {
   const std::uint8_t* empty = nullptr;
   int cellsX = 0, cellsY = 0, cellsZ = 0;
   int cellShift = 3;
-  const std::uint8_t* fineEmpty = nullptr;
+  const std::uint32_t* fineEmpty = nullptr;
   int fineX = 0, fineY = 0, fineZ = 0;
   int fineShift = 2;
 };
@@ -163,6 +164,10 @@ struct ScalarLanes {
   // Where m: is base[index] non-zero (a skip grid's cell)?
   static VOXWALL_HD_INLINE M byteSet(const std::uint8_t* base, I index, M m) {
     return m && base[index] != 0;
+  }
+  // Where m: is bit `index` of the words set (bit index % 32 of word index / 32)?
+  static VOXWALL_HD_INLINE M bitSet(const std::uint32_t* words, I index, M m) {
+    return m && ((words[index >> 5] >> (index & 31)) & 1u) != 0;
   }
   static VOXWALL_HD_INLINE Lanes4<F> lookup(const TransferLut& lut, F value) {
     const glm::vec4 c = lut.lookup(value);

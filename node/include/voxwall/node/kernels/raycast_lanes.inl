@@ -218,7 +218,7 @@ struct LaneKernels {
           const I fx = fine(p.x, skip.fineX), fy = fine(p.y, skip.fineY),
                   fz = fine(p.z, skip.fineZ);
           const I cell = (fz * L::splatI(skip.fineY) + fy) * L::splatI(skip.fineX) + fx;
-          skipped = L::byteSet(skip.fineEmpty, cell, check);
+          skipped = L::bitSet(skip.fineEmpty, cell, check);
           go = L::butNot(go, skipped);
         }
       }
