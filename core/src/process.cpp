@@ -2,6 +2,9 @@
 #include <fstream>
 #include <string>
 #include <voxwall/core/process.hpp>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 namespace voxwall {
 
@@ -17,6 +20,12 @@ ProcessMemory processMemory() {
     value("VmHWM:", m.peakBytes);
   }
   return m;
+}
+
+void returnFreeMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
 }
 
 }  // namespace voxwall

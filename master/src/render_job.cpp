@@ -153,12 +153,16 @@ master::RankReport renderRects(int rank, node::Backend& backend, const node::Ren
       report.streamedBytes = streamer->bytesSent() - before;
     }
   }
-  // Pages decoded this frame hold the voxels their compressed bytes gave: those bytes are read
-  // again only to decode a page anew, so the mapped file need not stay resident (a rank's
-  // memory is then its pages, not its pages and their source too). The kernel reads them back
-  // from its page cache when a later frame decodes. Rays that sample the file directly (raw
-  // volumes, per-ray decoding) decode no pages and keep what they read.
-  if (report.pages.decoded > 0) volume.releaseMappedPages();
+  // Pages decoded this frame hold the voxels their compressed bytes gave: those bytes (and the
+  // tables the codec made to decode them) are read again only to decode a page anew, so they
+  // need not stay resident: a rank's memory is then its pages, not its pages and their source
+  // too. A later frame that decodes takes them back (the file from the system's page cache).
+  // Not when pages were evicted (the working set is over the budget: every frame decodes), nor
+  // for rays that sample the file directly (raw volumes, per-ray decoding), which decode no pages.
+  if (report.pages.decoded > 0 && report.pages.evictions == 0) {
+    volume.releaseDecodeSources();
+    returnFreeMemory();  // the tables were freed in pieces the allocator would keep
+  }
   const ProcessMemory memory = processMemory();
   report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
   return report;

@@ -241,6 +241,16 @@ TEST(TvqCodec, TheHostViewMakesASubvolumesCodebooksWhenItsBlocksAreFirstDecoded)
   // Every sub-volume with a coded block (one of only background blocks never needs its books).
   EXPECT_GT(layout.associatedResidentBytes(), one);
   EXPECT_LE(layout.associatedResidentBytes(), layout.associatedBytes());
+
+  // Released (between frames), they are made again by the next decode, which gives the same
+  // voxels.
+  float before[64], after[64];
+  host.decoder.decode(host.decoder.key(5, 5, 5), before);
+  layout.releaseAssociated();
+  EXPECT_EQ(layout.associatedResidentBytes(), 0u);
+  host.decoder.decode(host.decoder.key(5, 5, 5), after);
+  EXPECT_EQ(layout.associatedResidentBytes(), one);
+  for (int i = 0; i < 64; ++i) ASSERT_EQ(before[i], after[i]) << "voxel " << i;
 }
 
 TEST(TvqCodec, ProgressiveLevelsImprovePsnrMonotonically) {

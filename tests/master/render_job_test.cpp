@@ -91,8 +91,9 @@ TEST(RenderJob, AFrameThatDecodedPagesLeavesNoneOfTheMappedFileResident) {
   test::TempDir dir;
   master::JobSettings job = testJob("", 2);
   job.width = 96, job.height = 80;
-  auto run = [&](const node::RenderVolume& volume) {
-    auto backend = node::makeCpuBackend(1);
+  auto run = [&](const node::RenderVolume& volume,
+                 std::uint64_t budget = node::kDefaultDecodeCacheBytes) {
+    auto backend = node::makeCpuBackend(1, true, budget);
     const auto errors = test::runRanks(1, [&](master::Communicator& comm) {
       master::runRenderJob(comm, *backend, volume, testTf(), {}, job, {});
     });
@@ -106,7 +107,16 @@ TEST(RenderJob, AFrameThatDecodedPagesLeavesNoneOfTheMappedFileResident) {
   ASSERT_GT(*opened, 0u) << "opening reads every byte (checksums)";
   const auto pages = run(ksvd);
   ASSERT_GT(pages.misses, 0u) << "the frames decoded no pages";
+  EXPECT_EQ(pages.evictions, 0u);
   EXPECT_EQ(ksvd.mappedResidentBytes(), std::optional<std::uint64_t>(0));
+
+  // Over the budget (a page), every frame decodes again: the file stays.
+  const auto tight = node::RenderVolume::open(std::string(VOXWALL_TEST_DATA_DIR) +
+                                              "/reference/phantom64_ksvd.vwz");
+  ASSERT_GT(tight.mappedResidentBytes().value_or(0), 0u);
+  const auto squeezed = run(tight, pages.pageBytes);
+  ASSERT_GT(squeezed.evictions, 0u) << "one page held every page";
+  EXPECT_GT(tight.mappedResidentBytes().value_or(0), 0u);
 
   voxwall::Progress quiet;
   codec::writeContainer(codec::raw::encode(codec::generateSheppLogan(64), {}, quiet),

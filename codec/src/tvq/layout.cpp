@@ -1,5 +1,7 @@
 // The tvq codec's layout: every section checked against the header before anything reads it, the
 // view the raycaster samples, and the decoder. The byte layout is documented in tvq_codec.hpp.
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -156,12 +158,22 @@ std::pair<std::uint64_t, std::uint64_t> Layout::readSubvolumes(const SectionSet&
 
 // Sub-volumes' associated codebooks, each made the first time a block of it is decoded (any
 // render thread; the others wait for it) and kept until the object goes.
+// Every sub-volume's codebooks have their place (codebookAt) in one reserved, untouched region
+// of anonymous memory: making them touches (and zero-fills) only their pages, and clear() gives
+// every page back to the system at once (MADV_DONTNEED), with no allocator in between to keep
+// freed memory resident.
 class Layout::Books {
  public:
-  explicit Books(const Layout& layout) : layout_(layout), slots_(layout.table_.size()) {}
-  ~Books() {
-    for (auto& slot : slots_) std::free(slot.load(std::memory_order_relaxed));
+  explicit Books(const Layout& layout)
+      : layout_(layout),
+        slots_(layout.table_.size()),
+        bytes_(std::max<std::uint64_t>(layout.booksBytes_, 1)) {
+    void* p = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
+                   MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    region_ = static_cast<std::uint8_t*>(p);
   }
+  ~Books() { munmap(region_, bytes_); }
   Books(const Books&) = delete;
   Books& operator=(const Books&) = delete;
 
@@ -173,20 +185,27 @@ class Layout::Books {
     std::lock_guard lock(locks_[s % locks_.size()]);
     if (auto* p = slots_[s].load(std::memory_order_relaxed)) return p;
     const std::uint64_t bytes = layout_.subBooksBytes(s);
-    auto* p = static_cast<std::uint8_t*>(std::calloc(std::max<std::uint64_t>(bytes, 1), 1));
-    if (!p) throw std::bad_alloc();
+    auto* p = region_ + layout_.table_[s].codebookAt[0];  // zeros: never written, or cleared
     layout_.associateCodebooks(s, reinterpret_cast<float*>(p));
     resident_.fetch_add(bytes, std::memory_order_relaxed);
     slots_[s].store(p, std::memory_order_release);
     return p;
   }
   std::uint64_t resident() const { return resident_.load(std::memory_order_relaxed); }
+  // Not while get() may run: a decode holds a slot's pointer.
+  void clear() const {
+    for (auto& slot : slots_) slot.store(nullptr, std::memory_order_relaxed);
+    madvise(region_, bytes_, MADV_DONTNEED);  // reads back as zeros
+    resident_.store(0, std::memory_order_relaxed);
+  }
 
  private:
   const Layout& layout_;
   mutable std::vector<std::atomic<std::uint8_t*>> slots_;
   mutable std::array<std::mutex, 64> locks_;
   mutable std::atomic<std::uint64_t> resident_{0};
+  std::uint64_t bytes_;
+  std::uint8_t* region_ = nullptr;
 };
 
 void Layout::buildTable(const SectionSet& sections, std::uint64_t words,
@@ -301,6 +320,8 @@ void Layout::associateCodebooks(std::uint64_t s, float* out) const {
 }
 
 std::uint64_t Layout::associatedResidentBytes() const { return books_->resident(); }
+
+void Layout::releaseAssociated() const { books_->clear(); }
 
 namespace {
 // Where each part lies in the joined buffer: the table, the codebooks, the ranks, the occupancy

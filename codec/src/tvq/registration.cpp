@@ -28,6 +28,7 @@ class Payload final : public RenderPayload {
   AnyView view(const std::byte* base) const override {
     return AnyView(layout_.view(base, partitions_));
   }
+  void releaseDecodeTables() const override { layout_.releaseAssociated(); }
 
  private:
   Layout layout_;

@@ -37,6 +37,11 @@ class RenderPayload {
   virtual std::span<const std::byte> bytes() const = 0;
   // The view with its data at `base` (a copy of bytes(); host memory when null).
   virtual AnyView view(const std::byte* base = nullptr) const = 0;
+  // Frees what the host view made on first use to decode blocks (tvq's associated codebooks;
+  // nothing by default), which it makes again when a block needs it. Only while no view of this
+  // payload is decoding (between frames): the renderer calls it after a frame whose rays read
+  // decoded pages only, which then hold the voxels.
+  virtual void releaseDecodeTables() const {}
   // 3D arrays for a device backend (none by default), built once per payload.
   virtual std::vector<DeviceArraySpec> deviceArrays() const { return {}; }
   // The device view: bytes() at `base` and the arrays in deviceArrays() order.

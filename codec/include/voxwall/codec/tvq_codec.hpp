@@ -197,6 +197,9 @@ class Layout {
   // have reached every sub-volume), and of those made so far.
   std::uint64_t associatedBytes() const { return booksBytes_; }
   std::uint64_t associatedResidentBytes() const;
+  // Frees the host view's associated codebooks; a later decode makes a sub-volume's again. Only
+  // while no host view of this layout is decoding.
+  void releaseAssociated() const;
   // The view over joinedBytes() at `base`, or the host view when null, adding the first
   // `partitions` partitions to the mean (the progressive level; 3: all).
   kernels::TvqView view(const std::byte* base = nullptr, int partitions = 3) const;

@@ -114,12 +114,18 @@ class RenderVolume {
   // with the same fingerprint render the same pixels. Reads the whole file.
   std::uint64_t fingerprint() const;
   // Drops the mapped .vwz file from this process's resident memory
-  // (codec::ContainerFile::releaseResident): after the passes that read all of it (opening, the
-  // range grid, the fingerprint), and after a frame that decoded pages (node/page_cache.hpp), whose
-  // voxels then live in the pages: a rank holds the compressed bytes only while it reads them.
-  // Nothing for a volume in memory.
+  // (codec::ContainerFile::releaseResident) after the passes that read all of it (opening, the
+  // range grid, the fingerprint). Nothing for a volume in memory.
   void releaseMappedPages() const {
     if (file_) file_->releaseResident();
+  }
+  // After a frame whose rays read decoded pages (node/page_cache.hpp) that all fit in the
+  // budget: what only decoding reads goes, the mapped file's pages and the tables the codec made
+  // to decode (RenderPayload::releaseDecodeTables), since the pages now hold the voxels; a later
+  // decode takes them back (the file from the system's page cache). Only between frames.
+  void releaseDecodeSources() const {
+    releaseMappedPages();
+    payload_->releaseDecodeTables();
   }
   // Bytes of the mapped .vwz resident in this process (0 for a volume in memory; nullopt where
   // the system cannot tell).
