@@ -87,7 +87,7 @@ node::TileStats renderWatched(node::Backend& backend, const node::RenderVolume& 
 master::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
                                const node::TransferFunction& tf, const node::RenderSettings& render,
                                const JobSettings& job, net::TileStreamer* streamer,
-                               std::optional<node::FramePlan>& lastPlan,
+                               std::optional<node::FramePlan>& lastPlan, bool& decodedSinceRelease,
                                const master::FrameTask& task,
                                const std::vector<voxwall::Rect>& rects,
                                const AbandonWatch& watch = {}) {
@@ -153,15 +153,24 @@ master::RankReport renderRects(int rank, node::Backend& backend, const node::Ren
       report.streamedBytes = streamer->bytesSent() - before;
     }
   }
-  // Pages decoded this frame hold the voxels their compressed bytes gave: those bytes (and the
-  // tables the codec made to decode them) are read again only to decode a page anew, so they
-  // need not stay resident: a rank's memory is then its pages, not its pages and their source
-  // too. A later frame that decodes takes them back (the file from the system's page cache).
-  // Not when pages were evicted (the working set is over the budget: every frame decodes), nor
-  // for rays that sample the file directly (raw volumes, per-ray decoding), which decode no pages.
-  if (report.pages.decoded > 0 && report.pages.evictions == 0) {
-    volume.releaseDecodeSources();
-    returnFreeMemory();  // the tables were freed in pieces the allocator would keep
+  // Decoded pages hold the voxels their compressed bytes gave: those bytes (and the tables the
+  // codec made to decode them) are read again only to decode a page anew, so once the view has
+  // settled (the first frame that decodes nothing after frames that did) they need not stay
+  // resident: a rank's memory is then its pages, not its pages and their source too. A later
+  // frame that decodes takes them back (the file from the system's page cache). Not while every
+  // frame decodes (a moving camera: remaking tvq's codebooks each frame cost 15-30% of an orbit's
+  // frame time), nor when pages were evicted (the working set is over the budget), nor for rays
+  // that sample the file directly (raw volumes, per-ray decoding), which decode no pages.
+  if (!rects.empty()) {
+    if (report.pages.evictions > 0) {
+      decodedSinceRelease = false;
+    } else if (report.pages.decoded > 0) {
+      decodedSinceRelease = true;
+    } else if (decodedSinceRelease) {
+      volume.releaseDecodeSources();
+      returnFreeMemory();  // the tables were freed in pieces the allocator would keep
+      decodedSinceRelease = false;
+    }
   }
   const ProcessMemory memory = processMemory();
   report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
@@ -237,6 +246,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   const auto streamer = makeStreamer(job, comm.rank(), comm.size());
   const auto steering = steeringSettings(job);
   std::optional<node::FramePlan> plan;
+  bool decodedSinceRelease = false;  // renderRects' record of pages decoded and not yet released
   StepVolumes steps(volume, tf, job);
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
@@ -254,9 +264,9 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     if (!task.stop && abandonable(steering, task.phase))
       watch = [&comm, frame = task.frame] { return comm.abandoned(frame); };
     const node::RenderVolume& stepVolume = task.stop ? volume : steps.volume(task, plan);
-    const auto report =
-        renderRects(comm.rank(), backend, stepVolume, steps.tf(task), render, job, streamer.get(),
-                    plan, task, task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
+    const auto report = renderRects(comm.rank(), backend, stepVolume, steps.tf(task), render, job,
+                                    streamer.get(), plan, decodedSinceRelease, task,
+                                    task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(master::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -352,7 +362,7 @@ class MasterLoop {
       };
     const node::RenderVolume& stepVolume = steps_.volume(t, plan_);
     auto own = renderRects(0, backend_, stepVolume, steps_.tf(t), render_, job_, streamer_.get(),
-                           plan_, t, t.rects[0], watch);
+                           plan_, decodedSinceRelease_, t, t.rects[0], watch);
     const auto gatherStart = Clock::now();
     // Rank 0 keeps its own report as it is; only the others' travel. It goes on watching while
     // the others render.
@@ -404,8 +414,8 @@ class MasterLoop {
     stop.watchdogMs = std::uint32_t(timeoutMs_);
     auto stopBytes = master::encode(stop);
     comm_.broadcast(stopBytes, timeoutMs_);
-    const auto ownLast =
-        renderRects(0, backend_, volume_, tf_, render_, job_, nullptr, plan_, stop, {});
+    const auto ownLast = renderRects(0, backend_, volume_, tf_, render_, job_, nullptr, plan_,
+                                     decodedSinceRelease_, stop, {});
     const auto finals = comm_.gather({}, timeoutMs_);
     for (int r = 0; r < comm_.size(); ++r) {
       const auto rep = r == 0
@@ -533,6 +543,7 @@ class MasterLoop {
   const std::unique_ptr<net::TileStreamer> streamer_;
   std::optional<LoadBalancer> balancer_;
   std::optional<node::FramePlan> plan_;
+  bool decodedSinceRelease_ = false;  // as in the other ranks' loop
   std::unique_ptr<net::ControlChannel> control_;
   CameraOffset offset_;
   Steering steering_;  // each frame's step, and which frames a command abandons
