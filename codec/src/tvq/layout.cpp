@@ -157,23 +157,20 @@ std::pair<std::uint64_t, std::uint64_t> Layout::readSubvolumes(const SectionSet&
 }
 
 // Sub-volumes' associated codebooks, each made the first time a block of it is decoded (any
-// render thread; the others wait for it) and kept until the object goes.
-// Every sub-volume's codebooks have their place (codebookAt) in one reserved, untouched region
-// of anonymous memory: making them touches (and zero-fills) only their pages, and clear() gives
-// every page back to the system at once (MADV_DONTNEED), with no allocator in between to keep
-// freed memory resident.
+// render thread; the others wait for it) and kept until clear() or the object goes.
+// Every sub-volume's codebooks have their place (codebookAt) in one region of anonymous memory,
+// reserved untouched when the first is made: making them touches (and zero-fills) only their
+// pages, and clear() gives every page back to the system at once (MADV_DONTNEED), with no
+// allocator in between to keep freed memory resident.
 class Layout::Books {
  public:
   explicit Books(const Layout& layout)
       : layout_(layout),
         slots_(layout.table_.size()),
-        bytes_(std::max<std::uint64_t>(layout.booksBytes_, 1)) {
-    void* p = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
-                   MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    region_ = static_cast<std::uint8_t*>(p);
+        bytes_(std::max<std::uint64_t>(layout.booksBytes_, 1)) {}
+  ~Books() {
+    if (region_) munmap(region_, bytes_);
   }
-  ~Books() { munmap(region_, bytes_); }
   Books(const Books&) = delete;
   Books& operator=(const Books&) = delete;
 
@@ -185,6 +182,12 @@ class Layout::Books {
     std::lock_guard lock(locks_[s % locks_.size()]);
     if (auto* p = slots_[s].load(std::memory_order_relaxed)) return p;
     const std::uint64_t bytes = layout_.subBooksBytes(s);
+    std::call_once(mapOnce_, [this] {
+      void* r = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
+                     MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+      if (r == MAP_FAILED) throw std::bad_alloc();  // call_once tries again next time
+      region_ = static_cast<std::uint8_t*>(r);
+    });
     auto* p = region_ + layout_.table_[s].codebookAt[0];  // zeros: never written, or cleared
     layout_.associateCodebooks(s, reinterpret_cast<float*>(p));
     resident_.fetch_add(bytes, std::memory_order_relaxed);
@@ -195,7 +198,7 @@ class Layout::Books {
   // Not while get() may run: a decode holds a slot's pointer.
   void clear() const {
     for (auto& slot : slots_) slot.store(nullptr, std::memory_order_relaxed);
-    madvise(region_, bytes_, MADV_DONTNEED);  // reads back as zeros
+    if (region_) madvise(region_, bytes_, MADV_DONTNEED);  // reads back as zeros
     resident_.store(0, std::memory_order_relaxed);
   }
 
@@ -205,7 +208,8 @@ class Layout::Books {
   mutable std::array<std::mutex, 64> locks_;
   mutable std::atomic<std::uint64_t> resident_{0};
   std::uint64_t bytes_;
-  std::uint8_t* region_ = nullptr;
+  mutable std::once_flag mapOnce_;
+  mutable std::uint8_t* region_ = nullptr;
 };
 
 void Layout::buildTable(const SectionSet& sections, std::uint64_t words,
