@@ -379,9 +379,9 @@ std::optional<std::uint64_t> ContainerFile::residentMappedBytes() const {
   bool inside = false, seen = false;
   std::string line;
   while (std::getline(smaps, line)) {
-    unsigned long long lo = 0, hi = 0;  // hi: read, not needed
+    unsigned long long lo = 0;
     char space = 0;
-    if (std::sscanf(line.c_str(), "%llx-%llx%c", &lo, &hi, &space) == 3 && space == ' ') {
+    if (std::sscanf(line.c_str(), "%llx-%*x%c", &lo, &space) == 2 && space == ' ') {
       inside = lo >= begin && lo < end;  // (an area ends on a page boundary)
       seen = seen || inside;
       continue;
