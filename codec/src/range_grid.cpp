@@ -10,17 +10,23 @@ RangeGrid computeRangeGrid(const Volume& volume, int cellVoxels) {
   return computeRangeGrid(*memorySource(volume), cellVoxels);
 }
 
+RangeGrid::RangeGrid(int cellVoxels, glm::ivec3 cells, ScalarType type)
+    : cellVoxels_(cellVoxels), cells_(cells), type_(type) {
+  dispatchScalar(type, [&]<class T>(T) {
+    const Pair<T> empty{std::numeric_limits<T>::max(), std::numeric_limits<T>::lowest()};
+    bytes_.resize(cellCount() * sizeof empty);
+    for (std::size_t c = 0; c < cellCount(); ++c) put<T>(c, empty);
+  });
+}
+
 RangeGrid computeRangeGrid(const VolumeSource& source, int cellVoxels) {
-  RangeGrid grid;
-  grid.cellVoxels = cellVoxels;
-  grid.cells = (source.dims + cellVoxels - 1) / cellVoxels;
-  grid.lo.resize(grid.cellCount());
-  grid.hi.resize(grid.cellCount());
-  const std::size_t layer = std::size_t(grid.cells.x) * std::size_t(grid.cells.y);
+  if (cellVoxels < 1) throw std::invalid_argument("range grid cell size must be positive");
+  RangeGrid grid(cellVoxels, (source.dims + cellVoxels - 1) / cellVoxels, source.type);
+  const std::size_t layer = std::size_t(grid.cells().x) * std::size_t(grid.cells().y);
   forEachRangeLayer(source, cellVoxels,
                     [&](int cz, std::span<const float> lo, std::span<const float> hi) {
-                      std::copy(lo.begin(), lo.end(), grid.lo.begin() + std::ptrdiff_t(cz * layer));
-                      std::copy(hi.begin(), hi.end(), grid.hi.begin() + std::ptrdiff_t(cz * layer));
+                      for (std::size_t i = 0; i < lo.size(); ++i)
+                        grid.set(std::size_t(cz) * layer + i, lo[i], hi[i]);
                     });
   return grid;
 }

@@ -19,27 +19,6 @@ std::uint64_t nextPayloadId() {
 }
 }  // namespace
 
-CellRanges::CellRanges(const codec::RangeGrid& grid, codec::ScalarType type)
-    : cellVoxels_(grid.cellVoxels), cells_(grid.cells), type_(type) {
-  codec::dispatchScalar(type, [&]<class T>(T) {
-    const std::size_t n = cellCount();
-    bytes_.resize(n * 2 * sizeof(T));
-    for (std::size_t c = 0; c < n; ++c) {
-      T pair[2];
-      if constexpr (std::is_floating_point_v<T>) {
-        pair[0] = grid.lo[c], pair[1] = grid.hi[c];
-      } else {
-        constexpr float kMin = float(std::numeric_limits<T>::lowest());
-        constexpr float kMax = float(std::numeric_limits<T>::max());
-        const float lo = grid.lo[c], hi = grid.hi[c];
-        pair[0] = T(std::isnan(lo) ? kMin : std::clamp(std::floor(lo), kMin, kMax));
-        pair[1] = T(std::isnan(hi) ? kMax : std::clamp(std::ceil(hi), kMin, kMax));
-      }
-      std::memcpy(bytes_.data() + c * sizeof pair, pair, sizeof pair);
-    }
-  });
-}
-
 RenderVolume RenderVolume::open(const std::string& path, const codec::ReadOptions& options,
                                 const codec::CodecOptionValues& renderOptions) {
   if (!options.isRaw() && codec::isContainerFile(path))
@@ -123,7 +102,7 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
   const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
   payload_ = c.openWith(own, sections_, renderOptions);
   payloadId_ = nextPayloadId();
-  ranges_ = CellRanges(payload_->rangeGrid(), info_.type);
+  ranges_ = payload_->rangeGrid();
   if (info_.codec != codec::raw::RawCodecEntry::kId && info_.steps == 1 &&
       renderOptions.flags().empty())
     decoded_ = std::make_shared<Decoded>();

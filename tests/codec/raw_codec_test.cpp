@@ -68,9 +68,11 @@ TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
   const auto c = raw::encode(v, {8, 4}, quiet);  // range cells independent of the brick size
   const raw::Layout layout(c.info, c.view());
   const RangeGrid grid = layout.rangeGrid();
-  ASSERT_EQ(grid.cells, glm::ivec3(5, 3, 3));
-  EXPECT_EQ(layout.rangeCells(), grid.cells);
-  EXPECT_EQ(layout.rangeCellVoxels(), grid.cellVoxels);
+  ASSERT_EQ(grid.cells(), glm::ivec3(5, 3, 3));
+  EXPECT_EQ(layout.rangeCells(), grid.cells());
+  EXPECT_EQ(layout.rangeCellVoxels(), grid.cellVoxels());
+  EXPECT_EQ(grid.type(), ScalarType::UInt8);
+  EXPECT_EQ(grid.bytes(), 5u * 3u * 3u * 2u);  // two bytes a cell
   // Brute force: the range of each cell grown by one voxel, clamped.
   for (int cz = 0; cz < 3; ++cz)
     for (int cy = 0; cy < 3; ++cy)
@@ -83,8 +85,8 @@ TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
               hi = std::max(hi, float(v.as<std::uint8_t>()[v.index(x, y, z)]));
             }
         const std::size_t i = std::size_t((cz * 3 + cy) * 5 + cx);
-        EXPECT_EQ(grid.lo[i], lo);
-        EXPECT_EQ(grid.hi[i], hi);
+        EXPECT_EQ(grid.lo(i), lo);
+        EXPECT_EQ(grid.hi(i), hi);
       }
 }
 

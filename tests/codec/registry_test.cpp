@@ -116,19 +116,15 @@ TEST(Registry, EveryViewAgreesWithItsCodecsDecoder) {
       for (int z = 0; z < d.dims.z; ++z)
         for (int y = 0; y < d.dims.y; ++y)
           for (int x = 0; x < d.dims.x; ++x) {
-            const int cx = x / ranges.cellVoxels, cy = y / ranges.cellVoxels,
-                      cz = z / ranges.cellVoxels;
-            const std::size_t i =
-                (std::size_t(cz) * std::size_t(ranges.cells.y) + std::size_t(cy)) *
-                    std::size_t(ranges.cells.x) +
-                std::size_t(cx);
+            const int cell = ranges.cellVoxels();
+            const std::size_t i = ranges.cellIndex(x / cell, y / cell, z / cell);
             // The voxel the raycaster interpolates: for an integer type, the full decode rounds
             // it to the type, the view does not.
             const float value =
                 std::visit([&](const auto& view) { return view.voxel(x, y, z); }, viewOfPayload);
             ASSERT_NEAR(value, reference.voxel(x, y, z), 0.5f + 1e-3f * std::fabs(value));
-            ASSERT_LE(ranges.lo[i], value);
-            ASSERT_GE(ranges.hi[i], value);
+            ASSERT_LE(ranges.lo(i), value);
+            ASSERT_GE(ranges.hi(i), value);
           }
       std::mt19937 rng(5);
       std::uniform_real_distribution<float> ux(-1.5f, float(d.dims.x) + 0.5f),

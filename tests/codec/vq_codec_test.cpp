@@ -430,22 +430,19 @@ TEST(VqCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
   Progress quiet;
   const auto c = vq::encode(v, {}, quiet);
   const RangeGrid g = vq::Layout(c.info, c.view()).rangeGrid();
-  ASSERT_EQ(g.cellVoxels, 4);
+  ASSERT_EQ(g.cellVoxels(), 4);
   for (int z = 0; z < v.dims.z; ++z)
     for (int y = 0; y < v.dims.y; ++y)
       for (int x = 0; x < v.dims.x; ++x) {
-        const std::size_t cell =
-            (std::size_t(z / 4) * std::size_t(g.cells.y) + std::size_t(y / 4)) *
-                std::size_t(g.cells.x) +
-            std::size_t(x / 4);
+        const std::size_t cell = g.cellIndex(x / 4, y / 4, z / 4);
         for (int dz = 0; dz < 2; ++dz)
           for (int dy = 0; dy < 2; ++dy)
             for (int dx = 0; dx < 2; ++dx) {
               const double value =
                   v.valueAt(v.index(std::min(x + dx, v.dims.x - 1), std::min(y + dy, v.dims.y - 1),
                                     std::min(z + dz, v.dims.z - 1)));
-              ASSERT_GE(value, g.lo[cell]);
-              ASSERT_LE(value, g.hi[cell]);
+              ASSERT_GE(value, g.lo(cell));
+              ASSERT_LE(value, g.hi(cell));
             }
       }
 }

@@ -209,37 +209,6 @@ TEST(Render, AReusedPlanRendersLikeAFreshOne) {
   EXPECT_GT(fresh.emptyFraction, 0.0);
 }
 
-TEST(Render, CellRangesHoldTheVolumesTypeRoundedOutwards) {
-  codec::RangeGrid grid;
-  grid.cellVoxels = 4;
-  grid.cells = {4, 1, 1};
-  grid.lo = {0.0f, 12.4f, -3.0f, std::nanf("")};
-  grid.hi = {255.0f, 12.6f, 300.0f, 7.0f};
-  std::vector<float> lo, hi;
-  auto collect = [&](const CellRanges& r) {
-    lo.clear(), hi.clear();
-    r.forEach([&](std::size_t c, float l, float h) {
-      EXPECT_EQ(c, lo.size());
-      lo.push_back(l), hi.push_back(h);
-    });
-  };
-  const CellRanges u8(grid, codec::ScalarType::UInt8);
-  EXPECT_EQ(u8.bytes(), 8u);  // 2 bytes a cell
-  EXPECT_EQ(u8.cellCount(), 4u);
-  collect(u8);
-  EXPECT_EQ(lo, (std::vector<float>{0, 12, 0, 0}));  // floor, clamped; NaN widens
-  EXPECT_EQ(hi, (std::vector<float>{255, 13, 255, 7}));
-  collect(CellRanges(grid, codec::ScalarType::Int16));
-  EXPECT_EQ(lo, (std::vector<float>{0, 12, -3, -32768}));
-  EXPECT_EQ(hi, (std::vector<float>{255, 13, 300, 7}));
-  const CellRanges f32(grid, codec::ScalarType::Float32);
-  EXPECT_EQ(f32.bytes(), 32u);
-  collect(f32);
-  EXPECT_EQ(lo[1], 12.4f);  // float data keeps its ranges exactly
-  EXPECT_EQ(hi[2], 300.0f);
-  EXPECT_TRUE(std::isnan(lo[3]));
-}
-
 // What a CUDA backend samples with DeviceDecode::Whole: every codec's volume decoded by its codec
 // and bricked raw renders as its compressed view does (the views sample exactly the decoded
 // values), and decodedBytes() is the size of those bricks. Raw volumes, series and --lod have none.

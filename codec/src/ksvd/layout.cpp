@@ -285,7 +285,7 @@ template kernels::KsvdView<6> Layout::view<6>(const std::byte*) const;
 template kernels::KsvdView<8> Layout::view<8>(const std::byte*) const;
 
 RangeGrid Layout::rangeGrid() const {
-  return withView([](const auto& v) { return brickRangeGrid(v.level[0]); });
+  return withView([&](const auto& v) { return brickRangeGrid(v.level[0], info_.type); });
 }
 
 Volume Layout::decode() const {

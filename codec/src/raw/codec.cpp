@@ -129,18 +129,13 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
 }
 
 RangeGrid Layout::rangeGrid() const {
-  RangeGrid grid;
-  grid.cellVoxels = 1 << rangeShift_;
-  grid.cells = rangeCells_;
-  const std::size_t n = grid.cellCount();
-  grid.lo.resize(n);
-  grid.hi.resize(n);
+  RangeGrid grid(1 << rangeShift_, rangeCells_, info_.type);
   ByteReader r(rangeBytes_, "", "ranges");
   dispatchScalar(info_.type, [&](auto t) {
     using T = decltype(t);
-    for (std::size_t i = 0; i < n; ++i) {
-      grid.lo[i] = float(r.get<T>());
-      grid.hi[i] = float(r.get<T>());
+    for (std::size_t i = 0; i < grid.cellCount(); ++i) {
+      const T lo = r.get<T>();
+      grid.set(i, float(lo), float(r.get<T>()));
     }
   });
   return grid;

@@ -222,12 +222,7 @@ std::vector<std::uint8_t> Layout::poolBytes(int L) const {
 
 RangeGrid Layout::rangeGrid() const {
   constexpr int kCell = 4;  // as the raw codec's default
-  RangeGrid g;
-  g.cellVoxels = kCell;
-  g.cells = (info_.dims + kCell - 1) / kCell;
-  const std::size_t n = g.cellCount();
-  g.lo.assign(n, std::numeric_limits<float>::infinity());
-  g.hi.assign(n, -std::numeric_limits<float>::infinity());
+  RangeGrid g(kCell, (info_.dims + kCell - 1) / kCell, info_.type);
   const kernels::SvmmView v = view();
   const glm::ivec3 last = info_.dims - 1;
   // Each value goes to every cell within one voxel of where it is (the dilation the raycaster
@@ -237,12 +232,7 @@ RangeGrid Layout::rangeGrid() const {
     b = glm::min(b + 1, last) / kCell;
     for (int cz = a.z; cz <= b.z; ++cz)
       for (int cy = a.y; cy <= b.y; ++cy)
-        for (int cx = a.x; cx <= b.x; ++cx) {
-          const std::size_t i = (std::size_t(cz) * std::size_t(g.cells.y) + std::size_t(cy)) *
-                                    std::size_t(g.cells.x) +
-                                std::size_t(cx);
-          g.lo[i] = std::min(g.lo[i], s), g.hi[i] = std::max(g.hi[i], s);
-        }
+        for (int cx = a.x; cx <= b.x; ++cx) g.widen(g.cellIndex(cx, cy, cz), s);
   };
   forEachLeaf(
       [&](int, int x0, int y0, int z0, int size, std::uint32_t value) {

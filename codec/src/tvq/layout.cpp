@@ -435,7 +435,7 @@ bool Layout::coefficients(int bx, int by, int bz, float* c) const {
 
 RangeGrid Layout::rangeGrid(int partitions) const {
   const Books scratch(*this);
-  return brickRangeGrid(viewWith(scratch, partitions));
+  return brickRangeGrid(viewWith(scratch, partitions), info_.type);
 }
 
 Volume Layout::decode(int partitions) const {

@@ -629,7 +629,7 @@ std::vector<std::byte> Layout::joinedBytes() const {
   return out;
 }
 
-RangeGrid Layout::rangeGrid() const { return brickRangeGrid(view()); }
+RangeGrid Layout::rangeGrid() const { return brickRangeGrid(view(), info_.type); }
 
 Volume decode(const VolumeInfo& info, const SectionSet& sections) {
   const Layout layout(info, sections);

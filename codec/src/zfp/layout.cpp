@@ -387,7 +387,7 @@ kernels::ZfpView Layout::view() const {
   return v;
 }
 
-RangeGrid Layout::rangeGrid() const { return brickRangeGrid(view()); }
+RangeGrid Layout::rangeGrid() const { return brickRangeGrid(view(), info_.type); }
 
 Volume decode(const VolumeInfo& info, const SectionSet& sections) {
   const Layout layout(info, sections);

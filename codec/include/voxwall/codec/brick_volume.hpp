@@ -19,61 +19,65 @@ namespace voxwall::codec {
 
 // Value ranges per cell, dilated by exactly one voxel as RangeGrid promises (a looser range skips
 // less: dilating by a whole brick made the brick codecs take a third more samples than raw data
-// on the same volume). Cells are 4 voxels wide, as raw data's (the raycaster's skipping grid needs
-// a power of two), or the bricks when they are 2 wide: zfp's 16^3 bricks with cells of 16 took 2x
-// raw's frame time on a 0.95 Gvox MRI, ksvd's 6^3 blocks with cells of 8 1.36x (coarse cells
-// skip less). Each task decodes the bricks under
-// one row of bricks' cells (one row of cells for bricks narrower than a cell) plus the voxel
-// around it into a slab of floats and takes the ranges from the slab: every brick is decoded up
-// to three times, on every core.
+// on the same volume), held in `type` (the volume's). Cells are 4 voxels wide, as raw data's (the
+// raycaster's skipping grid needs a power of two), or the bricks when they are 2 wide: zfp's 16^3
+// bricks with cells of 16 took 2x raw's frame time on a 0.95 Gvox MRI, ksvd's 6^3 blocks with
+// cells of 8 1.36x (coarse cells skip less). Each task takes one row of bricks' cells in z (one
+// row of cells for bricks narrower than a cell) and as many cell rows in y as a slab of at most
+// `slabBytes` of floats holds: it decodes the bricks under them plus the voxel around into the
+// slab and takes the ranges from it. Every brick is decoded up to three times in z and a few
+// percent more where the y chunks meet, on every core; the slabs, not the volume's size, bound
+// what the tasks hold (a whole slice's slab was 24 MB a core at 0.95 Gvox, 100 MB at 2048^2).
 template <kernels::BrickView View>
-RangeGrid brickRangeGrid(const View& v) {
+RangeGrid brickRangeGrid(const View& v, ScalarType type, std::size_t slabBytes = 4u << 20) {
   constexpr int kSide = View::kSide;
   constexpr int kCell = kSide == 2 ? 2 : 4;
-  constexpr int kRows = kSide % kCell == 0 ? kSide / kCell : 1;  // cell rows per task
-  RangeGrid g;
-  g.cellVoxels = kCell;
-  g.cells = (glm::ivec3{v.dimX, v.dimY, v.dimZ} + kCell - 1) / kCell;
-  g.lo.resize(g.cellCount()), g.hi.resize(g.cellCount());
+  constexpr int kRows = kSide % kCell == 0 ? kSide / kCell : 1;  // cell rows in z per task
+  RangeGrid g(kCell, (glm::ivec3{v.dimX, v.dimY, v.dimZ} + kCell - 1) / kCell, type);
+  const glm::ivec3 cells = g.cells();
   const int bricksZ = (v.dimZ + kSide - 1) / kSide;
-  const std::size_t sliceVoxels = std::size_t(v.dimX) * std::size_t(v.dimY);
-  const int tasks = (g.cells.z + kRows - 1) / kRows;
-  parallelFor(std::size_t(tasks), 0, [&](std::size_t task) {
-    const int cz0 = int(task) * kRows, cz1 = std::min(g.cells.z, cz0 + kRows);
-    // The slab: voxels z0 .. z1 (the cells' rows and one voxel either side, clamped).
-    const int z0 = std::max(0, cz0 * kCell - 1);
-    const int z1 = std::min(v.dimZ - 1, cz1 * kCell);
+  const std::size_t slabRow = std::size_t(v.dimX) * std::size_t(kRows * kCell + 2);  // floats
+  const int chunkRows = int(std::clamp<std::size_t>(slabBytes / sizeof(float) / (slabRow * kCell),
+                                                    1, std::size_t(cells.y)));  // cell rows in y
+  const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
+  const int tasksZ = (cells.z + kRows - 1) / kRows;
+  parallelFor(std::size_t(tasksZ) * std::size_t(chunksY), 0, [&](std::size_t task) {
+    const int cz0 = int(task / std::size_t(chunksY)) * kRows, cz1 = std::min(cells.z, cz0 + kRows);
+    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
+              cy1 = std::min(cells.y, cy0 + chunkRows);
+    // The slab: voxels y0 .. y1, z0 .. z1 (the cells and one voxel either side, clamped).
+    const int z0 = std::max(0, cz0 * kCell - 1), z1 = std::min(v.dimZ - 1, cz1 * kCell);
+    const int y0 = std::max(0, cy0 * kCell - 1), y1 = std::min(v.dimY - 1, cy1 * kCell);
+    const std::size_t sliceVoxels = std::size_t(v.dimX) * std::size_t(y1 - y0 + 1);
     std::vector<float> slab(sliceVoxels * std::size_t(z1 - z0 + 1));
+    auto at = [&](int x, int y, int z) {
+      return std::size_t(z - z0) * sliceVoxels + std::size_t(y - y0) * std::size_t(v.dimX) +
+             std::size_t(x);
+    };
     typename View::Value vox[View::kVoxels];
     for (int bz = z0 / kSide; bz <= std::min(bricksZ - 1, z1 / kSide); ++bz)
-      for (int by = 0; by < v.bricksY; ++by)
+      for (int by = y0 / kSide; by <= y1 / kSide; ++by)
         for (int bx = 0; bx < v.bricksX; ++bx) {
           v.decoder.decode(v.decoder.key(bx, by, bz), vox);
           for (int z = std::max(z0, bz * kSide); z <= std::min(z1, bz * kSide + kSide - 1); ++z)
-            for (int y = by * kSide; y < std::min(v.dimY, by * kSide + kSide); ++y)
+            for (int y = std::max(y0, by * kSide); y <= std::min(y1, by * kSide + kSide - 1); ++y)
               for (int x = bx * kSide; x < std::min(v.dimX, bx * kSide + kSide); ++x)
-                slab[std::size_t(z - z0) * sliceVoxels + std::size_t(y) * std::size_t(v.dimX) +
-                     std::size_t(x)] =
-                    v.decoder.scalar(vox[(x - bx * kSide) +
-                                         kSide * ((y - by * kSide) + kSide * (z - bz * kSide))]);
+                slab[at(x, y, z)] = v.decoder.scalar(
+                    vox[(x - bx * kSide) + kSide * ((y - by * kSide) + kSide * (z - bz * kSide))]);
         }
     for (int cz = cz0; cz < cz1; ++cz)
-      for (int cy = 0; cy < g.cells.y; ++cy)
-        for (int cx = 0; cx < g.cells.x; ++cx) {
+      for (int cy = cy0; cy < cy1; ++cy)
+        for (int cx = 0; cx < cells.x; ++cx) {
           const int x0 = std::max(0, cx * kCell - 1), x1 = std::min(v.dimX - 1, cx * kCell + kCell);
-          const int y0 = std::max(0, cy * kCell - 1), y1 = std::min(v.dimY - 1, cy * kCell + kCell);
+          const int ya = std::max(0, cy * kCell - 1), yb = std::min(v.dimY - 1, cy * kCell + kCell);
           const int za = std::max(0, cz * kCell - 1), zb = std::min(v.dimZ - 1, cz * kCell + kCell);
           float l = std::numeric_limits<float>::infinity(), h = -l;
           for (int z = za; z <= zb; ++z)
-            for (int y = y0; y <= y1; ++y) {
-              const float* row = slab.data() + std::size_t(z - z0) * sliceVoxels +
-                                 std::size_t(y) * std::size_t(v.dimX);
+            for (int y = ya; y <= yb; ++y) {
+              const float* row = slab.data() + at(0, y, z);
               for (int x = x0; x <= x1; ++x) l = std::min(l, row[x]), h = std::max(h, row[x]);
             }
-          const std::size_t i = (std::size_t(cz) * std::size_t(g.cells.y) + std::size_t(cy)) *
-                                    std::size_t(g.cells.x) +
-                                std::size_t(cx);
-          g.lo[i] = l, g.hi[i] = h;
+          g.set(g.cellIndex(cx, cy, cz), l, h);
         }
   });
   return g;

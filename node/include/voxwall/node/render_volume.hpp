@@ -21,42 +21,6 @@ namespace voxwall::node {
 // (codec/registry.hpp).
 using ViewVariant = codec::AnyView;
 
-// The codec's value ranges (codec::RangeGrid) held in the volume's own scalar type: two values a
-// cell of the type's size instead of two floats (uint8: 2 bytes a 4^3 cell instead of 8, about
-// 88 MiB less per rank at 0.95 Gvox). Integer types round outwards (floor the low end, ceil the
-// high end, clamped to the type, whose values are all an integer codec's decoder gives); a NaN
-// end widens to the type's whole range. A wider range only skips less, never a visible sample.
-class CellRanges {
- public:
-  CellRanges() = default;
-  CellRanges(const codec::RangeGrid& grid, codec::ScalarType type);
-
-  int cellVoxels() const { return cellVoxels_; }
-  glm::ivec3 cells() const { return cells_; }
-  std::size_t cellCount() const {
-    return std::size_t(cells_.x) * std::size_t(cells_.y) * std::size_t(cells_.z);
-  }
-  std::size_t bytes() const { return bytes_.size(); }
-  // f(cell, lo, hi) for every cell, x fastest.
-  template <class F>
-  void forEach(F&& f) const {
-    codec::dispatchScalar(type_, [&]<class T>(T) {
-      const std::size_t n = cellCount();
-      for (std::size_t c = 0; c < n; ++c) {
-        T pair[2];
-        std::memcpy(pair, bytes_.data() + c * sizeof pair, sizeof pair);
-        f(c, float(pair[0]), float(pair[1]));
-      }
-    });
-  }
-
- private:
-  int cellVoxels_ = 8;
-  glm::ivec3 cells_{0, 0, 0};
-  codec::ScalarType type_ = codec::ScalarType::Float32;
-  std::vector<std::byte> bytes_;  // per cell: lo, hi in type_
-};
-
 class RenderVolume {
  public:
   // Opens a .vwz file (memory-mapped) or reads any volume file and bricks it in memory with
@@ -87,7 +51,7 @@ class RenderVolume {
   RenderVolume atStep(int step) const;
   // The value range of step k's own voxels (of the volume, for one step).
   std::pair<double, double> stepRange(int k) const;
-  const CellRanges& ranges() const { return ranges_; }
+  const codec::RangeGrid& ranges() const { return ranges_; }
   // Bytes of the compressed representation a backend has to hold (file size for a .vwz).
   std::uint64_t storedBytes() const { return storedBytes_; }
   // The codec's render payload: the bytes a device backend uploads, the view with its data at a
@@ -147,7 +111,7 @@ class RenderVolume {
   struct Decoded;
   std::shared_ptr<Decoded> decoded_;  // null: no decodedPayload()
   codec::VolumeInfo info_;
-  CellRanges ranges_;
+  codec::RangeGrid ranges_;
   std::uint64_t storedBytes_ = 0;
   std::string source_;
 };
