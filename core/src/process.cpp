@@ -28,4 +28,12 @@ void returnFreeMemory() {
 #endif
 }
 
+void mapLargeBlocksAlone(std::size_t bytes) {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, int(bytes));
+#else
+  (void)bytes;
+#endif
+}
+
 }  // namespace voxwall

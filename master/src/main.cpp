@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <exception>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/process.hpp>
 #include <voxwall/net/tile_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -10,6 +11,9 @@
 #include "commands/commands.hpp"
 
 int main(int argc, char** argv) {
+  // Large temporary buffers (a volume's slabs while it opens, a frame's bands) go back to the
+  // system when freed, instead of staying resident in a worker thread's heap for the whole job.
+  voxwall::mapLargeBlocksAlone();
   CLI::App app{
       "voxwall renders large scalar volumes (CT, MRI, microscopy, simulation) from compressed\n"
       "files onto display walls and into image sequences."};

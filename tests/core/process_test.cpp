@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <thread>
 #include <voxwall/core/process.hpp>
 
 // Touching 64 MiB shows in the resident size and in the peak, which never falls below it.
@@ -16,4 +18,29 @@ TEST(Process, MemoryFollowsWhatThisProcessTouches) {
   EXPECT_GE(after.residentBytes, before.residentBytes + kBytes / 2);
   EXPECT_GE(after.peakBytes, after.residentBytes);
   EXPECT_EQ(block[kBytes - 1], 1);
+}
+
+// A block freed in a thread goes back to the system at once, even after a larger block freed
+// before it raised glibc's own threshold (without the setting, the second block stays resident
+// in the thread's heap: this test failed so).
+TEST(Process, LargeBlocksFreedInAThreadLeaveNothingResident) {
+#if defined(__SANITIZE_ADDRESS__) || !defined(__GLIBC__)
+  GTEST_SKIP() << "glibc's allocator only (AddressSanitizer keeps freed blocks in quarantine)";
+#endif
+  voxwall::mapLargeBlocksAlone();
+  auto touch = [](std::size_t bytes) {
+    char* p = static_cast<char*>(std::malloc(bytes));
+    ASSERT_NE(p, nullptr);
+    std::memset(p, 1, bytes);
+    asm volatile("" : : "r"(p) : "memory");
+    std::free(p);
+  };
+  const auto before = voxwall::processMemory();
+  std::thread([&] {
+    touch(std::size_t(24) << 20);  // mapped: it raises glibc's threshold to its size
+    touch(std::size_t(20) << 20);  // under that threshold: from the thread's heap
+  }).join();
+  const auto after = voxwall::processMemory();
+  EXPECT_GE(after.peakBytes, before.residentBytes + (std::size_t(20) << 20));
+  EXPECT_LT(after.residentBytes, before.residentBytes + (std::size_t(4) << 20));
 }
