@@ -11,6 +11,7 @@
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/ksvd_codec.hpp>
 #include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/parallel.hpp>
@@ -519,7 +520,11 @@ class Encoder {
     progress_.begin("measuring PSNR", std::uint64_t(levels_));
     {
       const Layout layout(out.info, out.view());
-      stats_.psnr = levelPsnr[0] = psnr(volume_, layout.decode());
+      // A few rows of bricks at a time (brickPsnr: the same sum as psnr() of the whole decode,
+      // which held a second copy of the input while it was measured).
+      const std::unique_ptr<VolumeSource> reference = memorySource(volume_);
+      stats_.psnr = levelPsnr[0] = layout.withView(
+          [&](const auto& v) { return brickPsnr(*reference, v.level[0]); });
       progress_.advance();
       for (int l = 1; l < levels_; ++l) {
         levelPsnr[std::size_t(l)] = psnr(src_[std::size_t(l)].coarse, layout.decodeLevel(l));
