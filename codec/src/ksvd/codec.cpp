@@ -523,8 +523,8 @@ class Encoder {
       // A few rows of bricks at a time (brickPsnr: the same sum as psnr() of the whole decode,
       // which held a second copy of the input while it was measured).
       const std::unique_ptr<VolumeSource> reference = memorySource(volume_);
-      stats_.psnr = levelPsnr[0] = layout.withView(
-          [&](const auto& v) { return brickPsnr(*reference, v.level[0]); });
+      stats_.psnr = levelPsnr[0] =
+          layout.withView([&](const auto& v) { return brickPsnr(*reference, v.level[0]); });
       progress_.advance();
       for (int l = 1; l < levels_; ++l) {
         levelPsnr[std::size_t(l)] = psnr(src_[std::size_t(l)].coarse, layout.decodeLevel(l));
