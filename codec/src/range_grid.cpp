@@ -1,5 +1,8 @@
+#include <zlib.h>
+
 #include <algorithm>
 #include <limits>
+#include <stdexcept>
 #include <voxwall/codec/range_grid.hpp>
 #include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/parallel.hpp>
@@ -17,6 +20,42 @@ RangeGrid::RangeGrid(int cellVoxels, glm::ivec3 cells, ScalarType type)
     bytes_.resize(cellCount() * sizeof empty);
     for (std::size_t c = 0; c < cellCount(); ++c) put<T>(c, empty);
   });
+}
+
+void RangeGrid::pack() {
+  if (packed_) return;
+  const std::size_t n = cellCount(), chunks = (n + kChunkCells - 1) / kChunkCells;
+  std::vector<std::vector<std::byte>> parts(chunks);
+  parallelFor(chunks, 0, [&](std::size_t k) {
+    const std::size_t first = k * kChunkCells, count = std::min(kChunkCells, n - first);
+    const auto* in = reinterpret_cast<const Bytef*>(bytes_.data() + first * pairBytes());
+    const uLong inBytes = uLong(count * pairBytes());
+    uLongf outBytes = compressBound(inBytes);
+    parts[k].resize(outBytes);
+    if (compress2(reinterpret_cast<Bytef*>(parts[k].data()), &outBytes, in, inBytes, 1) != Z_OK)
+      throw std::runtime_error("range grid: zlib could not compress a chunk");
+    parts[k].resize(outBytes);
+  });
+  chunkOffsets_.assign(1, 0);
+  for (const auto& part : parts) chunkOffsets_.push_back(chunkOffsets_.back() + part.size());
+  packedBytes_.reserve(chunkOffsets_.back());
+  for (auto& part : parts) {
+    packedBytes_.insert(packedBytes_.end(), part.begin(), part.end());
+    std::vector<std::byte>().swap(part);
+  }
+  std::vector<std::byte>().swap(bytes_);
+  packed_ = true;
+}
+
+void RangeGrid::inflateChunk(std::size_t k, std::span<std::byte> out) const {
+  uLongf outBytes = uLongf(out.size());
+  const int status =
+      uncompress(reinterpret_cast<Bytef*>(out.data()), &outBytes,
+                 reinterpret_cast<const Bytef*>(packedBytes_.data() + chunkOffsets_[k]),
+                 uLong(chunkOffsets_[k + 1] - chunkOffsets_[k]));
+  // The chunks were made in this process: a failure is a bug (or memory gone bad), not input.
+  if (status != Z_OK || outBytes != out.size())
+    throw std::logic_error("range grid: a packed chunk does not inflate to its cells");
 }
 
 RangeGrid computeRangeGrid(const VolumeSource& source, int cellVoxels) {

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
@@ -77,13 +78,14 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     const std::size_t fineCount = ranges.cellCount();
     auto fineBits = std::make_shared<std::vector<std::uint32_t>>((fineCount + 31) / 32, 0u);
     auto& bits = *fineBits;
-    std::size_t fineEmpty = 0;
-    ranges.forEach([&](std::size_t c, float lo, float hi) {
-      if (plan.lut.maxOpacity(lo, hi) <= 0.0f) {
-        bits[c >> 5] |= 1u << (c & 31);
-        ++fineEmpty;
-      }
+    // Chunk by chunk on every core (the ranges are packed: each task inflates its own chunk); a
+    // chunk is whole 32-bit words of bits, so no two tasks write one word.
+    static_assert(codec::RangeGrid::kChunkCells % 32 == 0);
+    ranges.forEachParallel(0, [&](std::size_t c, float lo, float hi) {
+      if (plan.lut.maxOpacity(lo, hi) <= 0.0f) bits[c >> 5] |= 1u << (c & 31);
     });
+    std::size_t fineEmpty = 0;
+    for (const std::uint32_t word : bits) fineEmpty += std::size_t(std::popcount(word));
     auto isFineEmpty = [&](std::size_t c) { return (bits[c >> 5] >> (c & 31)) & 1u; };
     // A coarse cell is empty when all its fine cells are.
     const glm::ivec3 coarse = (cells + (1 << factorShift) - 1) >> factorShift;

@@ -103,6 +103,7 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
   payload_ = c.openWith(own, sections_, renderOptions);
   payloadId_ = nextPayloadId();
   ranges_ = payload_->rangeGrid();
+  ranges_.pack();  // read again only when a transfer function changes
   if (info_.codec != codec::raw::RawCodecEntry::kId && info_.steps == 1 &&
       renderOptions.flags().empty())
     decoded_ = std::make_shared<Decoded>();

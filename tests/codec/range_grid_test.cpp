@@ -1,7 +1,10 @@
 // RangeGrid holds each cell's range in the volume's own type, rounded outwards.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <stdexcept>
 #include <vector>
 #include <voxwall/codec/range_grid.hpp>
 
@@ -67,4 +70,41 @@ TEST(RangeGrid, ACellIsEmptyUntilWidenedAndThenHoldsEveryValue) {
   EXPECT_TRUE(std::isnan(f.lo(0)) && std::isnan(f.hi(0)));  // unknown stays the whole range
   f.widen(0, 2.0f);
   EXPECT_TRUE(std::isnan(f.lo(0)));
+}
+
+// Packed, the grid gives every cell's range as before, one chunk at a time or several at once,
+// in less memory; random access is refused.
+TEST(RangeGrid, PackedRangesReadBackExactly) {
+  for (ScalarType type : {ScalarType::UInt8, ScalarType::Int16, ScalarType::Float32}) {
+    RangeGrid g(4, {300, 250, 3}, type);  // 225000 cells: four chunks, the last one short
+    ASSERT_GT(g.cellCount(), 3 * RangeGrid::kChunkCells);
+    for (std::size_t c = 0; c < g.cellCount(); ++c) {
+      const float lo = c % 7 == 0 ? 0.0f : float((c * 37) % 90) + 0.5f;  // runs and noise
+      g.set(c, lo, lo + float(c % 13));
+    }
+    std::vector<float> lo, hi;
+    g.forEach([&](std::size_t, float l, float h) { lo.push_back(l), hi.push_back(h); });
+    const std::size_t unpacked = g.bytes();
+    g.pack();
+    EXPECT_TRUE(g.packed());
+    EXPECT_LT(g.bytes(), unpacked);
+    std::size_t next = 0;
+    g.forEach([&](std::size_t c, float l, float h) {
+      ASSERT_EQ(c, next++);
+      ASSERT_EQ(l, lo[c]);
+      ASSERT_EQ(h, hi[c]);
+    });
+    EXPECT_EQ(next, g.cellCount());
+    std::vector<std::uint8_t> seen(g.cellCount(), 0);
+    std::vector<float> plo(g.cellCount()), phi(g.cellCount());
+    g.forEachParallel(3, [&](std::size_t c, float l, float h) {
+      ++seen[c];
+      plo[c] = l, phi[c] = h;
+    });
+    EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), std::ptrdiff_t(g.cellCount()));
+    EXPECT_EQ(plo, lo);
+    EXPECT_EQ(phi, hi);
+    EXPECT_THROW((void)g.lo(0), std::logic_error);
+    EXPECT_THROW(g.set(0, 1, 2), std::logic_error);
+  }
 }

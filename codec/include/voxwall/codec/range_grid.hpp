@@ -7,9 +7,11 @@
 #include <functional>
 #include <limits>
 #include <span>
+#include <stdexcept>
 #include <type_traits>
 #include <vector>
 #include <voxwall/codec/volume.hpp>
+#include <voxwall/core/parallel.hpp>
 
 namespace voxwall::codec {
 
@@ -40,15 +42,26 @@ class RangeGrid {
     return (std::size_t(cz) * std::size_t(cells_.y) + std::size_t(cy)) * std::size_t(cells_.x) +
            std::size_t(cx);
   }
-  std::size_t bytes() const { return bytes_.size(); }
+  // Bytes the ranges take in memory (compressed, once packed).
+  std::size_t bytes() const { return packed_ ? packedBytes_.size() : bytes_.size(); }
+
+  // Compresses the ranges (zlib, in chunks of kChunkCells cells): what a renderer keeps for the
+  // volume's lifetime but reads only when a transfer function changes (forEach). On the 0.95 Gvox
+  // MRI with noise, 28.4 MiB of uint8 ranges took 10.3 MiB. Once packed, set(), widen(), lo() and
+  // hi() throw std::logic_error.
+  void pack();
+  bool packed() const { return packed_; }
+  static constexpr std::size_t kChunkCells = std::size_t(1) << 16;  // a multiple of 32
 
   // Cell `c`'s range is [lo, hi] (rounded outwards to the type). Cells may be set from several
   // threads at once, each cell by one.
   void set(std::size_t c, float lo, float hi) {
+    refusePacked();
     dispatchScalar(type_, [&]<class T>(T) { put<T>(c, {low<T>(lo), high<T>(hi)}); });
   }
   // Cell `c`'s range grows to hold `value`.
   void widen(std::size_t c, float value) {
+    refusePacked();
     dispatchScalar(type_, [&]<class T>(T) {
       const Pair<T> p = get<T>(c);
       if constexpr (std::is_floating_point_v<T>) {  // a NaN end stays: the whole range
@@ -60,28 +73,63 @@ class RangeGrid {
     });
   }
   float lo(std::size_t c) const {
+    refusePacked();
     return dispatchScalar(type_, [&]<class T>(T) { return float(get<T>(c).lo); });
   }
   float hi(std::size_t c) const {
+    refusePacked();
     return dispatchScalar(type_, [&]<class T>(T) { return float(get<T>(c).hi); });
   }
   // f(cell, lo, hi) for every cell, x fastest.
   template <class F>
   void forEach(F&& f) const {
-    dispatchScalar(type_, [&]<class T>(T) {
-      const std::size_t n = cellCount();
-      for (std::size_t c = 0; c < n; ++c) {
-        const Pair<T> p = get<T>(c);
-        f(c, float(p.lo), float(p.hi));
-      }
+    forEachChunk(1, [&](std::size_t first, std::size_t n, const std::byte* pairs) {
+      visit(first, n, pairs, f);
+    });
+  }
+  // The same on `threads` threads (0: every usable core), a chunk of kChunkCells consecutive
+  // cells per task: f is called for one chunk's cells by one thread, for different chunks at once.
+  template <class F>
+  void forEachParallel(int threads, F&& f) const {
+    forEachChunk(threads, [&](std::size_t first, std::size_t n, const std::byte* pairs) {
+      visit(first, n, pairs, f);
     });
   }
   bool operator==(const RangeGrid& o) const {
     return cellVoxels_ == o.cellVoxels_ && cells_ == o.cells_ && type_ == o.type_ &&
-           bytes_ == o.bytes_;
+           packed_ == o.packed_ && bytes_ == o.bytes_ && packedBytes_ == o.packedBytes_;
   }
 
  private:
+  void refusePacked() const {
+    if (packed_) throw std::logic_error("a packed range grid is read with forEach only");
+  }
+  std::size_t pairBytes() const { return 2 * scalarBytes(type_); }
+  // chunk(first, n, pairs) for every chunk of cells on `threads` threads (pairs: n cells' lo, hi
+  // in type_), inflated into a buffer of the task's own when packed.
+  template <class F>
+  void forEachChunk(int threads, F&& chunk) const {
+    const std::size_t n = cellCount(), chunks = (n + kChunkCells - 1) / kChunkCells;
+    parallelFor(chunks, threads, [&](std::size_t k) {
+      const std::size_t first = k * kChunkCells, count = std::min(kChunkCells, n - first);
+      if (!packed_) return chunk(first, count, bytes_.data() + first * pairBytes());
+      std::vector<std::byte> pairs(count * pairBytes());
+      inflateChunk(k, pairs);
+      chunk(first, count, pairs.data());
+    });
+  }
+  void inflateChunk(std::size_t k, std::span<std::byte> out) const;
+  template <class F>
+  void visit(std::size_t first, std::size_t n, const std::byte* pairs, F& f) const {
+    dispatchScalar(type_, [&]<class T>(T) {
+      for (std::size_t i = 0; i < n; ++i) {
+        Pair<T> p;
+        std::memcpy(&p, pairs + i * sizeof p, sizeof p);
+        f(first + i, float(p.lo), float(p.hi));
+      }
+    });
+  }
+
   template <class T>
   struct Pair {
     T lo, hi;
@@ -120,7 +168,10 @@ class RangeGrid {
   int cellVoxels_ = 8;
   glm::ivec3 cells_{0, 0, 0};
   ScalarType type_ = ScalarType::Float32;
-  std::vector<std::byte> bytes_;  // per cell: lo, hi in type_
+  std::vector<std::byte> bytes_;  // per cell: lo, hi in type_ (empty once packed)
+  bool packed_ = false;
+  std::vector<std::byte> packedBytes_;       // the chunks, zlib streams one after another
+  std::vector<std::uint64_t> chunkOffsets_;  // chunk k: [offsets[k], offsets[k + 1])
 };
 
 // Computes the grid from a dense volume (multi-threaded).
