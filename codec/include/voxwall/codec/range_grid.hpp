@@ -144,25 +144,26 @@ class RangeGrid {
   void put(std::size_t c, Pair<T> p) {
     std::memcpy(bytes_.data() + c * sizeof p, &p, sizeof p);
   }
-  template <class T>
-  static T low(float v) {
+  // v rounded outwards to T: down for a range's low end, up for its high end (NaN: the type's
+  // whole range; float keeps v).
+  template <class T, bool kHigh>
+  static T outwards(float v) {
     if constexpr (std::is_floating_point_v<T>) {
       return v;
     } else {
       constexpr float kMin = float(std::numeric_limits<T>::lowest());
       constexpr float kMax = float(std::numeric_limits<T>::max());
-      return T(std::isnan(v) ? kMin : std::clamp(std::floor(v), kMin, kMax));
+      if (std::isnan(v)) return T(kHigh ? kMax : kMin);
+      return T(std::clamp(kHigh ? std::ceil(v) : std::floor(v), kMin, kMax));
     }
   }
   template <class T>
+  static T low(float v) {
+    return outwards<T, false>(v);
+  }
+  template <class T>
   static T high(float v) {
-    if constexpr (std::is_floating_point_v<T>) {
-      return v;
-    } else {
-      constexpr float kMin = float(std::numeric_limits<T>::lowest());
-      constexpr float kMax = float(std::numeric_limits<T>::max());
-      return T(std::isnan(v) ? kMax : std::clamp(std::ceil(v), kMin, kMax));
-    }
+    return outwards<T, true>(v);
   }
 
   int cellVoxels_ = 8;
