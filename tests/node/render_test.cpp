@@ -209,6 +209,26 @@ TEST(Render, AReusedPlanRendersLikeAFreshOne) {
   EXPECT_GT(fresh.emptyFraction, 0.0);
 }
 
+// An open volume keeps its value ranges packed, and the fine skip grid made from them on every
+// core, chunk by chunk, is the one the codec's unpacked ranges give cell by cell.
+TEST(Render, PackedRangesGiveTheFineSkipGridOfTheUnpackedOnes) {
+  const auto volume = RenderVolume::fromVolume(codec::generateSheppLogan(180));
+  ASSERT_TRUE(volume.ranges().packed());
+  const codec::RangeGrid unpacked = volume.payload().rangeGrid();
+  ASSERT_GT(unpacked.cellCount(), codec::RangeGrid::kChunkCells);  // more than one chunk
+  EXPECT_LT(volume.ranges().bytes(), unpacked.bytes());
+  const auto tf = TransferFunction::preset("mri").rescaled(0, 255);
+  const auto plan = planFrame(volume, orbitCamera(Orbit{}, boundingRadius(volume.info())), 48, 32,
+                              tf, RenderSettings{});
+  ASSERT_TRUE(plan.fineEmptyBits);
+  std::vector<std::uint32_t> want((unpacked.cellCount() + 31) / 32, 0u);
+  unpacked.forEach([&](std::size_t c, float lo, float hi) {
+    if (plan.lut.maxOpacity(lo, hi) <= 0.0f) want[c >> 5] |= 1u << (c & 31);
+  });
+  EXPECT_EQ(*plan.fineEmptyBits, want);
+  EXPECT_GT(plan.fineEmptyFraction, 0.0);
+}
+
 // What a CUDA backend samples with DeviceDecode::Whole: every codec's volume decoded by its codec
 // and bricked raw renders as its compressed view does (the views sample exactly the decoded
 // values), and decodedBytes() is the size of those bricks. Raw volumes, series and --lod have none.

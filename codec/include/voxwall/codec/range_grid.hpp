@@ -83,9 +83,7 @@ class RangeGrid {
   // f(cell, lo, hi) for every cell, x fastest.
   template <class F>
   void forEach(F&& f) const {
-    forEachChunk(1, [&](std::size_t first, std::size_t n, const std::byte* pairs) {
-      visit(first, n, pairs, f);
-    });
+    forEachParallel(1, f);
   }
   // The same on `threads` threads (0: every usable core), a chunk of kChunkCells consecutive
   // cells per task: f is called for one chunk's cells by one thread, for different chunks at once.

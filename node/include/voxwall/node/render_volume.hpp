@@ -2,9 +2,6 @@
 // the per-ray code and its coarse value ranges for empty-space skipping.
 #pragma once
 
-#include <cmath>
-#include <cstring>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
