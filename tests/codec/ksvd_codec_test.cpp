@@ -392,8 +392,10 @@ TEST(KsvdPyramid, LevelsHalveTheResolutionAndDecodeCloseToTheBoxFilteredVolume) 
   EXPECT_EQ(ksvd::Layout(one.info, one.view()).levels(), 1);
 }
 
-// A host view reads the pairs where the section lies (no copy: a rank's pages of them come in
-// where its rays go); the joined buffer a device gets decodes every block of every level alike.
+// A host view reads the pairs and counts where their sections lie (no copy: a rank's pages of
+// them come in where its rays go), and the render buffer holds no entry per block (a block's
+// first pair is summed from the counts); the joined buffer a device gets decodes every block of
+// every level alike.
 TEST(KsvdPyramid, TheHostViewReadsThePairsInTheirSectionAndDecodesLikeTheJoinedBuffer) {
   const Volume v = generateMarschnerLobb(40);
   Progress quiet;
@@ -405,8 +407,13 @@ TEST(KsvdPyramid, TheHostViewReadsThePairsInTheirSectionAndDecodesLikeTheJoinedB
   ASSERT_FALSE(pairs.empty());
   const ksvd::Layout layout(c.info, sections);
   ASSERT_GT(layout.levels(), 1);
+  const auto counts = sections.get(ksvd::kCounts, "counts");
+  ASSERT_FALSE(counts.empty());
   const std::vector<std::byte> joined = layout.joinedBytes();
-  EXPECT_GE(joined.size(), layout.renderBufferBytes() + pairs.size());
+  EXPECT_GE(joined.size(), layout.renderBufferBytes() + pairs.size() + counts.size());
+  // Atoms as floats and a 24-byte record per brick, aligned: nothing that grows with the blocks.
+  EXPECT_LE(layout.renderBufferBytes(),
+            std::uint64_t(layout.atoms()) * 64 * 4 + layout.bricks() * 24 + 16);
   const auto host = layout.view<4>();
   const auto device = layout.view<4>(joined.data());
   int blocks = 0;
@@ -414,6 +421,7 @@ TEST(KsvdPyramid, TheHostViewReadsThePairsInTheirSectionAndDecodesLikeTheJoinedB
     const auto& h = host.level[l].decoder;
     const auto& d = device.level[l].decoder;
     EXPECT_EQ(static_cast<const void*>(h.pairs), static_cast<const void*>(pairs.data()));
+    EXPECT_EQ(static_cast<const void*>(h.counts), static_cast<const void*>(counts.data()));
     for (int bz = 0; bz < (layout.levelDims(l).z + 3) / 4; ++bz)
       for (int by = 0; by < (layout.levelDims(l).y + 3) / 4; ++by)
         for (int bx = 0; bx < (layout.levelDims(l).x + 3) / 4; ++bx, ++blocks) {

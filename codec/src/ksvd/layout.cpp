@@ -16,13 +16,13 @@ namespace voxwall::codec::ksvd {
 
 namespace {
 
-// What reading the brick records, block counts and pairs into the render buffer needs and counts.
+// What reading the brick records into the render buffer, and checking the block counts and
+// pairs, needs and counts.
 struct BrickTables {
   ByteReader &bricks, &counts, &pairs;
   const std::uint8_t* countBytes;
   const std::uint8_t* pairBytes;
   kernels::KsvdBrick* brickOut;
-  std::uint32_t* blockOut;
   std::uint64_t perBrick;
   int atoms, sparsity, indexBits, coefBits;
   std::uint64_t codedBricks, pairCount;
@@ -53,10 +53,9 @@ void checkPairs(BrickTables& t, const std::string& which, int j, int count) {
   }
 }
 
-// Brick b of a level (grid g, its blocks from firstBlock on): its record, and, coded, its blocks'
-// entries in the block table (first pair relative to the brick's, pair count).
+// Brick b of a level (grid g): its record, and, coded, its blocks' counts and pairs checked.
 void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t firstBrick,
-               std::uint64_t firstBlock, std::uint64_t b) {
+               std::uint64_t b) {
   kernels::KsvdBrick& out = t.brickOut[firstBrick + b];
   out.lo = t.bricks.get<float>(), out.hi = t.bricks.get<float>(), out.step = t.bricks.get<float>();
   const std::uint32_t index = t.bricks.get<std::uint32_t>();
@@ -74,9 +73,9 @@ void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t f
                   std::to_string(t.codedSeen));
   if (t.codedSeen >= t.codedBricks)
     t.bricks.fail("more coded bricks than the header's " + std::to_string(t.codedBricks));
+  out.coded = index;
   out.firstPair = t.pairSeen;
   const glm::ivec3 bc = g.brickCoords(b);
-  std::uint64_t relative = 0;
   for (int j = 0; j < int(t.perBrick); ++j) {
     const int count = t.countBytes[t.codedSeen * t.perBrick + std::uint64_t(j)];
     const glm::ivec3 block = g.blockOf(bc, j);
@@ -85,11 +84,7 @@ void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t f
       continue;
     }
     checkPairs(t, which, j, count);
-    t.blockOut[firstBlock +
-               (std::uint64_t(block.z) * std::uint64_t(g.blocks.y) + std::uint64_t(block.y)) *
-                   std::uint64_t(g.blocks.x) +
-               std::uint64_t(block.x)] = std::uint32_t(relative) | (std::uint32_t(count) << 24);
-    relative += std::uint64_t(count), t.pairSeen += std::uint64_t(count);
+    t.pairSeen += std::uint64_t(count);
   }
   ++t.codedSeen;
 }
@@ -170,14 +165,13 @@ void Layout::readLevels(const SectionSet& sections) {
         .fail(std::to_string(codedBricks_) + " coded bricks of " + std::to_string(nBricks));
 }
 
-// The render buffer: float atoms, brick records, block tables (levels one after the other in
-// each), each section's size checked first; the pairs stay in their section.
+// The render buffer: float atoms and brick records (levels one after the other), each section's
+// size checked first; the counts and pairs stay in their sections.
 void Layout::buildRenderBuffer(const SectionSet& sections) {
   const std::string& src = sections.source;
   const int m = m_ * m_ * m_;
   const Grid last(levels_.back().dims, m_);
   const std::uint64_t nBricks = levels_.back().firstBrick + last.brickCount();
-  const std::uint64_t nBlocks = levels_.back().firstBlock + last.blockCount();
   const std::uint64_t perBrick = std::uint64_t(last.blocksPerBrick());
   const auto dictBytes = sections.get(kDictionary, "dictionary");
   if (dictBytes.size() != std::uint64_t(k_) * std::uint64_t(m) * 2)
@@ -205,10 +199,11 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
   auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
   atomsAt_ = 0;
   bricksAt_ = align8(std::uint64_t(k_) * std::uint64_t(m) * 4);
-  blocksAt_ = align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick));
-  pairsAt_ = align8(blocksAt_ + nBlocks * 4);
+  pairsAt_ = align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick));
+  // Past the pairs: 8 bytes that ksvdUnpack may read beyond the last pair.
+  countsAt_ = align8(pairsAt_ + pairBytes.size() + 8);
   render_.assign(pairsAt_, std::byte{0});
-  pairBytes_ = pairBytes;
+  pairBytes_ = pairBytes, countBytes_ = countBytes;
   auto* atoms = reinterpret_cast<float*>(render_.data() + atomsAt_);
   for (std::size_t i = 0; i < std::size_t(k_) * std::size_t(m); ++i) {
     std::int16_t v;
@@ -221,7 +216,6 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
                 reinterpret_cast<const std::uint8_t*>(countBytes.data()),
                 reinterpret_cast<const std::uint8_t*>(pairBytes.data()),
                 reinterpret_cast<kernels::KsvdBrick*>(render_.data() + bricksAt_),
-                reinterpret_cast<std::uint32_t*>(render_.data() + blocksAt_),
                 perBrick,
                 k_,
                 s_,
@@ -231,8 +225,7 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
                 pairs_};
   for (std::size_t l = 0; l < levels_.size(); ++l) {
     const Grid g(levels_[l].dims, m_);
-    for (std::uint64_t b = 0; b < g.brickCount(); ++b)
-      readBrick(t, g, l, levels_[l].firstBrick, levels_[l].firstBlock, b);
+    for (std::uint64_t b = 0; b < g.brickCount(); ++b) readBrick(t, g, l, levels_[l].firstBrick, b);
   }
   if (t.codedSeen != codedBricks_)
     br.fail(std::to_string(t.codedSeen) + " coded bricks, the header says " +
@@ -242,9 +235,11 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
 }
 
 std::vector<std::byte> Layout::joinedBytes() const {
-  std::vector<std::byte> out(pairsAt_ + pairBytes_.size() + 8, std::byte{0});
+  std::vector<std::byte> out(countsAt_ + countBytes_.size(), std::byte{0});
   std::memcpy(out.data(), render_.data(), render_.size());
   if (!pairBytes_.empty()) std::memcpy(out.data() + pairsAt_, pairBytes_.data(), pairBytes_.size());
+  if (!countBytes_.empty())
+    std::memcpy(out.data() + countsAt_, countBytes_.data(), countBytes_.size());
   return out;
 }
 
@@ -269,9 +264,10 @@ kernels::KsvdView<Side> Layout::view(const std::byte* base) const {
     auto& d = lv.decoder;
     d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
     d.pairs = base ? d.data + pairsAt_ : reinterpret_cast<const std::uint8_t*>(pairBytes_.data());
+    d.counts =
+        base ? d.data + countsAt_ : reinterpret_cast<const std::uint8_t*>(countBytes_.data());
     d.atomsAt = atomsAt_;
     d.bricksAt = bricksAt_ + level.firstBrick * sizeof(kernels::KsvdBrick);
-    d.blocksAt = blocksAt_ + level.firstBlock * 4;
     d.keyBase = level.firstBlock;
     d.blocksX = level.blocks.x, d.blocksY = level.blocks.y;
     d.bricksX = level.bricks.x, d.bricksY = level.bricks.y;

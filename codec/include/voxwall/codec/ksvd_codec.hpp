@@ -217,8 +217,8 @@ class Layout {
   glm::ivec3 levelDims(int level) const { return levels_.at(std::size_t(level)).dims; }
   glm::ivec3 levelBricks(int level) const { return levels_.at(std::size_t(level)).bricks; }
   double levelPsnr(int level) const { return levels_.at(std::size_t(level)).psnr; }
-  // The render buffer (atoms, bricks, blocks) and the pairs joined, for a device; a host view
-  // reads the pairs where the section lies.
+  // The render buffer (atoms, bricks), the pairs and the counts joined, for a device; a host view
+  // reads the pairs and counts where their sections lie.
   std::vector<std::byte> joinedBytes() const;
   // The bytes a host view holds beside the file's sections (the render buffer).
   std::uint64_t renderBufferBytes() const { return render_.size(); }
@@ -257,8 +257,9 @@ class Layout {
   double tolerance_ = 0, psnr_ = 0;
   std::vector<LevelInfo> levels_;
   std::vector<std::byte> render_;
-  std::span<const std::byte> pairBytes_;                                   // section 'pairs'
-  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, blocksAt_ = 0, pairsAt_ = 0;  // pairs: when joined
+  std::span<const std::byte> pairBytes_, countBytes_;  // sections 'pairs' and 'counts'
+  // Offsets in the render buffer, and where joinedBytes() puts the pairs and counts.
+  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, pairsAt_ = 0, countsAt_ = 0;
   std::uint64_t cacheId_ = 0;
 };
 

@@ -16,13 +16,28 @@
 namespace voxwall::codec::kernels {
 
 // One brick of the render buffer: its value range, the coefficient step (0: a constant brick,
-// every voxel `lo`), and the index of its first pair.
+// every voxel `lo`), its index among the coded bricks (its blocks' pair counts are row `coded`
+// of the counts section) and the index of its first pair.
 struct KsvdBrick {
   float lo = 0, hi = 0, step = 0;
-  std::uint32_t reserved = 0;
+  std::uint32_t coded = 0;
   std::uint64_t firstPair = 0;
 };
 static_assert(sizeof(KsvdBrick) == 24);
+
+// The sum of `n` bytes: eight at a time, as four 16-bit lanes (each at most 8 x 255).
+VOXWALL_HD_INLINE std::uint32_t ksvdSumBytes(const std::uint8_t* p, int n) {
+  std::uint32_t sum = 0;
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    std::uint64_t w = 0;
+    for (int b = 0; b < 8; ++b) w |= std::uint64_t(p[i + b]) << (8 * b);
+    w = (w & 0x00FF00FF00FF00FFull) + ((w >> 8) & 0x00FF00FF00FF00FFull);
+    sum += std::uint32_t((w * 0x0001000100010001ull) >> 48);
+  }
+  for (; i < n; ++i) sum += p[i];
+  return sum;
+}
 
 // Pair `index` of a pair stream: pairs of indexBits + coefBits (<= 24) bits each, packed
 // LSB-first from bit index x (indexBits + coefBits) of `stream`; a pair is the atom index in its
@@ -47,13 +62,13 @@ VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* stream, std::uint64_t inde
 // The codec's half of the view of one level, for blocks of Side^3 voxels. `data` is the render
 // buffer:
 //   atoms (K x Side^3 float, atom-major) at atomsAt,
-//   the level's bricks (KsvdBrick per brick, x fastest) at bricksAt,
-//   the level's blocks (u32 per block, x fastest over the level: the first pair relative to the
-//     brick's firstPair in bits 0..23, the pair count in bits 24..31) at blocksAt,
+//   the level's bricks (KsvdBrick per brick, x fastest) at bricksAt.
 // Offsets are multiples of 8 bytes; the buffer points into host or device memory, not owned.
 // The pairs (every level's, indexBits + coefBits bits each, as ksvdUnpack reads them) are at
-// `pairs`: on the host the file's section where
-// it lies (its pages come in where rays go), on a device after the buffer.
+// `pairs` and the pair counts (a byte per block, N^3 a coded brick, its blocks x fastest) at
+// `counts`: on the host the file's sections where they lie (their pages come in where rays go),
+// on a device after the buffer. A block's first pair is its brick's firstPair plus the counts of
+// the brick's blocks before it, summed when the block is decoded (no table per block).
 // Keys are block indices plus keyBase (the blocks of the levels before), so the blocks of
 // different levels never share a key in the block cache.
 template <int Side>
@@ -64,7 +79,8 @@ struct KsvdDecoder {
 
   const std::uint8_t* data = nullptr;
   const std::uint8_t* pairs = nullptr;
-  std::uint64_t atomsAt = 0, bricksAt = 0, blocksAt = 0;
+  const std::uint8_t* counts = nullptr;
+  std::uint64_t atomsAt = 0, bricksAt = 0;
   int blocksX = 0, blocksY = 0;
   int bricksX = 0, bricksY = 0;
   int blocksPerBrick = 1;  // N: bricks are N^3 blocks
@@ -102,9 +118,10 @@ struct KsvdDecoder {
       code.firstPair = 0, code.count = 0;
       return code;
     }
-    const std::uint32_t entry = reinterpret_cast<const std::uint32_t*>(data + blocksAt)[block];
-    code.firstPair = code.brick.firstPair + (entry & 0xFFFFFFu);
-    code.count = int(entry >> 24);
+    const int j = ((bz % n) * n + by % n) * n + bx % n;
+    const std::uint8_t* row = counts + std::uint64_t(code.brick.coded) * std::uint64_t(n * n * n);
+    code.firstPair = code.brick.firstPair + ksvdSumBytes(row, j);
+    code.count = row[j];
     return code;
   }
   // A decoded voxel: the brick's minimum plus the sum of the pairs' contributions, clamped to
