@@ -29,16 +29,19 @@ double seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-// One level of the pyramid: level 0 reads the input, coarser levels their own floats.
+// One level of the pyramid: level 0 reads a window of the input's slices (all of them when the
+// input is in memory), coarser levels their own floats.
 template <class T>
 struct Source {
-  std::span<const T> data;  // level 0
-  Volume coarse;            // levels above 0: float32, value range computed
+  std::span<const T> data;  // level 0: slices z0 .. z0 + slices - 1
+  int z0 = 0, slices = 0;
+  Volume coarse;  // levels above 0: float32, value range computed
   glm::ivec3 dims;
+  // Voxel (x, y, z), clamped at the far faces; level 0's z must be in the window.
   float at(int x, int y, int z) const {
     x = std::min(x, dims.x - 1), y = std::min(y, dims.y - 1), z = std::min(z, dims.z - 1);
     const std::size_t i =
-        (std::size_t(z) * std::size_t(dims.y) + std::size_t(y)) * std::size_t(dims.x) +
+        (std::size_t(z - z0) * std::size_t(dims.y) + std::size_t(y)) * std::size_t(dims.x) +
         std::size_t(x);
     return coarse.data.empty() ? float(data[i]) : coarse.as<float>()[i];
   }
@@ -51,13 +54,26 @@ struct Source {
           out[i] = (at(b.x * m + x, b.y * m + y, b.z * m + z) - lo) * inv;
   }
   // The next level: each voxel the mean of the 2x2x2 voxels below it (clamped at the far faces).
-  Source halved(glm::dvec3 spacing, int threads) const {
+  // `window(z0, z1)` makes this level's slices z0 .. z1 - 1 readable; the slices are made a
+  // slab at a time, in order.
+  template <class Window>
+  Source halved(glm::dvec3 spacing, int threads, Window&& window) const {
     Source out;
     out.dims = (dims - 1) / 2 + 1;
     out.coarse = Volume::allocate(out.dims, ScalarType::Float32, spacing);
     const std::span<float> values = out.coarse.template as<float>();
-    parallelFor(std::size_t(out.dims.z), threads, [&](std::size_t zs) {
-      const int z = int(zs);
+    constexpr int kSlab = 32;  // slices of the new level a window serves
+    for (int first = 0; first < out.dims.z; first += kSlab) {
+      const int last = std::min(first + kSlab, out.dims.z);
+      window(2 * first, std::min(2 * last, dims.z));
+      halveSlices(out, values, first, last, threads);
+    }
+    out.coarse.computeRange();
+    return out;
+  }
+  void halveSlices(Source& out, std::span<float> values, int first, int last, int threads) const {
+    parallelFor(std::size_t(last - first), threads, [&](std::size_t zs) {
+      const int z = first + int(zs);
       for (int y = 0; y < out.dims.y; ++y)
         for (int x = 0; x < out.dims.x; ++x) {
           double sum = 0;
@@ -68,8 +84,6 @@ struct Source {
                  std::size_t(x)] = float(sum / 8.0);
         }
     });
-    out.coarse.computeRange();
-    return out;
   }
 };
 
@@ -98,22 +112,35 @@ struct CodedBricks {
 // The encoder of a volume of scalar type T, stage by stage (run): the pyramid and its bricks, the
 // blocks to code, the dictionary's size and its learning, the coding (at a size target, the
 // tolerance whose file fits), the sections and the PSNR of every level.
+//
+// The input is read a row of level-0 bricks at a time where it streams (a window of N x M
+// slices, M^3-voxel blocks, N^3 blocks a brick): the pyramid is made a slab at a time, and the
+// stages that read level 0 (bricking, the coreset's passes, every coding pass) walk its bricks
+// row by row in brick order. The coarser levels (float, 1/7 of the voxels together) are held
+// whole. Held in memory, the input is read in place.
 template <class T>
 class Encoder {
  public:
-  Encoder(const Volume& volume, const Params& params, Progress& progress, EncodeStats& stats)
-      : volume_(volume),
+  Encoder(const VolumeSource& source, const Params& params, Progress& progress, EncodeStats& stats)
+      : source_(source),
+        header_(source.headerVolume()),
         params_(params),
         progress_(progress),
         stats_(stats),
         m_(params.blockSide * params.blockSide * params.blockSide),
-        perBrick_(Grid(volume.dims, params.blockSide).blocksPerBrick()) {
+        perBrick_(Grid(source.dims, params.blockSide).blocksPerBrick()) {
     // The value range: the scale blocks are coded in, and the tolerance's unit.
     float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
-    for (T v : volume.as<T>()) {
-      if (!std::isfinite(float(v)))
+    if (const Volume* whole = source.inMemory()) {
+      for (T v : whole->as<T>()) {
+        if (!std::isfinite(float(v)))
+          throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
+        vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
+      }
+    } else if (source.voxelCount() > 0) {
+      if (!source.finite)
         throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
-      vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
+      vmin = float(source.valueMin), vmax = float(source.valueMax);
     }
     scale_ = vmax > vmin ? vmax - vmin : 1.0f;
   }
@@ -161,21 +188,63 @@ class Encoder {
     return Where{&g, &src_[std::size_t(l)], g.brickCoords(b - firstBrick_[std::size_t(l)])};
   }
   double budgetBytes() const {
-    return params_.targetBitsPerVoxel * double(volume_.voxelCount()) / 8.0;
+    return params_.targetBitsPerVoxel * double(source_.voxelCount()) / 8.0;
+  }
+
+  // Level 0's slices z0 .. z1 - 1 (within the volume) readable by src_[0].at: read into the
+  // window unless it holds them (or the whole input is in memory).
+  void window(int z0, int z1) {
+    Source<T>& s = src_[0];
+    if (z0 >= s.z0 && z1 <= s.z0 + s.slices) return;
+    window_.resize(std::size_t(z1 - z0) * source_.sliceVoxels());
+    source_.readSlices(z0, z1 - z0, std::as_writable_bytes(std::span(window_)));
+    s.data = window_, s.z0 = z0, s.slices = z1 - z0;
+  }
+  // The slices a row of level-0 bricks reads.
+  void windowOfRow(int bz) {
+    const int side = grids_[0].n * grids_[0].m;
+    window(bz * side, std::min((bz + 1) * side, source_.dims.z));
+  }
+  int rowOfBrick(std::uint64_t b) const {
+    return int(b / (std::uint64_t(grids_[0].bricks.x) * std::uint64_t(grids_[0].bricks.y)));
+  }
+  // f(first, end) for each run of `items` (indices of increasing bricks, brickOf(i) the brick)
+  // that reads one row of level-0 bricks, with that row's window, then once for the rest (the
+  // coarser levels); a single run of all items when the input is in memory.
+  template <class BrickOf, class F>
+  void byLevel0Rows(std::size_t items, BrickOf&& brickOf, F&& f) {
+    std::size_t first = 0;
+    if (!source_.inMemory()) {
+      const std::uint64_t level0 = grids_[0].brickCount();
+      while (first < items && brickOf(first) < level0) {
+        const int row = rowOfBrick(brickOf(first));
+        std::size_t end = first + 1;
+        while (end < items && brickOf(end) < level0 && rowOfBrick(brickOf(end)) == row) ++end;
+        windowOfRow(row);
+        f(first, end);
+        first = end;
+      }
+    }
+    if (first < items) f(first, items);
   }
 
   // The pyramid, and the bricking of each level; bricks are numbered across levels.
   void pyramid() {
-    levels_ = levelCount(volume_.dims, Grid(volume_.dims, params_.blockSide).n * params_.blockSide,
+    levels_ = levelCount(source_.dims, Grid(source_.dims, params_.blockSide).n * params_.blockSide,
                          params_.levels);
     for (int l = 0; l < levels_; ++l) {
       if (l == 0) {
         Source<T> base;
-        base.data = volume_.as<T>(), base.dims = volume_.dims;
+        base.dims = source_.dims;
+        if (const Volume* whole = source_.inMemory())
+          base.data = whole->as<T>(), base.slices = source_.dims.z;
         src_.push_back(std::move(base));
       } else {
         progress_.begin("pyramid level " + std::to_string(l), 1);
-        src_.push_back(src_.back().halved(volume_.spacing * double(1 << l), params_.threads));
+        src_.push_back(src_.back().halved(source_.spacing * double(1 << l), params_.threads,
+                                          [&](int z0, int z1) {
+                                            if (l == 1) window(z0, z1);
+                                          }));
         progress_.advance();
         progress_.end();
       }
@@ -189,32 +258,37 @@ class Encoder {
   void brickRanges() {
     bricks_.assign(nBricks_, BrickRecord{});
     progress_.begin("bricking", nBricks_);
-    parallelFor(std::size_t(nBricks_), params_.threads, [&](std::size_t b) {
-      const Where w = where(b);
-      const Grid& g = *w.g;
-      const glm::ivec3 lo = w.brick * g.n * g.m, hi = glm::min(lo + g.n * g.m, g.dims);
-      float l0 = std::numeric_limits<float>::infinity(), h = -l0;
-      double sum = 0;
-      for (int z = lo.z; z < hi.z; ++z)
-        for (int y = lo.y; y < hi.y; ++y)
-          for (int x = lo.x; x < hi.x; ++x) {
-            const float v = w.s->at(x, y, z);
-            l0 = std::min(l0, v), h = std::max(h, v), sum += v;
-          }
-      BrickRecord& r = bricks_[b];
-      if (double(h) - double(l0) <= params_.tolerance * double(scale_)) {
-        const double count = double(hi.x - lo.x) * double(hi.y - lo.y) * double(hi.z - lo.z);
-        r.lo = r.hi = h == l0 ? l0 : float(sum / count);
-      } else {
-        r.lo = l0, r.hi = h;
-      }
-      progress_.advance();
-    });
+    byLevel0Rows(
+        std::size_t(nBricks_), [](std::size_t b) { return std::uint64_t(b); },
+        [&](std::size_t first, std::size_t end) {
+          parallelFor(end - first, params_.threads, [&](std::size_t i) { brickRange(first + i); });
+        });
     progress_.end();
     for (std::uint64_t b = 0; b < nBricks_; ++b)
       if (bricks_[b].lo != bricks_[b].hi)
         bricks_[b].coded = std::uint32_t(coded_.size()), coded_.push_back(b);
     if (coded_.size() >= kConstant) throw std::invalid_argument("ksvd codec: too many bricks");
+  }
+  void brickRange(std::size_t b) {
+    const Where w = where(b);
+    const Grid& g = *w.g;
+    const glm::ivec3 lo = w.brick * g.n * g.m, hi = glm::min(lo + g.n * g.m, g.dims);
+    float l0 = std::numeric_limits<float>::infinity(), h = -l0;
+    double sum = 0;
+    for (int z = lo.z; z < hi.z; ++z)
+      for (int y = lo.y; y < hi.y; ++y)
+        for (int x = lo.x; x < hi.x; ++x) {
+          const float v = w.s->at(x, y, z);
+          l0 = std::min(l0, v), h = std::max(h, v), sum += v;
+        }
+    BrickRecord& r = bricks_[b];
+    if (double(h) - double(l0) <= params_.tolerance * double(scale_)) {
+      const double count = double(hi.x - lo.x) * double(hi.y - lo.y) * double(hi.z - lo.z);
+      r.lo = r.hi = h == l0 ? l0 : float(sum / count);
+    } else {
+      r.lo = l0, r.hi = h;
+    }
+    progress_.advance();
   }
 
   // The blocks to code: every in-grid block of every coded brick of every level, in brick
@@ -231,10 +305,13 @@ class Encoder {
         }
     }
   }
-  void candidateBlock(std::uint64_t i, float* out) const {
+  // Candidate i's block; the coreset's passes ask for level 0's in order, so the window moves
+  // a row of bricks at a time.
+  void candidateBlock(std::uint64_t i, float* out) {
     const std::uint64_t c = candidates_[std::size_t(i)] / std::uint64_t(perBrick_);
     const int j = int(candidates_[std::size_t(i)] % std::uint64_t(perBrick_));
     const std::uint64_t b = coded_[std::size_t(c)];
+    if (!source_.inMemory() && b < grids_[0].brickCount()) windowOfRow(rowOfBrick(b));
     const Where w = where(b);
     w.s->block(w.g->blockOf(w.brick, j), w.g->m, bricks_[b].lo, scale_, out);
   }
@@ -322,7 +399,7 @@ class Encoder {
         "--bits-per-voxel %g is below the smallest ksvd file of this volume with %d atoms and "
         "blocks of %d^3%s %.3g bits per voxel",
         params_.targetBitsPerVoxel, atoms_, params_.blockSide, what,
-        8.0 * bytes / double(volume_.voxelCount())));
+        8.0 * bytes / double(source_.voxelCount())));
   }
 
   // The coefficient's width with `indexBits` of atom index, and a pair's bytes in the stream.
@@ -350,8 +427,12 @@ class Encoder {
     out.counts.resize(coded_.size()), out.pairs.resize(coded_.size());
     out.steps.resize(coded_.size());
     progress_.begin(stage, candidates_.size());
-    parallelFor(coded_.size(), params_.threads,
-                [&](std::size_t c) { codeBrick(coder, maxResidual2, c, out); });
+    byLevel0Rows(
+        coded_.size(), [&](std::size_t c) { return coded_[c]; },
+        [&](std::size_t first, std::size_t end) {
+          parallelFor(end - first, params_.threads,
+                      [&](std::size_t i) { codeBrick(coder, maxResidual2, first + i, out); });
+        });
     progress_.end();
     for (const auto& p : out.pairs) out.pairCount += p.size();
     return out;
@@ -456,7 +537,7 @@ class Encoder {
 
   CompressedVolume sections() {
     CompressedVolume out;
-    out.info = volumeInfo(volume_, KsvdCodecEntry::kId);
+    out.info = volumeInfo(header_, KsvdCodecEntry::kId);
     out.sections.emplace_back(kParams, paramsSection(std::numeric_limits<double>::infinity()));
     {
       std::vector<std::byte> bytes;
@@ -521,13 +602,15 @@ class Encoder {
     {
       const Layout layout(out.info, out.view());
       // A few rows of bricks at a time (brickPsnr: the same sum as psnr() of the whole decode,
-      // which held a second copy of the input while it was measured).
-      const std::unique_ptr<VolumeSource> reference = memorySource(volume_);
+      // which held a second copy of the level while it was measured).
+      window_ = {};
       stats_.psnr = levelPsnr[0] =
-          layout.withView([&](const auto& v) { return brickPsnr(*reference, v.level[0]); });
+          layout.withView([&](const auto& v) { return brickPsnr(source_, v.level[0]); });
       progress_.advance();
       for (int l = 1; l < levels_; ++l) {
-        levelPsnr[std::size_t(l)] = psnr(src_[std::size_t(l)].coarse, layout.decodeLevel(l));
+        const std::unique_ptr<VolumeSource> reference = memorySource(src_[std::size_t(l)].coarse);
+        levelPsnr[std::size_t(l)] =
+            layout.withView([&](const auto& v) { return brickPsnr(*reference, v.level[l]); });
         progress_.advance();
       }
     }
@@ -537,7 +620,9 @@ class Encoder {
     out.sections[5].second = levelsSection(levelPsnr);
   }
 
-  const Volume& volume_;
+  const VolumeSource& source_;
+  const Volume header_;    // the input's dims, type, spacing, orientation and range
+  std::vector<T> window_;  // level 0's slices src_[0] reads, when the input streams
   const Params& params_;
   Progress& progress_;
   EncodeStats& stats_;
@@ -620,21 +705,27 @@ std::vector<std::int16_t> learnDictionary(const Volume& volume, const Params& pa
   checkParams(params);
   if (volume.voxelCount() == 0) throw std::invalid_argument("ksvd codec: empty volume");
   EncodeStats stats;
+  const std::unique_ptr<VolumeSource> source = memorySource(volume);
   return dispatchScalar(volume.type, [&](auto t) {
-    return Encoder<decltype(t)>(volume, params, progress, stats).learnOnly();
+    return Encoder<decltype(t)>(*source, params, progress, stats).learnOnly();
   });
+}
+
+CompressedVolume encode(const VolumeSource& source, const Params& params, Progress& progress,
+                        EncodeStats* statsOut) {
+  checkParams(params);
+  if (source.voxelCount() == 0) throw std::invalid_argument("ksvd codec: empty volume");
+  EncodeStats stats;
+  CompressedVolume out = dispatchScalar(source.type, [&](auto t) {
+    return Encoder<decltype(t)>(source, params, progress, stats).run();
+  });
+  if (statsOut) *statsOut = stats;
+  return out;
 }
 
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* statsOut) {
-  checkParams(params);
-  if (volume.voxelCount() == 0) throw std::invalid_argument("ksvd codec: empty volume");
-  EncodeStats stats;
-  CompressedVolume out = dispatchScalar(volume.type, [&](auto t) {
-    return Encoder<decltype(t)>(volume, params, progress, stats).run();
-  });
-  if (statsOut) *statsOut = stats;
-  return out;
+  return encode(*memorySource(volume), params, progress, statsOut);
 }
 
 }  // namespace voxwall::codec::ksvd

@@ -138,19 +138,25 @@ class KsvdCodec final : public Codec {
 
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string& report) const override {
+    return encodeSource(*memorySource(volume), options, progress, report);
+  }
+
+  // Streams: a row of bricks of the input in memory at a time, besides the coarser levels.
+  CompressedVolume encodeSource(const VolumeSource& source, const CodecOptionValues& options,
+                                Progress& progress, std::string& report) const override {
     const Params p = paramsOf(options);
     if (p.targetBitsPerVoxel > 0 && !options.given("--block"))
-      return encodeBest(volume, p, progress, report);
+      return encodeBest(source, p, progress, report);
     EncodeStats s;
-    CompressedVolume out = ksvd::encode(volume, p, progress, &s);
-    report = encodeReport(s, volume, p.targetBitsPerVoxel > 0);
+    CompressedVolume out = ksvd::encode(source, p, progress, &s);
+    report = encodeReport(s, source.headerVolume(), p.targetBitsPerVoxel > 0);
     return out;
   }
 
   // A size target without --block: blocks of 4^3 and of 6^3 both coded, the higher PSNR kept.
   // Which wins depends on the data and the rate (docs/ksvd.md): small blocks carry more detail
   // per pair but a count byte per 64 voxels, which noise (no constant bricks) pays everywhere.
-  static CompressedVolume encodeBest(const Volume& volume, Params p, Progress& progress,
+  static CompressedVolume encodeBest(const VolumeSource& source, Params p, Progress& progress,
                                      std::string& report) {
     struct Try {
       int side;
@@ -165,7 +171,7 @@ class KsvdCodec final : public Codec {
       p.blockSide = side;
       progress.setPrefix(outer + formatLine("blocks of %d^3: ", side));
       try {
-        t.out = ksvd::encode(volume, p, progress, &t.stats);
+        t.out = ksvd::encode(source, p, progress, &t.stats);
       } catch (const SizeTargetTooSmall& e) {
         t.refused = e.what();
       }
@@ -178,7 +184,7 @@ class KsvdCodec final : public Codec {
     Try& best = better(tries[0], tries[1]) ? tries[0] : tries[1];
     const Try& other = &best == &tries[0] ? tries[1] : tries[0];
     if (!best.refused.empty()) throw SizeTargetTooSmall(tries[1].refused);
-    report = encodeReport(best.stats, volume, true);
+    report = encodeReport(best.stats, source.headerVolume(), true);
     report += other.refused.empty()
                   ? formatLine(
                         "\n  blocks of %d^3 (PSNR %.2f dB) over %d^3 (%.2f dB): both coded, "
@@ -221,11 +227,9 @@ class KsvdCodec final : public Codec {
     for (int k = 0; k < steps; ++k) {
       progress.setPrefix("step " + std::to_string(k + 1) + "/" + std::to_string(steps) + ": ");
       const std::unique_ptr<VolumeSource> source = series.open(k, progress);
-      const Volume whole = source->inMemory() ? Volume() : source->readAll();
-      const Volume& volume = source->inMemory() ? *source->inMemory() : whole;
       EncodeStats s;
-      coded.push_back(ksvd::encode(volume, p, progress, &s));
-      if (k == 0) report += encodeReport(s, volume, p.targetBitsPerVoxel > 0);
+      coded.push_back(ksvd::encode(*source, p, progress, &s));
+      if (k == 0) report += encodeReport(s, source->headerVolume(), p.targetBitsPerVoxel > 0);
     }
     progress.setPrefix("");
     report += formatLine(

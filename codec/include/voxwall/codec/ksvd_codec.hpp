@@ -121,7 +121,11 @@ struct SizeTargetTooSmall : std::invalid_argument {
 };
 
 // Throws std::invalid_argument for bad parameters (SizeTargetTooSmall for a size target the
-// settings cannot meet).
+// settings cannot meet). A source that streams is read a row of bricks (N x M slices) at a time,
+// once per pass (the pyramid, the bricking, the coreset's three, each coding pass of a size
+// target's search, the PSNR); the file equals the one of the same volume in memory.
+CompressedVolume encode(const VolumeSource& source, const Params& params, Progress& progress,
+                        EncodeStats* stats = nullptr);
 CompressedVolume encode(const Volume& volume, const Params& params, Progress& progress,
                         EncodeStats* stats = nullptr);
 
