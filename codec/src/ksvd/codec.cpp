@@ -29,21 +29,38 @@ double seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
+// Row y0 .. y1 - 1 of slice z of the level above `below` (whose at() must reach its slices 2z and
+// 2z + 1): each voxel the mean of the 2x2x2 voxels below it, clamped at the far faces, into
+// `out` (the slice's voxels, x fastest).
+template <class Below>
+void halveRows(const Below& below, glm::ivec3 dims, int z, int y0, int y1, float* out) {
+  for (int y = y0; y < y1; ++y)
+    for (int x = 0; x < dims.x; ++x) {
+      double sum = 0;
+      for (int j = 0; j < 8; ++j)
+        sum += below.at(2 * x + (j & 1), 2 * y + ((j >> 1) & 1), 2 * z + (j >> 2));
+      out[std::size_t(y) * std::size_t(dims.x) + std::size_t(x)] = float(sum / 8.0);
+    }
+}
+
 // One level of the pyramid: level 0 reads a window of the input's slices (all of them when the
-// input is in memory), coarser levels their own floats.
+// input is in memory); a coarser level its floats, a window of them (level 1 of an input that
+// streams) or all of them.
 template <class T>
 struct Source {
-  std::span<const T> data;  // level 0: slices z0 .. z0 + slices - 1
+  bool base = false;        // level 0: `data`, else `floats`
+  std::span<const T> data;  // slices z0 .. z0 + slices - 1
+  std::span<const float> floats;
   int z0 = 0, slices = 0;
-  Volume coarse;  // levels above 0: float32, value range computed
+  Volume coarse;  // a coarser level held whole: float32, value range computed
   glm::ivec3 dims;
-  // Voxel (x, y, z), clamped at the far faces; level 0's z must be in the window.
+  // Voxel (x, y, z), clamped at the far faces; z must be in the window.
   float at(int x, int y, int z) const {
     x = std::min(x, dims.x - 1), y = std::min(y, dims.y - 1), z = std::min(z, dims.z - 1);
     const std::size_t i =
         (std::size_t(z - z0) * std::size_t(dims.y) + std::size_t(y)) * std::size_t(dims.x) +
         std::size_t(x);
-    return coarse.data.empty() ? float(data[i]) : coarse.as<float>()[i];
+    return base ? float(data[i]) : floats[i];
   }
   // Block b's voxels (edge-padded), minus `lo`, divided by `scale`.
   void block(glm::ivec3 b, int m, float lo, float scale, float* out) const {
@@ -62,29 +79,55 @@ struct Source {
     out.dims = (dims - 1) / 2 + 1;
     out.coarse = Volume::allocate(out.dims, ScalarType::Float32, spacing);
     const std::span<float> values = out.coarse.template as<float>();
+    const std::size_t slice = std::size_t(out.dims.x) * std::size_t(out.dims.y);
     constexpr int kSlab = 32;  // slices of the new level a window serves
     for (int first = 0; first < out.dims.z; first += kSlab) {
       const int last = std::min(first + kSlab, out.dims.z);
       window(2 * first, std::min(2 * last, dims.z));
-      halveSlices(out, values, first, last, threads);
+      parallelFor(std::size_t(last - first), threads, [&](std::size_t i) {
+        const int z = first + int(i);
+        halveRows(*this, out.dims, z, 0, out.dims.y, values.data() + std::size_t(z) * slice);
+      });
     }
     out.coarse.computeRange();
+    out.floats = values, out.slices = out.dims.z;
     return out;
   }
-  void halveSlices(Source& out, std::span<float> values, int first, int last, int threads) const {
-    parallelFor(std::size_t(last - first), threads, [&](std::size_t zs) {
-      const int z = first + int(zs);
-      for (int y = 0; y < out.dims.y; ++y)
-        for (int x = 0; x < out.dims.x; ++x) {
-          double sum = 0;
-          for (int j = 0; j < 8; ++j)
-            sum += at(2 * x + (j & 1), 2 * y + ((j >> 1) & 1), 2 * z + (j >> 2));
-          values[(std::size_t(z) * std::size_t(out.dims.y) + std::size_t(y)) *
-                     std::size_t(out.dims.x) +
-                 std::size_t(x)] = float(sum / 8.0);
-        }
-    });
+};
+
+// Level 1 of the pyramid of an input that streams, made from it two slices at a time as it is
+// read (float32, as Source::halved makes it); valueMin and valueMax are the caller's to set.
+template <class T>
+class HalvedSource final : public VolumeSource {
+ public:
+  HalvedSource(const VolumeSource& below, glm::dvec3 levelSpacing, int threads)
+      : below_(below), threads_(threads) {
+    dims = (below.dims - 1) / 2 + 1, spacing = levelSpacing;
+    orientation = below.orientation, type = ScalarType::Float32;
   }
+  bool streams() const override { return true; }
+  const Volume* inMemory() const override { return nullptr; }
+
+ protected:
+  void read(int z0, int count, std::byte* out) const override {
+    std::vector<T> pair(2 * below_.sliceVoxels());
+    Source<T> two;
+    two.base = true, two.dims = below_.dims, two.data = pair, two.slices = 2;
+    for (int z = z0; z < z0 + count; ++z) {
+      below_.readSlices(2 * z, 2, std::as_writable_bytes(std::span(pair)));  // 2z + 1 clamped
+      two.z0 = 2 * z;
+      auto* slice = reinterpret_cast<float*>(out + std::size_t(z - z0) * sliceBytes());
+      const int rows = std::max(1, dims.y / 16);
+      parallelFor(std::size_t((dims.y + rows - 1) / rows), threads_, [&](std::size_t r) {
+        const int y0 = int(r) * rows;
+        halveRows(two, dims, z, y0, std::min(y0 + rows, dims.y), slice);
+      });
+    }
+  }
+
+ private:
+  const VolumeSource& below_;
+  int threads_;
 };
 
 // Pyramid levels: `requested`, or (0) until a level fits in one brick.
@@ -114,10 +157,11 @@ struct CodedBricks {
 // tolerance whose file fits), the sections and the PSNR of every level.
 //
 // The input is read a row of level-0 bricks at a time where it streams (a window of N x M
-// slices, M^3-voxel blocks, N^3 blocks a brick): the pyramid is made a slab at a time, and the
-// stages that read level 0 (bricking, the coreset's passes, every coding pass) walk its bricks
-// row by row in brick order. The coarser levels (float, 1/7 of the voxels together) are held
-// whole. Held in memory, the input is read in place.
+// slices, M^3-voxel blocks, N^3 blocks a brick), and so is level 1, made from the input two
+// slices at a time as it is read: the stages that read them (bricking, the coreset's passes,
+// every coding pass, the PSNR) walk their bricks row by row in brick order. The levels above
+// (float, 1/56 of the voxels together) are made from level 1's windows and held whole. Held in
+// memory, the input is read in place and every coarser level is held.
 template <class T>
 class Encoder {
  public:
@@ -191,74 +235,101 @@ class Encoder {
     return params_.targetBitsPerVoxel * double(source_.voxelCount()) / 8.0;
   }
 
-  // Level 0's slices z0 .. z1 - 1 (within the volume) readable by src_[0].at: read into the
-  // window unless it holds them (or the whole input is in memory).
-  void window(int z0, int z1) {
-    Source<T>& s = src_[0];
+  // Whether level l is read a window at a time: levels 0 and 1 of an input that streams.
+  bool streamed(int l) const { return !source_.inMemory() && l <= 1; }
+  // Level l's slices z0 .. z1 - 1 (within the level) readable by src_[l].at: read into its
+  // window unless it holds them already (or holds the whole level).
+  void window(int l, int z0, int z1) {
+    Source<T>& s = src_[std::size_t(l)];
     if (z0 >= s.z0 && z1 <= s.z0 + s.slices) return;
-    window_.resize(std::size_t(z1 - z0) * source_.sliceVoxels());
-    source_.readSlices(z0, z1 - z0, std::as_writable_bytes(std::span(window_)));
-    s.data = window_, s.z0 = z0, s.slices = z1 - z0;
+    if (l == 0) {
+      window_.resize(std::size_t(z1 - z0) * source_.sliceVoxels());
+      source_.readSlices(z0, z1 - z0, std::as_writable_bytes(std::span(window_)));
+      s.data = window_;
+    } else {
+      window1_.resize(std::size_t(z1 - z0) * half_->sliceVoxels());
+      half_->readSlices(z0, z1 - z0, std::as_writable_bytes(std::span(window1_)));
+      s.floats = window1_;
+    }
+    s.z0 = z0, s.slices = z1 - z0;
   }
-  // The slices a row of level-0 bricks reads.
-  void windowOfRow(int bz) {
-    const int side = grids_[0].n * grids_[0].m;
-    window(bz * side, std::min((bz + 1) * side, source_.dims.z));
+  // Brick b's level and its row of bricks (its z) there.
+  std::pair<int, int> rowOf(std::uint64_t b) const {
+    const int l = levelOf(b);
+    const Grid& g = grids_[std::size_t(l)];
+    return {l, g.brickCoords(b - firstBrick_[std::size_t(l)]).z};
   }
-  int rowOfBrick(std::uint64_t b) const {
-    return int(b / (std::uint64_t(grids_[0].bricks.x) * std::uint64_t(grids_[0].bricks.y)));
+  // The slices brick row `bz` of level l reads.
+  void windowOfRow(int l, int bz) {
+    const Grid& g = grids_[std::size_t(l)];
+    window(l, bz * g.n * g.m, std::min((bz + 1) * g.n * g.m, g.dims.z));
   }
   // f(first, end) for each run of `items` (indices of increasing bricks, brickOf(i) the brick)
-  // that reads one row of level-0 bricks, with that row's window, then once for the rest (the
-  // coarser levels); a single run of all items when the input is in memory.
+  // in one row of bricks of a streamed level, with that row's window, then once for the rest
+  // (the levels held whole); a single run of all items when the input is in memory.
   template <class BrickOf, class F>
-  void byLevel0Rows(std::size_t items, BrickOf&& brickOf, F&& f) {
+  void byStreamedRows(std::size_t items, BrickOf&& brickOf, F&& f) {
     std::size_t first = 0;
-    if (!source_.inMemory()) {
-      const std::uint64_t level0 = grids_[0].brickCount();
-      while (first < items && brickOf(first) < level0) {
-        const int row = rowOfBrick(brickOf(first));
-        std::size_t end = first + 1;
-        while (end < items && brickOf(end) < level0 && rowOfBrick(brickOf(end)) == row) ++end;
-        windowOfRow(row);
-        f(first, end);
-        first = end;
-      }
+    while (first < items) {
+      const auto row = rowOf(brickOf(first));
+      if (!streamed(row.first)) break;
+      std::size_t end = first + 1;
+      while (end < items && rowOf(brickOf(end)) == row) ++end;
+      windowOfRow(row.first, row.second);
+      f(first, end);
+      first = end;
     }
     if (first < items) f(first, items);
   }
 
-  // The pyramid, and the bricking of each level; bricks are numbered across levels.
+  // The pyramid, and the bricking of each level; bricks are numbered across levels. Level 1 of
+  // an input that streams is made from it as it is read (HalvedSource), after a pass that finds
+  // its value range; the levels above it are made from its windows and held.
   void pyramid() {
     levels_ = levelCount(source_.dims, Grid(source_.dims, params_.blockSide).n * params_.blockSide,
                          params_.levels);
     for (int l = 0; l < levels_; ++l) {
+      progress_.begin("pyramid level " + std::to_string(l), 1);
       if (l == 0) {
         Source<T> base;
-        base.dims = source_.dims;
+        base.base = true, base.dims = source_.dims;
         if (const Volume* whole = source_.inMemory())
           base.data = whole->as<T>(), base.slices = source_.dims.z;
         src_.push_back(std::move(base));
+      } else if (streamed(l)) {
+        half_ = std::make_unique<HalvedSource<T>>(source_, source_.spacing * 2.0, params_.threads);
+        Source<T> one;
+        one.dims = half_->dims;
+        src_.push_back(std::move(one));
+        levelOneRange();
       } else {
-        progress_.begin("pyramid level " + std::to_string(l), 1);
         src_.push_back(src_.back().halved(source_.spacing * double(1 << l), params_.threads,
                                           [&](int z0, int z1) {
-                                            if (l == 1) window(z0, z1);
+                                            if (streamed(l - 1)) window(l - 1, z0, z1);
                                           }));
-        progress_.advance();
-        progress_.end();
       }
+      progress_.advance();
+      progress_.end();
       grids_.emplace_back(src_.back().dims, params_.blockSide);
       firstBrick_.push_back(nBricks_);
       nBricks_ += grids_.back().brickCount();
     }
+  }
+  // Level 1's value range (what its PSNR is measured against), as Volume::computeRange finds it.
+  void levelOneRange() {
+    float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+    for (int z = 0; z < half_->dims.z; z += 32) {
+      window(1, z, std::min(z + 32, half_->dims.z));
+      for (const float v : window1_) lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+    half_->valueMin = double(lo), half_->valueMax = double(hi);
   }
 
   // Bricks: value ranges; constant bricks keep their mean. The others are coded, in level order.
   void brickRanges() {
     bricks_.assign(nBricks_, BrickRecord{});
     progress_.begin("bricking", nBricks_);
-    byLevel0Rows(
+    byStreamedRows(
         std::size_t(nBricks_), [](std::size_t b) { return std::uint64_t(b); },
         [&](std::size_t first, std::size_t end) {
           parallelFor(end - first, params_.threads, [&](std::size_t i) { brickRange(first + i); });
@@ -311,7 +382,7 @@ class Encoder {
     const std::uint64_t c = candidates_[std::size_t(i)] / std::uint64_t(perBrick_);
     const int j = int(candidates_[std::size_t(i)] % std::uint64_t(perBrick_));
     const std::uint64_t b = coded_[std::size_t(c)];
-    if (!source_.inMemory() && b < grids_[0].brickCount()) windowOfRow(rowOfBrick(b));
+    if (streamed(0) && b < grids_[0].brickCount()) windowOfRow(0, rowOf(b).second);
     const Where w = where(b);
     w.s->block(w.g->blockOf(w.brick, j), w.g->m, bricks_[b].lo, scale_, out);
   }
@@ -427,7 +498,7 @@ class Encoder {
     out.counts.resize(coded_.size()), out.pairs.resize(coded_.size());
     out.steps.resize(coded_.size());
     progress_.begin(stage, candidates_.size());
-    byLevel0Rows(
+    byStreamedRows(
         coded_.size(), [&](std::size_t c) { return coded_[c]; },
         [&](std::size_t first, std::size_t end) {
           parallelFor(end - first, params_.threads,
@@ -603,14 +674,16 @@ class Encoder {
       const Layout layout(out.info, out.view());
       // A few rows of bricks at a time (brickPsnr: the same sum as psnr() of the whole decode,
       // which held a second copy of the level while it was measured).
-      window_ = {};
+      window_ = {}, window1_ = {};
       stats_.psnr = levelPsnr[0] =
           layout.withView([&](const auto& v) { return brickPsnr(source_, v.level[0]); });
       progress_.advance();
       for (int l = 1; l < levels_; ++l) {
-        const std::unique_ptr<VolumeSource> reference = memorySource(src_[std::size_t(l)].coarse);
+        const std::unique_ptr<VolumeSource> reference =
+            streamed(l) ? nullptr : memorySource(src_[std::size_t(l)].coarse);
+        const VolumeSource& level = streamed(l) ? *half_ : *reference;
         levelPsnr[std::size_t(l)] =
-            layout.withView([&](const auto& v) { return brickPsnr(*reference, v.level[l]); });
+            layout.withView([&](const auto& v) { return brickPsnr(level, v.level[l]); });
         progress_.advance();
       }
     }
@@ -621,8 +694,10 @@ class Encoder {
   }
 
   const VolumeSource& source_;
-  const Volume header_;    // the input's dims, type, spacing, orientation and range
-  std::vector<T> window_;  // level 0's slices src_[0] reads, when the input streams
+  const Volume header_;                 // the input's dims, type, spacing, orientation and range
+  std::vector<T> window_;               // level 0's slices src_[0] reads, when the input streams
+  std::unique_ptr<VolumeSource> half_;  // level 1, when the input streams
+  std::vector<float> window1_;          // its slices src_[1] reads
   const Params& params_;
   Progress& progress_;
   EncodeStats& stats_;
