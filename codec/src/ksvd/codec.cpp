@@ -315,6 +315,12 @@ class Encoder {
       nBricks_ += grids_.back().brickCount();
     }
   }
+  // The windows' memory given back (the PSNR reads the sources a few rows of bricks at a time).
+  void dropWindows() {
+    for (int l = 0; l < std::min(levels_, 2); ++l)
+      if (streamed(l)) src_[std::size_t(l)].slices = 0;
+    window_ = {}, window1_ = {};
+  }
   // Level 1's value range (what its PSNR is measured against), as Volume::computeRange finds it.
   void levelOneRange() {
     float lo = std::numeric_limits<float>::infinity(), hi = -lo;
@@ -674,7 +680,7 @@ class Encoder {
       const Layout layout(out.info, out.view());
       // A few rows of bricks at a time (brickPsnr: the same sum as psnr() of the whole decode,
       // which held a second copy of the level while it was measured).
-      window_ = {}, window1_ = {};
+      dropWindows();
       stats_.psnr = levelPsnr[0] =
           layout.withView([&](const auto& v) { return brickPsnr(source_, v.level[0]); });
       progress_.advance();
