@@ -173,19 +173,12 @@ class Encoder {
         stats_(stats),
         m_(params.blockSide * params.blockSide * params.blockSide),
         perBrick_(Grid(source.dims, params.blockSide).blocksPerBrick()) {
-    // The value range: the scale blocks are coded in, and the tolerance's unit.
-    float vmin = std::numeric_limits<float>::infinity(), vmax = -vmin;
-    if (const Volume* whole = source.inMemory()) {
-      for (T v : whole->as<T>()) {
-        if (!std::isfinite(float(v)))
-          throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
-        vmin = std::min(vmin, float(v)), vmax = std::max(vmax, float(v));
-      }
-    } else if (source.voxelCount() > 0) {
-      if (!source.finite)
-        throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
-      vmin = float(source.valueMin), vmax = float(source.valueMax);
-    }
+    // The value range: the scale blocks are coded in, and the tolerance's unit (the source's,
+    // scanned for a volume in memory, found by the first pass over a file).
+    if (!source.finite)
+      throw std::invalid_argument("ksvd codec: the volume holds NaN or infinite values");
+    const auto [lo, hi] = source.dataRange();
+    const float vmin = float(lo), vmax = float(hi);
     scale_ = vmax > vmin ? vmax - vmin : 1.0f;
   }
 
