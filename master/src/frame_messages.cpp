@@ -126,6 +126,7 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put<std::uint64_t>(rep.pages.decoded);
   w.put<std::uint64_t>(rep.pages.evictions), w.put<std::uint64_t>(rep.pages.residentBytes);
   w.put<std::uint64_t>(rep.pages.coarse);
+  w.put<std::uint64_t>(rep.rays), w.put<std::int32_t>(rep.latticeStride);
   w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u) |
                        (rep.streamRefused ? 4u : 0u) | (rep.abandoned ? 8u : 0u));
   w.put(rep.encodeSeconds), w.put<std::uint64_t>(rep.streamedBytes);
@@ -181,6 +182,10 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.pages.decoded = r.get<std::uint64_t>();
   rep.pages.evictions = r.get<std::uint64_t>(), rep.pages.residentBytes = r.get<std::uint64_t>();
   rep.pages.coarse = r.get<std::uint64_t>();
+  rep.rays = r.get<std::uint64_t>();
+  rep.latticeStride = r.get<std::int32_t>();
+  if (rep.latticeStride < 0 || rep.latticeStride > kMaxScreenSide)
+    r.fail("has a ray lattice of stride " + std::to_string(rep.latticeStride));
   const auto flags = r.get<std::uint32_t>();
   if (flags > 15) r.fail("unknown flags " + std::to_string(flags));
   rep.pixels = flags & 1, rep.streamed = flags & 2, rep.streamRefused = flags & 4;

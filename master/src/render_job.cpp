@@ -1,7 +1,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <future>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <voxwall/core/errors.hpp>
@@ -11,6 +10,7 @@
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/net/wire.hpp>
+#include <voxwall/node/rank_renderer.hpp>
 
 #include "frame_output.hpp"
 
@@ -60,34 +60,14 @@ std::vector<std::vector<voxwall::Rect>> byRank(const std::vector<std::vector<vox
 // MPI_THREAD_FUNNELED), while a rank renders a frame that may be abandoned: whether it is.
 using AbandonWatch = std::function<bool()>;
 
-// Renders `part` on the backend's threads while this thread asks `watch`; once it says the frame
-// is abandoned, `stop` is set and the backend leaves the part unfinished.
-node::TileStats renderWatched(node::Backend& backend, const node::RenderVolume& volume,
-                              const node::FramePlan& plan, const voxwall::Rect& part,
-                              voxwall::Image& image, node::CostGrid* costs,
-                              const AbandonWatch& watch, std::atomic<bool>& stop) {
-  if (!watch) return backend.render(volume, plan, part, image, costs);
-  if (watch()) {
-    stop = true;
-    node::TileStats stopped;
-    stopped.stopped = true;
-    return stopped;
-  }
-  auto done = std::async(std::launch::async,
-                         [&] { return backend.render(volume, plan, part, image, costs, &stop); });
-  while (done.wait_for(std::chrono::milliseconds(2)) != std::future_status::ready)
-    if (!stop && watch()) stop = true;
-  return done.get();
-}
-
-// Renders `rects`, streams them to the sink (if any) and makes this rank's report for `task`.
-// A rank whose pixels nobody gathers renders, encodes and sends a band at a time (bands()), so it
-// holds one band's pixels however much of the screen the balancer gives it. With a `watch`, the
-// frame may be abandoned: the rest is not rendered, and the sink is told.
-master::RankReport renderRects(int rank, node::Backend& backend, const node::RenderVolume& volume,
-                               const node::TransferFunction& tf, const node::RenderSettings& render,
+// Has this rank's renderer render `rects` of `task`, streams each finished part to the sink (if
+// any) and makes this rank's report. A rank whose pixels nobody gathers renders, encodes and sends
+// a band at a time (bands()), so it holds one band's pixels however much of the screen the
+// balancer gives it. With a `watch`, the frame may be abandoned: the rest is not rendered, and
+// the sink is told.
+master::RankReport renderRects(int rank, node::RankRenderer& renderer,
+                               const node::RenderVolume& volume, const node::TransferFunction& tf,
                                const JobSettings& job, net::TileStreamer* streamer,
-                               std::optional<node::FramePlan>& lastPlan, bool& decodedSinceRelease,
                                const master::FrameTask& task,
                                const std::vector<voxwall::Rect>& rects,
                                const AbandonWatch& watch = {}) {
@@ -95,84 +75,62 @@ master::RankReport renderRects(int rank, node::Backend& backend, const node::Ren
   report.frame = task.frame;
   report.rank = rank;
   report.pixels = !job.outDir.empty();
-  if (!rects.empty()) {
-    // The transfer function is the same for the whole job: its part of the plan is made once.
-    lastPlan = node::planFrame(volume, task.camera, task.screenWidth, task.screenHeight, tf, render,
-                               lastPlan ? &*lastPlan : nullptr);
-    const auto& plan = *lastPlan;
-    report.costs = node::CostGrid(task.screenWidth, task.screenHeight, task.cellPixels);
-    const auto before = streamer ? streamer->bytesSent() : 0;
-    bool sending = false;
-    if (streamer) {
-      streamer->setJob(task.jobId);
-      sending = streamer->beginFrame(task.frame);
-    }
-    std::atomic<bool> stop{false};
-    for (const auto& rect : rects) {
-      const auto parts = report.pixels ? std::vector<voxwall::Rect>{rect} : bands(rect, job);
-      voxwall::Image image;  // with pixels, the whole rectangle (one part)
-      for (const auto& part : parts) {
-        // Abandoned while parts are left: they are not rendered. (Once every part is done, the
-        // word comes too late: the tiles are whole, and the frame is not abandoned here.)
-        if (stop) {
-          report.abandoned = true;
-          break;
-        }
-        image = voxwall::Image();  // the last band goes before the backend makes the next
-        const auto start = Clock::now();
-        const auto stats =
-            renderWatched(backend, volume, plan, part, image, &report.costs, watch, stop);
-        report.samples += stats.samples;
-        report.pages.hits += stats.pageHits, report.pages.missed += stats.pageMissed;
-        report.pages.decoded += stats.pageDecoded;
-        report.pages.evictions += stats.pageEvictions;
-        report.pages.coarse += stats.pageCoarse;
-        report.pages.residentBytes = stats.pageResidentBytes;
-        report.renderSeconds += since(start);
-        if (stats.stopped) {
-          report.abandoned = true;
-          break;
-        }
-        if (sending) {
-          const auto encodeStart = Clock::now();
-          const auto encoded =
-              net::encodeTiles(image, part, job.stream->background, job.stream->codec,
-                               streamer->displayCut(), task.step);
-          report.encodeSeconds += since(encodeStart);
-          sending = streamer->sendTiles(encoded, task.decidedUnixMicros, task.step,
-                                        std::uint32_t(std::min(report.renderSeconds * 1e6, 4e9)),
-                                        task.phase);
-        }
-      }
-      report.tiles.push_back({rect, report.pixels ? std::move(image) : voxwall::Image()});
-    }
-    if (streamer) {
-      report.streamed = sending && streamer->endFrame(report.abandoned);
-      report.streamError = streamer->lastError();
-      report.streamRefused = !streamer->refused().empty();
-      report.streamedBytes = streamer->bytesSent() - before;
-    }
+  node::RankFrame frame{&volume,
+                        &tf,
+                        task.camera,
+                        task.screenWidth,
+                        task.screenHeight,
+                        task.cellPixels,
+                        rects,
+                        report.pixels,
+                        bandRows(job),
+                        watch,
+                        {}};
+  const auto before = streamer ? streamer->bytesSent() : 0;
+  bool sending = false;
+  if (streamer && !rects.empty()) {
+    streamer->setJob(task.jobId);
+    sending = streamer->beginFrame(task.frame);
+    frame.onPart = [&](const voxwall::Rect& part, const voxwall::Image& image,
+                       double renderSeconds) {
+      if (!sending) return false;
+      const auto encodeStart = Clock::now();
+      const auto encoded = net::encodeTiles(image, part, job.stream->background, job.stream->codec,
+                                            streamer->displayCut(), task.step);
+      report.encodeSeconds += since(encodeStart);
+      sending = streamer->sendTiles(encoded, task.decidedUnixMicros, task.step,
+                                    std::uint32_t(std::min(renderSeconds * 1e6, 4e9)), task.phase);
+      return sending;
+    };
   }
-  // Decoded pages hold the voxels their compressed bytes gave: those bytes (and the tables the
-  // codec made to decode them) are read again only to decode a page anew, so once the view has
-  // settled (the first frame that decodes nothing after frames that did) they need not stay
-  // resident: a rank's memory is then its pages, not its pages and their source too. A later
-  // frame that decodes takes them back (the file from the system's page cache). Not while every
-  // frame decodes (a moving camera: remaking tvq's codebooks each frame cost 15-30% of an orbit's
-  // frame time), nor when pages were evicted (the working set is over the budget), nor for rays
-  // that sample the file directly (raw volumes, per-ray decoding), which decode no pages.
-  if (!rects.empty()) {
-    if (report.pages.evictions > 0) {
-      decodedSinceRelease = false;
-    } else if (report.pages.decoded > 0) {
-      decodedSinceRelease = true;
-    } else if (decodedSinceRelease) {
-      volume.releaseDecodeSources();
-      returnFreeMemory();  // the tables were freed in pieces the allocator would keep
-      decodedSinceRelease = false;
-    }
+  auto result = renderer.render(frame);
+  report.renderSeconds = result.renderSeconds;
+  report.samples = result.samples;
+  report.rays = result.rays;
+  report.latticeStride = result.latticeStride;
+  report.pages = result.pages;
+  report.abandoned = result.abandoned;
+  report.costs = std::move(result.costs);
+  for (auto& tile : result.tiles) report.tiles.push_back({tile.rect, std::move(tile.image)});
+  if (streamer && !rects.empty()) {
+    report.streamed = sending && streamer->endFrame(report.abandoned);
+    report.streamError = streamer->lastError();
+    report.streamRefused = !streamer->refused().empty();
+    report.streamedBytes = streamer->bytesSent() - before;
   }
-  const ProcessMemory memory = processMemory();
+  const ProcessMemory memory = renderer.memory();
+  report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
+  return report;
+}
+
+// The last report, for the stop task: this rank's memory.
+master::RankReport finalReport(int rank, const node::RankRenderer& renderer,
+                               const master::FrameTask& stop) {
+  master::RankReport report;
+  report.frame = stop.frame;
+  report.rank = rank;
+  report.pixels = false;
+  const ProcessMemory memory = renderer.memory();
   report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
   return report;
 }
@@ -201,23 +159,19 @@ SteeringSettings steeringSettings(const JobSettings& job) {
 namespace {
 
 // The volume and transfer function of each frame's time step: the job's volume, or another step
-// of it, opened when a frame first shows it (the step before is let go then). A frame of another
-// step than the last plans afresh: its value ranges skip other cells.
+// of it, opened when a frame first shows it (the step before is let go then).
 class StepVolumes {
  public:
   StepVolumes(const node::RenderVolume& volume, const node::TransferFunction& tf,
               const JobSettings& job)
       : volume_(volume), tf_(tf), job_(job) {}
 
-  const node::RenderVolume& volume(const master::FrameTask& task,
-                                   std::optional<node::FramePlan>& plan) {
+  const node::RenderVolume& volume(const master::FrameTask& task) {
     const int step = int(task.timeStep);
     if (step >= volume_.steps())
       throw FormatError("frame task from rank 0", "asks for time step " + std::to_string(step) +
                                                       " of a volume of " +
                                                       std::to_string(volume_.steps()));
-    if (step != planStep_) plan.reset();
-    planStep_ = step;
     if (step == volume_.step()) return volume_;
     if (!other_ || other_->step() != step) {
       other_.reset();
@@ -235,7 +189,6 @@ class StepVolumes {
   const node::TransferFunction& tf_;
   const JobSettings& job_;
   std::optional<node::RenderVolume> other_;
-  int planStep_ = 0;
 };
 
 JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::RenderVolume& volume,
@@ -245,8 +198,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   int timeoutMs = job.watchdogMs;
   const auto streamer = makeStreamer(job, comm.rank(), comm.size());
   const auto steering = steeringSettings(job);
-  std::optional<node::FramePlan> plan;
-  bool decodedSinceRelease = false;  // renderRects' record of pages decoded and not yet released
+  node::RankRenderer renderer(backend, render);
   StepVolumes steps(volume, tf, job);
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
@@ -263,10 +215,10 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     AbandonWatch watch;
     if (!task.stop && abandonable(steering, task.phase))
       watch = [&comm, frame = task.frame] { return comm.abandoned(frame); };
-    const node::RenderVolume& stepVolume = task.stop ? volume : steps.volume(task, plan);
-    const auto report = renderRects(comm.rank(), backend, stepVolume, steps.tf(task), render, job,
-                                    streamer.get(), plan, decodedSinceRelease, task,
-                                    task.stop ? std::vector<voxwall::Rect>{} : mine, watch);
+    const auto report = task.stop
+                            ? finalReport(comm.rank(), renderer, task)
+                            : renderRects(comm.rank(), renderer, steps.volume(task), steps.tf(task),
+                                          job, streamer.get(), task, mine, watch);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(master::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -282,11 +234,7 @@ int bandRows(const JobSettings& job) {
 }
 
 std::vector<voxwall::Rect> bands(const voxwall::Rect& rect, const JobSettings& job) {
-  const int rows = std::max(1, bandRows(job));
-  std::vector<voxwall::Rect> out;
-  for (int y = 0; y < rect.height; y += rows)
-    out.push_back({rect.x, rect.y + y, rect.width, std::min(rows, rect.height - y)});
-  return out;
+  return node::rowBands(rect, bandRows(job));
 }
 
 std::vector<std::vector<voxwall::Rect>> firstFrameRects(const JobSettings& job, int ranks) {
@@ -305,10 +253,8 @@ class MasterLoop {
              const node::TransferFunction& tf, const node::RenderSettings& render,
              const JobSettings& job)
       : comm_(comm),
-        backend_(backend),
         volume_(volume),
         tf_(tf),
-        render_(render),
         job_(job),
         renderers_(renderingRanks(job, comm.size())),
         slots_(int(renderers_.size())),
@@ -317,6 +263,7 @@ class MasterLoop {
         jobId_(newJobId()),
         writer_(job.outDir, manifest_),
         streamer_(makeStreamer(job, 0, comm.size())),
+        renderer_(backend, render),
         steering_(steeringSettings(job)),
         steps_(volume, tf, job),
         player_(job.time, job.frames, job.stream ? job.time.rate : 0, Clock::now()),
@@ -360,9 +307,8 @@ class MasterLoop {
         }
         return signalled;
       };
-    const node::RenderVolume& stepVolume = steps_.volume(t, plan_);
-    auto own = renderRects(0, backend_, stepVolume, steps_.tf(t), render_, job_, streamer_.get(),
-                           plan_, decodedSinceRelease_, t, t.rects[0], watch);
+    auto own = renderRects(0, renderer_, steps_.volume(t), steps_.tf(t), job_, streamer_.get(), t,
+                           t.rects[0], watch);
     const auto gatherStart = Clock::now();
     // Rank 0 keeps its own report as it is; only the others' travel. It goes on watching while
     // the others render.
@@ -414,8 +360,7 @@ class MasterLoop {
     stop.watchdogMs = std::uint32_t(timeoutMs_);
     auto stopBytes = master::encode(stop);
     comm_.broadcast(stopBytes, timeoutMs_);
-    const auto ownLast = renderRects(0, backend_, volume_, tf_, render_, job_, nullptr, plan_,
-                                     decodedSinceRelease_, stop, {});
+    const auto ownLast = finalReport(0, renderer_, stop);
     const auto finals = comm_.gather({}, timeoutMs_);
     for (int r = 0; r < comm_.size(); ++r) {
       const auto rep = r == 0
@@ -524,14 +469,14 @@ class MasterLoop {
     s.rankSeconds.push_back(report.renderSeconds);
     s.rankPages.push_back(report.pages);
     s.samples += report.samples;
+    s.rays += report.rays;
+    s.latticeStride = std::max(s.latticeStride, report.latticeStride);
     s.renderSeconds = std::max(s.renderSeconds, report.renderSeconds);
   }
 
   Communicator& comm_;
-  node::Backend& backend_;
   const node::RenderVolume& volume_;
   const node::TransferFunction& tf_;
-  const node::RenderSettings& render_;
   const JobSettings& job_;
   const std::vector<int> renderers_;
   const int slots_;
@@ -542,8 +487,7 @@ class MasterLoop {
   FrameWriter writer_;
   const std::unique_ptr<net::TileStreamer> streamer_;
   std::optional<LoadBalancer> balancer_;
-  std::optional<node::FramePlan> plan_;
-  bool decodedSinceRelease_ = false;  // as in the other ranks' loop
+  node::RankRenderer renderer_;
   std::unique_ptr<net::ControlChannel> control_;
   CameraOffset offset_;
   Steering steering_;  // each frame's step, and which frames a command abandons

@@ -1,6 +1,7 @@
 // The CPU backend: threads over 16x16-pixel blocks of the tile, each block in SIMD packets of
 // rays (raycastLanes over Highway vectors) or, without packets, each pixel by raycastPixel. Every
 // pixel is independent of the others, so the image is the same for any thread count.
+#include <algorithm>
 #include <chrono>
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/node/page_cache.hpp>
@@ -27,17 +28,38 @@ class CpuBackend final : public Backend {
            ")";
   }
 
+  bool tracesLattices() const override { return true; }
+
+  TileStats renderPoints(const RenderVolume& volume, const FramePlan& plan, const RayPoints& points,
+                         Image& out, CostGrid* costs, const std::atomic<bool>* stop) override {
+    if (points.points.width <= 0 || points.points.height <= 0 || points.stride < 1)
+      throw std::invalid_argument("empty lattice");
+    if (out.width != points.points.width || out.height != points.points.height)
+      throw std::invalid_argument("lattice image of another size");
+    return trace(volume, plan, points, out, costs, stop);
+  }
+
   TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
                        Image& out, CostGrid* costs, const std::atomic<bool>* stop) override {
     if (tile.width <= 0 || tile.height <= 0) throw std::invalid_argument("empty tile");
-    const auto start = std::chrono::steady_clock::now();
     out = Image(tile.width, tile.height);
+    return trace(volume, plan, RayPoints{tile, 1, nullptr}, out, costs, stop);
+  }
+
+ private:
+  TileStats trace(const RenderVolume& volume, const FramePlan& plan, const RayPoints& points,
+                  Image& out, CostGrid* costs, const std::atomic<bool>* stop) {
+    const Rect& tile = points.points;
+    const int stride = points.stride;
+    const auto start = std::chrono::steady_clock::now();
     const int bx = (tile.width + kBlockPixels - 1) / kBlockPixels;
     const int by = (tile.height + kBlockPixels - 1) / kBlockPixels;
     // Each block's time, written by the one thread that renders it; spread into `costs` after.
     std::vector<double> blockSeconds(costs ? std::size_t(bx) * std::size_t(by) : 0);
     cpu::TileJob job{plan,     tile, out, bx, by, threads_, costs ? &blockSeconds : nullptr,
                      packets_, stop};
+    job.stride = stride;
+    job.need = points.need;
     PageCache::Counts before;  // of the pages this tile uses, once attached
     const std::uint64_t samples = std::visit(
         [&](auto view) {
@@ -63,12 +85,17 @@ class CpuBackend final : public Backend {
       for (std::size_t b = 0; b < blockSeconds.size(); ++b) {
         const int x0 = int(b % std::size_t(bx)) * kBlockPixels;
         const int y0 = int(b / std::size_t(bx)) * kBlockPixels;
-        costs->add({tile.x + x0, tile.y + y0, std::min(kBlockPixels, tile.width - x0),
-                    std::min(kBlockPixels, tile.height - y0)},
+        costs->add({tile.x + x0 * stride, tile.y + y0 * stride,
+                    std::min(kBlockPixels, tile.width - x0) * stride,
+                    std::min(kBlockPixels, tile.height - y0) * stride},
                    blockSeconds[b]);
       }
     TileStats stats;
     stats.samples = samples;
+    stats.rays = std::uint64_t(tile.area());
+    if (points.need)
+      stats.rays = std::uint64_t(
+          std::count_if(points.need, points.need + tile.area(), [](std::uint8_t f) { return f; }));
     stats.stopped = stop && stop->load();
     if (job.pages) {
       const PageCache::Counts after = job.pages->counts();
@@ -86,6 +113,7 @@ class CpuBackend final : public Backend {
     return stats;
   }
 
+ public:
   DecodeCacheUse decodeCacheUse() const {
     if (!pages_) return {};
     DecodeCacheUse use;

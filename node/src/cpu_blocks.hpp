@@ -52,7 +52,10 @@ float coarseScale(const View& view) {
   return view.coarseScale();
 }
 
-// One tile's blocks of kBlockPixels x kBlockPixels, rendered by `threads` threads.
+// One tile's blocks of kBlockPixels x kBlockPixels points, rendered by `threads` threads. Point
+// (x, y) of the tile is the ray through virtual-screen pixel (tile.x + x * stride, tile.y + y *
+// stride); a ray a pixel at stride 1. With `need`, only the points whose flag is set are traced
+// and written (tile.width x tile.height flags, row by row).
 struct TileJob {
   const FramePlan& plan;
   const Rect& tile;
@@ -63,6 +66,8 @@ struct TileJob {
   const std::atomic<bool>* stop = nullptr;  // when it turns true, blocks not begun are skipped
   PageCache* pages = nullptr;               // decoded pages of the view's paged level (packets)
   PageCache* coarsePages = nullptr;         // under pressure: pages of level 1 (kLevels views)
+  int stride = 1;
+  const std::uint8_t* need = nullptr;
 };
 
 // The Readers of the block this thread renders (null: no pages), which the packets' caches take:

@@ -42,8 +42,11 @@ std::uint64_t renderScalarBlocks(const View& view, const TileJob& job) {
   return forEachBlock(job, [&](int x0, int y0, int x1, int y1, std::uint64_t& samples) {
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
-        const auto px = kernels::raycastPixel(view, job.plan.ray, lut, job.plan.skip,
-                                              job.tile.x + x, job.tile.y + y);
+        if (job.need && !job.need[std::size_t(y) * std::size_t(job.tile.width) + std::size_t(x)])
+          continue;
+        const auto px =
+            kernels::raycastPixel(view, job.plan.ray, lut, job.plan.skip,
+                                  job.tile.x + x * job.stride, job.tile.y + y * job.stride);
         job.out.at(x, y) = kernels::packRgba8(px.rgba);
         samples += px.samples;
       }

@@ -596,15 +596,25 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
     const ReaderScope scope(reader ? &*reader : nullptr, coarse ? &*coarse : nullptr);
     HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
     HWY_ALIGN std::int32_t n[L::kLanes];
+    const auto stride = hn::Set(di, job.stride);
     for (int y = y0; y < y1; y += kH)
       for (int x = x0; x < x1; x += kW) {
         const auto lx = laneX + hn::Set(di, x), ly = laneY + hn::Set(di, y);
-        const L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
+        L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
+        if (job.need) {  // the lanes whose point is wanted
+          for (std::size_t i = 0; i < L::kLanes; ++i) {
+            const int px = x + int(i) % kW, py = y + int(i) / kW;
+            n[i] = px < x1 && py < y1 &&
+                   job.need[std::size_t(py) * std::size_t(job.tile.width) + std::size_t(px)];
+          }
+          valid = L::both(valid, L::lessI(hn::Zero(di), hn::Load(di, n)));
+          if (!L::any(valid)) continue;
+        }
         kernels::Lanes4<L::F> acc;
         L::I count;
         LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
-                                     lx + hn::Set(di, job.tile.x), ly + hn::Set(di, job.tile.y),
-                                     valid, acc, count);
+                                     lx * stride + hn::Set(di, job.tile.x),
+                                     ly * stride + hn::Set(di, job.tile.y), valid, acc, count);
         hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
         hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(count, di, n);
         L::forLanes(valid, [&](std::size_t i) {

@@ -205,6 +205,7 @@ class CudaBackend final : public Backend {
     VOXWALL_CUDA_CHECK(cudaMemcpy(&samples, samples_, sizeof samples, cudaMemcpyDeviceToHost));
     TileStats stats;
     stats.samples = samples;
+    stats.rays = std::uint64_t(tile.area());
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     // No per-block clock on the device: the tile's time is spread evenly over its cells.
     if (costs) costs->add(tile, stats.seconds);

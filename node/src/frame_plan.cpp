@@ -52,6 +52,15 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
       settings.levelOfDetail ? float(2.0 * tanY / double(screenHeight) / maxSpacing) : 0.0f;
 
   plan.lodUnderPressure = settings.lodUnderPressure;
+  if (settings.latticeStride < 0 || settings.latticeStride > kMaxLatticeStride ||
+      (settings.latticeStride & (settings.latticeStride - 1)) != 0)
+    throw std::invalid_argument("ray lattice stride must be 0 (auto) or a power of two up to " +
+                                std::to_string(kMaxLatticeStride));
+  if (settings.refineAboveLevels < 0)
+    throw std::invalid_argument("the lattice's refinement threshold must not be negative");
+  plan.latticeStride = settings.latticeStride > 0 ? settings.latticeStride
+                                                  : autoLatticeStride(info, camera, screenHeight);
+  plan.refineAboveLevels = settings.refineAboveLevels;
 
   if (reuse) {
     plan.lut = reuse->lut;

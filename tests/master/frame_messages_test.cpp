@@ -30,6 +30,7 @@ master::RankReport sampleReport(const master::FrameTask& t) {
   r.rank = 1;
   r.renderSeconds = 0.25;
   r.samples = 12345;
+  r.rays = 678, r.latticeStride = 4;
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
   r.pages = {1000, 20, 3, 2, 5 << 20, 17};
   for (const auto& rect : t.rects[1]) {
@@ -167,6 +168,8 @@ TEST(RankReport, RoundTrips) {
   EXPECT_EQ(back.rank, 1);
   EXPECT_EQ(back.renderSeconds, 0.25);
   EXPECT_EQ(back.samples, 12345u);
+  EXPECT_EQ(back.rays, 678u);
+  EXPECT_EQ(back.latticeStride, 4);
   EXPECT_EQ(back.peakResidentBytes, 2u << 20);
   EXPECT_EQ(back.pages.hits, 1000u);
   EXPECT_EQ(back.pages.missed, 20u);
@@ -222,9 +225,14 @@ TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   auto extra = bytes;
   extra.push_back(std::byte{0});
   expectRejected(extra, &t);
-  // A stream error longer than the limit (its u16 length follows 116 bytes of fields).
+  // A stream error longer than the limit (its u16 length follows 128 bytes of fields).
   auto longError = bytes;
   const std::uint16_t huge = 60000;
-  std::memcpy(longError.data() + 116, &huge, 2);
+  std::memcpy(longError.data() + 128, &huge, 2);
   expectRejected(longError, &t);
+  // A ray lattice of negative stride (the i32 after 96 bytes of fields and the u64 of rays).
+  auto negative = bytes;
+  const std::int32_t minusOne = -1;
+  std::memcpy(negative.data() + 104, &minusOne, 4);
+  expectRejected(negative, &t);
 }

@@ -337,6 +337,14 @@ void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup
   }
 }
 
+// The pixels of a frame's rectangles (its reduced screen's, for a steered frame).
+unsigned long long framePixels(const master::FrameSummary& f) {
+  unsigned long long pixels = 0;
+  for (const auto& rects : f.rects)
+    for (const auto& r : rects) pixels += (unsigned long long)r.area();
+  return pixels;
+}
+
 // The per-frame lines on rank 0 and the totals at the end.
 class Report {
  public:
@@ -381,7 +389,12 @@ class Report {
                   ? (", " + std::to_string(p.coarse) + " samples from coarser levels").c_str()
                   : "");
       }
-      std::printf("  %llu samples\n", (unsigned long long)f.samples);
+      std::printf(
+          "  %llu samples, %llu rays for %llu pixels (ray lattice %d, refined above %d "
+          "levels), step %g voxels\n",
+          (unsigned long long)f.samples, (unsigned long long)f.rays,
+          (unsigned long long)framePixels(f), f.latticeStride, s_.render.refineAboveLevels,
+          s_.render.stepVoxels);
     }
     std::fflush(stdout);
   }

@@ -308,6 +308,22 @@ codec::CodecOptionValues codecRenderOptions(const RenderOptions& o) {
   return values;
 }
 
+// --lattice and --exact: the ray lattice's side in pixels (0: picked per frame).
+int latticeStride(const RenderOptions& o) {
+  if (o.exact) {
+    if (o.lattice != "auto" && o.lattice != "1")
+      throw std::invalid_argument("--exact casts a ray a pixel: it takes no --lattice " +
+                                  o.lattice);
+    return 1;
+  }
+  if (o.lattice == "auto") return 0;
+  for (int s = 1; s <= node::kMaxLatticeStride; s *= 2)
+    if (o.lattice == std::to_string(s)) return s;
+  throw std::invalid_argument("--lattice: expected auto or a power of two up to " +
+                              std::to_string(node::kMaxLatticeStride) + ", not '" + o.lattice +
+                              "'");
+}
+
 node::RenderSettings renderSettings(const RenderOptions& o) {
   node::RenderSettings render;
   if (!(o.step > 0 && o.step <= 8)) throw std::invalid_argument("--step must be in (0, 8] voxels");
@@ -324,6 +340,10 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   render.nearest = o.sampling == "nearest";
   render.levelOfDetail = o.lod;
   render.lodUnderPressure = o.lodUnderPressure;
+  render.latticeStride = latticeStride(o);
+  if (o.refineAbove < 0 || o.refineAbove > 255)
+    throw std::invalid_argument("--refine-above must be in [0, 255] levels");
+  render.refineAboveLevels = o.refineAbove;
   if (o.backend != "cpu" && o.backend != "cuda")
     throw std::invalid_argument("--backend: expected cpu or cuda");
   if (o.deviceDecode != "whole" && o.deviceDecode != "per-ray")
@@ -362,6 +382,8 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   if (render.nearest) m["sampling"] = "nearest";
   if (render.levelOfDetail) m["lod"] = true;
   if (render.lodUnderPressure) m["lod_under_pressure"] = true;
+  m["lattice"] = render.latticeStride;  // 0: picked per frame
+  if (render.latticeStride != 1) m["refine_above"] = render.refineAboveLevels;
   for (const auto& [flag, value] : o.codecFlags) m["codec_options"][flag] = value;
   m["format"] = job.format;
   m["background"] = o.background;
@@ -534,6 +556,20 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                  "rescaled when read and need none");
   cmd.add_option("--step", o.step, "Ray step in voxels (of the smallest spacing)")
       ->capture_default_str();
+  cmd.add_option("--lattice", o.lattice,
+                 "Rays on a lattice of this many pixels a side where the screen magnifies the "
+                 "volume, refined where neighbouring rays differ (--refine-above) and "
+                 "interpolated elsewhere: auto (half a projected voxel at the volume's far side, "
+                 "a power of two up to 16; 1 where a voxel spans under 4 pixels), 1 (a ray a "
+                 "pixel), 2, 4, 8 or 16. CPU backend; CUDA casts a ray a pixel")
+      ->capture_default_str();
+  cmd.add_option("--refine-above", o.refineAbove,
+                 "A lattice cell whose corner rays differ by more than this many 8-bit levels in "
+                 "any channel is split, down to a ray a pixel")
+      ->capture_default_str();
+  cmd.add_flag("--exact", o.exact,
+               "A ray a pixel at the --step given (default 1/4 voxel): no lattice (for "
+               "comparisons and references)");
   cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
   cmd.add_option("--gradients", o.gradients,
                  "How --shading takes its gradients: cell (central differences at the corners of "

@@ -44,6 +44,9 @@ struct RenderOptions {
   std::string decodeCache = "512M";  // --decode-cache: decoded pages of a brick-coded volume
   bool lod = false;
   bool lodUnderPressure = false;  // --lod-under-pressure
+  std::string lattice = "auto";   // --lattice auto|1|2|4|8|16: the ray lattice's side in pixels
+  int refineAbove = 4;            // --refine-above LEVELS
+  bool exact = false;             // --exact: a ray a pixel
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
   std::map<std::string, std::string> codecFlags;
   bool shading = false, noSkip = false, noWrite = false, quiet = false, verbose = false;

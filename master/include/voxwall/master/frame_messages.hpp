@@ -18,12 +18,12 @@
 //               rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 pageHits,
-//               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, pageCoarse, u32
-//               flags (bit 0: pixels included, bit 1: streamed to the sink, bit 2: the sink
-//               refused this rank for good, bit 3: the rank abandoned the frame), f64
-//               encodeSeconds, u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
-//               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8,
-//               then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
+//               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, pageCoarse, u64
+//               rays, i32 latticeStride, u32 flags (bit 0: pixels included, bit 1: streamed to the
+//               sink, bit 2: the sink refused this rank for good, bit 3: the rank abandoned the
+//               frame), f64 encodeSeconds, u64 streamedBytes, u16 length + bytes of streamError,
+//               u32 tileCount, per tile: i32 x, y, width, height, then (with pixels) width*height
+//               u32 RGBA8, then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
 //               under this rank's tiles) and cw*ch f64 seconds, row by row.
 #pragma once
 
@@ -34,14 +34,16 @@
 #include <voxwall/net/wire.hpp>
 #include <voxwall/node/camera.hpp>
 #include <voxwall/node/cost_grid.hpp>
+#include <voxwall/node/page_stats.hpp>
 
 namespace voxwall::master {
 
 inline constexpr std::uint32_t kFrameTaskMagic = 0x54465756;   // "VWFT"
 inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
 // 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
-// RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse; 8: FrameTask.timeStep.
-inline constexpr std::uint32_t kFrameMessageVersion = 8;
+// RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse; 8: FrameTask.timeStep;
+// 9: RankReport.rays and latticeStride.
+inline constexpr std::uint32_t kFrameMessageVersion = 9;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -72,18 +74,15 @@ struct RenderedTile {
   voxwall::Image image;  // rect.width x rect.height, premultiplied RGBA8; empty without pixels
 };
 
-// A rank's decoded-page cache in a frame (node::TileStats): lane samples that found their page
-// resident and that did not, pages decoded, pages evicted, bytes resident after the frame, and of
-// the samples that missed, those taken from a coarser level (--lod-under-pressure).
-struct PageStats {
-  std::uint64_t hits = 0, missed = 0, decoded = 0, evictions = 0, residentBytes = 0, coarse = 0;
-};
+using PageStats = node::PageStats;  // a rank's decoded pages in a frame
 
 struct RankReport {
   std::uint32_t frame = 0;
   int rank = 0;
   double renderSeconds = 0;  // wall time for all of this rank's rects
   std::uint64_t samples = 0;
+  std::uint64_t rays = 0;  // rays cast (fewer than the pixels where the ray lattice interpolates)
+  int latticeStride = 0;   // the frame's ray lattice (1: a ray a pixel; 0: nothing rendered)
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
   PageStats pages;
   bool pixels = true;        // tiles carry their pixels (rank 0 writes frames)

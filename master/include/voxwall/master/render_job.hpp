@@ -144,6 +144,8 @@ struct FrameSummary {
   std::vector<std::vector<voxwall::Rect>> rects;  // per rendering rank
   double imbalance = 1;                           // max / mean of rankSeconds
   std::uint64_t samples = 0;
+  std::uint64_t rays = 0;    // rays cast by every rank
+  int latticeStride = 0;     // the ray lattice's side in pixels (1: a ray a pixel)
   int recuts = 0;            // cut changes so far (dynamic)
   std::string path;          // file the frame goes to, empty when not writing
   std::string streamError;   // the first rank that missed the sink, and why

@@ -32,6 +32,14 @@ struct RenderSettings {
   // quarter of the decode budget more); the pages are decoded after the tile
   // (node/page_cache.hpp).
   bool lodUnderPressure = false;
+  // Rays on a lattice where the screen magnifies the volume (node/ray_lattice.hpp): the lattice's
+  // side in pixels, a power of two up to kMaxLatticeStride; 0 picks it from the frame (half a
+  // projected voxel, rounded down to a power of two); 1 casts a ray a pixel.
+  int latticeStride = 0;
+  // A lattice cell whose four corner rays differ by more than this (8-bit levels, in any channel)
+  // is split and its rays cast at half the stride, down to a ray a pixel; the rest of its pixels
+  // are interpolated from its corners.
+  int refineAboveLevels = 4;
   int coarseCellFactor = 4;  // coarse skip cells are this many fine (codec range) cells per side
   double earlyTerminationOpacity = 0.995;
   int lutEntries = 4096;
@@ -51,7 +59,17 @@ struct FramePlan {
   double emptyFraction = 0.0;      // share of coarse cells skipped
   double fineEmptyFraction = 0.0;  // share of fine cells skipped
   bool lodUnderPressure = false;   // RenderSettings::lodUnderPressure
+  int latticeStride = 1;           // the ray lattice's side in pixels (1: a ray a pixel)
+  int refineAboveLevels = 4;       // RenderSettings::refineAboveLevels
 };
+
+inline constexpr int kMaxLatticeStride = 16;
+
+// The ray lattice's side for a frame (RenderSettings::latticeStride 0): the largest power of two,
+// up to kMaxLatticeStride, no larger than half the pixels the volume's smallest voxel side spans
+// at the volume's far side (where it spans the fewest), so that a feature a voxel wide always
+// falls on lattice rays. 1 where a voxel spans fewer than 4 pixels.
+int autoLatticeStride(const codec::VolumeInfo& info, const Camera& camera, int screenHeight);
 
 // `tfDomain` is the data-value range the LUT covers (usually the TF's own domain).
 // Throws std::invalid_argument for a non-positive step or screen size.
@@ -65,6 +83,7 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
 struct TileStats {
   double seconds = 0.0;
   std::uint64_t samples = 0;  // transfer-function samples taken (empty-space skips excluded)
+  std::uint64_t rays = 0;     // rays cast (fewer than the pixels where a ray lattice interpolates)
   bool stopped = false;       // told to stop before every pixel was rendered
   // The CPU backend's decoded pages (node/page_cache.hpp) in this tile: lane samples that found
   // their page resident and that did not, pages decoded, pages evicted, and the bytes resident
@@ -87,6 +106,16 @@ class CudaError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Rays on a lattice of the virtual screen: point (i, j) is the ray through pixel (points.x + i *
+// stride, points.y + j * stride); a point may lie past the screen's right or bottom edge (its ray
+// goes on past the screen's edge). With `need` (points.width x points.height flags, row by row)
+// only the points whose flag is set are traced.
+struct RayPoints {
+  Rect points;  // x, y: the first point's pixel; width, height: points per row and per column
+  int stride = 1;
+  const std::uint8_t* need = nullptr;
+};
+
 // Renders rectangles of the virtual screen. Not thread-safe: one frame at a time.
 class Backend {
  public:
@@ -98,10 +127,20 @@ class Backend {
   // Once `*stop` turns true (another thread sets it: the camera moved), the tile is left
   // unfinished as soon as the work in progress ends (the CPU backend: each thread's 16x16 block;
   // the CUDA backend: the kernel launched) and the stats say `stopped`.
+  // Where the plan has a ray lattice (FramePlan::latticeStride > 1) and the backend traces
+  // lattices, the tile's pixels come from it (node/ray_lattice.hpp): the same picture whatever the
+  // tiles; otherwise a ray a pixel.
   TileStats render(const RenderVolume& volume, const FramePlan& plan, const Rect& tile, Image& out,
-                   CostGrid* costs = nullptr, const std::atomic<bool>* stop = nullptr) {
-    return renderTile(volume, plan, tile, out, costs, stop);
-  }
+                   CostGrid* costs = nullptr, const std::atomic<bool>* stop = nullptr);
+
+  // Whether renderPoints works (the CPU backend's; the CUDA backend casts a ray a pixel).
+  virtual bool tracesLattices() const { return false; }
+  // Traces the lattice's rays into `out`, which is points.width x points.height already: the
+  // points not needed keep what they held. With `costs`, as render(), over the pixels the points
+  // stand for. Throws std::logic_error where tracesLattices() is false.
+  virtual TileStats renderPoints(const RenderVolume& volume, const FramePlan& plan,
+                                 const RayPoints& points, Image& out, CostGrid* costs,
+                                 const std::atomic<bool>* stop);
 
  protected:
   virtual TileStats renderTile(const RenderVolume& volume, const FramePlan& plan, const Rect& tile,
