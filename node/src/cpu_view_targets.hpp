@@ -11,6 +11,7 @@
 // the transfer function, shading and compositing run on whole vectors.
 #include <hwy/highway.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -597,19 +598,45 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
     HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
     HWY_ALIGN std::int32_t n[L::kLanes];
     const auto stride = hn::Set(di, job.stride);
+    if (job.need) {
+      // Only some points are wanted (a lattice's refinement): they are packed into full packets,
+      // in the order of the kW x kH groups they lie in, so neighbouring lanes stay neighbours.
+      constexpr int kMost = kBlockPixels * kBlockPixels + int(L::kLanes);  // a packet's tail too
+      HWY_ALIGN std::int32_t px[kMost], py[kMost];
+      int count = 0;
+      for (int gy = y0; gy < y1; gy += kH)
+        for (int gx = x0; gx < x1; gx += kW)
+          for (int i = 0; i < kW * kH; ++i) {
+            const int x = gx + i % kW, y = gy + i / kW;
+            if (x < x1 && y < y1 &&
+                job.need[std::size_t(y) * std::size_t(job.tile.width) + std::size_t(x)])
+              px[count] = x, py[count] = y, ++count;
+          }
+      std::fill(px + count, px + count + int(L::kLanes), 0);  // lanes past the end: masked
+      std::fill(py + count, py + count + int(L::kLanes), 0);
+      for (int first = 0; first < count; first += int(L::kLanes)) {
+        const int left = count - first;
+        const auto lx = hn::Load(di, px + first), ly = hn::Load(di, py + first);
+        const L::M valid = L::lessI(lane, hn::Set(di, left));
+        kernels::Lanes4<L::F> acc;
+        L::I n4;
+        LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
+                                     lx * stride + hn::Set(di, job.tile.x),
+                                     ly * stride + hn::Set(di, job.tile.y), valid, acc, n4);
+        hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
+        hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(n4, di, n);
+        L::forLanes(valid, [&](std::size_t i) {
+          job.out.at(px[first + int(i)], py[first + int(i)]) =
+              kernels::packRgba8(glm::vec4(r[i], g[i], b[i], a[i]));
+          samples += std::uint64_t(n[i]);
+        });
+      }
+      return;
+    }
     for (int y = y0; y < y1; y += kH)
       for (int x = x0; x < x1; x += kW) {
         const auto lx = laneX + hn::Set(di, x), ly = laneY + hn::Set(di, y);
-        L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
-        if (job.need) {  // the lanes whose point is wanted
-          for (std::size_t i = 0; i < L::kLanes; ++i) {
-            const int px = x + int(i) % kW, py = y + int(i) / kW;
-            n[i] = px < x1 && py < y1 &&
-                   job.need[std::size_t(py) * std::size_t(job.tile.width) + std::size_t(px)];
-          }
-          valid = L::both(valid, L::lessI(hn::Zero(di), hn::Load(di, n)));
-          if (!L::any(valid)) continue;
-        }
+        const L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
         kernels::Lanes4<L::F> acc;
         L::I count;
         LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,

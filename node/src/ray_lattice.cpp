@@ -23,8 +23,13 @@ TileStats Backend::renderPoints(const RenderVolume&, const FramePlan&, const Ray
 
 int autoLatticeStride(const codec::VolumeInfo& info, const Camera& camera, int screenHeight) {
   const glm::dvec3 half = glm::dvec3(info.dims) * info.spacing * 0.5;
-  // The volume is centred on the origin of patient space; its far side is at most this far.
-  const double farthest = glm::length(camera.eye) + glm::length(half);
+  // The volume's box is centred on the origin of patient space: its farthest corner from the eye.
+  double farthest = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const glm::dvec3 sign((corner & 1) ? 1 : -1, (corner & 2) ? 1 : -1, (corner & 4) ? 1 : -1);
+    farthest =
+        std::max(farthest, glm::length(info.orientation.direction * (sign * half) - camera.eye));
+  }
   const double minSpacing = std::min({info.spacing.x, info.spacing.y, info.spacing.z});
   const double pixelAngle =
       2.0 * std::tan(camera.fovYDeg * std::numbers::pi / 360.0) / double(screenHeight);

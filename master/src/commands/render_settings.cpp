@@ -559,9 +559,10 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--lattice", o.lattice,
                  "Rays on a lattice of this many pixels a side where the screen magnifies the "
                  "volume, refined where neighbouring rays differ (--refine-above) and "
-                 "interpolated elsewhere: auto (half a projected voxel at the volume's far side, "
-                 "a power of two up to 16; 1 where a voxel spans under 4 pixels), 1 (a ray a "
-                 "pixel), 2, 4, 8 or 16. CPU backend; CUDA casts a ray a pixel")
+                 "interpolated elsewhere: auto (half the pixels a voxel spans at the volume's "
+                 "farthest corner, rounded down to a power of two up to 16; 1 where a voxel "
+                 "spans under 4 pixels), 1 (a ray a pixel), 2, 4, 8 or 16. CPU backend; CUDA "
+                 "casts a ray a pixel")
       ->capture_default_str();
   cmd.add_option("--refine-above", o.refineAbove,
                  "A lattice cell whose corner rays differ by more than this many 8-bit levels in "

@@ -45,7 +45,7 @@ struct RenderOptions {
   bool lod = false;
   bool lodUnderPressure = false;  // --lod-under-pressure
   std::string lattice = "auto";   // --lattice auto|1|2|4|8|16: the ray lattice's side in pixels
-  int refineAbove = 4;            // --refine-above LEVELS
+  int refineAbove = 8;            // --refine-above LEVELS
   bool exact = false;             // --exact: a ray a pixel
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
   std::map<std::string, std::string> codecFlags;

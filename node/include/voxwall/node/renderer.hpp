@@ -39,7 +39,7 @@ struct RenderSettings {
   // A lattice cell whose four corner rays differ by more than this (8-bit levels, in any channel)
   // is split and its rays cast at half the stride, down to a ray a pixel; the rest of its pixels
   // are interpolated from its corners.
-  int refineAboveLevels = 4;
+  int refineAboveLevels = 8;
   int coarseCellFactor = 4;  // coarse skip cells are this many fine (codec range) cells per side
   double earlyTerminationOpacity = 0.995;
   int lutEntries = 4096;
@@ -60,15 +60,15 @@ struct FramePlan {
   double fineEmptyFraction = 0.0;  // share of fine cells skipped
   bool lodUnderPressure = false;   // RenderSettings::lodUnderPressure
   int latticeStride = 1;           // the ray lattice's side in pixels (1: a ray a pixel)
-  int refineAboveLevels = 4;       // RenderSettings::refineAboveLevels
+  int refineAboveLevels = 8;       // RenderSettings::refineAboveLevels
 };
 
 inline constexpr int kMaxLatticeStride = 16;
 
 // The ray lattice's side for a frame (RenderSettings::latticeStride 0): the largest power of two,
 // up to kMaxLatticeStride, no larger than half the pixels the volume's smallest voxel side spans
-// at the volume's far side (where it spans the fewest), so that a feature a voxel wide always
-// falls on lattice rays. 1 where a voxel spans fewer than 4 pixels.
+// at the volume's farthest corner from the eye (where it spans the fewest), so that a feature a
+// voxel wide always falls on lattice rays. 1 where a voxel spans fewer than 4 pixels.
 int autoLatticeStride(const codec::VolumeInfo& info, const Camera& camera, int screenHeight);
 
 // `tfDomain` is the data-value range the LUT covers (usually the TF's own domain).
