@@ -287,6 +287,7 @@ class MasterLoop {
     FrameSummary s;
     s.frame = f;
     readWall(f, frameStart, s);
+    if (f == firstFrame_) s.probeSeconds = probe(f);
     const FrameChoice choice = steering_.next(s.controls, frameStart);
     s.step = choice.step, s.phase = choice.phase;
     s.rects = cut(s.step);
@@ -375,6 +376,22 @@ class MasterLoop {
   }
 
  private:
+  // A steered job with a frame budget predicts what a full frame costs before it renders one,
+  // so that its first steered frame keeps the budget: rank 0 renders the first frame's view at
+  // 1/16 a side and shares the predicted time among the rendering ranks. 0 where not steered.
+  double probe(int f) {
+    if (!steering_.interactive() || job_.frameBudgetMs <= 0) return 0;
+    node::RankFrame view;
+    view.volume = &volume_, view.tf = &tf_;
+    view.camera =
+        node::orbitCamera(offset_.apply(job_.path.at(f)), node::boundingRadius(volume_.info()));
+    view.screenWidth = job_.width, view.screenHeight = job_.height;
+    view.cellPixels = job_.balancer.cellPixels;
+    const double seconds = renderer_.probe(view).seconds / double(slots_);
+    steering_.predictFullFrame(seconds);
+    return seconds;
+  }
+
   // What the wall sent since the last frame: its notes and camera commands. A sink that refused
   // the job (token, wall, version, a newer job) shows nothing of it: the job ends.
   void readWall(int f, Clock::time_point now, FrameSummary& s) {
@@ -495,6 +512,8 @@ class MasterLoop {
   TimePlayer player_;
   double slowestFrame_ = 0;
   int timeoutMs_;
+  // The first frame this run renders (--resume skips those done).
+  const int firstFrame_ = int(std::find(done_.begin(), done_.end(), false) - done_.begin());
 };
 
 }  // namespace

@@ -77,6 +77,11 @@ bool Steering::abandonable(const FrameChoice& frame) const {
   return master::abandonable(settings_, frame.phase);
 }
 
+void Steering::predictFullFrame(double seconds) {
+  if (!(seconds >= 0)) throw std::invalid_argument("a negative predicted frame time");
+  if (!fullFrameSeconds_) fullFrameSeconds_ = seconds;
+}
+
 void Steering::finished(const FrameChoice& frame, double seconds, bool abandoned) {
   if (abandoned) return;
   shown_ = shown_ ? std::min(*shown_, frame.step) : frame.step;

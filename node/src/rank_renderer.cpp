@@ -1,5 +1,6 @@
 #include <chrono>
 #include <future>
+#include <stdexcept>
 #include <voxwall/node/rank_renderer.hpp>
 
 namespace voxwall::node {
@@ -99,6 +100,20 @@ RankFrameResult RankRenderer::render(const RankFrame& frame) {
   }
   releaseWhenSettled(result.pages);
   return result;
+}
+
+FrameProbe RankRenderer::probe(const RankFrame& frame, int step) {
+  if (step < 1) throw std::invalid_argument("probe step must be at least 1");
+  RankFrame reduced = frame;
+  reduced.screenWidth = (frame.screenWidth + step - 1) / step;
+  reduced.screenHeight = (frame.screenHeight + step - 1) / step;
+  reduced.rects = {{0, 0, reduced.screenWidth, reduced.screenHeight}};
+  reduced.keepPixels = true;
+  reduced.abandoned = nullptr;
+  reduced.onPart = nullptr;
+  const RankFrameResult result = render(reduced);
+  const double scale = double(step) * double(step);
+  return {result.renderSeconds * scale, std::uint64_t(double(result.samples) * scale)};
 }
 
 // Decoded pages hold the voxels their compressed bytes gave: those bytes (and the tables the codec

@@ -207,3 +207,22 @@ TEST(Steering, TimeCommandsPauseStepSeekAndPlayTheSeries) {
   EXPECT_EQ(byClock.step(6, t0 + 11100ms), 2);   // index 5.2: wrapped
   EXPECT_EQ(byClock.state().rate, 2);
 }
+
+// Before any frame is measured, a probe's prediction picks the first steered frames' step: a
+// bigger screen (a costlier full frame) a coarser one; measured frames then take over.
+TEST(Steering, APredictedFullFramePicksTheFirstStepAndABiggerScreenACoarserOne) {
+  auto settings = steered();
+  settings.frameBudgetMs = 200;
+  Steering desktop(settings), wall(settings);
+  desktop.predictFullFrame(0.8);  // 0.8 s / 2^2 = 0.2 s
+  wall.predictFullFrame(12.0);    // 12 s / 8^2 = 0.19 s
+  EXPECT_EQ(desktop.steeringStep(), 2);
+  EXPECT_EQ(wall.steeringStep(), 8);
+  Steering::Clock::time_point now{};
+  EXPECT_EQ(wall.next(1, now).step, 8);  // the first steered frame, before any was measured
+  wall.predictFullFrame(1.0);            // a prediction does not replace a measure or another
+  EXPECT_EQ(wall.steeringStep(), 8);
+  wall.finished({8, net::FramePhase::Interactive}, 0.05, false);  // full: (12 + 3.2) / 2
+  EXPECT_EQ(wall.steeringStep(), 7);  // 7.6 s / 49 = 0.16 s (at 6: 0.21 s, over the budget)
+  EXPECT_THROW(wall.predictFullFrame(-1), std::invalid_argument);
+}

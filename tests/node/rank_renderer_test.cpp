@@ -117,3 +117,21 @@ TEST(RowBands, CutARectangleTopToBottom) {
   EXPECT_EQ(bands[2], (Rect{3, 17, 10, 4}));
   EXPECT_EQ(rowBands(r, 0).size(), 16u);  // at least a row a band
 }
+
+// A probe renders the screen at 1/step a side and predicts the full screen's samples by step^2:
+// the same view on a screen twice as wide and high is predicted at about four times the samples.
+TEST(RankRenderer, AProbePredictsMoreForABiggerScreen) {
+  Fixture fx;
+  fx.settings.latticeStride = 1;
+  RankRenderer renderer(*fx.backend, fx.settings);
+  RankFrame small = fx.frame({}, true);
+  small.screenWidth = 384, small.screenHeight = 288;
+  RankFrame big = small;
+  big.screenWidth = 768, big.screenHeight = 576;
+  const FrameProbe a = renderer.probe(small, 8), b = renderer.probe(big, 8);
+  EXPECT_GT(a.samples, 0u);
+  EXPECT_GE(a.seconds, 0.0);
+  EXPECT_GT(double(b.samples), 3.0 * double(a.samples));
+  EXPECT_LT(double(b.samples), 5.0 * double(a.samples));
+  EXPECT_THROW(renderer.probe(small, 0), std::invalid_argument);
+}

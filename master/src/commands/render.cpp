@@ -373,6 +373,11 @@ class Report {
                 f.frame + 1, s_.job.frames, timeStep.c_str(), f.frameSeconds * 1e3, f.imbalance,
                 ranks.c_str(), double(f.samples) / f.renderSeconds / 1e6, sinkText(f).c_str(),
                 f.path.empty() ? "" : " -> ", f.path.c_str());
+    if (f.probeSeconds > 0)
+      std::printf(
+          "  a probe of the view predicts %.2f s a full frame a rank; steered frames keep "
+          "to --frame-budget %g ms\n",
+          f.probeSeconds, s_.job.frameBudgetMs);
     for (const auto& note : f.sinkNotes) std::printf("  %s\n", note.c_str());
     if (o_.verbose) {
       for (std::size_t i = 0; i < f.ranks.size(); ++i) {

@@ -253,7 +253,8 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   job.refine = master::parseRefineSteps(o.refine);
   if (!(o.frameBudgetMs >= 0 && o.frameBudgetMs <= 600000))
     throw std::invalid_argument("--frame-budget must be in [0, 600000] milliseconds");
-  job.frameBudgetMs = o.frameBudgetMs;
+  // A step chosen on the command line is kept: the budget then only applies when given too.
+  job.frameBudgetMs = o.interactiveStepGiven && !o.frameBudgetGiven ? 0 : o.frameBudgetMs;
   return job;
 }
 
@@ -433,10 +434,12 @@ void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
       ->capture_default_str();
   cmd.add_option("--subsampling", o.subsampling, "JPEG chroma subsampling: 444, 422 or 420")
       ->capture_default_str();
-  cmd.add_option("--interactive-step", o.interactiveStep,
-                 "While camera commands from the wall keep arriving, render at 1/N per side (the "
-                 "sink upsamples); 1: always full resolution. Only when streaming without --out")
-      ->capture_default_str();
+  h.interactiveStep =
+      cmd.add_option("--interactive-step", o.interactiveStep,
+                     "While camera commands from the wall keep arriving, render at 1/N per side "
+                     "(the sink upsamples) instead of the step --frame-budget picks; 1: always "
+                     "full resolution. Only when streaming without --out")
+          ->capture_default_str();
   cmd.add_option("--settle", o.settle,
                  "Seconds without a camera command after which the picture refines (--refine)")
       ->capture_default_str();
@@ -446,10 +449,13 @@ void addScreenOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
                  "skipped); a camera command during a refining or full frame abandons it and "
                  "steering starts again")
       ->capture_default_str();
-  cmd.add_option("--frame-budget", o.frameBudgetMs,
-                 "Milliseconds a steered frame should take: the step while steering is picked "
-                 "from the measured cost of recent frames (instead of --interactive-step); 0: off")
-      ->capture_default_str();
+  h.frameBudget =
+      cmd.add_option("--frame-budget", o.frameBudgetMs,
+                     "Milliseconds a steered frame should take: the step while steering is picked "
+                     "from a probe of the view before the first frame (the screen at 1/16 a side) "
+                     "and then from the measured cost of recent frames; 0: off (--interactive-step "
+                     "alone). Off when --interactive-step is given without it")
+          ->capture_default_str();
 }
 
 // How the screen is cut among the ranks, and the job's limits.

@@ -30,10 +30,11 @@ struct RenderOptions {
   int jpegQuality = 90;
   int interactiveStep = 4;       // --interactive-step
   std::string refine = "4,2,1";  // --refine
-  double frameBudgetMs = 0;      // --frame-budget
+  double frameBudgetMs = 200;    // --frame-budget
   double settle = 0.5;           // --settle, seconds
   double sinkDeadline = 30;      // --sink-deadline, seconds
   bool sizeGiven = false, outGiven = false, framesGiven = false;
+  bool interactiveStepGiven = false, frameBudgetGiven = false;
   std::string time;              // --time A:B[:S], A, or all
   double timeRate = 0;           // --time-rate STEPS_PER_SECOND (on the wall)
   std::string range = "series";  // --range series|per-step: what the transfer function spans
@@ -57,7 +58,10 @@ struct RenderOptions {
 // Registers every render option with `cmd`; the callback must call noteGiven() before use.
 struct RenderOptionHandles {
   CLI::Option *balance = nullptr, *size = nullptr, *out = nullptr, *frames = nullptr;
+  CLI::Option *interactiveStep = nullptr, *frameBudget = nullptr;
   void noteGiven(RenderOptions& o) const {
+    o.interactiveStepGiven = interactiveStep->count() > 0;
+    o.frameBudgetGiven = frameBudget->count() > 0;
     o.framesGiven = frames->count() > 0;
     o.balanceGiven = balance->count() > 0;
     o.sizeGiven = size->count() > 0;

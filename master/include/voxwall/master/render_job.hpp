@@ -153,8 +153,12 @@ struct FrameSummary {
   double encodeSeconds = 0;  // the slowest rank's tile compression
   std::uint64_t streamedBytes = 0;
   int controls = 0;  // camera commands from the wall applied to this frame
-  int step = 1;      // > 1: a reduced frame at 1/step per side
-  int timeStep = 0;  // the volume's time step it shows
+  // A steered job's first frame: the full frame's time a probe of the view predicted (the
+  // screen at 1/16 a side on rank 0, shared among the rendering ranks), which picks the first
+  // steered frames' step under the frame budget; 0 otherwise.
+  double probeSeconds = 0;
+  int step = 1;                                   // > 1: a reduced frame at 1/step per side
+  int timeStep = 0;                               // the volume's time step it shows
   net::FramePhase phase = net::FramePhase::Full;  // interactive (steered), refining or full
   bool abandoned = false;              // the camera moved while it rendered: given up, not shown
   std::vector<std::string> sinkNotes;  // what the sink said about earlier frames (drops, refusals)

@@ -4,8 +4,9 @@
 //
 //   - While camera commands keep coming (the last one less than settleSeconds ago), frames are
 //     *interactive*: rendered at 1/steeringStep per side. With a frame budget the step is the
-//     smallest one whose predicted frame time fits the budget, predicted from the frames so far
-//     (a frame at step s costs about the full frame's time / s^2); without one, interactiveStep.
+//     smallest one whose predicted frame time fits the budget, predicted from a probe of the view
+//     before the first frame (predictFullFrame) and then from the frames so far (a frame at step
+//     s costs about the full frame's time / s^2); without one, interactiveStep.
 //   - Once the camera settled, the picture *refines*: each frame at the next step of `refine`
 //     finer than the last one shown since the last command, down to full resolution.
 //   - A command that arrives while a refining or full frame renders abandons that frame (the
@@ -57,10 +58,15 @@ class Steering {
   bool abandonable(const FrameChoice& frame) const;
   // The frame ended after `seconds` (camera decided -> frame done), or was abandoned.
   void finished(const FrameChoice& frame, double seconds, bool abandoned);
+  // Whether frames are steered from the wall (SteeringSettings::interactive).
+  bool interactive() const { return settings_.interactive; }
   // The step steered frames are rendered at now.
   int steeringStep() const;
-  // The predicted full-resolution frame time, once a frame was measured.
+  // The predicted full-resolution frame time, once a frame was measured or predicted.
   std::optional<double> fullFrameSeconds() const { return fullFrameSeconds_; }
+  // A full-resolution frame's time predicted before any frame was measured (a probe of the
+  // view), so that the first steered frame keeps the budget; measured frames then take over.
+  void predictFullFrame(double seconds);
 
  private:
   SteeringSettings settings_;

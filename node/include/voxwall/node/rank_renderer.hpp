@@ -58,6 +58,13 @@ struct RankFrameResult {
   bool abandoned = false;
 };
 
+// What rendering a whole screen at full resolution is predicted to cost one rank, from the same
+// screen rendered at 1/step a side and scaled by step^2 (RankRenderer::probe).
+struct FrameProbe {
+  double seconds = 0;
+  std::uint64_t samples = 0;
+};
+
 // `rect` cut into bands of `rows` rows (at least 1), top to bottom.
 std::vector<Rect> rowBands(const Rect& rect, int rows);
 
@@ -69,6 +76,11 @@ class RankRenderer {
 
   // Renders the frame's rectangles. Throws what planning and the backend throw.
   RankFrameResult render(const RankFrame& frame);
+
+  // Predicts what the whole screen of `frame` (its rectangles are ignored) costs at full
+  // resolution on this rank alone: the screen at 1/step a side, a ray a pixel, scaled by step^2.
+  // A probe of the view before a frame has been measured (a steered job's first frame).
+  FrameProbe probe(const RankFrame& frame, int step = 16);
 
   // This process's memory now, without rendering anything.
   ProcessMemory memory() const { return processMemory(); }
