@@ -8,7 +8,8 @@ each. Frames are rendered and written by rank 0 (PNG), then compared here; the f
 the slowest rank's render time as `voxwall render` prints them (writing runs in a background
 thread and is not counted). Prints a table and exits non-zero when it cannot parse what it ran.
 
-    /usr/bin/python3 bench/lattice_bench.py --voxwall build/master/voxwall [--frames 3]
+    /usr/bin/python3 bench/lattice_bench.py --voxwall build/master/voxwall [--frames 3] \
+        [-- --refine-above 16]
 """
 import argparse
 import os
@@ -83,6 +84,7 @@ def main():
     p.add_argument("--ranks", type=int, default=2)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--keep", help="keep the frames in this folder")
+    p.add_argument("render", nargs="*", help="more options for the default run (after --)")
     args = p.parse_args()
     if not os.path.exists(MRI):
         fail(f"{MRI} is missing (apt-get install mricron-data)")
@@ -92,7 +94,7 @@ def main():
     if not os.path.exists(vwz):
         subprocess.run([args.voxwall, "compress", MRI, "-o", vwz, "-q"], check=True)
     runs = {}
-    for name, extra in [("exact", ["--exact"]), ("default", []),
+    for name, extra in [("exact", ["--exact"]), ("default", args.render),
                         ("converged", ["--exact", "--step", "0.125"])]:
         out = os.path.join(work, name)
         shutil.rmtree(out, ignore_errors=True)

@@ -29,6 +29,7 @@ class CpuBackend final : public Backend {
   }
 
   bool tracesLattices() const override { return true; }
+  int hostThreads() const override { return threads_; }
 
   TileStats renderPoints(const RenderVolume& volume, const FramePlan& plan, const RayPoints& points,
                          Image& out, CostGrid* costs, const std::atomic<bool>* stop) override {

@@ -1,8 +1,10 @@
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <numbers>
 #include <stdexcept>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/node/ray_lattice.hpp>
 
 namespace voxwall::node {
@@ -55,11 +57,15 @@ std::uint32_t blendCorners(std::uint32_t c00, std::uint32_t c10, std::uint32_t c
   const std::uint32_t w00 = std::uint32_t((s - fx) * (s - fy)), w10 = std::uint32_t(fx * (s - fy));
   const std::uint32_t w01 = std::uint32_t((s - fx) * fy), w11 = std::uint32_t(fx * fy);
   const std::uint32_t total = std::uint32_t(s * s);
+  // A lattice's side is a power of two: the division is a shift (the same value).
+  const bool power = (s & (s - 1)) == 0;
+  const int log2Total = 2 * std::countr_zero(std::uint32_t(s));
   std::uint32_t out = 0;
   for (int shift = 0; shift < 32; shift += 8) {
     const std::uint32_t sum = ((c00 >> shift) & 255u) * w00 + ((c10 >> shift) & 255u) * w10 +
                               ((c01 >> shift) & 255u) * w01 + ((c11 >> shift) & 255u) * w11;
-    out |= ((sum + total / 2) / total) << shift;
+    const std::uint32_t v = power ? (sum + total / 2) >> log2Total : (sum + total / 2) / total;
+    out |= v << shift;
   }
   return out;
 }
@@ -124,29 +130,51 @@ class TileLattice {
   }
 
   // Cells of side s: those whose corners span more than `threshold` become their four children
-  // that cover part of the tile (side s / 2); the others are filled into `out` and dropped.
-  void splitOrFill(int s, int threshold, Image& out) {
+  // that cover part of the tile (side s / 2); the others are filled into `out` and dropped. On
+  // `threads` threads, a run of cells each (cells write disjoint pixels).
+  void splitOrFill(int s, int threshold, Image& out, int threads) {
+    std::vector<std::uint8_t> split(cells_.size(), 0);
+    constexpr std::size_t kRun = 4096;
+    voxwall::parallelFor((cells_.size() + kRun - 1) / kRun, threads, [&](std::size_t run) {
+      const std::size_t end = std::min(cells_.size(), (run + 1) * kRun);
+      for (std::size_t i = run * kRun; i < end; ++i) {
+        const Cell& c = cells_[i];
+        const std::uint32_t c00 = ray(c.x, c.y), c10 = ray(c.x + s, c.y);
+        const std::uint32_t c01 = ray(c.x, c.y + s), c11 = ray(c.x + s, c.y + s);
+        if (s > 1 && cornerSpread(c00, c10, c01, c11) > threshold) {
+          split[i] = 1;
+          continue;
+        }
+        fill(c, s, c00, c10, c01, c11, out);
+      }
+    });
     std::vector<Cell> next;
     const int h = s / 2;
-    for (const Cell& c : cells_) {
-      const std::uint32_t c00 = ray(c.x, c.y), c10 = ray(c.x + s, c.y);
-      const std::uint32_t c01 = ray(c.x, c.y + s), c11 = ray(c.x + s, c.y + s);
-      if (s > 1 && cornerSpread(c00, c10, c01, c11) > threshold) {
-        for (int b = 0; b < 2; ++b)
-          for (int a = 0; a < 2; ++a)
-            if (covers({c.x + a * h, c.y + b * h}, h)) next.push_back({c.x + a * h, c.y + b * h});
-        continue;
-      }
-      // The cell's pixels inside the tile, from its corners.
-      const int px0 = std::max(x0_ + c.x, tile_.x), py0 = std::max(y0_ + c.y, tile_.y);
-      const int px1 = std::min(x0_ + c.x + s, tile_.x + tile_.width);
-      const int py1 = std::min(y0_ + c.y + s, tile_.y + tile_.height);
-      for (int y = py0; y < py1; ++y)
-        for (int x = px0; x < px1; ++x)
-          out.at(x - tile_.x, y - tile_.y) =
-              blendCorners(c00, c10, c01, c11, s, x - x0_ - c.x, y - y0_ - c.y);
+    for (std::size_t i = 0; i < cells_.size(); ++i) {
+      if (!split[i]) continue;
+      const Cell& c = cells_[i];
+      for (int b = 0; b < 2; ++b)
+        for (int a = 0; a < 2; ++a)
+          if (covers({c.x + a * h, c.y + b * h}, h)) next.push_back({c.x + a * h, c.y + b * h});
     }
     cells_ = std::move(next);
+  }
+
+  // The cell's pixels inside the tile, from its corners.
+  void fill(const Cell& c, int s, std::uint32_t c00, std::uint32_t c10, std::uint32_t c01,
+            std::uint32_t c11, Image& out) const {
+    const int px0 = std::max(x0_ + c.x, tile_.x), py0 = std::max(y0_ + c.y, tile_.y);
+    const int px1 = std::min(x0_ + c.x + s, tile_.x + tile_.width);
+    const int py1 = std::min(y0_ + c.y + s, tile_.y + tile_.height);
+    if (c00 == c10 && c00 == c01 && c00 == c11) {  // flat (the background, mostly)
+      for (int y = py0; y < py1; ++y)
+        std::fill_n(&out.at(px0 - tile_.x, y - tile_.y), px1 - px0, c00);
+      return;
+    }
+    for (int y = py0; y < py1; ++y)
+      for (int x = px0; x < px1; ++x)
+        out.at(x - tile_.x, y - tile_.y) =
+            blendCorners(c00, c10, c01, c11, s, x - x0_ - c.x, y - y0_ - c.y);
   }
 
   bool done() const { return cells_.empty(); }
@@ -196,7 +224,7 @@ TileStats renderLattice(Backend& backend, const RenderVolume& volume, const Fram
       stats.stopped = true;
       return stats;
     }
-    lattice.splitOrFill(s, plan.refineAboveLevels, out);
+    lattice.splitOrFill(s, plan.refineAboveLevels, out, backend.hostThreads());
   }
   return stats;
 }

@@ -135,6 +135,8 @@ class Backend {
 
   // Whether renderPoints works (the CPU backend's; the CUDA backend casts a ray a pixel).
   virtual bool tracesLattices() const { return false; }
+  // Host threads the backend renders on (what host-side work beside it may use too).
+  virtual int hostThreads() const { return 1; }
   // Traces the lattice's rays into `out`, which is points.width x points.height already: the
   // points not needed keep what they held. With `costs`, as render(), over the pixels the points
   // stand for. Throws std::logic_error where tracesLattices() is false.
