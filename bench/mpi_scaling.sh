@@ -40,7 +40,7 @@ for size in $sizes; do
     threads=$((cores / n)); [ "$threads" -ge 1 ] || threads=1
     note=""; [ "$n" -gt "$cores" ] && note=" (oversubscribed)"
     out=$("${mpi[@]}" -np "$n" "$voxwall" render "$work/mri.vwz" --size "$size" --frames "$frames" \
-      --orbit-deg 5 --shading --out "$work/frames-$size-$n" 2>/dev/null)
+      --orbit-deg 5 --shading --exact --out "$work/frames-$size-$n" 2>/dev/null)
     total=$(echo "$out" | grep '^total:' || true)
     fps=$(echo "$total" | sed -E 's/.* ([0-9.]+) frames\/s.*/\1/')
     mean=$(echo "$total" | sed -E 's/.*mean frame ([0-9.]+) ms.*/\1/')
@@ -67,7 +67,7 @@ for n in 2 4; do
   [ "$n" -le 1 ] && continue
   for balance in static dynamic; do
     out=$("${mpi[@]}" -np "$n" "$voxwall" render "$work/mri.vwz" --size 1920x1080 --frames 8 \
-      --orbit-deg 0 --pan 1.1,-0.55 --shading --balance "$balance" --no-write 2>/dev/null)
+      --orbit-deg 0 --pan 1.1,-0.55 --shading --exact --balance "$balance" --no-write 2>/dev/null)
     row=$(echo "$out" | grep -E '^frame [0-9]+/' | sed -E 's/.*imbalance ([0-9.]+).*/\1/' | paste -sd'|' || true)
     note=""; [ "$n" -gt "$cores" ] && note=" (oversubscribed)"
     echo "| $n$note | $balance | ${row//|/ | } |"

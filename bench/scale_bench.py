@@ -134,7 +134,7 @@ def timed(cmd):
 def render(args, path, ranks=1, budget=None, extra=()):
     """One render: (mean ms of frames 2.., per-rank resident bytes, per-frame page lines)."""
     cmd = [args.voxwall, "render", path, "--size", args.size, "--frames", "3", "--shading",
-           "--no-write", "-v", "--path", "still", "--camera", "30,20,2.2"] + list(extra)
+           "--no-write", "-v", "--path", "still", "--camera", "30,20,2.2", "--exact"] + list(extra)
     if budget:
         cmd += ["--decode-cache", budget]
     env = None

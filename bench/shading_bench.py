@@ -70,7 +70,7 @@ def main():
         for codec in codecs:
             for name, extra in variants:
                 cmd = [args.voxwall, "render", files[codec], "--size", args.size, "--tf", tf,
-                       "--threads", args.threads, "--frames", "2", "--no-write"] + extra
+                       "--threads", args.threads, "--frames", "2", "--no-write", "--exact"] + extra
                 first_ms, ms = frame_ms(run(cmd), cmd)
                 key = (codec, name)
                 best[key] = min(best.get(key, ms), ms)

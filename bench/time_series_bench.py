@@ -147,7 +147,7 @@ def main():
         for codec in a.codecs.split(","):
             vwz = files[(codec, "shared")]
             out = run(mpirun + [voxwall, "render", vwz, "--size", a.render_size, "--path", "still",
-                                "--shading", "--no-write", "--frames", str(frames), "--time",
+                                "--shading", "--exact", "--no-write", "--frames", str(frames), "--time",
                                 f"0:{a.steps - 1}"])
             new, same = step_frames(out)
             print(f"| {codec} | {new:.1f} | {same:.1f} | {new / same:.2f} |")

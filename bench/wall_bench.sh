@@ -31,7 +31,7 @@ echo "machine: $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -
 echo
 echo "## Frame codec on one bigeye frame (MRI, shaded)"
 echo
-"$voxwall" render "$work/mri.vwz" --wall walls/bigeye.json --shading --out "$work/frame" -q
+"$voxwall" render "$work/mri.vwz" --wall walls/bigeye.json --shading --exact --out "$work/frame" -q
 "$tiles" "$work/frame/frame_00000.png" "$work/frame.ppm" "$quality" "$sub" 3
 echo
 echo "libjpeg-turbo's tjbench on the same frame (one thread, RGB input, fast DCT, q$quality $sub):"
@@ -54,7 +54,7 @@ for n in $ranks; do
     sleep 0.05
   done
   out=$("${mpi[@]}" -np "$n" "$voxwall" render "$work/mri.vwz" --wall walls/desktop.json \
-    --sink "127.0.0.1:$port" --frames "$frames" --orbit-deg 5 --shading \
+    --sink "127.0.0.1:$port" --frames "$frames" --orbit-deg 5 --shading --exact \
     --jpeg-quality "$quality" --subsampling "$sub" 2>/dev/null)
   wait "$sink" || true
   fps=$(echo "$out" | sed -n 's/.* \([0-9.]*\) frames\/s.*/\1/p')

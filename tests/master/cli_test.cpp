@@ -174,6 +174,34 @@ TEST(Cli, RenderWritesPngFrames) {
   EXPECT_NE(r.out.find("Msamples/s"), std::string::npos);
 }
 
+// The ray lattice from the command line: -v says what each frame cast; a magnified view casts
+// fewer rays than pixels by default and one a pixel with --exact; wrong strides are refused.
+TEST(Cli, RenderVerboseCountsTheRaysOfTheLattice) {
+  const std::string base =
+      "render generated:shepp-logan:32 --size 400x300 --camera 30,20,1.5 --no-write -v ";
+  auto rays = [](const std::string& out) {
+    const auto at = out.find(" rays for 120000 pixels (ray lattice ");
+    EXPECT_NE(at, std::string::npos) << out;
+    const auto start = out.rfind(", ", at);
+    return at == std::string::npos ? 0ull : std::stoull(out.substr(start + 2, at - start - 2));
+  };
+  const CliRun lattice = runVoxwall(base);
+  ASSERT_EQ(lattice.status, 0) << lattice.out;
+  EXPECT_LT(rays(lattice.out), 120000ull);
+  EXPECT_NE(lattice.out.find("refined above 8 levels), step 0.25 voxels"), std::string::npos)
+      << lattice.out;
+  const CliRun exact = runVoxwall(base + "--exact");
+  ASSERT_EQ(exact.status, 0) << exact.out;
+  EXPECT_EQ(rays(exact.out), 120000ull);
+  EXPECT_NE(exact.out.find("(ray lattice 1,"), std::string::npos) << exact.out;
+  expectOneLineError(runVoxwall(base + "--lattice 3"),
+                     "voxwall: --lattice: expected auto or a power of two up to 16, not '3'");
+  expectOneLineError(runVoxwall(base + "--exact --lattice 4"),
+                     "voxwall: --exact casts a ray a pixel: it takes no --lattice 4");
+  expectOneLineError(runVoxwall(base + "--refine-above 300"),
+                     "voxwall: --refine-above must be in [0, 255] levels");
+}
+
 TEST(Cli, CorruptVwzFailsWithOneLine) {
   test::TempDir dir;
   const auto vwz = dir.path("m.vwz");

@@ -41,6 +41,34 @@ TEST(RenderSettings, Defaults) {
   EXPECT_FLOAT_EQ(float(render.stepVoxels), 0.25f);
   EXPECT_FALSE(render.nearest);
   EXPECT_TRUE(render.emptySpaceSkipping);
+  EXPECT_EQ(render.latticeStride, 0);  // the ray lattice, its stride picked per frame
+  EXPECT_EQ(render.refineAboveLevels, 8);
+  EXPECT_EQ(job.frameBudgetMs, 200);  // steered frames keep a budget
+}
+
+TEST(RenderSettings, TheLatticeExactAndTheFrameBudget) {
+  RenderOptions o;
+  o.lattice = "8";
+  EXPECT_EQ(renderSettings(o).latticeStride, 8);
+  o.exact = true;
+  expectRefused([&] { (void)renderSettings(o); }, "--exact casts a ray a pixel");
+  o.lattice = "auto";
+  EXPECT_EQ(renderSettings(o).latticeStride, 1);
+  o.exact = false;
+  for (const char* bad : {"0", "3", "32", "four"}) {
+    o.lattice = bad;
+    expectRefused([&] { (void)renderSettings(o); }, "--lattice: expected auto or a power of two");
+  }
+  o.lattice = "auto";
+  o.refineAbove = -1;
+  expectRefused([&] { (void)renderSettings(o); }, "--refine-above must be in [0, 255]");
+  // A step given alone keeps its fixed step; given with a budget, the budget picks.
+  o.refineAbove = 8;
+  o.interactiveStepGiven = true;
+  EXPECT_EQ(jobSettings(o).frameBudgetMs, 0);
+  o.frameBudgetGiven = true;
+  o.frameBudgetMs = 150;
+  EXPECT_EQ(jobSettings(o).frameBudgetMs, 150);
 }
 
 TEST(RenderSettings, ScreenFromSizeOrWallNotBoth) {
