@@ -91,7 +91,9 @@ def main():
         procs.start([args.mpiexec, *shlex.split(args.preflags), "-np", "2", args.voxwall,
                      "render", volume, "--wall", wall, "--sink", "127.0.0.1:" + tile_port,
                      "--frames", "100000", "--path", "still", "--threads", "1", "--settle", "1",
-                     "-q"], "render.log")
+                     # A fixed step: under the default frame budget this small wall's full frames
+                     # fit, and the page would see no reduced frame to show.
+                     "--interactive-step", "4", "-q"], "render.log")
 
         driver = chromium(work, "wall", args.window)
         driver.get(url)
