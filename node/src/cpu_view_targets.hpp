@@ -18,6 +18,7 @@
 #include <optional>
 #include <stdexcept>
 #include <type_traits>
+#include <utility>
 #include <voxwall/node/kernels/raycast.hpp>
 
 #include "cpu_blocks_impl.hpp"
@@ -598,6 +599,21 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
     HWY_ALIGN float r[L::kLanes], g[L::kLanes], b[L::kLanes], a[L::kLanes];
     HWY_ALIGN std::int32_t n[L::kLanes];
     const auto stride = hn::Set(di, job.stride);
+    // Traces the points (lx, ly) of the lanes of `valid`; lane i's pixel goes to pointOf(i).
+    auto trace = [&](L::I lx, L::I ly, L::M valid, const auto& pointOf) {
+      kernels::Lanes4<L::F> acc;
+      L::I count;
+      LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
+                                   lx * stride + hn::Set(di, job.tile.x),
+                                   ly * stride + hn::Set(di, job.tile.y), valid, acc, count);
+      hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
+      hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(count, di, n);
+      L::forLanes(valid, [&](std::size_t i) {
+        const auto [x, y] = pointOf(int(i));
+        job.out.at(x, y) = kernels::packRgba8(glm::vec4(r[i], g[i], b[i], a[i]));
+        samples += std::uint64_t(n[i]);
+      });
+    };
     if (job.need) {
       // Only some points are wanted (a lattice's refinement): they are packed into full packets,
       // in the order of the kW x kH groups they lie in, so neighbouring lanes stay neighbours.
@@ -617,18 +633,8 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
       for (int first = 0; first < count; first += int(L::kLanes)) {
         const int left = count - first;
         const auto lx = hn::Load(di, px + first), ly = hn::Load(di, py + first);
-        const L::M valid = L::lessI(lane, hn::Set(di, left));
-        kernels::Lanes4<L::F> acc;
-        L::I n4;
-        LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
-                                     lx * stride + hn::Set(di, job.tile.x),
-                                     ly * stride + hn::Set(di, job.tile.y), valid, acc, n4);
-        hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
-        hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(n4, di, n);
-        L::forLanes(valid, [&](std::size_t i) {
-          job.out.at(px[first + int(i)], py[first + int(i)]) =
-              kernels::packRgba8(glm::vec4(r[i], g[i], b[i], a[i]));
-          samples += std::uint64_t(n[i]);
+        trace(lx, ly, L::lessI(lane, hn::Set(di, left)), [&](int i) {
+          return std::pair{px[first + i], py[first + i]};
         });
       }
       return;
@@ -636,19 +642,10 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
     for (int y = y0; y < y1; y += kH)
       for (int x = x0; x < x1; x += kW) {
         const auto lx = laneX + hn::Set(di, x), ly = laneY + hn::Set(di, y);
-        const L::M valid = L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1)));
-        kernels::Lanes4<L::F> acc;
-        L::I count;
-        LaneKernels::raycastLanes<L>(view, job.plan.ray, lut, job.plan.skip,
-                                     lx * stride + hn::Set(di, job.tile.x),
-                                     ly * stride + hn::Set(di, job.tile.y), valid, acc, count);
-        hn::Store(acc.r, L::D(), r), hn::Store(acc.g, L::D(), g);
-        hn::Store(acc.b, L::D(), b), hn::Store(acc.a, L::D(), a), hn::Store(count, di, n);
-        L::forLanes(valid, [&](std::size_t i) {
-          job.out.at(x + int(i) % kW, y + int(i) / kW) =
-              kernels::packRgba8(glm::vec4(r[i], g[i], b[i], a[i]));
-          samples += std::uint64_t(n[i]);
-        });
+        trace(lx, ly, L::both(L::lessI(lx, hn::Set(di, x1)), L::lessI(ly, hn::Set(di, y1))),
+              [&](int i) {
+                return std::pair{x + i % kW, y + i / kW};
+              });
       }
   });
 }
