@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""The main job's frames by default (the ray lattice) against a ray a pixel (--exact), with each
+"""The main job's frames by default (the ray lattice, the step from the error budget) against a ray
+a pixel at a quarter voxel (--exact), with each
 frame's PSNR against the converged render of the same camera (a ray a pixel at a 1/8-voxel step).
 
 The main job's set-up: the MRI template (Debian's mricron-data) compressed as run-main.sh does,

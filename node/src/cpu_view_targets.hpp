@@ -12,6 +12,8 @@
 // The loop over a tile's blocks that runs the packets is cpu_packet_blocks.inl, included below
 // inside the same target region.
 #include <hwy/highway.h>
+// Highway's vector exp (per target, like this file).
+#include <hwy/contrib/math/math-inl.h>
 
 #include <algorithm>
 #include <bit>
@@ -124,6 +126,8 @@ struct HwyLanes {
     for (std::uint64_t b = bits(m); b; b &= b - 1) fn(std::size_t(std::countr_zero(b)));
   }
 
+  // Within a few ULP of expf (pre-integrated opacities).
+  static HWY_INLINE F exp(F v) { return hn::Exp(D(), v); }
   static HWY_INLINE F pow(F v, float e) {
     HWY_ALIGN float x[kLanes];
     hn::Store(v, D(), x);

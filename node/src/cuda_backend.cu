@@ -171,7 +171,8 @@ class CudaBackend final : public Backend {
       volumeBytes_.upload(bytes.data(), bytes.size());
       uploadedFor_ = payloadId;
     }
-    lut_.upload(plan.lut.entries.data(), plan.lut.entries.size() * sizeof(glm::vec4));
+    const std::vector<glm::vec4> table = plan.lut.packed();
+    lut_.upload(table.data(), table.size() * sizeof(glm::vec4));
     kernels::SkipGrid skip = plan.skip;
     if (skip.empty) {
       skipCells_.upload(plan.emptyCells->data(), plan.emptyCells->size());

@@ -71,7 +71,8 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     plan.skip = reuse->skip;
     return plan;
   }
-  plan.lut = tf.bake(tf.domainMin(), tf.domainMax(), settings.stepVoxels, settings.lutEntries);
+  plan.lut = tf.bake(tf.domainMin(), tf.domainMax(), settings.stepVoxels, settings.lutEntries,
+                     settings.preIntegrate);
 
   const auto& ranges = volume.ranges();
   int shift = 0;

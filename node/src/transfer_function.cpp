@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -367,27 +369,53 @@ void TransferFunction::evaluate(double x, double rgba[4]) const {
   }
 }
 
-HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entries) const {
+HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entries,
+                              bool preIntegrate) const {
   if (entries < 2) throw std::invalid_argument("a transfer-function table needs 2 or more entries");
   if (!(stepVoxels > 0)) throw std::invalid_argument("the ray step must be positive");
   if (!(hi > lo)) hi = lo + 1.0;
   HostLut lut;
   lut.lo = float(lo);
   lut.hi = float(hi);
-  lut.entries.resize(std::size_t(entries) + 1);
-  for (int i = 0; i < entries; ++i) {
+  const auto n = std::size_t(entries);
+  lut.entries.resize(n + 1);
+  std::vector<glm::dvec4> point(n + 1);  // colour and per-step depth, in double for the integrals
+  for (std::size_t i = 0; i < n; ++i) {
     double rgba[4];
-    evaluate(lo + (hi - lo) * i / (entries - 1), rgba);
-    const double alpha = rgba[3] >= 1.0 ? 1.0 : 1.0 - std::pow(1.0 - rgba[3], stepVoxels);
-    lut.entries[std::size_t(i)] =
-        glm::vec4(float(rgba[0]), float(rgba[1]), float(rgba[2]), float(alpha));
+    evaluate(lo + (hi - lo) * double(i) / double(n - 1), rgba);
+    if (preIntegrate) {
+      // An opacity of 1 would be an infinite depth: one in a million gets through instead.
+      const double depth = -std::log(1.0 - std::min(rgba[3], 1.0 - 1e-6)) * stepVoxels;
+      point[i] = glm::dvec4(rgba[0], rgba[1], rgba[2], rgba[3] > 0.0 ? depth : 0.0);
+    } else {
+      const double alpha = rgba[3] >= 1.0 ? 1.0 : 1.0 - std::pow(1.0 - rgba[3], stepVoxels);
+      point[i] = glm::dvec4(rgba[0], rgba[1], rgba[2], alpha);
+    }
+    lut.entries[i] = glm::vec4(point[i]);
   }
+  point[n] = point[n - 1];
+  lut.entries[n] = lut.entries[n - 1];
+  if (preIntegrate) {
+    // Exact integrals of the linear interpolation between entries: depth is linear on an
+    // interval, colour x depth quadratic.
+    lut.integral.resize(n + 1);
+    glm::dvec4 sum(0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      lut.integral[i] = glm::vec4(sum);
+      const glm::dvec4 a = point[i], b = point[i + 1];
+      const glm::dvec3 c0(a), dc = glm::dvec3(b) - c0;
+      const double d0 = a.w, dd = b.w - a.w;
+      sum += glm::dvec4(c0 * d0 + (c0 * dd + dc * d0) / 2.0 + dc * dd / 3.0, d0 + dd / 2.0);
+    }
+    lut.integral[n] = lut.integral[n - 1];
+  }
+  lut.buildRangeMax();
   return lut;
 }
 
 void HostLut::buildRangeMax() {
   rangeMax_.clear();
-  std::vector<float> level(entries.size());
+  std::vector<float> level(entries.size());  // (the guard entry repeats the last)
   for (std::size_t i = 0; i < entries.size(); ++i) level[i] = entries[i].a;
   rangeMax_.push_back(level);
   for (std::size_t width = 2; width <= entries.size(); width *= 2) {

@@ -188,12 +188,21 @@ TEST(Cli, RenderVerboseCountsTheRaysOfTheLattice) {
   const CliRun lattice = runVoxwall(base);
   ASSERT_EQ(lattice.status, 0) << lattice.out;
   EXPECT_LT(rays(lattice.out), 120000ull);
-  EXPECT_NE(lattice.out.find("refined above 8 levels), step 0.25 voxels"), std::string::npos)
+  EXPECT_NE(lattice.out.find("refined above 8 levels), step "), std::string::npos)
+      << lattice.out;
+  // By default the step comes from the error budget, and the job says what it picked.
+  EXPECT_NE(lattice.out.find(" for the 50 dB error budget (the first view on a "),
+            std::string::npos)
       << lattice.out;
   const CliRun exact = runVoxwall(base + "--exact");
   ASSERT_EQ(exact.status, 0) << exact.out;
   EXPECT_EQ(rays(exact.out), 120000ull);
-  EXPECT_NE(exact.out.find("(ray lattice 1,"), std::string::npos) << exact.out;
+  EXPECT_NE(exact.out.find("(ray lattice 1, refined above 8 levels), step 0.25 voxels\n"),
+            std::string::npos)
+      << exact.out;
+  EXPECT_EQ(exact.out.find("error budget"), std::string::npos) << exact.out;
+  expectOneLineError(runVoxwall(base + "--step fine"),
+                     "voxwall: --step: expected auto or a step in (0, 8] voxels, not 'fine'");
   expectOneLineError(runVoxwall(base + "--lattice 3"),
                      "voxwall: --lattice: expected auto or a power of two up to 16, not '3'");
   expectOneLineError(runVoxwall(base + "--exact --lattice 4"),

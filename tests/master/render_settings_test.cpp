@@ -153,9 +153,37 @@ TEST(RenderSettings, CameraFramesAndLimitsAreChecked) {
 
 TEST(RenderSettings, RendererOptions) {
   RenderOptions o;
-  o.step = 0;
-  expectRefused([&] { (void)renderSettings(o); }, "--step");
-  o.step = 0.5;
+  {  // By default the march comes from the error budget, at points or pre-integrated.
+    const auto r = renderSettings(o);
+    EXPECT_EQ(r.errorBudgetDb, node::kDefaultErrorBudgetDb);
+    EXPECT_EQ(r.marchIntegration, node::MarchIntegration::Either);
+    o.exact = true;  // --exact: a quarter voxel at points, no budget
+    const auto exact = renderSettings(o);
+    EXPECT_EQ(exact.errorBudgetDb, 0.0);
+    EXPECT_EQ(exact.stepVoxels, 0.25);
+    EXPECT_EQ(exact.marchIntegration, node::MarchIntegration::Point);
+    EXPECT_FALSE(exact.preIntegrate);
+    o.integration = "pre";
+    expectRefused([&] { (void)renderSettings(o); }, "--exact samples the transfer function");
+    o.exact = false;
+    o.errorBudget = 95;
+    expectRefused([&] { (void)renderSettings(o); }, "--error-budget");
+    o.errorBudget = 45;
+    EXPECT_EQ(renderSettings(o).marchIntegration, node::MarchIntegration::Pre);
+    o.integration = "linear";
+    expectRefused([&] { (void)renderSettings(o); }, "--integration");
+    o.integration = "auto";
+  }
+  for (const char* bad : {"0", "9", "half", "0.5x", ""}) {
+    o.step = bad;
+    expectRefused([&] { (void)renderSettings(o); }, "--step");
+  }
+  o.step = "0.5";
+  {  // A step given is the step: no budget, at points unless asked.
+    const auto r = renderSettings(o);
+    EXPECT_EQ(r.errorBudgetDb, 0.0);
+    EXPECT_FALSE(r.preIntegrate);
+  }
   o.sampling = "cubic";
   expectRefused([&] { (void)renderSettings(o); }, "--sampling");
   o.sampling = "nearest";

@@ -235,6 +235,26 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   if (!o.dryRun) s.backend = rankBackend(o, comm, quiet);
 }
 
+// --step auto: the march picked from the error budget on the job's first view. Every rank picks
+// it alike (the probe's picture does not depend on its threads), so no word need pass.
+void pickMarch(Setup& s, bool quiet) {
+  if (s.render.errorBudgetDb <= 0 || !s.backend) return;
+  const node::Camera camera =
+      node::orbitCamera(s.job.path.at(0), node::boundingRadius(s.volume->info()));
+  const node::MarchChoice choice =
+      node::chooseMarch(*s.backend, *s.volume, camera, s.job.width, s.job.height, *s.tf, s.render,
+                        s.render.errorBudgetDb);
+  s.render.stepVoxels = choice.stepVoxels;
+  s.render.preIntegrate = choice.preIntegrate;
+  if (!quiet)
+    std::fprintf(stderr,
+                 "voxwall: step %g voxels%s for the %g dB error budget (the first view on a "
+                 "%dx%d probe: %.1f dB; %d marches tried in %.2f s)\n",
+                 choice.stepVoxels, choice.preIntegrate ? ", pre-integrated" : "",
+                 s.render.errorBudgetDb, choice.probeWidth, choice.probeHeight,
+                 choice.probePsnrDb, choice.marchesTried, choice.seconds);
+}
+
 // Ends the job on an error every rank has agreed on: rank 0 writes its one line, then every rank
 // fails silently. The other ranks wait for rank 0's word that the line is written: a rank that
 // exited first with a non-zero status would have the launcher kill rank 0 before it wrote it.
@@ -396,10 +416,10 @@ class Report {
       }
       std::printf(
           "  %llu samples, %llu rays for %llu pixels (ray lattice %d, refined above %d "
-          "levels), step %g voxels\n",
+          "levels), step %g voxels%s\n",
           (unsigned long long)f.samples, (unsigned long long)f.rays,
           (unsigned long long)framePixels(f), f.latticeStride, s_.render.refineAboveLevels,
-          s_.render.stepVoxels);
+          s_.render.stepVoxels, s_.render.preIntegrate ? ", pre-integrated" : "");
     }
     std::fflush(stdout);
   }
@@ -476,6 +496,7 @@ void runRender(const RenderOptions& o) {
   const RankHosts ranks =
       checkSameVolume(*comm, s, fingerprint, int(std::max(1.0, o.watchdogSeconds) * 1000));
   s.job.manifest = manifest(o, s.job, s.render, fingerprint);
+  pickMarch(s, quiet);
   const auto& info = s.volume->info();
   if (!quiet)
     std::fprintf(stderr, "voxwall: %s: %dx%dx%d %s (%s), %dx%d, %d frame(s), %d rank(s), %s\n",

@@ -327,8 +327,23 @@ int latticeStride(const RenderOptions& o) {
 
 node::RenderSettings renderSettings(const RenderOptions& o) {
   node::RenderSettings render;
-  if (!(o.step > 0 && o.step <= 8)) throw std::invalid_argument("--step must be in (0, 8] voxels");
-  render.stepVoxels = o.step;
+  const bool autoStep = o.step == "auto" && !o.exact;
+  if (o.step != "auto") {
+    double step = 0;
+    try {
+      std::size_t used = 0;
+      step = std::stod(o.step, &used);
+      if (used != o.step.size()) step = 0;
+    } catch (const std::exception&) {
+    }
+    if (!(step > 0 && step <= 8))
+      throw std::invalid_argument("--step: expected auto or a step in (0, 8] voxels, not '" +
+                                  o.step + "'");
+    render.stepVoxels = step;
+  }
+  if (!(o.errorBudget >= 20 && o.errorBudget <= 90))
+    throw std::invalid_argument("--error-budget must be in [20, 90] dB");
+  render.errorBudgetDb = autoStep ? o.errorBudget : 0.0;
   render.shading = o.shading;
   if (o.gradients != "cell" && o.gradients != "samples")
     throw std::invalid_argument("--gradients: expected cell or samples");
@@ -345,6 +360,15 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   if (o.refineAbove < 0 || o.refineAbove > 255)
     throw std::invalid_argument("--refine-above must be in [0, 255] levels");
   render.refineAboveLevels = o.refineAbove;
+  if (o.integration != "auto" && o.integration != "pre" && o.integration != "point")
+    throw std::invalid_argument("--integration: expected auto, pre or point");
+  if (o.exact && o.integration == "pre")
+    throw std::invalid_argument("--exact samples the transfer function at points: it takes no "
+                                "--integration pre");
+  render.preIntegrate = o.integration == "pre";
+  render.marchIntegration = o.integration == "auto" && autoStep ? node::MarchIntegration::Either
+                            : render.preIntegrate             ? node::MarchIntegration::Pre
+                                                              : node::MarchIntegration::Point;
   if (o.backend != "cpu" && o.backend != "cuda")
     throw std::invalid_argument("--backend: expected cpu or cuda");
   if (o.deviceDecode != "whole" && o.deviceDecode != "per-ray")
@@ -377,7 +401,16 @@ std::string manifest(const RenderOptions& o, const master::JobSettings& job,
   m["window"] = o.window;
   m["rescale"] = o.rescale;
   m["opacity"] = o.opacity;
-  m["step"] = render.stepVoxels;
+  // With --step auto the march is picked from the budget on the job's first view (the same
+  // pick for the same settings): the budget is what the job is.
+  if (render.errorBudgetDb > 0) {
+    m["step"] = "auto";
+    m["error_budget"] = render.errorBudgetDb;
+  } else {
+    m["step"] = render.stepVoxels;
+  }
+  if (render.marchIntegration != node::MarchIntegration::Point)
+    m["integration"] = render.marchIntegration == node::MarchIntegration::Pre ? "pre" : "auto";
   m["shading"] = render.shading;
   if (!render.cellGradients) m["gradients"] = "samples";
   if (render.nearest) m["sampling"] = "nearest";
@@ -560,7 +593,16 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                  "of the transfer function, --tf-range and --window (e.g. 1,-1024 for a CT stored "
                  "with an offset, so hu-* presets meet Hounsfield units). DICOM series are "
                  "rescaled when read and need none");
-  cmd.add_option("--step", o.step, "Ray step in voxels (of the smallest spacing)")
+  cmd.add_option("--step", o.step,
+                 "Ray step in voxels (of the smallest spacing), or auto: the longest step (1, "
+                 "3/4, 1/2 or 3/8 voxel, each at points and then pre-integrated; else 1/4) whose "
+                 "picture of the job's first view, rendered on a probe screen of about 96,000 "
+                 "pixels, is --error-budget plus 3 dB from a converged render (1/8-voxel step). "
+                 "--exact takes 1/4")
+      ->capture_default_str();
+  cmd.add_option("--error-budget", o.errorBudget,
+                 "With --step auto: the PSNR (dB, 8-bit channels) against a converged render a "
+                 "frame is to keep; the tiles' JPEG at quality 90 costs about 55 dB")
       ->capture_default_str();
   cmd.add_option("--lattice", o.lattice,
                  "Rays on a lattice of this many pixels a side where the screen magnifies the "
@@ -574,9 +616,15 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                  "A lattice cell whose corner rays differ by more than this many 8-bit levels in "
                  "any channel is split, down to a ray a pixel")
       ->capture_default_str();
+  cmd.add_option("--integration", o.integration,
+                 "How a step composites: pre (the segment between two samples, from "
+                 "pre-integrated tables: no thin peak of the transfer function is stepped over), "
+                 "point (the transfer function at one sample), or auto (with --step auto, "
+                 "whichever meets the budget at the longer step; else point)")
+      ->capture_default_str();
   cmd.add_flag("--exact", o.exact,
-               "A ray a pixel at the --step given (default 1/4 voxel): no lattice (for "
-               "comparisons and references)");
+               "A ray a pixel at the --step given (else 1/4 voxel), the transfer function at "
+               "points: no lattice, no error budget (for comparisons and references)");
   cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
   cmd.add_option("--gradients", o.gradients,
                  "How --shading takes its gradients: cell (central differences at the corners of "

@@ -16,8 +16,22 @@
 
 namespace voxwall::node {
 
+// How a ray's steps composite (RenderSettings::preIntegrate), or may, where the march is picked
+// from an error budget.
+enum class MarchIntegration { Point, Pre, Either };
+
 struct RenderSettings {
   double stepVoxels = 0.25;  // ray step in voxels (of the smallest spacing); Guthe & Goesele: 1/4
+  // Each step composites the segment between two samples from pre-integrated tables (Engel,
+  // Kraus and Ertl 2001; kernels::TransferLut) instead of the transfer function at one sample,
+  // so that a step of a voxel misses no thin peak of the transfer function. False: the
+  // fixed-step march of the point table (what --exact renders).
+  bool preIntegrate = false;
+  // > 0: the step and integration are picked from this budget (PSNR in dB against a converged
+  // render) on the job's first view (chooseMarch, node/march_budget.hpp); the two above are then
+  // what it picked. 0: as given.
+  double errorBudgetDb = 0.0;
+  MarchIntegration marchIntegration = MarchIntegration::Point;  // what the pick may use
   bool shading = false;      // Blinn-Phong from central-difference gradients
   // Gradients from the 24 voxels around each cell, blended per sample (the same gradient to
   // rounding), instead of six trilinear samples per shaded sample (the original, for comparison).

@@ -87,8 +87,11 @@ class TransferFunction {
   // Colour (r, g, b) and opacity at a data value; clamps outside the points.
   void evaluate(double x, double rgba[4]) const;
 
-  // Bakes `entries` samples over [lo, hi] with opacity corrected for a step of `stepVoxels`.
-  HostLut bake(double lo, double hi, double stepVoxels, int entries = 4096) const;
+  // Bakes `entries` samples over [lo, hi] with opacity corrected for a step of `stepVoxels`; or,
+  // pre-integrated, with each entry's optical depth over that step and the integral tables
+  // (kernels::TransferLut says what they hold).
+  HostLut bake(double lo, double hi, double stepVoxels, int entries = 4096,
+               bool preIntegrate = false) const;
 };
 
 }  // namespace voxwall::node

@@ -157,6 +157,7 @@ struct ScalarLanes {
   static VOXWALL_HD_INLINE F sqrt(F v) { return sqrtf(v); }
   static VOXWALL_HD_INLINE F abs(F v) { return fabsf(v); }
   static VOXWALL_HD_INLINE F pow(F v, float e) { return powf(v, e); }
+  static VOXWALL_HD_INLINE F exp(F v) { return expf(v); }
   static VOXWALL_HD_INLINE I trunc(F v) { return int(v); }
   static VOXWALL_HD_INLINE F toFloat(I v) { return float(v); }
   static VOXWALL_HD_INLINE I shiftRight(I v, int s) { return v >> s; }

@@ -102,6 +102,46 @@ struct LaneKernels {
     acc.a = acc.a + w;
   }
 
+  // Values within this many table entries of each other make a segment short enough to take the
+  // table at its back end (the integrals' difference would be mostly rounding).
+  static constexpr float kNarrowSegment = 4.0f;
+
+  // The colour and opacity of the ray segment whose value runs from `front` to `back`, from a
+  // pre-integrated table (TransferLut says how); `point` is the table at `back` (depth in a).
+  // The colour is the depth-weighted mean over the segment, the opacity 1 - exp(-depth): exact
+  // for the opacity, and for the colour where it is constant over the segment (the emission
+  // inside the segment is not attenuated by the segment itself). Values beyond the table's ends
+  // count for its ends only where both ends of a segment are beyond the same end.
+  template <class L>
+  static VOXWALL_HD_INLINE Lanes4<typename L::F> segmentLanes(const TransferLut& lut,
+                                                              typename L::F front,
+                                                              typename L::F back,
+                                                              const Lanes4<typename L::F>& point) {
+    using F = typename L::F;
+    const F zero = L::splat(0.0f), one = L::splat(1.0f), last = L::splat(lut.last);
+    TransferLut table = lut;
+    table.entries = lut.integral;
+    const Lanes4<F> a = L::lookup(table, front), b = L::lookup(table, back);
+    auto coordinate = [&](const F& v) {  // clamped as lookup() clamps, NaN kept as the scalar's
+      const F x = (v - L::splat(lut.lo)) * L::splat(lut.scale);
+      const F low = L::select(x < zero, zero, x);
+      return L::select(last < low, last, low);
+    };
+    const F dx = coordinate(back) - coordinate(front);
+    const auto wide = L::splat(kNarrowSegment) <= L::abs(dx);
+    const F dG = b.a - a.a;
+    const F depth = L::select(wide, dG / L::select(wide, dx, one), point.a);
+    // Colour from the integrals where the segment holds some depth (else it composites ~nothing).
+    const auto mixed = L::both(wide, L::splat(1e-6f) < L::abs(dG));
+    const F inv = one / L::select(mixed, dG, one);
+    auto channel = [&](const F& ka, const F& kb, const F& p) {
+      const F c = (kb - ka) * inv;
+      return L::select(mixed, L::select(c < zero, zero, L::select(one < c, one, c)), p);
+    };
+    return {channel(a.r, b.r, point.r), channel(a.g, b.g, point.g), channel(a.b, b.b, point.b),
+            one - L::exp(zero - depth)};
+  }
+
   // Traces the rays through pixels (px, py) of the virtual screen, one per lane of L (valid: the
   // lanes that hold a pixel), into premultiplied colour and opacity and the samples taken.
   // `View` meets the view contract (VolumeView in view_concept.hpp: sample(x, y, z, RayCache&) is
@@ -112,6 +152,11 @@ struct LaneKernels {
   // over; inside a non-empty cell, a sample whose fine cell is empty is skipped (checked only after
   // a transparent sample). A skipped sample would have had opacity exactly zero, and positions
   // are computed from k, never accumulated, so the image is the same with and without skipping.
+  // With a pre-integrated table (lut.integral) sample k composites the segment from sample k - 1
+  // (whose value is sampled again where it was skipped) to sample k, and a sample is skipped only
+  // when the previous one also lies in an empty cell: the transfer function is zero over both
+  // cells' value ranges, which overlap (each is grown by a voxel and the cells touch, the step
+  // being shorter than a cell), so the segment between them would have composited nothing.
   // Every lane keeps its own k, cell and cache; a lane drops out when its ray terminates or leaves
   // the volume, and the packet ends when all have.
   template <class L, codec::kernels::VolumeView View>
@@ -157,6 +202,13 @@ struct LaneKernels {
     I k = zeroI, kEnd = zeroI;  // the next sample and the end of its coarse cell
     M live = L::both(hit, L::lessI(zeroI, steps));
     M transparent = hit;  // was the ray's last sample fully transparent?
+    const M none = zero != zero;
+    // Pre-integration: the value of sample k - 1 where it was taken (havePrev), whether sample
+    // k - 1 lies in an empty cell (sample 0 has no segment before it), and the lanes that take
+    // the first sample of an empty coarse cell (the segment into it) and then jump it.
+    const bool pre = lut.integral != nullptr;
+    F prev = zero;
+    M havePrev = none, prevEmpty = hit, jumpAfter = none;
     auto position = [&](const F& t) {
       return Lanes3<F>{L::splat(o.x) + t * d.x, L::splat(o.y) + t * d.y, L::splat(o.z) + t * d.z};
     };
@@ -196,16 +248,21 @@ struct LaneKernels {
               L::lessI(cz, L::splatI(skip.cellsZ)));
           const I cell = (cz * L::splatI(skip.cellsY) + cy) * L::splatI(skip.cellsX) + cx;
           const M empty = L::byteSet(skip.empty, cell, L::both(need, inside));
-          k = L::selectI(empty, kEnd, k);
+          const M jump = pre ? L::both(empty, prevEmpty) : empty;
+          if (pre) {
+            jumpAfter = L::either(jumpAfter, L::butNot(empty, jump));
+            havePrev = L::butNot(havePrev, jump);  // sample kEnd - 1 (in the cell) was not taken
+          }
+          k = L::selectI(jump, kEnd, k);
           live = L::both(live, L::lessI(k, steps));
-          need = L::both(empty, live);
+          need = L::both(jump, live);
         }
         if (!L::any(live)) break;
       }
       const F t = tEnter + (L::toFloat(k) + half) * step;
       const Lanes3<F> p = position(t);
       M go = live;
-      M skipped = zero != zero;  // none yet
+      M skipped = none, inEmpty = jumpAfter;  // inEmpty: sample k lies in an empty cell
       // Fine cells are checked only after a transparent sample: inside opaque material they
       // would almost never skip, and the check costs as much as a tenth of a sample.
       if (skip.fineEmpty) {
@@ -218,7 +275,8 @@ struct LaneKernels {
           const I fx = fine(p.x, skip.fineX), fy = fine(p.y, skip.fineY),
                   fz = fine(p.z, skip.fineZ);
           const I cell = (fz * L::splatI(skip.fineY) + fy) * L::splatI(skip.fineX) + fx;
-          skipped = L::bitSet(skip.fineEmpty, cell, check);
+          inEmpty = L::either(inEmpty, L::bitSet(skip.fineEmpty, cell, check));
+          skipped = pre ? L::both(inEmpty, prevEmpty) : inEmpty;
           go = L::butNot(go, skipped);
         }
       }
@@ -228,17 +286,55 @@ struct LaneKernels {
           if (f.lodAngle > 0.0f)
             L::template setFootprint<View>(cache, t * L::splat(f.lodAngle), go);
         }
-        const Lanes4<F> c = L::lookup(lut, L::sample(view, cache, p, go));
+        // The segment's front value first: the view's cache ends on sample k, as the traversal
+        // below needs.
+        F front = prev;
+        const M needFront = L::butNot(L::both(go, L::lessI(zeroI, k)), havePrev);
+        if (pre && L::any(needFront)) {
+          const F tFront = tEnter + (L::toFloat(k - oneI) + half) * step;
+          if constexpr (traversal) {
+            if (f.lodAngle > 0.0f)
+              L::template setFootprint<View>(cache, tFront * L::splat(f.lodAngle), needFront);
+          }
+          front = L::select(needFront, L::sample(view, cache, position(tFront), needFront), prev);
+          samples = samples + L::selectI(needFront, oneI, zeroI);
+          if constexpr (traversal) {
+            if (f.lodAngle > 0.0f)
+              L::template setFootprint<View>(cache, t * L::splat(f.lodAngle), go);
+          }
+        }
+        const F value = L::sample(view, cache, p, go);
+        Lanes4<F> c = L::lookup(lut, value);
         transparent = L::selectM(go, c.a <= zero, transparent);
+        if (pre) {
+          // Sample 0 has no segment before it: its own value at both ends.
+          c = segmentLanes<L>(lut, L::select(L::either(havePrev, needFront), front, value), value,
+                              c);
+          prev = L::select(go, value, prev);
+          havePrev = L::either(havePrev, go);
+        }
         Lanes3<F> color{c.r, c.g, c.b};
         // A transparent sample composites nothing; only the (costly) shading branches on it.
         if (f.shading) {
           const M lit = L::both(go, c.a > zero);
           if (L::any(lit)) {
+            // A segment is lit at its middle, where the view is sampled again (the gradient
+            // follows the sample); the first sample of a ray, which has no segment, at itself.
+            Lanes3<F> at = p;
+            const M middle = pre ? L::both(lit, L::lessI(zeroI, k)) : none;
+            if (L::any(middle)) {
+              at = position(L::select(middle, t - half * step, t));
+              (void)L::sample(view, cache, at, middle);
+            }
             const Lanes3<F> shaded =
-                shadeLanes<L>(color, L::template gradient<View>(view, cache, f, p, lit), dir, f);
+                shadeLanes<L>(color, L::template gradient<View>(view, cache, f, at, lit), dir, f);
             color = {L::select(lit, shaded.x, color.x), L::select(lit, shaded.y, color.y),
                      L::select(lit, shaded.z, color.z)};
+            // The traversal below reads the region of sample k: sample it again where needed.
+            if constexpr (traversal) {
+              const M again = L::both(middle, transparent);
+              if (L::any(again)) (void)L::sample(view, cache, p, again);
+            }
           }
         }
         compositeLanes<L>(acc, color, L::select(go, c.a, zero));  // lanes not sampling add nothing
@@ -247,11 +343,21 @@ struct LaneKernels {
         if constexpr (traversal) {
           const M region = L::butNot(L::both(go, transparent), done);
           if (L::any(region)) {
+            // Every sample up to `next` has sample k's value: `prev` stays right for `next`.
             const I next =
                 L::template regionEnd<View>(cache, o, invD, f, tEnter, invStep, steps, k, region);
+            inEmpty = L::butNot(inEmpty, L::both(region, L::lessI(k + oneI, next)));
             k = L::selectI(region, next - oneI, k);
           }
         }
+      }
+      if (pre) {
+        // Lanes that took the first sample of an empty coarse cell jump the rest of it.
+        const M jumpNow = L::both(jumpAfter, L::both(go, L::lessI(k, kEnd - oneI)));
+        k = L::selectI(jumpNow, kEnd - oneI, k);
+        havePrev = L::butNot(havePrev, L::either(skipped, jumpNow));
+        jumpAfter = L::butNot(jumpAfter, go);
+        prevEmpty = L::selectM(L::either(go, skipped), inEmpty, prevEmpty);
       }
       k = k + L::selectI(L::either(go, skipped), oneI, zeroI);
       live = L::both(live, L::lessI(k, steps));
