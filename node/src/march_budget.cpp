@@ -55,8 +55,7 @@ MarchChoice chooseMarch(Backend& backend, const RenderVolume& volume, const Came
   }
   if (choice.probePsnrDb == 0.0)
     choice.probePsnrDb = compareImages(render(0.25, choice.preIntegrate), reference).psnrDb;
-  choice.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  choice.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return choice;
 }
 

@@ -370,7 +370,7 @@ void TransferFunction::evaluate(double x, double rgba[4]) const {
 }
 
 HostLut TransferFunction::bake(double lo, double hi, double stepVoxels, int entries,
-                              bool preIntegrate) const {
+                               bool preIntegrate) const {
   if (entries < 2) throw std::invalid_argument("a transfer-function table needs 2 or more entries");
   if (!(stepVoxels > 0)) throw std::invalid_argument("the ray step must be positive");
   if (!(hi > lo)) hi = lo + 1.0;

@@ -188,8 +188,7 @@ TEST(Cli, RenderVerboseCountsTheRaysOfTheLattice) {
   const CliRun lattice = runVoxwall(base);
   ASSERT_EQ(lattice.status, 0) << lattice.out;
   EXPECT_LT(rays(lattice.out), 120000ull);
-  EXPECT_NE(lattice.out.find("refined above 8 levels), step "), std::string::npos)
-      << lattice.out;
+  EXPECT_NE(lattice.out.find("refined above 8 levels), step "), std::string::npos) << lattice.out;
   // By default the step comes from the error budget, and the job says what it picked.
   EXPECT_NE(lattice.out.find(" for the 50 dB error budget (the first view on a "),
             std::string::npos)

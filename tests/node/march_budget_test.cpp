@@ -144,8 +144,8 @@ TEST(MarchBudget, TheMriStaysWithinTheBudget) {
   for (const bool shading : {false, true}) {
     MarchChoice choice;
     const double frame = pickedFramePsnr(scene, camera, 960, 720, shading, choice);
-    std::printf("mri%s: step %g%s, frame %.2f dB\n", shading ? ", shaded" : "",
-                choice.stepVoxels, choice.preIntegrate ? " pre-integrated" : "", frame);
+    std::printf("mri%s: step %g%s, frame %.2f dB\n", shading ? ", shaded" : "", choice.stepVoxels,
+                choice.preIntegrate ? " pre-integrated" : "", frame);
     EXPECT_GE(frame, kDefaultErrorBudgetDb);
     EXPECT_GT(choice.stepVoxels, 0.25);  // the budget buys a longer step than --exact's
   }
@@ -158,8 +158,7 @@ TEST(MarchBudget, AStricterBudgetTakesAShorterStep) {
   auto backend = makeCpuBackend(2);
   const Camera camera = closeCamera(scene.volume);
   const MarchChoice loose = chooseMarch(*backend, scene.volume, camera, 640, 480, scene.tf, s, 35);
-  const MarchChoice strict =
-      chooseMarch(*backend, scene.volume, camera, 640, 480, scene.tf, s, 80);
+  const MarchChoice strict = chooseMarch(*backend, scene.volume, camera, 640, 480, scene.tf, s, 80);
   EXPECT_GT(loose.stepVoxels, strict.stepVoxels);
   EXPECT_EQ(strict.stepVoxels, 0.25);  // none meets 83 dB: the quarter voxel
   EXPECT_FALSE(strict.preIntegrate);

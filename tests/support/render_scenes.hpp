@@ -56,8 +56,8 @@ inline Camera closeCamera(const RenderVolume& volume, double distance = 1.5) {
 }
 
 inline Image renderTiles(const Scene& scene, const Camera& camera, int w, int h,
-                  const RenderSettings& settings, int threads, const std::vector<Rect>& tiles,
-                  TileStats* total = nullptr) {
+                         const RenderSettings& settings, int threads,
+                         const std::vector<Rect>& tiles, TileStats* total = nullptr) {
   auto backend = makeCpuBackend(threads);
   const FramePlan plan = planFrame(scene.volume, camera, w, h, scene.tf, settings);
   Image full(w, h), tile;
@@ -70,7 +70,7 @@ inline Image renderTiles(const Scene& scene, const Camera& camera, int w, int h,
 }
 
 inline Image renderWhole(const Scene& scene, const Camera& camera, int w, int h,
-                  const RenderSettings& settings, TileStats* total = nullptr) {
+                         const RenderSettings& settings, TileStats* total = nullptr) {
   return renderTiles(scene, camera, w, h, settings, 2, {{0, 0, w, h}}, total);
 }
 

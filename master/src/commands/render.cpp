@@ -251,8 +251,8 @@ void pickMarch(Setup& s, bool quiet) {
                  "voxwall: step %g voxels%s for the %g dB error budget (the first view on a "
                  "%dx%d probe: %.1f dB; %d marches tried in %.2f s)\n",
                  choice.stepVoxels, choice.preIntegrate ? ", pre-integrated" : "",
-                 s.render.errorBudgetDb, choice.probeWidth, choice.probeHeight,
-                 choice.probePsnrDb, choice.marchesTried, choice.seconds);
+                 s.render.errorBudgetDb, choice.probeWidth, choice.probeHeight, choice.probePsnrDb,
+                 choice.marchesTried, choice.seconds);
 }
 
 // Ends the job on an error every rank has agreed on: rank 0 writes its one line, then every rank

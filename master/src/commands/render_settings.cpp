@@ -363,12 +363,13 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   if (o.integration != "auto" && o.integration != "pre" && o.integration != "point")
     throw std::invalid_argument("--integration: expected auto, pre or point");
   if (o.exact && o.integration == "pre")
-    throw std::invalid_argument("--exact samples the transfer function at points: it takes no "
-                                "--integration pre");
+    throw std::invalid_argument(
+        "--exact samples the transfer function at points: it takes no "
+        "--integration pre");
   render.preIntegrate = o.integration == "pre";
   render.marchIntegration = o.integration == "auto" && autoStep ? node::MarchIntegration::Either
-                            : render.preIntegrate             ? node::MarchIntegration::Pre
-                                                              : node::MarchIntegration::Point;
+                            : render.preIntegrate               ? node::MarchIntegration::Pre
+                                                                : node::MarchIntegration::Point;
   if (o.backend != "cpu" && o.backend != "cuda")
     throw std::invalid_argument("--backend: expected cpu or cuda");
   if (o.deviceDecode != "whole" && o.deviceDecode != "per-ray")

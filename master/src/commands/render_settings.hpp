@@ -40,17 +40,17 @@ struct RenderOptions {
   double timeRate = 0;           // --time-rate STEPS_PER_SECOND (on the wall)
   std::string range = "series";  // --range series|per-step: what the transfer function spans
   double fov = 30, orbitDeg = 0, zoomTo = 1.2, watchdogSeconds = 120;
-  std::string step = "auto";      // --step auto|VOXELS
+  std::string step = "auto";                         // --step auto|VOXELS
   double errorBudget = node::kDefaultErrorBudgetDb;  // --error-budget DB (--step auto)
   int frames = 1, threads = 0, costCell = 32;
   std::string sampling = "trilinear", gradients = "cell";
   std::string simd = "on";           // --simd: the CPU backend's ray packets
   std::string decodeCache = "512M";  // --decode-cache: decoded pages of a brick-coded volume
   bool lod = false;
-  bool lodUnderPressure = false;  // --lod-under-pressure
-  std::string lattice = "auto";   // --lattice auto|1|2|4|8|16: the ray lattice's side in pixels
-  int refineAbove = 8;            // --refine-above LEVELS
-  bool exact = false;             // --exact: a ray a pixel
+  bool lodUnderPressure = false;     // --lod-under-pressure
+  std::string lattice = "auto";      // --lattice auto|1|2|4|8|16: the ray lattice's side in pixels
+  int refineAbove = 8;               // --refine-above LEVELS
+  bool exact = false;                // --exact: a ray a pixel
   std::string integration = "auto";  // --integration auto|pre|point
   // Render flags of the codecs (Codec::renderOptions, e.g. tvq's --progressive) as given.
   std::map<std::string, std::string> codecFlags;

@@ -32,10 +32,10 @@ void probeScreen(int screenWidth, int screenHeight, int& probeWidth, int& probeH
 // (1, 3/4, 1/2, 3/8 voxels, each at points and then pre-integrated, as
 // settings.marchIntegration allows), and returns the first whose PSNR against the converged
 // render is at least budgetDb + kMarchMarginDb; 1/4 voxel (at points, as --exact renders, unless
-// only pre-integration is allowed) when none is. `settings` gives everything else (shading, skipping, ...);
-// its step, integration and lattice are the probe's own. The choice depends only on the view,
-// the volume, the transfer function and the settings, never on the backend's threads: every
-// rank that makes it makes the same one.
+// only pre-integration is allowed) when none is. `settings` gives everything else (shading,
+// skipping, ...); its step, integration and lattice are the probe's own. The choice depends only on
+// the view, the volume, the transfer function and the settings, never on the backend's threads:
+// every rank that makes it makes the same one.
 MarchChoice chooseMarch(Backend& backend, const RenderVolume& volume, const Camera& camera,
                         int screenWidth, int screenHeight, const TransferFunction& tf,
                         RenderSettings settings, double budgetDb);

@@ -32,7 +32,7 @@ struct RenderSettings {
   // what it picked. 0: as given.
   double errorBudgetDb = 0.0;
   MarchIntegration marchIntegration = MarchIntegration::Point;  // what the pick may use
-  bool shading = false;      // Blinn-Phong from central-difference gradients
+  bool shading = false;  // Blinn-Phong from central-difference gradients
   // Gradients from the 24 voxels around each cell, blended per sample (the same gradient to
   // rounding), instead of six trilinear samples per shaded sample (the original, for comparison).
   bool cellGradients = true;
