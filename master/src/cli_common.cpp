@@ -27,6 +27,12 @@ void RawInputOptions::addTo(CLI::App& app) {
   app.add_option("--series", series,
                  "DICOM input only: the Series Instance UID to read when the folder holds several "
                  "(without it such a folder is refused with a list of its series)");
+  app.add_option("--dicom-image", dicomImage,
+                 "DICOM input only: which image of an enhanced multi-frame file that holds "
+                 "several (echoes, image types, stacks, time points), from 1 in the order of "
+                 "their first frames; without it such a file is refused with a list of its "
+                 "images")
+      ->check(CLI::PositiveNumber);
   app.add_flag("--resample-tilt", resampleTilt,
                "DICOM input only: resample a series acquired with a gantry tilt (its slices "
                "sheared) onto a box, instead of refusing it");
@@ -36,6 +42,7 @@ codec::ReadOptions RawInputOptions::readOptions() const {
   codec::ReadOptions options(layout());
   options.dicom.series = series;
   options.dicom.resampleTilt = resampleTilt;
+  options.dicom.image = dicomImage;
   return options;
 }
 

@@ -21,6 +21,7 @@ struct RawInputOptions {
   std::uint64_t headerBytes = 0;
   std::string series;
   bool resampleTilt = false;
+  int dicomImage = 0;       // --dicom-image N
   std::string orientation;  // --orientation letters, e.g. "RAS"
   void addTo(CLI::App& app);
   // The layout when --dims was given; throws std::invalid_argument on malformed values.

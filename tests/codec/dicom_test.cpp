@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <numeric>
 #include <random>
 #include <voxwall/codec/volume_io.hpp>
@@ -20,9 +21,12 @@ using namespace voxwall;
 using namespace voxwall::codec;
 using voxwall::test::DicomSlice;
 using voxwall::test::DicomSyntax;
+using voxwall::test::EnhancedFrame;
+using voxwall::test::EnhancedImage;
 using voxwall::test::expectFormatError;
 using voxwall::test::TempDir;
 using voxwall::test::writeDicom;
+using voxwall::test::writeEnhancedDicom;
 
 namespace {
 
@@ -50,6 +54,7 @@ struct Series {
   DicomSyntax syntax = DicomSyntax::ExplicitLittle;
   int depth = kD;
   glm::ivec2 shiftPerSlice{0, 0};  // stored slice k holds the phantom moved by -k * this
+  int positionDecimals = -1;       // DicomSlice::positionDecimals
 };
 
 // Writes a series of `s.depth` slices under `dir` with shuffled file names and instance
@@ -78,6 +83,7 @@ std::vector<std::string> writeSeries(const std::filesystem::path& dir, const Ser
     slice.seriesUid = s.uid, slice.description = s.description;
     slice.instance = order[std::size_t(k)] + 1;
     slice.syntax = s.syntax;
+    slice.positionDecimals = s.positionDecimals;
     const auto file = (dir / ("IM" + std::to_string(order[std::size_t(k)] * 37 % 101))).string();
     writeDicom(file, slice);
     files.push_back(file);
@@ -285,6 +291,184 @@ TEST(Dicom, AMultiFrameFileIsOneVolume) {
   EXPECT_EQ(valueAt(v, 3, 4, 2), 2500);
   EXPECT_EQ(valueAt(v, 12, 10, 3), phantom(12, 10, 3));
   EXPECT_DOUBLE_EQ(v.spacing.x, 0.5);
+}
+
+namespace {
+
+// An enhanced MR of the phantom, oblique (13 degrees about x), 4 x 3.5 mm pixels and 6 mm apart,
+// as two images (magnitude, and a field map stored at half a unit with an offset) whose frames
+// are interleaved and, within each image, out of order.
+struct EnhancedMr {
+  glm::dvec3 row{1, 0, 0}, column{0, std::cos(0.2269), std::sin(0.2269)};
+  glm::dvec3 normal = glm::cross(row, column);
+  glm::dvec3 origin{-40, 20, 10};
+  double gap = 6;
+  EnhancedImage image() const {
+    EnhancedImage e;
+    e.columns = kW, e.rows = kH;
+    e.orientation = {row.x, row.y, row.z, column.x, column.y, column.z};
+    e.pixelSpacing = {4, 3.5};
+    e.sliceThickness = 6;
+    const int order[kD] = {4, 0, 7, 2, 8, 1, 6, 3, 5};
+    for (const int z : order)
+      for (const std::uint32_t type : {1u, 2u}) {
+        EnhancedFrame f;
+        f.position = origin + double(z) * gap * normal;
+        f.imageIndex = type, f.stackPosition = std::uint32_t(z + 1);
+        if (type == 2) {
+          f.frameType = "ORIGINAL\\PRIMARY\\B0_MAP\\NONE";
+          f.slope = 0.5, f.intercept = -100;  // value = stored / 2 - 100
+        }
+        for (int y = 0; y < kH; ++y)
+          for (int x = 0; x < kW; ++x)
+            f.pixels.push_back(type == 1 ? phantom(x, y, z)
+                                         : std::int16_t(2 * (phantom(x, y, z) + 100) + 1));
+        e.frames.push_back(std::move(f));
+      }
+    return e;
+  }
+};
+
+}  // namespace
+
+// The geometry of an enhanced image is in its functional groups, not at the top level; a file
+// of two images is never stacked into one volume: it is refused with their list, and each one
+// is read whole with --dicom-image.
+TEST(Dicom, AnEnhancedMrOfTwoImagesIsListedAndEachReadsFromItsFunctionalGroups) {
+  TempDir dir;
+  const EnhancedMr mr;
+  writeEnhancedDicom(dir.path("mr.dcm"), mr.image());
+  expectFormatError([&] { readVolume(dir.path("mr.dcm")); }, dir.path("mr.dcm"),
+                    "holds 2 images in its 18 frames (1: dimension index 1, stack 1, frame type "
+                    "ORIGINAL\\PRIMARY\\M_FFE\\M_FFE (9 frames); 2: dimension index 2, stack 1, "
+                    "frame type ORIGINAL\\PRIMARY\\B0_MAP\\NONE (9 frames)); read one with "
+                    "--dicom-image N");
+  for (const int image : {1, 2}) {
+    ReadOptions options;
+    options.dicom.image = image;
+    const Volume v = readVolume(dir.path("mr.dcm"), options);
+    ASSERT_EQ(v.dims, glm::ivec3(kW, kH, kD));
+    EXPECT_DOUBLE_EQ(v.spacing.x, 4.0);
+    EXPECT_DOUBLE_EQ(v.spacing.y, 3.5);
+    EXPECT_NEAR(v.spacing.z, 6.0, 1e-4);
+    int wrong = 0;
+    for (int z = 0; z < kD; ++z)
+      for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x)
+          wrong +=
+              std::abs(valueAt(v, x, y, z) - (phantom(x, y, z) + (image == 2 ? 0.5 : 0))) > 1e-3;
+    EXPECT_EQ(wrong, 0) << "image " << image;
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(v.orientation.direction[0][i], mr.row[i], 1e-5);
+      EXPECT_NEAR(v.orientation.direction[1][i], mr.column[i], 1e-5);
+      EXPECT_NEAR(v.orientation.direction[2][i], mr.normal[i], 1e-5);
+      EXPECT_NEAR(v.orientation.origin[i], mr.origin[i], 1e-4);
+    }
+  }
+  EXPECT_EQ(readVolume(dir.path("mr.dcm"),
+                       [] {
+                         ReadOptions o;
+                         o.dicom.image = 2;
+                         return o;
+                       }())
+                .type,
+            ScalarType::Float32);  // half-unit values
+  ReadOptions third;
+  third.dicom.image = 3;
+  expectFormatError([&] { readVolume(dir.path("mr.dcm"), third); }, dir.path("mr.dcm"),
+                    "holds 2 images; --dicom-image 3 is not one of them");
+}
+
+// An enhanced CT of one image with a rescale of its own per frame and no Dimension Index
+// Sequence; a frame missing from its stack is named as a missing slice is.
+TEST(Dicom, AnEnhancedCtWithPerFrameRescaleIsOneVolume) {
+  TempDir dir;
+  EnhancedMr geometry;
+  EnhancedImage ct = geometry.image();
+  ct.modality = "CT";
+  ct.dimensionIndex = false;
+  std::vector<EnhancedFrame> frames;
+  for (EnhancedFrame& f : ct.frames) {
+    if (f.imageIndex != 1) continue;
+    f.frameType = "ORIGINAL\\PRIMARY\\AXIAL";
+    const int z = int(f.stackPosition) - 1;
+    f.intercept = -1024 + 10 * z;  // each frame its own offset
+    for (auto& p : f.pixels) p = std::int16_t(p - f.intercept);
+    frames.push_back(f);
+  }
+  ct.frames = frames;
+  writeEnhancedDicom(dir.path("ct.dcm"), ct);
+  const Volume v = readVolume(dir.path("ct.dcm"));
+  ASSERT_EQ(v.dims, glm::ivec3(kW, kH, kD));
+  EXPECT_EQ(v.type, ScalarType::Int16);
+  int wrong = 0;
+  for (int z = 0; z < kD; ++z)
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) wrong += valueAt(v, x, y, z) != phantom(x, y, z);
+  EXPECT_EQ(wrong, 0);
+  ct.frames.erase(ct.frames.begin() + 3);  // phantom slice 3 (the fourth of `order`)
+  writeEnhancedDicom(dir.path("gap.dcm"), ct);
+  expectFormatError([&] { readVolume(dir.path("gap.dcm")); }, dir.path("gap.dcm"),
+                    "1 slice is missing");
+}
+
+// A scanner that writes its positions to 0.1 mm (as a 2001 MR series does): on an oblique normal
+// the gaps differ by up to 0.12 mm at 7 mm, more than 1%, and are read as equal with a warning;
+// the spacing is their fitted gap. A first file padded with megabytes of zeros after its pixels
+// reads. A slice moved 0.25 mm, beyond what the rounding can do, and a missing slice are refused.
+TEST(Dicom, PositionsRoundedByTheScannerAreReadAndRealGapsAreNot) {
+  TempDir dir;
+  Series s;
+  s.depth = 20;
+  const double angle = 13.0 * 3.14159265358979 / 180.0;
+  s.orientation = {1, 0, 0, 0, std::cos(angle), std::sin(angle)};
+  const glm::dvec3 normal(0, -std::sin(angle), std::cos(angle));
+  s.step = 7.0 * normal;
+  s.origin = {-12.34, 30.27, 100.81};
+  s.positionDecimals = 1;
+  // The gaps the rounded positions make: some more than 1% off (else the test shows nothing).
+  double worst = 0;
+  for (int k = 1; k < s.depth; ++k) {
+    auto rounded = [&](int i) { return glm::round((s.origin + double(i) * s.step) * 10.0) / 10.0; };
+    worst = std::max(worst, std::abs(glm::dot(rounded(k) - rounded(k - 1), normal) - 7.0));
+  }
+  ASSERT_GT(worst, 0.07);
+  auto files = writeSeries(dir.root() / "rounded", s);
+  {  // zero padding after the pixels of the first file
+    std::ofstream pad(files[0], std::ios::binary | std::ios::app);
+    const std::string zeros(std::size_t(5) << 19, '\0');
+    pad.write(zeros.data(), std::streamsize(zeros.size()));
+  }
+  std::vector<std::string> warnings;
+  ReadOptions options;
+  options.dicom.warn = [&](const std::string& w) { warnings.push_back(w); };
+  const Volume v = readVolume(dir.path("rounded"), options);
+  ASSERT_EQ(v.dims, glm::ivec3(kW, kH, 20));
+  EXPECT_NEAR(v.spacing.z, 7.0, 0.02);
+  EXPECT_NEAR(valueAt(v, 3, 4, 0), phantom(3, 4, 0), 1);  // stored at a slope of 2
+  EXPECT_NEAR(valueAt(v, 12, 10, 19), phantom(12, 10, 19), 1);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("its slice positions were written to 1 decimals: gaps of "),
+            std::string::npos)
+      << warnings[0];
+
+  // One slice 0.25 mm off along the normal: beyond the 0.12 mm the rounding accounts for.
+  Series moved = s;
+  moved.uid += ".2";
+  files = writeSeries(dir.root() / "moved", moved);
+  DicomSlice off;
+  off.columns = kW, off.rows = kH, off.pixels.assign(kW * kH, 0);
+  off.seriesUid = moved.uid, off.orientation = moved.orientation;
+  off.pixelSpacing = {0.7, 0.6};
+  off.position = moved.origin + 20.0 * moved.step + 0.25 * normal;  // a 21st slice
+  off.positionDecimals = 2;
+  writeDicom(dir.path("moved/late"), off);
+  expectFormatError([&] { readVolume(dir.path("moved")); }, dir.path("moved"), "unequal gaps");
+
+  std::filesystem::remove(files[7]);
+  std::filesystem::remove(dir.path("moved/late"));
+  expectFormatError([&] { readVolume(dir.path("moved")); }, dir.path("moved"),
+                    "1 slice is missing");
 }
 
 TEST(Dicom, CorruptFilesAreRefusedNamingTheFile) {

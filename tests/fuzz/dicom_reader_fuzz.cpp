@@ -33,6 +33,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     voxwall::codec::DicomOptions options;
     options.resampleTilt = size % 2 == 1;
+    options.image = int(size % 3);  // none, the first or the second image of an enhanced file
+    options.warn = [](const std::string&) {};
     (void)voxwall::codec::readDicom(dir.string(), options);
   } catch (const voxwall::FormatError&) {
   }

@@ -1,6 +1,6 @@
 // Writes the DICOM reader fuzzer's seeds: make_dicom_seeds DIR. Each seed is a folder's files
 // joined by "\nSPLIT\n" (dicom_reader_fuzz.cpp): a small CT series, compressed slices, a
-// multi-frame file.
+// multi-frame file, an enhanced MR of two images.
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -63,6 +63,22 @@ int main(int argc, char** argv) {
   for (int i = 0; i < 60; ++i) multi.pixels.push_back(std::int16_t(i));
   writeDicom(scratch, multi);
   std::ofstream(dir / "multiframe", std::ios::binary) << slurp(scratch);
+  // An enhanced MR of two images (frame types, a rescale each) at two positions, geometry in
+  // the functional groups only.
+  EnhancedImage enhanced;
+  enhanced.columns = 6, enhanced.rows = 5;
+  enhanced.pixelSpacing = {0.8, 0.9};
+  for (std::uint32_t image = 1; image <= 2; ++image)
+    for (std::uint32_t z = 1; z <= 2; ++z) {
+      EnhancedFrame f;
+      f.position = {0, 0, 3.0 * z};
+      f.imageIndex = image, f.stackPosition = z;
+      if (image == 2) f.frameType = "ORIGINAL\\PRIMARY\\B0_MAP\\NONE", f.slope = 0.5;
+      for (int i = 0; i < 30; ++i) f.pixels.push_back(std::int16_t(i * int(z) - 7));
+      enhanced.frames.push_back(f);
+    }
+  writeEnhancedDicom(scratch, enhanced);
+  std::ofstream(dir / "enhanced", std::ios::binary) << slurp(scratch);
   std::filesystem::remove(scratch);
   return 0;
 }

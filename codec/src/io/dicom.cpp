@@ -17,12 +17,14 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/errors.hpp>
 
 #include "../file_util.hpp"
 #include "dicom_checks.hpp"
+#include "dicom_frames.hpp"
 
 namespace voxwall::codec {
 namespace {
@@ -111,7 +113,9 @@ struct SliceHeader {
   int columns = 0, rows = 0, frames = 1, samples = 1;
   std::vector<double> position, orientation;
   glm::dvec3 ipp{0};
-  double along = 0;  // ipp projected on the slice normal
+  double along = 0;   // ipp projected on the slice normal
+  int frame = -1;     // a frame of an enhanced multi-frame file: which (from 0)
+  int decimals = 16;  // the digits after the point its Image Position (Patient) was written with
 };
 
 struct Series {
@@ -155,6 +159,7 @@ std::map<std::string, Series> scanSeries(const std::string& path) {
                                "; voxwall reads images of 8, 16 or (uncompressed) 32 bits");
     if (h.frames < 1) throw FormatError(f, "has Number of Frames " + value(kFrames));
     h.position = numbersOf(value(kPosition));
+    h.decimals = dicom::decimalsOf(value(kPosition));
     h.orientation = numbersOf(value(kOrientation));
     Series& s = out[h.series];
     if (s.slices.empty()) {
@@ -486,10 +491,33 @@ struct SliceAxes {
   glm::dvec3 row{1, 0, 0}, column{0, 1, 0}, normal{0, 0, 1};
 };
 
-// The gaps between sorted slices: equal (within 1 %), or the series is refused naming the
-// missing slices or the unequal gap.
-void checkGaps(const std::vector<SliceHeader>& slices, const std::string& path,
-               const std::string& name) {
+// How far apart along `normal` two positions written with `decimals` digits after the point may
+// lie from where they were (each coordinate rounded by half a unit of the last digit).
+double roundingAlong(int decimals, const glm::dvec3& normal) {
+  const double unit = std::pow(10.0, -double(std::min(decimals, 16)));
+  return unit * (std::abs(normal.x) + std::abs(normal.y) + std::abs(normal.z));
+}
+
+// The digits the series' positions were written with: the finest any of them shows.
+int positionDecimals(const std::vector<SliceHeader>& slices) {
+  int most = 0;
+  for (const SliceHeader& s : slices) most = std::max(most, s.decimals);
+  return most;
+}
+
+void warn(const DicomOptions& options, const std::string& message) {
+  if (options.warn)
+    options.warn(message);
+  else
+    std::fprintf(stderr, "voxwall: %s\n", message.c_str());
+}
+
+// The gaps between sorted slices: equal, or the series is refused naming the missing slices or
+// the unequal gap. Equal: within 1% of their median (at least 0.01 mm), or within what rounding
+// the positions to the digits they were written with can move a gap (two positions to 0.1 mm on
+// an oblique normal: up to 0.17 mm), with a warning when that is more than 1%.
+void checkGaps(const std::vector<SliceHeader>& slices, const glm::dvec3& normal,
+               const std::string& path, const std::string& name, const DicomOptions& options) {
   std::vector<double> gaps;
   for (std::size_t i = 1; i < slices.size(); ++i) {
     const double gap = slices[i].along - slices[i - 1].along;
@@ -505,8 +533,13 @@ void checkGaps(const std::vector<SliceHeader>& slices, const std::string& path,
   std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(sorted.size() / 2),
                    sorted.end());
   const double median = sorted[sorted.size() / 2];
-  const double tolerance = std::max(0.01, 0.01 * median);
+  const double strict = std::max(0.01, 0.01 * median);
+  const int decimals = positionDecimals(slices);
+  const double rounding = roundingAlong(decimals, normal) * (1 + 1e-9);
+  const double tolerance = std::max(strict, rounding);
+  double worst = 0;
   for (std::size_t i = 0; i < gaps.size(); ++i) {
+    worst = std::max(worst, std::abs(gaps[i] - median));
     if (std::abs(gaps[i] - median) <= tolerance) continue;
     const double ratio = gaps[i] / median;
     const std::string between = slices[i].file + " and " + slices[i + 1].file;
@@ -519,14 +552,36 @@ void checkGaps(const std::vector<SliceHeader>& slices, const std::string& path,
     }
     throw FormatError(path, name + " has unequal gaps between its slices: " + fixed(gaps[i], 3) +
                                 " mm between " + between + " where the others are " +
-                                fixed(median, 3) + " mm");
+                                fixed(median, 3) + " mm (its positions, written to " +
+                                std::to_string(decimals) + " decimals, account for " +
+                                fixed(rounding, 3) + " mm)");
   }
+  if (worst > strict) {
+    const auto [lo, hi] = std::minmax_element(gaps.begin(), gaps.end());
+    warn(options, name + ": its slice positions were written to " + std::to_string(decimals) +
+                      " decimals: gaps of " + fixed(*lo, 3) + " to " + fixed(*hi, 3) +
+                      " mm (at most " + fixed(100 * worst / median, 2) + "% from their median " +
+                      fixed(median, 3) + " mm) are read as equal");
+  }
+}
+
+// The spacing of sorted slices: the least-squares gap of their positions along the normal.
+double fittedGap(const std::vector<SliceHeader>& slices) {
+  const double n = double(slices.size()), meanIndex = (n - 1) / 2;
+  double meanAlong = 0;
+  for (const SliceHeader& s : slices) meanAlong += s.along / n;
+  double num = 0, den = 0;
+  for (std::size_t i = 0; i < slices.size(); ++i) {
+    num += (double(i) - meanIndex) * (slices[i].along - meanAlong);
+    den += (double(i) - meanIndex) * (double(i) - meanIndex);
+  }
+  return num / den;
 }
 
 // Every slice the same size and orientation, at a position of its own along the normal: sorts
 // the slices along it (each slice's ipp and along set) and returns the series' axes.
 SliceAxes placeSlices(std::vector<SliceHeader>& slices, const std::string& path,
-                      const std::string& name) {
+                      const std::string& name, const DicomOptions& options) {
   const SliceHeader& first = slices.front();
   for (const SliceHeader& s : slices)
     if (s.columns != first.columns || s.rows != first.rows)
@@ -561,7 +616,7 @@ SliceAxes placeSlices(std::vector<SliceHeader>& slices, const std::string& path,
   }
   std::stable_sort(slices.begin(), slices.end(),
                    [](const SliceHeader& a, const SliceHeader& b) { return a.along < b.along; });
-  checkGaps(slices, path, name);
+  checkGaps(slices, axes.normal, path, name, options);
   return axes;
 }
 
@@ -603,7 +658,10 @@ void undoGantryTilt(Volume& v, const std::vector<SliceHeader>& slices, const Sli
         {glm::dot(inPlane, axes.row) / v.spacing.x, glm::dot(inPlane, axes.column) / v.spacing.y});
     worst = std::max({worst, std::abs(shifts.back().x), std::abs(shifts.back().y)});
   }
-  if (worst <= 0.1) return;
+  // A tenth of a voxel, and what rounding the positions to their digits moves them in-plane.
+  const double rounding = std::sqrt(3.0) * std::pow(10.0, -double(positionDecimals(slices))) /
+                          std::min(v.spacing.x, v.spacing.y);
+  if (worst <= 0.1 + rounding) return;
   const glm::dvec3 last = slices.back().ipp - slices.front().ipp;
   const double along = glm::dot(last, axes.normal);
   const double degrees =
@@ -616,6 +674,103 @@ void undoGantryTilt(Volume& v, const std::vector<SliceHeader>& slices, const Sli
   for (int z = 0; z < v.dims.z; ++z)
     shiftSlice(v, z, shifts[std::size_t(z)].x, shifts[std::size_t(z)].y);
   v.computeRange();
+}
+
+// An enhanced multi-frame file (functional groups): its frames grouped into images, the one
+// picked (options.image, or the only one) placed as the slices of a series are, each frame with
+// its own rescale. Returns nothing for a multi-frame file without functional groups.
+std::optional<Volume> readEnhanced(const SliceHeader& h, const std::string& path,
+                                   const DicomOptions& options) {
+  const std::vector<dicom::FrameGeometry> frames = dicom::enhancedFrames(h.file, h.frames);
+  if (frames.empty()) return std::nullopt;
+  std::vector<std::string> images;  // in order of their first frame
+  std::vector<std::vector<int>> members;
+  for (int f = 0; f < int(frames.size()); ++f) {
+    const auto it = std::find(images.begin(), images.end(), frames[std::size_t(f)].image);
+    if (it == images.end()) {
+      images.push_back(frames[std::size_t(f)].image);
+      members.push_back({f});
+    } else {
+      members[std::size_t(it - images.begin())].push_back(f);
+    }
+  }
+  if (images.size() > 1 && options.image == 0) {
+    std::string list;
+    for (std::size_t i = 0; i < images.size(); ++i)
+      list += (i ? "; " : "") + std::to_string(i + 1) + ": " +
+              frames[std::size_t(members[i].front())].label + " (" +
+              std::to_string(members[i].size()) + " frames)";
+    throw FormatError(h.file, "holds " + std::to_string(images.size()) + " images in its " +
+                                  std::to_string(frames.size()) + " frames (" + list +
+                                  "); read one with --dicom-image N");
+  }
+  if (options.image < 0 || std::size_t(options.image) > images.size())
+    throw FormatError(h.file, "holds " + std::to_string(images.size()) +
+                                  (images.size() == 1 ? " image" : " images") + "; --dicom-image " +
+                                  std::to_string(options.image) + " is not one of them");
+  const std::vector<int>& picked = members[std::size_t(std::max(options.image, 1) - 1)];
+  std::vector<SliceHeader> slices;
+  for (const int f : picked) {
+    const dicom::FrameGeometry& g = frames[std::size_t(f)];
+    SliceHeader s = h;
+    s.file = h.file + " (frame " + std::to_string(f + 1) + ")";
+    s.frames = 1, s.frame = f;
+    s.position = g.position, s.orientation = g.orientation;
+    s.decimals = g.positionDecimals;
+    slices.push_back(std::move(s));
+  }
+  const std::string name =
+      images.size() > 1 ? h.file + " image " + std::to_string(options.image) : h.file;
+  const SliceAxes axes = placeSlices(slices, path, name, options);
+  std::vector<std::byte> all;
+  const Decoded d = decode(h.file, all, 0, 0);
+  if (d.dims[0] != unsigned(h.columns) || d.dims[1] != unsigned(h.rows) ||
+      d.dims[2] != unsigned(frames.size()))
+    throw FormatError(h.file, "decodes to " + std::to_string(d.dims[0]) + "x" +
+                                  std::to_string(d.dims[1]) + "x" + std::to_string(d.dims[2]) +
+                                  " where its header says " + std::to_string(h.columns) + "x" +
+                                  std::to_string(h.rows) + "x" + std::to_string(frames.size()));
+  const glm::ivec3 dims(h.columns, h.rows, int(slices.size()));
+  checkDims(dims, path);
+  const std::size_t frameBytes =
+      std::size_t(h.columns) * std::size_t(h.rows) * storedBytes(d.stored);
+  std::vector<std::byte> stored(frameBytes * slices.size());
+  std::vector<Decoded> perSlice;
+  for (std::size_t z = 0; z < slices.size(); ++z) {
+    const dicom::FrameGeometry& g = frames[std::size_t(slices[z].frame)];
+    std::memcpy(stored.data() + z * frameBytes,
+                all.data() + std::size_t(slices[z].frame) * frameBytes, frameBytes);
+    Decoded one = d;
+    if (g.rescaled) one.slope = g.slope, one.intercept = g.intercept;
+    perSlice.push_back(one);
+  }
+  all = {};
+  // DICOM's Pixel Spacing is rows apart, then columns apart: y, then x.
+  const dicom::FrameGeometry& first = frames[std::size_t(slices.front().frame)];
+  glm::dvec3 spacing = d.spacing;
+  for (const int f : picked)
+    if (frames[std::size_t(f)].pixelSpacing != first.pixelSpacing)
+      throw FormatError(h.file, "frame " + std::to_string(f + 1) +
+                                    " has another Pixel Spacing than frame " +
+                                    std::to_string(slices.front().frame + 1) + " of " + name);
+  if (first.pixelSpacing.size() == 2)
+    spacing.x = first.pixelSpacing[1], spacing.y = first.pixelSpacing[0];
+  for (int i = 0; i < 2; ++i)
+    if (!(spacing[i] > 0) || !std::isfinite(spacing[i]))
+      throw FormatError(h.file, "has no usable Pixel Spacing (" + fixed(spacing[i], 4) + ")");
+  if (slices.size() > 1)
+    spacing.z = fittedGap(slices);
+  else
+    spacing.z = first.sliceThickness > 0 ? first.sliceThickness : 1;
+  Volume v = rescaled(std::move(stored), d.stored, dims, spacing, perSlice);
+  if (slices.size() > 1) {
+    v.orientation.direction = glm::dmat3(axes.row, axes.column, axes.normal);
+    v.orientation.origin = slices.front().ipp;
+    undoGantryTilt(v, slices, axes, path, name, options.resampleTilt);
+  } else if (first.orientation.size() == 6 && first.position.size() == 3) {
+    v.orientation = orientationOf(first.orientation.data(), first.position.data());
+  }
+  return v;
 }
 
 }  // namespace
@@ -649,10 +804,21 @@ Volume readDicom(const std::string& path, const DicomOptions& options) {
   const Series& series = pickSeries(all, path, options);
   std::vector<SliceHeader> slices = series.slices;
   const std::string name = series.info.uid.empty() ? path : "series " + series.info.uid;
-  if (const SliceHeader* multiFrame = greyscaleMultiFrame(slices, path, name))
+  if (const SliceHeader* multiFrame = greyscaleMultiFrame(slices, path, name)) {
+    if (auto enhanced = readEnhanced(*multiFrame, path, options)) return std::move(*enhanced);
+    if (options.image > 1)
+      throw FormatError(multiFrame->file, "holds one image; --dicom-image " +
+                                              std::to_string(options.image) +
+                                              " is not one of them");
     return readMultiFrame(*multiFrame);
+  }
+  if (options.image > 1)
+    throw FormatError(path, name +
+                                " is a series of single-frame files, one image; "
+                                "--dicom-image " +
+                                std::to_string(options.image) + " is not one of them");
 
-  const SliceAxes axes = placeSlices(slices, path, name);
+  const SliceAxes axes = placeSlices(slices, path, name, options);
   const SliceHeader& first = slices.front();
   const glm::ivec3 dims(first.columns, first.rows, int(slices.size()));
   checkDims(dims, path);
@@ -664,7 +830,7 @@ Volume readDicom(const std::string& path, const DicomOptions& options) {
     if (!(spacing[i] > 0) || !std::isfinite(spacing[i]))
       throw FormatError(first.file, "has no usable Pixel Spacing (" + fixed(spacing[i], 4) + ")");
   if (slices.size() > 1)
-    spacing.z = (slices.back().along - slices.front().along) / double(slices.size() - 1);
+    spacing.z = fittedGap(slices);
   else if (!(spacing.z > 0) || !std::isfinite(spacing.z))
     spacing.z = 1;
 

@@ -622,4 +622,18 @@ std::vector<double> numbersOf(const std::string& text) {
   return out;
 }
 
+int decimalsOf(const std::string& text) {
+  int most = -1;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, '\\')) {
+    item = trimmed(item.c_str());
+    if (item.empty()) continue;
+    if (item.find_first_of("eE") != std::string::npos) return 16;
+    const auto dot = item.find('.');
+    most = std::max(most, dot == std::string::npos ? 0 : int(item.size() - dot - 1));
+  }
+  return most < 0 ? 16 : most;
+}
+
 }  // namespace voxwall::codec::dicom

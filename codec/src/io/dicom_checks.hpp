@@ -14,6 +14,9 @@ namespace voxwall::codec::dicom {
 std::string trimmed(const char* value);
 // "a\b\c" as numbers; empty when any of them is not a finite number.
 std::vector<double> numbersOf(const std::string& text);
+// The most digits after the decimal point among "a\b\c" (16 for none given or an exponent):
+// how finely a scanner rounded the values it wrote (it drops trailing zeros: "7" next to "12.3").
+int decimalsOf(const std::string& text);
 
 // What checkElements() found of a file.
 struct CheckedFile {

@@ -6,6 +6,7 @@
 //   a directory holding DICOM files, a DICOMDIR, or one DICOM file   DICOM (GDCM): docs/dicom.md
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -27,6 +28,13 @@ struct RawLayout {
 struct DicomOptions {
   std::string series;         // its Series Instance UID; empty: the only series there is
   bool resampleTilt = false;  // resample a gantry-tilted series onto a box instead of refusing it
+  // An enhanced multi-frame file that holds several images (echoes, image types, stacks, time
+  // points): which one to read, from 1 in the order of their first frames; 0: the only one (a
+  // file of several is refused with their list).
+  int image = 0;
+  // What was read though it was not quite as the standard has it (positions rounded to coarser
+  // gaps than 1%), in one line; null: written to standard error as "voxwall: <line>".
+  std::function<void(const std::string&)> warn;
 };
 
 // What a file does not say about itself: the layout of a raw file, the series of a DICOM folder.
