@@ -10,6 +10,8 @@ echo "== Google Benchmark: CPU raycaster, 1920x1080, 1/4-voxel step"
 "$build/bench/voxwall_bench_raycast" --benchmark_counters_tabular=true
 echo "== The main job's frames: the ray lattice (default) against a ray a pixel (--exact), PSNR against the converged render"
 /usr/bin/python3 bench/lattice_bench.py --voxwall "$build/master/voxwall"
+echo "== The march along the ray: steps, pre-integration, the error budget, PSNR against the converged render"
+/usr/bin/python3 bench/march_bench.py --voxwall "$build/master/voxwall"
 echo "== voxwall vs VTK vtkFixedPointVolumeRayCastMapper"
 xvfb-run -a -s "-screen 0 3000x2000x24" /usr/bin/python3 bench/compare_vtk.py --voxwall "$build/master/voxwall" "$@"
 echo "== What shading costs per codec: unshaded, six-sample gradients, cell gradients"

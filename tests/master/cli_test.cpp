@@ -55,6 +55,11 @@ TEST(Cli, GenerateCompressInfoDecompressRoundTrip) {
         std::string(ext) == ".raw" ? codec::readVolume(out, layout) : codec::readVolume(out);
     EXPECT_EQ(back.data, original.data) << ext;
   }
+  // -q, as every other command takes it: the file and nothing printed.
+  const CliRun quiet = runVoxwall("decompress -q " + vwz + " -o " + dir.path("quiet.nrrd"));
+  ASSERT_EQ(quiet.status, 0) << quiet.out;
+  EXPECT_EQ(quiet.out, "");
+  EXPECT_TRUE(std::filesystem::exists(dir.path("quiet.nrrd")));
 }
 
 TEST(Cli, CompressReadsRawInputWithItsLayout) {

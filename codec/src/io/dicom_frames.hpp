@@ -11,9 +11,9 @@ namespace voxwall::codec::dicom {
 struct FrameGeometry {
   // From the frame's own functional group where it has one, else the shared group's; empty where
   // neither says.
-  std::vector<double> position;     // Plane Position: Image Position (Patient)
-  int positionDecimals = 16;        // the digits after the point it was written with
-  std::vector<double> orientation;  // Plane Orientation: Image Orientation (Patient)
+  std::vector<double> position;      // Plane Position: Image Position (Patient)
+  int positionDecimals = 16;         // the digits after the point it was written with
+  std::vector<double> orientation;   // Plane Orientation: Image Orientation (Patient)
   std::vector<double> pixelSpacing;  // Pixel Measures: rows apart, columns apart (mm)
   double sliceThickness = 0;         // Pixel Measures (0: not given)
   bool rescaled = false;             // Pixel Value Transformation given

@@ -14,6 +14,7 @@ namespace {
 struct DecompressOptions {
   std::string input, output;
   int step = -1;
+  bool quiet = false;
 };
 
 void runDecompress(const DecompressOptions& o) {
@@ -31,6 +32,7 @@ void runDecompress(const DecompressOptions& o) {
       codec::codecOf(file.info(), o.input).decode(file.stepInfo(k), file.stepSections(k));
   v.orientation = file.info().orientation;
   codec::writeVolume(v, o.output);
+  if (o.quiet) return;
   std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
               std::string(codec::scalarName(v.type)).c_str());
 }
@@ -47,6 +49,7 @@ void addDecompressCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--step", o->step, "The step of a time series to write (from 0)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("-q,--quiet", o->quiet, "Print nothing but errors");
   cmd->callback([o] { runDecompress(*o); });
 }
 
