@@ -22,10 +22,7 @@ import tempfile
 
 import numpy as np
 
-try:
-    from PIL import Image  # python3-pil
-except ImportError:  # pragma: no cover
-    Image = None
+from frames_common import load_rgba, psnr8
 
 MRI = "/usr/share/mricron/templates/ch2better.nii.gz"
 FRAME_LINE = re.compile(r"^frame (\d+)/(\d+): .*?render ms \[([^\]]*)\]")
@@ -67,14 +64,10 @@ def render(args, vwz, out, extra):
 
 
 def load(path):
-    if Image is None:
-        fail("python3-pil is needed to read the frames")
-    return np.asarray(Image.open(path).convert("RGBA"), dtype=np.float64)
+    return load_rgba(path, "march_bench")
 
 
-def psnr(a, b):
-    mse = np.mean((a - b) ** 2)
-    return 99.0 if mse == 0 else 10 * np.log10(255.0 ** 2 / mse)
+psnr = psnr8
 
 
 def main():

@@ -11,7 +11,8 @@
 
 namespace voxwall::test {
 
-using namespace voxwall::node;
+using node::Camera, node::Orbit, node::RenderSettings, node::RenderVolume, node::TileStats,
+    node::TransferFunction;
 
 struct Scene {
   std::string name;
@@ -52,14 +53,14 @@ inline const Scene& thinPlaneScene() {
 inline Camera closeCamera(const RenderVolume& volume, double distance = 1.5) {
   Orbit o;
   o.azimuthDeg = 35, o.elevationDeg = 25, o.distance = distance;
-  return orbitCamera(o, boundingRadius(volume.info()));
+  return node::orbitCamera(o, node::boundingRadius(volume.info()));
 }
 
 inline Image renderTiles(const Scene& scene, const Camera& camera, int w, int h,
                          const RenderSettings& settings, int threads,
                          const std::vector<Rect>& tiles, TileStats* total = nullptr) {
-  auto backend = makeCpuBackend(threads);
-  const FramePlan plan = planFrame(scene.volume, camera, w, h, scene.tf, settings);
+  auto backend = node::makeCpuBackend(threads);
+  const node::FramePlan plan = node::planFrame(scene.volume, camera, w, h, scene.tf, settings);
   Image full(w, h), tile;
   for (const Rect& r : tiles) {
     const TileStats stats = backend->render(scene.volume, plan, r, tile);

@@ -676,6 +676,21 @@ void undoGantryTilt(Volume& v, const std::vector<SliceHeader>& slices, const Sli
   v.computeRange();
 }
 
+// Voxels stay in stored order; the orientation says where they lie (DICOM's patient space is
+// voxwall's LPS): rows, columns, then the normal the sorted slices were placed along (a tilt
+// undone or refused), or a single slice's own orientation and position.
+void placeInPatient(Volume& v, const std::vector<SliceHeader>& slices, const SliceAxes& axes,
+                    const std::string& path, const std::string& name, const DicomOptions& options) {
+  const SliceHeader& first = slices.front();
+  if (slices.size() > 1) {
+    v.orientation.direction = glm::dmat3(axes.row, axes.column, axes.normal);
+    v.orientation.origin = first.ipp;
+    undoGantryTilt(v, slices, axes, path, name, options.resampleTilt);
+  } else if (first.orientation.size() == 6 && first.position.size() == 3) {
+    v.orientation = orientationOf(first.orientation.data(), first.position.data());
+  }
+}
+
 // An enhanced multi-frame file (functional groups): its frames grouped into images, the one
 // picked (options.image, or the only one) placed as the slices of a series are, each frame with
 // its own rescale. Returns nothing for a multi-frame file without functional groups.
@@ -763,13 +778,7 @@ std::optional<Volume> readEnhanced(const SliceHeader& h, const std::string& path
   else
     spacing.z = first.sliceThickness > 0 ? first.sliceThickness : 1;
   Volume v = rescaled(std::move(stored), d.stored, dims, spacing, perSlice);
-  if (slices.size() > 1) {
-    v.orientation.direction = glm::dmat3(axes.row, axes.column, axes.normal);
-    v.orientation.origin = slices.front().ipp;
-    undoGantryTilt(v, slices, axes, path, name, options.resampleTilt);
-  } else if (first.orientation.size() == 6 && first.position.size() == 3) {
-    v.orientation = orientationOf(first.orientation.data(), first.position.data());
-  }
+  placeInPatient(v, slices, axes, path, name, options);
   return v;
 }
 
@@ -835,15 +844,7 @@ Volume readDicom(const std::string& path, const DicomOptions& options) {
     spacing.z = 1;
 
   Volume v = rescaled(std::move(stored), decoded.front().stored, dims, spacing, decoded);
-  // Voxels stay in stored order; the orientation says where they lie (DICOM's patient space is
-  // voxwall's LPS): rows, columns, then the normal the slices were sorted along.
-  if (slices.size() > 1) {
-    v.orientation.direction = glm::dmat3(axes.row, axes.column, axes.normal);
-    v.orientation.origin = slices.front().ipp;
-    undoGantryTilt(v, slices, axes, path, name, options.resampleTilt);
-  } else if (first.orientation.size() == 6 && first.position.size() == 3) {
-    v.orientation = orientationOf(first.orientation.data(), first.position.data());
-  }
+  placeInPatient(v, slices, axes, path, name, options);
   return v;
 }
 
