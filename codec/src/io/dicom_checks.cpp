@@ -13,6 +13,7 @@
 #include <gdcmSequenceOfItems.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -634,6 +635,12 @@ int decimalsOf(const std::string& text) {
     most = std::max(most, dot == std::string::npos ? 0 : int(item.size() - dot - 1));
   }
   return most < 0 ? 16 : most;
+}
+
+std::string fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
 }
 
 }  // namespace voxwall::codec::dicom

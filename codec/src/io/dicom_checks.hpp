@@ -17,6 +17,8 @@ std::vector<double> numbersOf(const std::string& text);
 // The most digits after the decimal point among "a\b\c" (16 for none given or an exponent):
 // how finely a scanner rounded the values it wrote (it drops trailing zeros: "7" next to "12.3").
 int decimalsOf(const std::string& text);
+// `v` with `digits` digits after the point, for messages.
+std::string fixed(double v, int digits = 2);
 
 // What checkElements() found of a file.
 struct CheckedFile {
