@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """voxwall's CPU raycaster next to VTK's vtkFixedPointVolumeRayCastMapper, in one run.
 
-Same volume, image size, step (1/4 voxel), transfer function (bench/data/vtk-comparison-tf.json:
+Same volume, image size, step (1/4 voxel; voxwall also by default: the march its error budget
+picks, with the picture's PSNR against a converged render of the same camera), transfer function (bench/data/vtk-comparison-tf.json:
 grey, opacity 0 at value 40 -> 0.8 at 255, opacity per voxel), camera (3/4 view: azimuth 30,
 elevation 20, 2.6 bounding radii, 30 degree vertical field of view) and orbit (5 degrees per frame),
 unshaded and shaded (Blinn-Phong with a headlight: ambient 0.1, diffuse 0.7, specular 0.2, power
@@ -46,12 +47,13 @@ def parse_args():
     return p.parse_args()
 
 
-def run_voxwall(args, threads, shading, out_dir):
+def run_voxwall(args, threads, shading, out_dir, march):
+    """Frame times (ms), the last frame's Msamples/s and the march the frames used (from -v)."""
     # VTK's reader leaves the NIfTI's orientation aside and renders the voxel axes; voxwall is
     # told to do the same (--orientation LPS: x, y, z as stored), so both draw one picture.
     base = [args.voxwall, "render", args.volume, "--size", args.size, "--tf", TF_FILE,
             "--orientation", "LPS", "--camera", "30,20,2.6", "--fov", "30", "--orbit-deg", "5",
-            "--threads", str(threads), "--step", "0.25", "--background", "black"]
+            "--threads", str(threads), "--background", "black", "-v"] + march
     if shading:
         base.append("--shading")
     # The first frame for the picture, then the timed frames without writing: VTK's timed renders
@@ -68,10 +70,25 @@ def run_voxwall(args, threads, shading, out_dir):
                                       res.stdout + res.stderr, re.M):
         ms.append(max(float(r.split(":")[1]) for r in ranks.split()))
         rate.append(float(msamples))
-    if len(ms) != args.frames:
-        sys.exit(f"compare_vtk: parsed {len(ms)} of {args.frames} voxwall frame lines; the output was:\n"
-                 + res.stdout + res.stderr)
-    return ms, rate[-1]
+    steps = re.findall(r"^\s+\d+ samples, .*step ([0-9.]+) voxels(, pre-integrated)?", res.stdout, re.M)
+    if len(ms) != args.frames or len(steps) != args.frames:
+        sys.exit(f"compare_vtk: parsed {len(ms)} of {args.frames} voxwall frame lines and {len(steps)} "
+                 "of their steps; the output was:\n" + res.stdout + res.stderr)
+    step, pre = steps[-1]
+    return ms, rate[-1], f"{float(step):g}" + (" pre" if pre else "")
+
+
+def run_reference(args, shading, out_dir):
+    """The converged picture of the first camera: 1/8-voxel step, a ray a pixel."""
+    cmd = [args.voxwall, "render", args.volume, "--size", args.size, "--tf", TF_FILE,
+           "--orientation", "LPS", "--camera", "30,20,2.6", "--fov", "30", "--threads", "2",
+           "--background", "black", "--exact", "--step", "0.125", "--frames", "1", "--out", out_dir]
+    if shading:
+        cmd.append("--shading")
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        sys.exit("voxwall failed: " + res.stdout + res.stderr)
+    return read_png(os.path.join(out_dir, "frame_00000.png"))
 
 
 def vtk_scene(args, shading):
@@ -238,12 +255,16 @@ def main():
     if not modes or any(m not in ("off", "on") for m in modes):
         sys.exit("compare_vtk: --shading takes off, on or off,on")
     for shading in [m == "on" for m in modes]:
+        ref_img = run_reference(args, shading, os.path.join(args.out, f"reference-{'on' if shading else 'off'}"))
         for threads in [int(t) for t in args.threads.split(",")]:
             tag = f"{'shaded' if shading else 'unshaded'}-t{threads}"
             vdir = os.path.join(args.out, f"voxwall-{tag}")
+            ddir = os.path.join(args.out, f"voxwall-default-{tag}")
             tdir = os.path.join(args.out, f"vtk-{tag}")
-            vox_ms, vox_rate = run_voxwall(args, threads, shading, vdir)
+            vox_ms, vox_rate, _ = run_voxwall(args, threads, shading, vdir, ["--exact"])
             vox_img = read_png(os.path.join(vdir, "frame_00000.png"))
+            def_ms, _, def_march = run_voxwall(args, threads, shading, ddir, [])
+            def_img = read_png(os.path.join(ddir, "frame_00000.png"))
             # Never report a row whose pictures differ (VTK once drew a stretched view, with the
             # timing of that picture): try once more, then give up on the row.
             for attempt in range(2):
@@ -254,25 +275,29 @@ def main():
                 print(f"compare_vtk: VTK's {tag} picture differs from voxwall's "
                       f"({psnr(vox_img, vtk_img):.1f} dB), attempt {attempt + 1}", file=sys.stderr)
             rows.append((shading, threads, np.mean(vox_ms), np.mean(vtk_ms), vox_rate,
-                         psnr(vox_img, vtk_img)))
+                         psnr(vox_img, vtk_img), np.mean(def_ms), def_march, psnr(def_img, ref_img),
+                         psnr(vox_img, ref_img)))
             both = np.concatenate([vox_img, vtk_img], axis=1)
             write_png(os.path.join(args.out, f"side-by-side-{tag}.png"), both)
 
-    print(f"\nvolume {args.volume}, {args.size}, step 1/4 voxel, {args.frames} frames orbiting 5 deg/frame, "
-          f"{os.cpu_count()} cores\n")
-    print("| shading | threads | voxwall ms/frame | VTK ms/frame | voxwall Msamples/s | speed-up | "
-          "voxwall ms x threads | VTK ms x threads | PSNR voxwall vs VTK (dB) |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for shading, t, vox, vt, rate, p in rows:
-        print(f"| {'on' if shading else 'off'} | {t} | {vox:.0f} | {vt:.0f} | {rate:.1f} | {vt / vox:.2f}x | "
-              f"{vox * t:.0f} | {vt * t:.0f} | {p:.1f} |")
-    bad = [(shading, t, p) for shading, t, _, _, _, p in rows if p < MIN_PSNR]
+    print(f"\nvolume {args.volume}, {args.size}, {args.frames} frames orbiting 5 deg/frame, "
+          f"{os.cpu_count()} cores; VTK and voxwall 1/4 at a 1/4-voxel step, voxwall default at the "
+          "march its 50 dB error budget picks; PSNR vs converged: the first frame against a "
+          "1/8-voxel-step render of the same camera\n")
+    print("| shading | threads | VTK ms/frame | voxwall 1/4 ms/frame | speed-up | voxwall 1/4 Msamples/s | "
+          "PSNR voxwall 1/4 vs VTK (dB) | voxwall 1/4 vs converged (dB) | voxwall default ms/frame (march) | "
+          "default speed-up | default vs converged (dB) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for shading, t, vox, vt, rate, p, dms, dmarch, dp, vp in rows:
+        print(f"| {'on' if shading else 'off'} | {t} | {vt:.0f} | {vox:.0f} | {vt / vox:.2f}x | {rate:.1f} | "
+              f"{p:.1f} | {vp:.1f} | {dms:.0f} ({dmarch}) | {vt / dms:.2f}x | {dp:.1f} |")
+    bad = [(row[0], row[1], row[5]) for row in rows if row[5] < MIN_PSNR]
     for shading, t, p in bad:
         print(f"\ncompare_vtk: the {'shaded' if shading else 'unshaded'} {t}-thread pictures differ "
               f"({p:.1f} dB < {MIN_PSNR} dB): that row compares different pictures",
               file=sys.stderr)
-    by = {(sh, t): vox for sh, t, vox, _, _, _ in rows}
-    for t in sorted({t for _, t, _, _, _, _ in rows}):
+    by = {(row[0], row[1]): row[2] for row in rows}
+    for t in sorted({row[1] for row in rows}):
         if (False, t) in by and (True, t) in by:
             print(f"\nvoxwall shaded / unshaded frame, {t} thread(s): {by[(True, t)] / by[(False, t)]:.2f}")
     print(f"\nimages: {os.path.abspath(args.out)}/side-by-side-*.png (left voxwall, right VTK)")

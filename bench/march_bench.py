@@ -3,7 +3,8 @@
 one view: the step (1/8 to 1 voxel), at points or pre-integrated, a ray a pixel, and the default
 (the step picked from the error budget, the ray lattice), in one run.
 
-The set-up: the MRI template (Debian's mricron-data, held raw), 2886x2169 (half the bigeye wall a
+The set-up: the MRI template (Debian's mricron-data, held raw; or, with --volume ct-phantom, the
+3D Shepp-Logan head phantom as CT numbers: `voxwall generate shepp-logan --type int16`), 2886x2169 (half the bigeye wall a
 side), shaded, one rank of --threads threads, a still view (azimuth 30, elevation 20): each
 setting renders two frames and the second one's render time is kept (the first plans the frame
 and warms the caches). PSNR is over the four 8-bit channels against the converged render (a ray
@@ -11,6 +12,10 @@ a pixel at a 1/8-voxel step). Prints a markdown table; exits non-zero when it ca
 it ran.
 
     /usr/bin/python3 bench/march_bench.py --voxwall build/master/voxwall [--unshaded]
+        [--volume ct-phantom] [--error-picture PATH]
+
+--error-picture writes where the error sits: a crop of the default and the `--exact` pictures
+(top) and each one's largest RGB channel difference from the converged render, times 16 (bottom).
 """
 import argparse
 import os
@@ -76,20 +81,28 @@ def main():
     p.add_argument("--size", default="2886x2169")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--unshaded", action="store_true")
+    p.add_argument("--volume", choices=["mri", "ct-phantom"], default="mri")
+    p.add_argument("--error-picture", metavar="PATH", help="write where the error sits (PNG)")
+    p.add_argument("--crop", default="480x360", help="the error picture's crop, at the centre")
     args = p.parse_args()
-    if not os.path.exists(MRI):
+    if args.volume == "mri" and not os.path.exists(MRI):
         fail(f"{MRI} is missing (apt-get install mricron-data)")
     work = tempfile.mkdtemp(prefix="march-bench-")
     try:
-        vwz = os.path.join(work, "mri.vwz")
-        subprocess.run([args.voxwall, "compress", MRI, "-o", vwz, "-q"], check=True)
+        vwz = os.path.join(work, "volume.vwz")
+        if args.volume == "mri":
+            subprocess.run([args.voxwall, "compress", MRI, "-o", vwz, "-q"], check=True)
+        else:
+            subprocess.run([args.voxwall, "generate", "shepp-logan", "--type", "int16", "-o", vwz],
+                           check=True, stdout=subprocess.DEVNULL)
         rows = []
         for name, extra in SETTINGS:
             out = os.path.join(work, str(len(rows)))
             rows.append((name, out) + render(args, vwz, out, extra))
         ref = load(os.path.join(rows[0][1], "frame_00001.png"))
         exact_time = rows[1][2]
-        print(f"MRI template, {args.size}, {'unshaded' if args.unshaded else 'shaded'}, one rank "
+        title = "MRI template" if args.volume == "mri" else "Shepp-Logan CT phantom (int16)"
+        print(f"{title}, {args.size}, {'unshaded' if args.unshaded else 'shaded'}, one rank "
               f"x {args.threads} threads, the second frame of a still view")
         print("| setting | march | render | / `--exact` | samples | rays cast | PSNR vs converged |")
         print("|---|---|---|---|---|---|---|")
@@ -98,8 +111,32 @@ def main():
             shown = "reference" if out == rows[0][1] else f"{quality:.1f} dB"
             print(f"| {name} | {march} | {seconds:.2f} s | {seconds / exact_time:.2f} | "
                   f"{samples / 1e6:.0f} M | {rays:.0%} (lattice {stride}) | {shown} |")
+        if args.error_picture:
+            pictures = [load(os.path.join(rows[i][1], "frame_00001.png")) for i in (-1, 1)]
+            error_picture(args, ref, pictures)
     finally:
         shutil.rmtree(work)
+
+
+def error_picture(args, ref, pictures):
+    """Top: the crop of each picture; bottom: its largest RGB difference from `ref`, times 16."""
+    from PIL import Image
+    w, h = (int(v) for v in args.crop.split("x"))
+    y0, x0 = (ref.shape[0] - h) // 2, (ref.shape[1] - w) // 2
+    if y0 < 0 or x0 < 0:
+        fail(f"--crop {args.crop} is larger than the frame")
+    crop = np.s_[y0:y0 + h, x0:x0 + w]
+    top = np.concatenate([p[crop][..., :3] for p in pictures], axis=1)
+    diffs = [np.abs(p[crop][..., :3] - ref[crop][..., :3]).max(axis=2) for p in pictures]
+    for label, picture, d in zip(("default", "--exact"), pictures, diffs):
+        print(f"{label}: in the crop, largest difference {d.max():.0f} levels, "
+              f"PSNR {psnr(picture[crop], ref[crop]):.1f} dB")
+    bottom = np.concatenate([np.minimum(d * 16, 255) for d in diffs], axis=1)
+    bottom = np.repeat(bottom[..., None], 3, axis=2)
+    both = np.concatenate([top, bottom], axis=0).astype(np.uint8)
+    grey = (both[..., 0] == both[..., 1]).all() and (both[..., 0] == both[..., 2]).all()
+    Image.fromarray(both[..., 0] if grey else both).save(args.error_picture, optimize=True)
+    print(f"error picture: {args.error_picture}")
 
 
 if __name__ == "__main__":

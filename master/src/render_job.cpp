@@ -141,7 +141,9 @@ std::unique_ptr<net::TileStreamer> makeStreamer(const JobSettings& job, int rank
   hello.role = net::Role::Renderer;
   hello.rank = rank, hello.rankCount = ranks;
   hello.wallId = job.stream->wallId, hello.token = job.stream->token;
-  return std::make_unique<net::TileStreamer>(job.stream->host, job.stream->port, hello);
+  auto streamer = std::make_unique<net::TileStreamer>(job.stream->host, job.stream->port, hello);
+  if (job.clock) streamer->setClock(job.clock);
+  return streamer;
 }
 
 }  // namespace
@@ -288,7 +290,7 @@ class MasterLoop {
     s.frame = f;
     readWall(f, frameStart, s);
     if (f == firstFrame_) s.probeSeconds = probe(f);
-    const FrameChoice choice = steering_.next(s.controls, frameStart);
+    const FrameChoice choice = steering_.next(s.controls, job_.clock ? job_.clock() : frameStart);
     s.step = choice.step, s.phase = choice.phase;
     s.rects = cut(s.step);
     master::FrameTask t = task(f, s.rects, choice);

@@ -201,8 +201,9 @@ bool TileStreamer::ensureConnected() {
     if (connection_) return true;
   }
   if (!refused_.empty()) return false;
-  const auto now = Clock::now();
+  const auto now = clock_();
   if (now < nextAttempt_) return false;
+  ++connectAttempts_;
   try {
     auto connection = Connection::open(host_, port_, hello_, connectTimeoutMs_);
     cut_ = connection->welcome().cut();
@@ -292,7 +293,7 @@ void TileStreamer::lost(const NetError& e) {
     std::lock_guard lock(mutex_);
     connection_.reset();
   }
-  nextAttempt_ = Clock::now() + backoff_;
+  nextAttempt_ = clock_() + backoff_;
 }
 
 bool TileStreamer::sendFrame(std::uint64_t frame, const std::vector<EncodedTile>& tiles,

@@ -293,7 +293,7 @@ TEST(VolumeIo, ShortAndUnreadableVwzFilesGetTheirOwnMessages) {
   expectFormatError([&] { ContainerFile::open(folder); }, folder, "not a regular file");
 }
 
-// Defect 6: writers on a full disk. A file-size limit makes every write past it fail as a full
+// writers on a full disk. A file-size limit makes every write past it fail as a full
 // disk does (EFBIG instead of ENOSPC), in this process only.
 TEST(VolumeIo, WritersOnAFullDiskFailWithOneLineAndLeaveNothingBehind) {
   TempDir dir;

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <filesystem>
+#include <functional>
 #include <thread>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/master/render_job.hpp>
@@ -110,6 +111,21 @@ void steerOnce(test::SinkRunner& sink, const master::FrameSummary& f) {
   ASSERT_TRUE(test::waitUntil([&] { return f.controlsPending() >= 1; }))
       << "the command did not reach rank 0";
 }
+
+// A job's clock (JobSettings::clock) that moves only when the test advances it: the decisions
+// that wait on time (steering settling, a streamer's reconnect back-off) follow the frames, never
+// the machine's speed.
+class TestClock {
+ public:
+  void advance(std::chrono::milliseconds by) { added_ += by.count(); }
+  std::function<std::chrono::steady_clock::time_point()> clock() {
+    return [this] { return start_ + std::chrono::milliseconds(added_.load()); };
+  }
+
+ private:
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::atomic<std::int64_t> added_{0};
+};
 
 // Checks every frame the sink wrote against the single-rank render; returns how many it wrote.
 int checkShownFrames(const std::string& dir, const master::JobSettings& job, double minPsnrDb) {
@@ -234,12 +250,15 @@ TEST(Stream, SinkRestartLosesOnlyFramesInFlight) {
   std::unique_ptr<test::SinkRunner> second;
   const int frames = 30;
   auto job = streamJob(port, net::TileCodec::Deflate, frames);
+  TestClock clock;
+  job.clock = clock.clock();
   std::string downtimeError;
   runStreamingJob(3, job, [&](const master::FrameSummary& f) {
     if (f.frame > 5 && f.frame < 10 && downtimeError.empty()) downtimeError = f.streamError;
     if (f.frame == 5) first->stop();  // the sink process dies
     if (f.frame == 10) second = startSink(dir.path("b"), port);
-    if (f.frame >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    // Past the longest back-off (5 s): every rank tries the new sink at its next frame.
+    if (f.frame >= 10) clock.advance(std::chrono::seconds(6));
   });
   ASSERT_TRUE(second);
   // While no sink listened, rank 0 heard which rank missed it and why.
@@ -263,15 +282,17 @@ TEST(Stream, SteeredFramesAreInteractiveUntilTheCameraSettles) {
   job.path = master::CameraPath::orbit({}, 0);
   job.interactiveStep = 4;
   job.settleSeconds = 0.3;
+  TestClock clock;
+  job.clock = clock.clock();
   std::vector<int> steps;
   runStreamingJob(2, job, [&](const master::FrameSummary& f) {
     steps.push_back(f.step);
     if (f.frame == 0) {
       steerOnce(*sink, f);
     } else {
-      // Time passes between frames (not a wait on anything): 0.3 s after the command the
-      // camera has settled, well before the last frame.
-      std::this_thread::sleep_for(std::chrono::milliseconds(150));
+      // 150 ms of the job's clock a frame: 0.3 s after the command the camera has settled,
+      // well before the last frame.
+      clock.advance(std::chrono::milliseconds(150));
     }
   });
   ASSERT_TRUE(waitSettled(*sink, 8));

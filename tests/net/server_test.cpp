@@ -14,8 +14,9 @@
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 
+#include "support/wait_until.hpp"
+
 using namespace voxwall;
-using namespace std::chrono_literals;
 
 namespace {
 
@@ -97,15 +98,6 @@ class RunningServer {
   std::thread thread_;
 };
 
-// Waits up to 10 s for `done` (a deadline, not a timing assertion).
-bool eventually(const std::function<bool()>& done) {
-  for (int i = 0; i < 1000; ++i) {
-    if (done()) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return done();
-}
-
 net::Hello helloFor(const std::string& wall) {
   net::Hello hello;
   hello.wallId = wall;
@@ -127,7 +119,7 @@ TEST(Server, TalksToTheClientHalf) {
     ASSERT_EQ(reply->type, net::MessageType::Control);
     EXPECT_EQ(net::decodeControl(reply->payload, "reply").a, 1.5);
     connection->close();
-    EXPECT_TRUE(eventually([&] { return handler.detached.load() == 1; }));
+    EXPECT_TRUE(test::waitUntil([&] { return handler.detached.load() == 1; }));
   }
   EXPECT_EQ(handler.attached.load(), 1);
   EXPECT_GT(handler.bytesReceived.load(), 2 * net::kHeaderBytes);
@@ -169,7 +161,7 @@ TEST(Server, ASilentPeerIsDroppedAfterTheHelloTimeout) {
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   addr.sin_port = htons(server.port());
   ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
-  EXPECT_TRUE(eventually([&] { return handler.drops.load() == 1; }));
+  EXPECT_TRUE(test::waitUntil([&] { return handler.drops.load() == 1; }));
   EXPECT_EQ(handler.lastReason(), "sent no Hello within 100 ms");
   char byte;
   EXPECT_EQ(::recv(fd, &byte, 1, 0), 0);  // the server closed the connection

@@ -86,7 +86,7 @@ bool closedWithin(int fd, int ms) {
 
 }  // namespace
 
-// Defect 1: x + width overflowed a signed int and the sink wrote far outside its frame.
+// x + width overflowed a signed int and the sink wrote far outside its frame.
 TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
   test::SinkRunner sink(test::twoDisplaySink());
   auto c = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
@@ -105,7 +105,7 @@ TEST(SinkHardening, TileRectangleThatOverflowsDropsThePeerNotTheSink) {
       << sink.log();
 }
 
-// Defect 2: a second job's first frames were silently discarded as "old".
+// a second job's first frames were silently discarded as "old".
 TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   test::SinkRunner sink(test::twoDisplaySink());
   auto first = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 111), 2000);
@@ -202,7 +202,7 @@ TEST(SinkHardening, KeepAlivesHoldAQuietStreamerAndControllerConnected) {
   EXPECT_EQ(sink.log().find("sent nothing"), std::string::npos) << sink.log();
 }
 
-// Defect 2: one complete tile with frame id 2^64 - 1 made the sink discard every later frame.
+// one complete tile with frame id 2^64 - 1 made the sink discard every later frame.
 TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
   test::SinkRunner sink(test::twoDisplaySink());
   net::ControlChannel control("127.0.0.1", sink.port(), rendererHello(0, 1));
@@ -229,7 +229,7 @@ TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
   EXPECT_NE(notes[0].find("refused"), std::string::npos) << notes[0];
 }
 
-// Defect 3: under a descriptor limit, one failed accept ended accepting for good.
+// under a descriptor limit, one failed accept ended accepting for good.
 TEST(SinkHardening, KeepsAcceptingAfterRunningOutOfFileDescriptors) {
   auto s = test::twoDisplaySink();
   s.helloTimeoutMs = 1500;
@@ -309,7 +309,7 @@ TEST(SinkHardening, SilentConnectionsFromOneHostLeaveRoomForAnother) {
   for (const int fd : silent) ::close(fd);
 }
 
-// Defect 4: a header claiming 64 MiB was allocated and zeroed before Hello or any payload.
+// a header claiming 64 MiB was allocated and zeroed before Hello or any payload.
 TEST(SinkHardening, RefusesALargePayloadBeforeHello) {
   test::SinkRunner sink(test::twoDisplaySink());
   const int fd = rawConnect(sink.port());
@@ -325,7 +325,7 @@ TEST(SinkHardening, RefusesALargePayloadBeforeHello) {
   EXPECT_NE(sink.log().find("before its Hello"), std::string::npos) << sink.log();
 }
 
-// Defect 4: ten one-pixel tiles for ten frames held ten wall-sized pictures (490 MB on bigeye).
+// ten one-pixel tiles for ten frames held ten wall-sized pictures (490 MB on bigeye).
 TEST(SinkHardening, OpenFramesHoldWhatArrivedNotAWallEach) {
   const auto wall = walls::loadWall(VOXWALL_WALLS_DIR "/bigeye.json");
   std::vector<walls::FrameEvent> events;
@@ -386,7 +386,7 @@ TEST(SinkHardening, FrameIdsOutsideTheJobsWindowAreRefused) {
   EXPECT_TRUE(assembler.addTile(500, wholeScreen(), 0, "t"));
 }
 
-// Defect 5: tokens compared with ==, in time that leaks the matching prefix.
+// tokens compared with ==, in time that leaks the matching prefix.
 TEST(SinkHardening, SecretsCompareWholly) {
   EXPECT_TRUE(walls::sameSecret("s3cret", "s3cret"));
   EXPECT_TRUE(walls::sameSecret("", ""));
@@ -395,7 +395,7 @@ TEST(SinkHardening, SecretsCompareWholly) {
   EXPECT_FALSE(walls::sameSecret("", "x"));
 }
 
-// Defect 5: a refused renderer kept rendering; refusal is now final and distinguishable.
+// a refused renderer kept rendering; refusal is now final and distinguishable.
 TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
   auto s = test::twoDisplaySink();
   s.token = "right";
@@ -405,10 +405,9 @@ TEST(SinkHardening, ARefusedStreamerStopsTryingAndSaysWhy) {
   net::TileStreamer streamer("127.0.0.1", sink.port(), hello);
   EXPECT_FALSE(streamer.sendFrame(0, {}, 0));
   EXPECT_NE(streamer.refused().find("wrong token"), std::string::npos) << streamer.refused();
-  const int refusedBefore = sink.sink().stats().peersRefused;
+  EXPECT_EQ(streamer.connectAttempts(), 1);
   EXPECT_FALSE(streamer.sendFrame(1, {}, 0));
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  EXPECT_EQ(sink.sink().stats().peersRefused, refusedBefore);  // no second attempt
+  EXPECT_EQ(streamer.connectAttempts(), 1);  // no second attempt
 }
 
 // Guessing the token gains nothing from speed: after a wrong token the address is refused unheard
@@ -455,7 +454,7 @@ TEST(SinkHardening, WrongTokensBackOffPerAddressAndAreCountedNotLoggedEach) {
   })) << sink.log();
 }
 
-// Defect 7: frames appear whole (marker last); what a killed sink left is cleared at start.
+// frames appear whole (marker last); what a killed sink left is cleared at start.
 TEST(SinkHardening, FrameFilesAppearWholeAndLeftoversAreCleared) {
   test::TempDir dir;
   const auto wall = test::twoDisplayWall();

@@ -125,6 +125,10 @@ struct JobSettings {
   // A transfer function for each step of the volume (`render --range per-step`: each placed on
   // its step's own values); empty: the job's one for every step.
   std::vector<node::TransferFunction> stepTransferFunctions;
+  // The clock the job's decisions read: when steered frames settle and when a rank's streamer
+  // tries the sink again. Empty: the steady clock. Tests advance their own instead of sleeping;
+  // frame times are always measured on the steady clock.
+  std::function<std::chrono::steady_clock::time_point()> clock;
 };
 
 // The steering of this job (master/steering.hpp): interactive only when it streams to a sink

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -51,6 +52,7 @@ class Connection {
 // frame is not dropped as idle. Not thread-safe (one thread calls it; the keeper is internal).
 class TileStreamer {
  public:
+  using Clock = std::chrono::steady_clock;
   TileStreamer(std::string host, std::uint16_t port, Hello hello, int connectTimeoutMs = 1000,
                int keepAliveMs = kKeepAliveMs);
   ~TileStreamer();
@@ -85,6 +87,11 @@ class TileStreamer {
   // Why the sink refused this peer for good (empty while it has not).
   const std::string& refused() const { return refused_; }
   std::uint64_t bytesSent() const { return bytesSent_; }
+  // Connections this streamer tried to open (refused, failed or made).
+  int connectAttempts() const { return connectAttempts_; }
+  // The clock the reconnect back-off reads (default: the steady clock): a test advances its own
+  // instead of waiting the back-off out. The keeper's KeepAlive interval stays on the real clock.
+  void setClock(std::function<Clock::time_point()> clock) { clock_ = std::move(clock); }
 
  private:
   bool ensureConnected();
@@ -101,6 +108,8 @@ class TileStreamer {
   std::unique_ptr<Connection> connection_;
   std::chrono::steady_clock::time_point nextAttempt_{};
   std::chrono::milliseconds backoff_{100};
+  std::function<Clock::time_point()> clock_ = [] { return Clock::now(); };
+  int connectAttempts_ = 0;
   std::string lastError_, refused_;
   DisplayCut cut_;
   std::uint64_t bytesSent_ = 0;

@@ -1,7 +1,7 @@
 // The CPU backend's cache of decoded pages of a compressed volume's full-resolution voxels (any
-// brick view: vq, ksvd's full-resolution level, tvq; and svmm's view), host only: the SIMD packets
-// sample these instead of decoding bricks per ray, so a compressed volume renders at about the
-// speed of raw data (docs/rendering.md).
+// brick view: vq, ksvd's full-resolution level, tvq, zfp; and svmm's view), host only: the SIMD
+// packets sample these instead of decoding bricks per ray, so a compressed volume renders at about
+// the speed of raw data (docs/rendering.md).
 //
 // A page holds 32^3 voxels of the volume plus an apron (one voxel below, two above on every
 // axis, clamped at the volume's faces), so a sample's eight corners and the 24 voxels of its cell

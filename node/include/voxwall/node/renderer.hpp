@@ -170,9 +170,9 @@ std::unique_ptr<Backend> makeBackend(BackendKind kind, int threads = 0,
 // packets: trace SIMD packets of neighbouring rays where the CPU has an instruction set the build
 // compiled them for (AVX2, AVX-512); false, or no such set: one ray at a time (the same per-ray
 // code, as CUDA runs it). Both give the same picture to rounding.
-// decodeCacheBytes: with packets, a compressed volume (vq, svmm, ksvd, tvq) is sampled from pages
-// of decoded voxels (node/page_cache.hpp), decoded as rays reach them and evicted when more than
-// this many bytes would be held; 0 decodes bricks per ray, as without packets.
+// decodeCacheBytes: with packets, a compressed volume (vq, svmm, ksvd, tvq, zfp) is sampled from
+// pages of decoded voxels (node/page_cache.hpp), decoded as rays reach them and evicted when more
+// than this many bytes would be held; 0 decodes bricks per ray, as without packets.
 inline constexpr std::uint64_t kDefaultDecodeCacheBytes = std::uint64_t(512) << 20;
 std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
                                         std::uint64_t decodeCacheBytes = kDefaultDecodeCacheBytes);

@@ -1,5 +1,5 @@
 // A view for any codec that stores the volume as bricks of M^3 voxels and decodes a whole brick
-// at a time (vq, ksvd, tvq). The codec supplies a Decoder ("which
+// at a time (vq, ksvd, tvq, zfp). The codec supplies a Decoder ("which
 // stored brick is at (bx, by, bz)" and "decode it into M^3 values"); this view supplies the rest:
 // the decoded-brick caches, the per-parity memo, the cell corners across brick borders, the
 // position clamp and the trilinear blend. Host-side helpers over the same decoder (value ranges,
