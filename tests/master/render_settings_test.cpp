@@ -7,23 +7,12 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "support/expect_refused.hpp"
+
 using namespace voxwall;
 using namespace voxwall::cli;
 
-namespace {
-
-// Expects std::invalid_argument whose message starts with `prefix`.
-template <class F>
-void expectRefused(F&& f, const std::string& prefix) {
-  try {
-    f();
-    ADD_FAILURE() << "accepted; expected: " << prefix;
-  } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()).rfind(prefix, 0), 0u) << e.what();
-  }
-}
-
-}  // namespace
+using test::expectRefused;
 
 TEST(RenderSettings, Defaults) {
   const RenderOptions o;
@@ -187,26 +176,60 @@ TEST(RenderSettings, RendererOptions) {
   o.sampling = "cubic";
   expectRefused([&] { (void)renderSettings(o); }, "--sampling");
   o.sampling = "nearest";
-  o.backend = "opengl";
-  expectRefused([&] { (void)renderSettings(o); }, "--backend");
-  o.backend = "cuda";
-  o.deviceDecode = "lazy";
-  expectRefused([&] { (void)renderSettings(o); }, "--device-decode: expected whole or per-ray");
-  o.deviceDecode = "per-ray";
-  (void)renderSettings(o);  // both settings are read on any machine; the device is found later
-  o.backend = "cpu";
   o.shading = o.noSkip = o.lod = true;
   const auto r = renderSettings(o);
   EXPECT_TRUE(r.nearest && r.shading && r.levelOfDetail && !r.emptySpaceSkipping);
   EXPECT_FLOAT_EQ(float(r.stepVoxels), 0.5f);
 }
 
-TEST(RenderSettings, BytesBackgroundsAndRects) {
-  EXPECT_EQ(parseBytes("512M", "--memory-budget"), 512ull << 20);
-  EXPECT_EQ(parseBytes("1.5GiB", "--memory-budget"), 3ull << 29);
-  EXPECT_EQ(parseBytes("4096", "--memory-budget"), 4096u);
-  expectRefused([] { (void)parseBytes("12Q", "--memory-budget"); }, "--memory-budget");
-  expectRefused([] { (void)parseBytes("-1G", "--memory-budget"); }, "--memory-budget");
+// --backend, --threads, --simd, --decode-cache, --device-decode and --memory-budget, read once.
+TEST(RenderSettings, TheBackendIsReadOnce) {
+  RenderOptions o;
+  {
+    const BackendSettings b = backendSettings(o);
+    EXPECT_EQ(b.kind, node::BackendKind::Cpu);
+    EXPECT_EQ(b.threads, 0);
+    EXPECT_TRUE(b.simd);
+    EXPECT_EQ(b.decodeCacheBytes, 512ull << 20);
+    EXPECT_EQ(b.deviceDecode, node::DeviceDecode::Whole);
+    EXPECT_FALSE(b.memoryBudgetBytes);
+    EXPECT_TRUE(b.decodesPages());
+  }
+  o.backend = "opengl";
+  expectRefused([&] { (void)backendSettings(o); }, "--backend: expected cpu or cuda");
+  o.backend = "cuda";
+  o.deviceDecode = "lazy";
+  expectRefused([&] { (void)backendSettings(o); }, "--device-decode: expected whole or per-ray");
+  o.deviceDecode = "per-ray";
+  o.threads = 3;
+  o.memoryBudget = "2G";
+  {  // both are read on any machine; the device is found later
+    const BackendSettings b = backendSettings(o);
+    EXPECT_EQ(b.kind, node::BackendKind::Cuda);
+    EXPECT_EQ(b.deviceDecode, node::DeviceDecode::PerRay);
+    EXPECT_EQ(b.threads, 3);
+    EXPECT_EQ(b.memoryBudgetBytes, 2ull << 30);
+    EXPECT_FALSE(b.decodesPages());  // pages are the CPU's
+  }
+  o.backend = "cpu";
+  o.simd = "off";
+  EXPECT_FALSE(backendSettings(o).decodesPages());
+  o.simd = "maybe";
+  expectRefused([&] { (void)backendSettings(o); }, "--simd: expected on or off");
+  o.simd = "on";
+  o.decodeCache = "off";
+  EXPECT_FALSE(backendSettings(o).decodesPages());
+  o.decodeCache = "lots";
+  expectRefused([&] { (void)backendSettings(o); }, "--decode-cache: expected a size");
+  o.decodeCache = "1G";
+  o.threads = -2;
+  expectRefused([&] { (void)backendSettings(o); }, "--threads must be in [0, 4096]");
+  o.threads = 0;
+  o.memoryBudget = "much";
+  expectRefused([&] { (void)backendSettings(o); }, "--memory-budget");
+}
+
+TEST(RenderSettings, BackgroundsAndRects) {
   EXPECT_FALSE(parseBackground("none"));
   EXPECT_EQ(*parseBackground("white"), glm::dvec3(1.0));
   EXPECT_EQ(*parseBackground("0.5,0.25,0"), glm::dvec3(0.5, 0.25, 0));

@@ -82,6 +82,7 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
 struct Setup {
   master::JobSettings job;
   node::RenderSettings render;
+  BackendSettings backendSettings;
   std::optional<node::RenderVolume> volume;
   std::optional<node::TransferFunction> tf;
   std::unique_ptr<node::Backend> backend;
@@ -103,9 +104,9 @@ node::RenderVolume loadRenderVolume(const RenderOptions& o, const std::string& i
 
 // The rank's backend; CPU threads default to the host's cores shared by its ranks, but never
 // more than this rank may run on.
-std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Communicator& comm,
+std::unique_ptr<node::Backend> rankBackend(const BackendSettings& b, master::Communicator& comm,
                                            bool quiet) {
-  int threads = o.threads;
+  int threads = b.threads;
   if (threads == 0) {
     const int share = std::max(1, int(std::thread::hardware_concurrency()) / comm.ranksOnHost());
     threads = std::min(share, voxwall::usableCores());
@@ -115,11 +116,9 @@ std::unique_ptr<node::Backend> rankBackend(const RenderOptions& o, master::Commu
                    "share; mpirun --bind-to none lets it use them\n",
                    comm.rank(), threads, share);
   }
-  if (o.backend == "cuda")
-    return node::makeBackend(
-        node::BackendKind::Cuda, threads,
-        o.deviceDecode == "per-ray" ? node::DeviceDecode::PerRay : node::DeviceDecode::Whole);
-  return node::makeCpuBackend(threads, o.simd == "on", decodeCacheBytes(o));
+  if (b.kind == node::BackendKind::Cuda)
+    return node::makeBackend(node::BackendKind::Cuda, threads, b.deviceDecode);
+  return node::makeCpuBackend(threads, b.simd, b.decodeCacheBytes);
 }
 
 // The decoded pages this rank's rays reach in the first frame: its first-frame rectangles rendered
@@ -185,6 +184,7 @@ void applyTime(const RenderOptions& o, bool quiet, Setup& s) {
 void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, Setup& s) {
   s.job = jobSettings(o);
   s.render = renderSettings(o);
+  s.backendSettings = backendSettings(o);
   const auto baseBytes = processMemory().residentBytes;
   s.input = o.input;
   if (s.input.empty()) {
@@ -202,13 +202,13 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   applyTime(o, quiet, s);
   // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache. A dry
   // run counts the pages this rank's rays reach in the first frame.
-  std::uint64_t pages = o.backend == "cpu" && o.simd == "on"
-                            ? node::cpuDecodeCacheNeed(*s.volume, decodeCacheBytes(o))
-                            : 0;
+  const BackendSettings& b = s.backendSettings;
+  std::uint64_t pages =
+      b.decodesPages() ? node::cpuDecodeCacheNeed(*s.volume, b.decodeCacheBytes) : 0;
   // Under pressure, level 1's pages come on top once the budget is full (a dry run: once the
   // first frame's pages are over it).
   const std::uint64_t coarse = pages > 0 && s.render.lodUnderPressure
-                                   ? node::cpuCoarsePageNeed(*s.volume, decodeCacheBytes(o))
+                                   ? node::cpuCoarsePageNeed(*s.volume, b.decodeCacheBytes)
                                    : 0;
   if (o.dryRun && pages > 0) {
     const std::uint64_t first = firstFramePageBytes(s, comm);
@@ -223,8 +223,8 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   s.needBytes =
       std::max(loadPeakBytes, estimateRankBytes(s.job, comm.rank(), comm.size(),
                                                 s.volume->storedBytes() + pages, baseBytes));
-  if (!o.memoryBudget.empty()) {
-    const auto budget = parseBytes(o.memoryBudget, "--memory-budget");
+  if (b.memoryBudgetBytes) {
+    const auto budget = *b.memoryBudgetBytes;
     if (s.needBytes > budget)
       throw std::runtime_error("needs " + humanBytes(double(s.needBytes)) + " (volume " +
                                humanBytes(double(s.volume->storedBytes())) +
@@ -232,7 +232,7 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
                                " plus frame buffers), over the --memory-budget of " +
                                humanBytes(double(budget)));
   }
-  if (!o.dryRun) s.backend = rankBackend(o, comm, quiet);
+  if (!o.dryRun) s.backend = rankBackend(b, comm, quiet);
 }
 
 // --step auto: the march picked from the error budget on the job's first view. Every rank picks

@@ -23,35 +23,18 @@ std::optional<glm::dvec3> parseBackground(const std::string& text) {
   return glm::dvec3(v[0], v[1], v[2]);
 }
 
-std::uint64_t parseBytes(const std::string& text, const std::string& option) {
-  std::size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  std::string unit = text.substr(used);
-  if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
-  if (!unit.empty() && unit.back() == 'i') unit.pop_back();
-  const std::string units = "KMGT";
-  double scale = 1;
-  if (unit.size() == 1 && units.find(char(std::toupper(unit[0]))) != std::string::npos)
-    scale = std::pow(1024.0, double(units.find(char(std::toupper(unit[0]))) + 1));
-  else if (!unit.empty())
-    used = 0;
-  if (used == 0 || !(value > 0) || !std::isfinite(value * scale))
-    throw std::invalid_argument(option + ": expected a size such as 512M, 2G or 1.5GiB");
-  return std::uint64_t(value * scale);
-}
-
-std::uint64_t decodeCacheBytes(const RenderOptions& o) {
-  if (o.decodeCache == "off" || o.decodeCache == "0") return 0;
-  try {
-    return parseBytes(o.decodeCache, "--decode-cache");
-  } catch (const std::invalid_argument&) {
-    throw std::invalid_argument("--decode-cache: expected a size such as 512M or 2G, or off");
-  }
+BackendSettings backendSettings(const RenderOptions& o) {
+  BackendSettings b;
+  b.kind = choose<node::BackendKind>(
+      o.backend, "--backend", {{"cpu", node::BackendKind::Cpu}, {"cuda", node::BackendKind::Cuda}});
+  b.threads = inRange(o.threads, 0, 4096, "--threads");
+  b.simd = choose<bool>(o.simd, "--simd", {{"on", true}, {"off", false}});
+  b.decodeCacheBytes = parseBytesOrOff(o.decodeCache, "--decode-cache");
+  b.deviceDecode = choose<node::DeviceDecode>(
+      o.deviceDecode, "--device-decode",
+      {{"whole", node::DeviceDecode::Whole}, {"per-ray", node::DeviceDecode::PerRay}});
+  if (!o.memoryBudget.empty()) b.memoryBudgetBytes = parseBytes(o.memoryBudget, "--memory-budget");
+  return b;
 }
 
 // Memory a rank needs: the mapped volume, its pixels (8 bytes each: the RGBA8 picture and its
@@ -107,21 +90,6 @@ std::string rectList(const std::vector<voxwall::Rect>& rects) {
 
 namespace {
 
-// The value `word` names among `choices`; otherwise "OPTION: expected a, b or c".
-template <class T>
-T choose(const std::string& word, const char* option,
-         std::initializer_list<std::pair<const char*, T>> choices) {
-  std::string expected;
-  std::size_t i = 0;
-  for (const auto& [name, value] : choices) {
-    if (word == name) return value;
-    if (i > 0) expected += i + 1 == choices.size() ? " or " : ", ";
-    expected += name;
-    ++i;
-  }
-  throw std::invalid_argument(std::string(option) + ": expected " + expected);
-}
-
 // --wall or --size: the virtual screen.
 std::optional<walls::Wall> screen(const RenderOptions& o, master::JobSettings& job) {
   std::optional<walls::Wall> wall;
@@ -159,9 +127,7 @@ std::optional<master::StreamSettings> streamSettings(const RenderOptions& o,
                                           {{"jpeg", net::TileCodec::Jpeg},
                                            {"raw", net::TileCodec::Raw},
                                            {"deflate", net::TileCodec::Deflate}});
-  if (o.jpegQuality < 1 || o.jpegQuality > 100)
-    throw std::invalid_argument("--jpeg-quality must be in [1, 100]");
-  st.codec.jpegQuality = o.jpegQuality;
+  st.codec.jpegQuality = inRange(o.jpegQuality, 1, 100, "--jpeg-quality");
   st.codec.subsampling = choose<net::Subsampling>(o.subsampling, "--subsampling",
                                                   {{"444", net::Subsampling::S444},
                                                    {"422", net::Subsampling::S422},
@@ -217,12 +183,8 @@ void cutSettings(const RenderOptions& o, master::JobSettings& job) {
     std::tie(job.staticTilesX, job.staticTilesY) = parseSize(o.tiles, "--tiles");
   }
   job.masterRenders = !o.masterOnly;
-  if (!(o.watchdogSeconds >= 1 && o.watchdogSeconds <= 86400))
-    throw std::invalid_argument("--watchdog must be in [1, 86400] seconds");
-  job.watchdogMs = int(o.watchdogSeconds * 1000);
-  if (o.costCell < 4 || o.costCell > 1024)
-    throw std::invalid_argument("--cost-cell must be in [4, 1024] pixels");
-  job.balancer.cellPixels = o.costCell;
+  job.watchdogMs = int(inRange(o.watchdogSeconds, 1.0, 86400.0, "--watchdog", "seconds") * 1000);
+  job.balancer.cellPixels = inRange(o.costCell, 4, 1024, "--cost-cell", "pixels");
 }
 
 }  // namespace
@@ -243,26 +205,19 @@ master::JobSettings jobSettings(const RenderOptions& o) {
   if (o.resume && o.noWrite)
     throw std::invalid_argument("--resume needs frames on disk, not --no-write");
   cutSettings(o, job);
-  if (o.interactiveStep < 1 || o.interactiveStep > net::kMaxStep)
-    throw std::invalid_argument("--interactive-step must be in [1, " +
-                                std::to_string(net::kMaxStep) + "]");
-  if (!(o.settle >= 0 && o.settle <= 3600))
-    throw std::invalid_argument("--settle must be in [0, 3600] seconds");
-  job.interactiveStep = o.interactiveStep;
-  job.settleSeconds = o.settle;
+  job.interactiveStep = inRange(o.interactiveStep, 1, net::kMaxStep, "--interactive-step");
+  job.settleSeconds = inRange(o.settle, 0.0, 3600.0, "--settle", "seconds");
   job.refine = master::parseRefineSteps(o.refine);
-  if (!(o.frameBudgetMs >= 0 && o.frameBudgetMs <= 600000))
-    throw std::invalid_argument("--frame-budget must be in [0, 600000] milliseconds");
+  const double frameBudget =
+      inRange(o.frameBudgetMs, 0.0, 600000.0, "--frame-budget", "milliseconds");
   // A step chosen on the command line is kept: the budget then only applies when given too.
-  job.frameBudgetMs = o.interactiveStepGiven && !o.frameBudgetGiven ? 0 : o.frameBudgetMs;
+  job.frameBudgetMs = o.interactiveStepGiven && !o.frameBudgetGiven ? 0 : frameBudget;
   return job;
 }
 
 master::TimeSettings timeSettings(const RenderOptions& o, int steps) {
   master::TimeSettings time;
-  if (!(o.timeRate >= 0 && o.timeRate <= 1000))
-    throw std::invalid_argument("--time-rate must be in [0, 1000] steps a second");
-  time.rate = o.timeRate;
+  time.rate = inRange(o.timeRate, 0.0, 1000.0, "--time-rate", "steps a second");
   const std::string spec = o.time.empty() && o.timeRate > 0 ? "all" : o.time;
   if (spec.empty()) return time;  // step 0 in every frame
   if (spec == "all") {
@@ -341,25 +296,18 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
                                   o.step + "'");
     render.stepVoxels = step;
   }
-  if (!(o.errorBudget >= 20 && o.errorBudget <= 90))
-    throw std::invalid_argument("--error-budget must be in [20, 90] dB");
-  render.errorBudgetDb = autoStep ? o.errorBudget : 0.0;
+  const double budget = inRange(o.errorBudget, 20.0, 90.0, "--error-budget", "dB");
+  render.errorBudgetDb = autoStep ? budget : 0.0;
   render.shading = o.shading;
-  if (o.gradients != "cell" && o.gradients != "samples")
-    throw std::invalid_argument("--gradients: expected cell or samples");
-  render.cellGradients = o.gradients == "cell";
-  if (o.simd != "on" && o.simd != "off") throw std::invalid_argument("--simd: expected on or off");
-  (void)decodeCacheBytes(o);  // a wrong size is refused with the other settings
+  render.cellGradients =
+      choose<bool>(o.gradients, "--gradients", {{"cell", true}, {"samples", false}});
   render.emptySpaceSkipping = !o.noSkip;
-  if (o.sampling != "trilinear" && o.sampling != "nearest")
-    throw std::invalid_argument("--sampling: expected trilinear or nearest");
-  render.nearest = o.sampling == "nearest";
+  render.nearest =
+      choose<bool>(o.sampling, "--sampling", {{"trilinear", false}, {"nearest", true}});
   render.levelOfDetail = o.lod;
   render.lodUnderPressure = o.lodUnderPressure;
   render.latticeStride = latticeStride(o);
-  if (o.refineAbove < 0 || o.refineAbove > 255)
-    throw std::invalid_argument("--refine-above must be in [0, 255] levels");
-  render.refineAboveLevels = o.refineAbove;
+  render.refineAboveLevels = inRange(o.refineAbove, 0, 255, "--refine-above", "levels");
   if (o.integration != "auto" && o.integration != "pre" && o.integration != "point")
     throw std::invalid_argument("--integration: expected auto, pre or point");
   if (o.exact && o.integration == "pre")
@@ -370,10 +318,6 @@ node::RenderSettings renderSettings(const RenderOptions& o) {
   render.marchIntegration = o.integration == "auto" && autoStep ? node::MarchIntegration::Either
                             : render.preIntegrate               ? node::MarchIntegration::Pre
                                                                 : node::MarchIntegration::Point;
-  if (o.backend != "cpu" && o.backend != "cuda")
-    throw std::invalid_argument("--backend: expected cpu or cuda");
-  if (o.deviceDecode != "whole" && o.deviceDecode != "per-ray")
-    throw std::invalid_argument("--device-decode: expected whole or per-ray");
   return render;
 }
 

@@ -15,6 +15,7 @@
 #include <voxwall/node/renderer.hpp>
 
 #include "../cli_common.hpp"
+#include "option_checks.hpp"
 
 namespace voxwall::cli {
 
@@ -80,17 +81,29 @@ master::JobSettings jobSettings(const RenderOptions& o);
 // --time and --time-rate for a volume of `steps` time steps: which steps the frames show. Throws
 // std::invalid_argument naming the option for a range outside the volume's steps.
 master::TimeSettings timeSettings(const RenderOptions& o, int steps);
-// The renderer: step, shading, skipping, sampling, level of detail (and checks --backend).
+// The renderer: step, shading, skipping, sampling, level of detail.
 node::RenderSettings renderSettings(const RenderOptions& o);
+
+// The rank's backend and its memory, as --backend, --threads, --simd, --decode-cache,
+// --device-decode and --memory-budget ask.
+struct BackendSettings {
+  node::BackendKind kind = node::BackendKind::Cpu;
+  int threads = 0;                     // 0: the host's cores shared by its ranks
+  bool simd = true;                    // CPU: packets of rays
+  std::uint64_t decodeCacheBytes = 0;  // CPU with packets: decoded pages (0: off)
+  node::DeviceDecode deviceDecode = node::DeviceDecode::Whole;  // CUDA, compressed volumes
+  std::optional<std::uint64_t> memoryBudgetBytes;               // refuse to start above this
+  // Whether a rank decodes pages of a brick-coded volume (node/page_cache.hpp).
+  bool decodesPages() const {
+    return kind == node::BackendKind::Cpu && simd && decodeCacheBytes > 0;
+  }
+};
+BackendSettings backendSettings(const RenderOptions& o);
 // The codec render flags given (--progressive ...), for RenderVolume::open.
 codec::CodecOptionValues codecRenderOptions(const RenderOptions& o);
 
 // --background: none/transparent, black, white or R,G,B in [0, 1].
 std::optional<glm::dvec3> parseBackground(const std::string& text);
-// "512M", "2G", "1.5GiB", "4096" as bytes; throws std::invalid_argument naming `option`.
-std::uint64_t parseBytes(const std::string& text, const std::string& option);
-// --decode-cache as bytes (0: off).
-std::uint64_t decodeCacheBytes(const RenderOptions& o);
 // Memory a rank needs for this job (docs/distributed.md): `volumeBytes` is what the rank holds of
 // the volume (the compressed file and, on a CPU rank, its decoded pages at most).
 std::uint64_t estimateRankBytes(const master::JobSettings& job, int rank, int ranks,

@@ -4,18 +4,9 @@
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/wall.hpp>
 
+#include "option_checks.hpp"
+
 namespace voxwall::cli {
-
-namespace {
-
-int inRange(int value, int lo, int hi, const char* option) {
-  if (value < lo || value > hi)
-    throw std::invalid_argument(std::string(option) + " must be in [" + std::to_string(lo) + ", " +
-                                std::to_string(hi) + "]");
-  return value;
-}
-
-}  // namespace
 
 void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_option("--wall", o.wall, "Wall file (walls/*.json, or a Tide configuration)")->required();
@@ -100,12 +91,10 @@ walls::SinkSettings sinkSettings(const SinkOptions& o) {
   s.wall = walls::selectSurface(walls::loadWalls(o.wall), o.surface, o.wall);
   std::tie(s.listenHost, s.listenPort) = net::parseEndpoint(o.listen, "--listen");
   s.outDir = o.out;
-  if (o.outFormat == "png")
-    s.outFormat = walls::FrameFormat::Png;
-  else if (o.outFormat == "jpg" || o.outFormat == "jpeg")
-    s.outFormat = walls::FrameFormat::Jpeg;
-  else
-    throw std::invalid_argument("--out-format '" + o.outFormat + "': expected png or jpg");
+  s.outFormat = choose<walls::FrameFormat>(o.outFormat, "--out-format",
+                                           {{"png", walls::FrameFormat::Png},
+                                            {"jpg", walls::FrameFormat::Jpeg},
+                                            {"jpeg", walls::FrameFormat::Jpeg}});
   s.writeQueue = inRange(o.writeQueue, 1, 1024, "--write-queue");
   s.mosaic = o.mosaic;
   s.token = o.token;
