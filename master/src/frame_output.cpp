@@ -62,13 +62,82 @@ std::string framePath(const JobSettings& job, int frame) {
   return (fs::path(job.outDir) / name).string();
 }
 
+namespace {
+
+// --resume: the completed frames a manifest from an earlier run of the same settings recorded
+// (its "completed"); refuses a folder of frames made otherwise, or without a manifest.
+nlohmann::json recordedFrames(const JobSettings& job, const fs::path& manifestPath,
+                              const nlohmann::json& wanted) {
+  std::error_code ec;
+  int existing = 0;
+  for (int f = 0; f < job.frames; ++f) existing += fs::exists(framePath(job, f), ec);
+  if (!fs::exists(manifestPath)) {
+    if (existing > 0)
+      throw FormatError(job.outDir, "holds frames but no " + std::string(kManifestName) +
+                                        ": cannot tell how they were made; use another --out or "
+                                        "drop --resume");
+    return nlohmann::json::object();
+  }
+  nlohmann::json found, frames = nlohmann::json::object();
+  try {
+    std::ifstream in(manifestPath);
+    found = nlohmann::json::parse(in);
+    if (found.contains("completed")) {
+      frames = found["completed"];
+      found.erase("completed");
+    }
+    if (!frames.is_object())
+      throw FormatError(manifestPath.string(), "'completed' is not an object");
+  } catch (const nlohmann::json::exception& e) {
+    throw FormatError(manifestPath.string(), std::string("not valid JSON: ") + e.what());
+  }
+  if (found != wanted) {
+    std::string differs;
+    for (const auto& [key, value] : wanted.items())
+      if (!found.contains(key) || found[key] != value)
+        differs += (differs.empty() ? "" : ", ") + key;
+    throw FormatError(manifestPath.string(),
+                      "the frames here were rendered with other settings (" +
+                          (differs.empty() ? std::string("extra keys") : differs) +
+                          "); use another --out or drop --resume to overwrite them");
+  }
+  return frames;
+}
+
+// Of the recorded frames, those whose file still has the size and hash the manifest recorded
+// (marked in `done`): a frame cut short by a full disk, or changed since, is rendered again.
+nlohmann::json keptFrames(const JobSettings& job, const nlohmann::json& frames,
+                          std::vector<bool>& done) {
+  nlohmann::json kept = nlohmann::json::object();
+  for (int f = 0; f < job.frames; ++f) {
+    const std::string path = framePath(job, f);
+    const std::string name = fs::path(path).filename().string();
+    if (!frames.contains(name)) continue;
+    bool same = false;
+    try {
+      same = voxwall::fileHasDigest(path, frames[name].at("bytes").get<std::uint64_t>(),
+                                    frames[name].at("xxh64").get<std::string>());
+    } catch (const nlohmann::json::exception&) {
+    }
+    if (same) {
+      done[std::size_t(f)] = true;
+      kept[name] = frames[name];
+    } else {
+      std::fprintf(stderr, "voxwall: %s: not as the job manifest recorded it; rendering it again\n",
+                   path.c_str());
+    }
+  }
+  return kept;
+}
+
+}  // namespace
+
 std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest) {
   std::vector<bool> done(std::size_t(job.frames), false);
   if (job.outDir.empty()) return done;
   std::error_code ec;
   fs::create_directories(job.outDir, ec);
   if (ec) throw FormatError(job.outDir, "cannot create output directory: " + ec.message());
-  const fs::path manifestPath = fs::path(job.outDir) / kManifestName;
   const auto wanted = nlohmann::json::parse(job.manifest);
   nlohmann::json frames = nlohmann::json::object();
   if (job.resume) {
@@ -79,60 +148,8 @@ std::vector<bool> prepareOutput(const JobSettings& job, nlohmann::json* manifest
           name.find(".tmp.") != std::string::npos)
         fs::remove(entry.path(), ec);
     }
-    int existing = 0;
-    for (int f = 0; f < job.frames; ++f) existing += fs::exists(framePath(job, f), ec);
-    if (fs::exists(manifestPath)) {
-      nlohmann::json found;
-      try {
-        std::ifstream in(manifestPath);
-        found = nlohmann::json::parse(in);
-        if (found.contains("completed")) {
-          frames = found["completed"];
-          found.erase("completed");
-        }
-        if (!frames.is_object())
-          throw FormatError(manifestPath.string(), "'completed' is not an object");
-      } catch (const nlohmann::json::exception& e) {
-        throw FormatError(manifestPath.string(), std::string("not valid JSON: ") + e.what());
-      }
-      if (found != wanted) {
-        std::string differs;
-        for (const auto& [key, value] : wanted.items())
-          if (!found.contains(key) || found[key] != value)
-            differs += (differs.empty() ? "" : ", ") + key;
-        throw FormatError(manifestPath.string(),
-                          "the frames here were rendered with other settings (" +
-                              (differs.empty() ? std::string("extra keys") : differs) +
-                              "); use another --out or drop --resume to overwrite them");
-      }
-    } else if (existing > 0) {
-      throw FormatError(job.outDir, "holds frames but no " + std::string(kManifestName) +
-                                        ": cannot tell how they were made; use another --out or "
-                                        "drop --resume");
-    }
-    // A frame is kept only when the manifest recorded it and the file still has that size and
-    // hash: a frame cut short by a full disk, or changed since, is rendered again.
-    nlohmann::json kept = nlohmann::json::object();
-    for (int f = 0; f < job.frames; ++f) {
-      const std::string path = framePath(job, f);
-      const std::string name = fs::path(path).filename().string();
-      if (!frames.contains(name)) continue;
-      bool same = false;
-      try {
-        same = voxwall::fileHasDigest(path, frames[name].at("bytes").get<std::uint64_t>(),
-                                      frames[name].at("xxh64").get<std::string>());
-      } catch (const nlohmann::json::exception&) {
-      }
-      if (same) {
-        done[std::size_t(f)] = true;
-        kept[name] = frames[name];
-      } else {
-        std::fprintf(stderr,
-                     "voxwall: %s: not as the job manifest recorded it; rendering it again\n",
-                     path.c_str());
-      }
-    }
-    frames = kept;
+    frames =
+        keptFrames(job, recordedFrames(job, fs::path(job.outDir) / kManifestName, wanted), done);
   }
   nlohmann::json out = wanted;
   out["completed"] = frames;

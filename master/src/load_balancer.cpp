@@ -133,6 +133,41 @@ void bisect(const CostGrid& g, const Rect& rect, int count, double floorCost,
   bisect(g, b, count - n1, floorCost, out);
 }
 
+// The frame's measured cost grid (`measured`, empty, of the screen): each slot's cells scaled so
+// that they sum to its seconds; a slot whose grid cannot be trusted (another grid, a cell not a
+// finite non-negative time, nothing measured) spreads its seconds evenly over its rectangle.
+CostGrid measuredCosts(CostGrid measured, const std::vector<Rect>& cut,
+                       const std::vector<CostGrid>& slotGrids,
+                       const std::vector<double>& slotSeconds) {
+  for (std::size_t i = 0; i < cut.size(); ++i) {
+    const Rect& rect = cut[i];
+    const CostGrid& g = slotGrids[i];
+    const bool sameGrid = g.cellsX == measured.cellsX && g.cellsY == measured.cellsY &&
+                          g.cellPixels == measured.cellPixels;
+    // The slot's own cells: those its rectangle overlaps.
+    const int cx0 = rect.x / measured.cellPixels,
+              cx1 = (rect.x + rect.width - 1) / measured.cellPixels;
+    const int cy0 = rect.y / measured.cellPixels,
+              cy1 = (rect.y + rect.height - 1) / measured.cellPixels;
+    double sum = 0;
+    bool sane = sameGrid;
+    for (int cy = cy0; sane && cy <= cy1; ++cy)
+      for (int cx = cx0; sane && cx <= cx1; ++cx) {
+        const double v = g.at(cx, cy);
+        if (!usable(v)) sane = false;
+        sum += v;
+      }
+    if (!sane || !(sum > 0) || !std::isfinite(sum)) {
+      measured.add(rect, slotSeconds[i]);
+      continue;
+    }
+    const double scale = slotSeconds[i] / sum;
+    for (int cy = cy0; cy <= cy1; ++cy)
+      for (int cx = cx0; cx <= cx1; ++cx) measured.at(cx, cy) += g.at(cx, cy) * scale;
+  }
+  return measured;
+}
+
 }  // namespace
 
 std::vector<Rect> bisectCut(const CostGrid& costs, const Rect& screen, int count) {
@@ -183,33 +218,8 @@ void LoadBalancer::update(const std::vector<CostGrid>& slotGrids, std::vector<do
   for (double& s : slotSeconds)
     if (!usable(s) || s > kDaySeconds) s = fallback;
 
-  CostGrid measured(width_, height_, settings_.cellPixels);
-  for (int i = 0; i < ranks_; ++i) {
-    const Rect& rect = cut_[std::size_t(i)];
-    const CostGrid& g = slotGrids[std::size_t(i)];
-    const bool sameGrid = g.cellsX == measured.cellsX && g.cellsY == measured.cellsY &&
-                          g.cellPixels == measured.cellPixels;
-    // The slot's own cells: those its rectangle overlaps.
-    const int cx0 = rect.x / measured.cellPixels,
-              cx1 = (rect.x + rect.width - 1) / measured.cellPixels;
-    const int cy0 = rect.y / measured.cellPixels,
-              cy1 = (rect.y + rect.height - 1) / measured.cellPixels;
-    double sum = 0;
-    bool sane = sameGrid;
-    for (int cy = cy0; sane && cy <= cy1; ++cy)
-      for (int cx = cx0; sane && cx <= cx1; ++cx) {
-        const double v = g.at(cx, cy);
-        if (!usable(v)) sane = false;
-        sum += v;
-      }
-    if (!sane || !(sum > 0) || !std::isfinite(sum)) {
-      measured.add(rect, slotSeconds[std::size_t(i)]);
-      continue;
-    }
-    const double scale = slotSeconds[std::size_t(i)] / sum;
-    for (int cy = cy0; cy <= cy1; ++cy)
-      for (int cx = cx0; cx <= cx1; ++cx) measured.at(cx, cy) += g.at(cx, cy) * scale;
-  }
+  const CostGrid measured =
+      measuredCosts(CostGrid(width_, height_, settings_.cellPixels), cut_, slotGrids, slotSeconds);
 
   if (!havePrediction_ || imbalance(slotSeconds) > settings_.resetAbove) {
     prediction_ = measured;

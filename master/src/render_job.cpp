@@ -319,6 +319,24 @@ class MasterLoop {
         comm_.gather({}, timeoutMs_, watch ? std::function<void()>([&] { watch(); }) : nullptr);
     s.gatherSeconds = since(gatherStart);
     const auto assembleStart = Clock::now();
+    voxwall::Image image = assemble(t, std::move(own), reportBytes, s);
+    s.assembleSeconds = since(assembleStart);
+    if (!job_.outDir.empty()) {
+      s.path = framePath(job_, f);
+      s.writeWaitSeconds = writer_.push(std::move(image), s.path, job_.background);
+    }
+    s.frameSeconds = since(frameStart);
+    steering_.finished(choice, s.frameSeconds, s.abandoned);
+    slowestFrame_ = std::max(slowestFrame_, s.frameSeconds);
+    timeoutMs_ = std::max(job_.watchdogMs, int(std::min(4e3 * slowestFrame_, 3.6e6)));
+    return s;
+  }
+
+  // Every rank's report into the frame's summary (and its picture, when frames are written); the
+  // balancer learns from the costs of whole full-resolution frames only: a reduced frame's are of
+  // another screen, an abandoned frame's partial.
+  voxwall::Image assemble(const master::FrameTask& t, master::RankReport own,
+                          const std::vector<std::vector<std::byte>>& reportBytes, FrameSummary& s) {
     voxwall::Image image =
         job_.outDir.empty() ? voxwall::Image() : voxwall::Image(job_.width, job_.height);
     std::vector<node::CostGrid> grids(static_cast<std::size_t>(slots_));
@@ -334,22 +352,11 @@ class MasterLoop {
     // Abandoned when a rank left its part unfinished (one that finished before the word came
     // sent whole tiles, so the sink hears it from here too); when all had finished, it is whole.
     if (s.abandoned && streamer_) streamer_->abandon(t.frame);
-    // The balancer learns from whole full-resolution frames only: a reduced frame's costs are of
-    // another screen, an abandoned frame's are partial.
     if (balancer_ && s.step == 1 && !s.abandoned) {
       balancer_->update(grids, s.rankSeconds);
       s.recuts = balancer_->recuts();
     }
-    s.assembleSeconds = since(assembleStart);
-    if (!job_.outDir.empty()) {
-      s.path = framePath(job_, f);
-      s.writeWaitSeconds = writer_.push(std::move(image), s.path, job_.background);
-    }
-    s.frameSeconds = since(frameStart);
-    steering_.finished(choice, s.frameSeconds, s.abandoned);
-    slowestFrame_ = std::max(slowestFrame_, s.frameSeconds);
-    timeoutMs_ = std::max(job_.watchdogMs, int(std::min(4e3 * slowestFrame_, 3.6e6)));
-    return s;
+    return image;
   }
 
   // Stop: every rank answers with its memory and leaves the loop.

@@ -313,6 +313,7 @@ ControlChannel::~ControlChannel() {
     std::lock_guard lock(mutex_);
     stop_ = true;
   }
+  wake_.notify_all();
   thread_.join();
 }
 
@@ -355,13 +356,59 @@ std::vector<Control> ControlChannel::drain() {
   return out;
 }
 
+bool ControlChannel::stopsWithin(std::chrono::milliseconds wait) {
+  std::unique_lock lock(mutex_);
+  return wake_.wait_for(lock, wait, [&] { return stop_; });
+}
+
+bool ControlChannel::serve(Connection& c) {
+  auto lastSent = Clock::now();
+  std::uint64_t playbackSent = 0;  // a new connection is told the playback again
+  while (!stopsWithin(std::chrono::milliseconds(0))) {
+    std::optional<std::vector<std::byte>> playback;
+    {
+      std::lock_guard lock(mutex_);
+      if (playback_ && playbackVersion_ != playbackSent) {
+        playback = encodeMessage(playbackFrame_, *playback_);
+        playbackSent = playbackVersion_;
+      }
+    }
+    if (playback) {
+      c.send(*playback);
+      lastSent = Clock::now();
+    }
+    if (keepAliveMs_ > 0 && Clock::now() - lastSent >= std::chrono::milliseconds(keepAliveMs_)) {
+      c.send(encodeKeepAlive());
+      lastSent = Clock::now();
+    }
+    const auto m = c.receive(100);
+    if (!m) continue;
+    if (m->type == MessageType::Control) {
+      const auto control = decodeControl(m->payload, c.name());
+      std::lock_guard lock(mutex_);
+      queue_.push_back(control);
+    } else if (m->type == MessageType::FrameNote) {
+      const auto note = decodeFrameNote(m->payload, c.name());
+      std::lock_guard lock(mutex_);
+      if (note.status == FrameStatus::Presented)
+        ++presented_;
+      else if (notes_.size() < 1024)
+        notes_.push_back("sink: " + describe(m->frame, note));
+    } else if (m->type == MessageType::Bye) {
+      // A Bye after the job was accepted: the sink ended it (another job took the wall).
+      const auto bye = decodeBye(m->payload, c.name());
+      std::lock_guard lock(mutex_);
+      refused_ = c.name() + ": " + bye.reason;
+      return false;
+    }
+  }
+  c.send(encodeMessage(Bye{"render job finished"}));
+  return true;
+}
+
 void ControlChannel::run() {
   auto backoff = std::chrono::milliseconds(100);
-  auto stopping = [&] {
-    std::lock_guard lock(mutex_);
-    return stop_;
-  };
-  while (!stopping()) {
+  while (!stopsWithin(std::chrono::milliseconds(0))) {
     std::unique_ptr<Connection> c;
     Hello hello;
     {
@@ -375,56 +422,13 @@ void ControlChannel::run() {
       refused_ = e.what();
       return;
     } catch (const NetError&) {
-      for (auto waited = std::chrono::milliseconds(0); waited < backoff && !stopping();
-           waited += std::chrono::milliseconds(50))
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (stopsWithin(backoff)) return;
       backoff = std::min(backoff * 2, std::chrono::milliseconds(5000));
       continue;
     }
     backoff = std::chrono::milliseconds(100);
     try {
-      auto lastSent = Clock::now();
-      std::uint64_t playbackSent = 0;  // a new connection is told the playback again
-      while (!stopping()) {
-        std::optional<std::vector<std::byte>> playback;
-        {
-          std::lock_guard lock(mutex_);
-          if (playback_ && playbackVersion_ != playbackSent) {
-            playback = encodeMessage(playbackFrame_, *playback_);
-            playbackSent = playbackVersion_;
-          }
-        }
-        if (playback) {
-          c->send(*playback);
-          lastSent = Clock::now();
-        }
-        if (keepAliveMs_ > 0 &&
-            Clock::now() - lastSent >= std::chrono::milliseconds(keepAliveMs_)) {
-          c->send(encodeKeepAlive());
-          lastSent = Clock::now();
-        }
-        const auto m = c->receive(100);
-        if (!m) continue;
-        if (m->type == MessageType::Control) {
-          const auto control = decodeControl(m->payload, c->name());
-          std::lock_guard lock(mutex_);
-          queue_.push_back(control);
-        } else if (m->type == MessageType::FrameNote) {
-          const auto note = decodeFrameNote(m->payload, c->name());
-          std::lock_guard lock(mutex_);
-          if (note.status == FrameStatus::Presented)
-            ++presented_;
-          else if (notes_.size() < 1024)
-            notes_.push_back("sink: " + describe(m->frame, note));
-        } else if (m->type == MessageType::Bye) {
-          // A Bye after the job was accepted: the sink ended it (another job took the wall).
-          const auto bye = decodeBye(m->payload, c->name());
-          std::lock_guard lock(mutex_);
-          refused_ = c->name() + ": " + bye.reason;
-          return;
-        }
-      }
-      if (stopping()) c->send(encodeMessage(Bye{"render job finished"}));
+      if (!serve(*c)) return;
     } catch (const std::exception&) {
       // The sink went away or sent garbage: reconnect.
     }

@@ -4,6 +4,26 @@
 // Highway's target region and after HwyLanes and LaneKernels (so that this code is compiled for
 // that target's instruction set, as raycast_lanes.inl says why). No include guard, by design.
 
+// The points of block [x0, x1) x [y0, y1) that a lattice's refinement wants (TileJob::need), in
+// the order of the kW x kH groups they lie in, so that neighbouring lanes stay neighbours, into
+// px and py, followed by `pad` points (0, 0) for the lanes past the end; returns how many.
+template <int kW, int kH, int pad>
+int wantedPoints(const TileJob& job, int x0, int y0, int x1, int y1, std::int32_t* px,
+                 std::int32_t* py) {
+  int count = 0;
+  for (int gy = y0; gy < y1; gy += kH)
+    for (int gx = x0; gx < x1; gx += kW)
+      for (int i = 0; i < kW * kH; ++i) {
+        const int x = gx + i % kW, y = gy + i / kW;
+        if (x < x1 && y < y1 &&
+            job.need[std::size_t(y) * std::size_t(job.tile.width) + std::size_t(x)])
+          px[count] = x, py[count] = y, ++count;
+      }
+  std::fill(px + count, px + count + pad, 0);
+  std::fill(py + count, py + count + pad, 0);
+  return count;
+}
+
 // Packets of kW x kH rays over each block.
 template <class View>
 std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
@@ -46,17 +66,7 @@ std::uint64_t renderPacketBlocks(const View& view, const TileJob& job) {
       // in the order of the kW x kH groups they lie in, so neighbouring lanes stay neighbours.
       constexpr int kMost = kBlockPixels * kBlockPixels + int(L::kLanes);  // a packet's tail too
       HWY_ALIGN std::int32_t px[kMost], py[kMost];
-      int count = 0;
-      for (int gy = y0; gy < y1; gy += kH)
-        for (int gx = x0; gx < x1; gx += kW)
-          for (int i = 0; i < kW * kH; ++i) {
-            const int x = gx + i % kW, y = gy + i / kW;
-            if (x < x1 && y < y1 &&
-                job.need[std::size_t(y) * std::size_t(job.tile.width) + std::size_t(x)])
-              px[count] = x, py[count] = y, ++count;
-          }
-      std::fill(px + count, px + count + int(L::kLanes), 0);  // lanes past the end: masked
-      std::fill(py + count, py + count + int(L::kLanes), 0);
+      const int count = wantedPoints<kW, kH, int(L::kLanes)>(job, x0, y0, x1, y1, px, py);
       for (int first = 0; first < count; first += int(L::kLanes)) {
         const int left = count - first;
         const auto lx = hn::Load(di, px + first), ly = hn::Load(di, py + first);

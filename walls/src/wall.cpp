@@ -261,78 +261,89 @@ std::vector<Wall> parseTideXml(const std::string& text, const std::string& sourc
   return {tideWall(t, 0, source)};
 }
 
-Wall parseVoxwall(const json& doc, const std::string& source) {
-  std::string id =
-      doc.contains("wall") && doc["wall"].is_string() ? doc["wall"].get<std::string>() : "wall";
+// A wall whose "displays" are listed, each with its rectangle.
+Wall listedDisplays(const json& doc, const std::string& id, const std::string& source) {
+  const json& list = doc["displays"];
+  if (!list.is_array() || list.empty())
+    throw FormatError(source, "\"displays\" must be a non-empty array");
+  if (list.size() > std::size_t(kMaxDisplays))
+    throw FormatError(
+        source, std::to_string(list.size()) + " displays, at most " + std::to_string(kMaxDisplays));
   Wall wall;
-  if (doc.contains("displays")) {
-    const json& list = doc["displays"];
-    if (!list.is_array() || list.empty())
-      throw FormatError(source, "\"displays\" must be a non-empty array");
-    if (list.size() > std::size_t(kMaxDisplays))
-      throw FormatError(source, std::to_string(list.size()) + " displays, at most " +
-                                    std::to_string(kMaxDisplays));
-    wall.id = id;
-    int right = 0, bottom = 0;
-    for (std::size_t i = 0; i < list.size(); ++i) {
-      const std::string where = source + ": displays[" + std::to_string(i) + "]";
-      if (!list[i].is_object()) throw FormatError(where, "must be an object");
-      Display d;
-      d.name = list[i].contains("name") && list[i]["name"].is_string()
-                   ? list[i]["name"].get<std::string>()
-                   : "d" + std::to_string(i);
-      d.rect = {intField(list[i], "x", where), intField(list[i], "y", where),
-                intField(list[i], "width", where), intField(list[i], "height", where)};
-      right = std::max(right, d.rect.x + d.rect.width);
-      bottom = std::max(bottom, d.rect.y + d.rect.height);
-      wall.displays.push_back(d);
-    }
-    if (doc.contains("size")) {
-      const json& size = doc["size"];
-      if (!size.is_array() || size.size() != 2 || !size[0].is_number_integer() ||
-          !size[1].is_number_integer())
-        throw FormatError(source, "\"size\" must be [width, height]");
-      wall.width = size[0].get<int>(), wall.height = size[1].get<int>();
-    } else {
-      wall.width = right, wall.height = bottom;
-    }
-  } else {
-    if (!doc.contains("display") || !doc["display"].is_object() || !doc.contains("grid") ||
-        !doc["grid"].is_object())
-      throw FormatError(source, "needs \"display\" and \"grid\", or \"displays\"");
-    const json& d = doc["display"];
-    const int w = intField(d, "width", source + ": display");
-    const int h = intField(d, "height", source + ": display");
-    const int columns = intField(doc["grid"], "columns", source + ": grid");
-    const int rows = intField(doc["grid"], "rows", source + ": grid");
-    int gapX = 0, gapY = 0;
-    if (doc.contains("bezel_px")) {
-      gapX = intField(doc["bezel_px"], "x", source + ": bezel_px", 0);
-      gapY = intField(doc["bezel_px"], "y", source + ": bezel_px", 0);
-    } else if (doc.contains("bezel_mm")) {
-      const json& b = doc["bezel_mm"];
-      const double widthMm = numberField(d, "width_mm", source + ": display", 0);
-      const double heightMm = numberField(d, "height_mm", source + ": display", 0);
-      if (!(widthMm > 0) || !(heightMm > 0) || w <= 0 || h <= 0)
-        throw FormatError(source,
-                          "\"bezel_mm\" needs the display's \"width_mm\" and "
-                          "\"height_mm\" (for the pixel pitch)");
-      const std::string where = source + ": bezel_mm";
-      const double left = numberField(b, "left", where, 0),
-                   right = numberField(b, "right", where, 0);
-      const double top = numberField(b, "top", where, 0),
-                   bottom = numberField(b, "bottom", where, 0);
-      gapX = int(std::lround((left + right) / (widthMm / w)));
-      gapY = int(std::lround((top + bottom) / (heightMm / h)));
-    }
-    if (w <= 0 || h <= 0 || columns <= 0 || rows <= 0 || gapX < 0 || gapY < 0 ||
-        gapX > kMaxDisplaySide || gapY > kMaxDisplaySide)
-      throw FormatError(source, "display size and grid must be positive, bezels not negative");
-    if ((long long)columns * rows > kMaxDisplays)
-      throw FormatError(source, std::to_string((long long)columns * rows) + " displays, at most " +
-                                    std::to_string(kMaxDisplays));
-    wall = gridWall(id, w, h, columns, rows, gapX, gapY);
+  wall.id = id;
+  int right = 0, bottom = 0;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string where = source + ": displays[" + std::to_string(i) + "]";
+    if (!list[i].is_object()) throw FormatError(where, "must be an object");
+    Display d;
+    d.name = list[i].contains("name") && list[i]["name"].is_string()
+                 ? list[i]["name"].get<std::string>()
+                 : "d" + std::to_string(i);
+    d.rect = {intField(list[i], "x", where), intField(list[i], "y", where),
+              intField(list[i], "width", where), intField(list[i], "height", where)};
+    right = std::max(right, d.rect.x + d.rect.width);
+    bottom = std::max(bottom, d.rect.y + d.rect.height);
+    wall.displays.push_back(d);
   }
+  if (doc.contains("size")) {
+    const json& size = doc["size"];
+    if (!size.is_array() || size.size() != 2 || !size[0].is_number_integer() ||
+        !size[1].is_number_integer())
+      throw FormatError(source, "\"size\" must be [width, height]");
+    wall.width = size[0].get<int>(), wall.height = size[1].get<int>();
+  } else {
+    wall.width = right, wall.height = bottom;
+  }
+  return wall;
+}
+
+// The gaps between a grid's displays in pixels: "bezel_px", or "bezel_mm" at the display's pixel
+// pitch (its "width_mm" and "height_mm").
+std::pair<int, int> gridGaps(const json& doc, int w, int h, const std::string& source) {
+  if (doc.contains("bezel_px"))
+    return {intField(doc["bezel_px"], "x", source + ": bezel_px", 0),
+            intField(doc["bezel_px"], "y", source + ": bezel_px", 0)};
+  if (!doc.contains("bezel_mm")) return {0, 0};
+  const json& d = doc["display"];
+  const json& b = doc["bezel_mm"];
+  const double widthMm = numberField(d, "width_mm", source + ": display", 0);
+  const double heightMm = numberField(d, "height_mm", source + ": display", 0);
+  if (!(widthMm > 0) || !(heightMm > 0) || w <= 0 || h <= 0)
+    throw FormatError(source,
+                      "\"bezel_mm\" needs the display's \"width_mm\" and "
+                      "\"height_mm\" (for the pixel pitch)");
+  const std::string where = source + ": bezel_mm";
+  const double left = numberField(b, "left", where, 0), right = numberField(b, "right", where, 0);
+  const double top = numberField(b, "top", where, 0), bottom = numberField(b, "bottom", where, 0);
+  return {int(std::lround((left + right) / (widthMm / w))),
+          int(std::lround((top + bottom) / (heightMm / h)))};
+}
+
+// A wall of equal displays in a "grid" of columns and rows, with bezels between them.
+Wall gridDisplays(const json& doc, const std::string& id, const std::string& source) {
+  if (!doc.contains("display") || !doc["display"].is_object() || !doc.contains("grid") ||
+      !doc["grid"].is_object())
+    throw FormatError(source, "needs \"display\" and \"grid\", or \"displays\"");
+  const json& d = doc["display"];
+  const int w = intField(d, "width", source + ": display");
+  const int h = intField(d, "height", source + ": display");
+  const int columns = intField(doc["grid"], "columns", source + ": grid");
+  const int rows = intField(doc["grid"], "rows", source + ": grid");
+  const auto [gapX, gapY] = gridGaps(doc, w, h, source);
+  if (w <= 0 || h <= 0 || columns <= 0 || rows <= 0 || gapX < 0 || gapY < 0 ||
+      gapX > kMaxDisplaySide || gapY > kMaxDisplaySide)
+    throw FormatError(source, "display size and grid must be positive, bezels not negative");
+  if ((long long)columns * rows > kMaxDisplays)
+    throw FormatError(source, std::to_string((long long)columns * rows) + " displays, at most " +
+                                  std::to_string(kMaxDisplays));
+  return gridWall(id, w, h, columns, rows, gapX, gapY);
+}
+
+Wall parseVoxwall(const json& doc, const std::string& source) {
+  const std::string id =
+      doc.contains("wall") && doc["wall"].is_string() ? doc["wall"].get<std::string>() : "wall";
+  Wall wall =
+      doc.contains("displays") ? listedDisplays(doc, id, source) : gridDisplays(doc, id, source);
   if (doc.contains("background")) wall.background = parseColor(doc["background"], source);
   if (doc.contains("overlap")) {
     if (!doc["overlap"].is_boolean())

@@ -34,52 +34,62 @@ void printVolumeLines(glm::ivec3 dims, codec::ScalarType type, glm::dvec3 spacin
   std::printf("values      %g .. %g\n", lo, hi);
 }
 
+// What the codec says of a .vwz file's step 0, and of each step of a series.
+void printCodecLines(const codec::ContainerFile& file, const codec::Codec& c) {
+  const auto& info = file.info();
+  if (info.steps > 1)
+    std::printf("shared      %s used by every step; step 0:\n",
+                humanBytes(double(file.sharedBytes())).c_str());
+  for (const auto& [label, text] : c.describe(file.stepInfo(0), file.sections()))
+    std::printf("%-12s%s\n", label.c_str(), text.c_str());
+  // Each step: its own bytes, its values and its quality (the codec's "quality" line).
+  for (int k = 0; k < info.steps && info.steps > 1; ++k) {
+    const codec::VolumeInfo step = file.stepInfo(k);
+    std::string quality = "lossless";
+    for (const auto& [label, text] : c.describe(step, file.stepSections(k)))
+      if (label == "quality") quality = text;
+    std::printf("step %-7d%s, %.3f bits/voxel, values %g .. %g, %s\n", k,
+                humanBytes(double(file.stepBytes(k))).c_str(),
+                8.0 * double(file.stepBytes(k)) / double(info.voxelCount()), step.valueMin,
+                step.valueMax, quality.c_str());
+  }
+}
+
+// A .vwz file: its container, codec, volume, size and ratio, then what the codec says.
+void printContainer(const std::string& path) {
+  const auto file = codec::ContainerFile::open(path);
+  const auto& info = file.info();
+  const double rawBytes =
+      double(info.voxelCount()) * double(codec::scalarBytes(info.type)) * double(info.steps);
+  std::printf("file        %s\n", path.c_str());
+  if (info.steps > 1)
+    std::printf("container   .vwz version %u, %d steps, checksums ok\n", file.version(),
+                info.steps);
+  else
+    std::printf("container   .vwz version %u, %zu sections, checksums ok\n", file.version(),
+                file.sections().sections.size());
+  const codec::Codec* c = codec::findCodec(info.codec);
+  if (c)
+    std::printf("codec       %s\n", std::string(c->name()).c_str());
+  else  // a file of a later voxwall: what the container says is still worth showing
+    std::printf("codec       id %u, not in this build (it has: %s)\n", unsigned(info.codec),
+                codec::codecNames().c_str());
+  printVolumeLines(info.dims, info.type, info.spacing, info.orientation, info.valueMin,
+                   info.valueMax);
+  std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
+              (unsigned long long)file.fileBytes());
+  std::printf("bits/voxel  %.3f (the voxels: %d)\n",
+              8.0 * double(file.fileBytes()) / double(info.voxelCount()) / double(info.steps),
+              int(8 * codec::scalarBytes(info.type)));
+  std::printf("ratio       %.3f : 1 (uncompressed %s%s)\n", rawBytes / double(file.fileBytes()),
+              humanBytes(rawBytes).c_str(),
+              double(file.fileBytes()) > rawBytes ? "; the file is larger than its voxels" : "");
+  if (c) printCodecLines(file, *c);
+}
+
 void runInfo(const InfoOptions& o) {
   if (o.raw.dims.empty() && codec::isContainerFile(o.input)) {
-    const auto file = codec::ContainerFile::open(o.input);
-    const auto& info = file.info();
-    const double rawBytes =
-        double(info.voxelCount()) * double(codec::scalarBytes(info.type)) * double(info.steps);
-    std::printf("file        %s\n", o.input.c_str());
-    if (info.steps > 1)
-      std::printf("container   .vwz version %u, %d steps, checksums ok\n", file.version(),
-                  info.steps);
-    else
-      std::printf("container   .vwz version %u, %zu sections, checksums ok\n", file.version(),
-                  file.sections().sections.size());
-    const codec::Codec* c = codec::findCodec(info.codec);
-    if (c)
-      std::printf("codec       %s\n", std::string(c->name()).c_str());
-    else  // a file of a later voxwall: what the container says is still worth showing
-      std::printf("codec       id %u, not in this build (it has: %s)\n", unsigned(info.codec),
-                  codec::codecNames().c_str());
-    printVolumeLines(info.dims, info.type, info.spacing, info.orientation, info.valueMin,
-                     info.valueMax);
-    std::printf("size        %s (%llu bytes)\n", humanBytes(double(file.fileBytes())).c_str(),
-                (unsigned long long)file.fileBytes());
-    std::printf("bits/voxel  %.3f (the voxels: %d)\n",
-                8.0 * double(file.fileBytes()) / double(info.voxelCount()) / double(info.steps),
-                int(8 * codec::scalarBytes(info.type)));
-    std::printf("ratio       %.3f : 1 (uncompressed %s%s)\n", rawBytes / double(file.fileBytes()),
-                humanBytes(rawBytes).c_str(),
-                double(file.fileBytes()) > rawBytes ? "; the file is larger than its voxels" : "");
-    if (!c) return;
-    if (info.steps > 1)
-      std::printf("shared      %s used by every step; step 0:\n",
-                  humanBytes(double(file.sharedBytes())).c_str());
-    for (const auto& [label, text] : c->describe(file.stepInfo(0), file.sections()))
-      std::printf("%-12s%s\n", label.c_str(), text.c_str());
-    // Each step: its own bytes, its values and its quality (the codec's "quality" line).
-    for (int k = 0; k < info.steps && info.steps > 1; ++k) {
-      const codec::VolumeInfo step = file.stepInfo(k);
-      std::string quality = "lossless";
-      for (const auto& [label, text] : c->describe(step, file.stepSections(k)))
-        if (label == "quality") quality = text;
-      std::printf("step %-7d%s, %.3f bits/voxel, values %g .. %g, %s\n", k,
-                  humanBytes(double(file.stepBytes(k))).c_str(),
-                  8.0 * double(file.stepBytes(k)) / double(info.voxelCount()), step.valueMin,
-                  step.valueMax, quality.c_str());
-    }
+    printContainer(o.input);
     return;
   }
   if (o.raw.dims.empty() && std::filesystem::is_regular_file(o.input) &&

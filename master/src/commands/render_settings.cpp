@@ -480,6 +480,18 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
                  "of the transfer function, --tf-range and --window (e.g. 1,-1024 for a CT stored "
                  "with an offset, so hu-* presets meet Hounsfield units). DICOM series are "
                  "rescaled when read and need none");
+  cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
+  cmd.add_option("--gradients", o.gradients,
+                 "How --shading takes its gradients: cell (central differences at the corners of "
+                 "each voxel cell, read once per cell and blended per sample) or samples (six "
+                 "extra trilinear samples per sample, the slower original; for comparison). Both "
+                 "give the same gradient to rounding; coarser --lod levels and --sampling nearest "
+                 "always use samples")
+      ->capture_default_str();
+}
+
+// The march along the ray and the rays' lattice, sampling and levels.
+void addMarchOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--step", o.step,
                  "Ray step in voxels (of the smallest spacing), or auto: the longest step (1, "
                  "3/4, 1/2 or 3/8 voxel, each at points and then pre-integrated; else 1/4) whose "
@@ -512,14 +524,6 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_flag("--exact", o.exact,
                "A ray a pixel at the --step given (else 1/4 voxel), the transfer function at "
                "points: no lattice, no error budget (for comparisons and references)");
-  cmd.add_flag("--shading", o.shading, "Blinn-Phong shading from central-difference gradients");
-  cmd.add_option("--gradients", o.gradients,
-                 "How --shading takes its gradients: cell (central differences at the corners of "
-                 "each voxel cell, read once per cell and blended per sample) or samples (six "
-                 "extra trilinear samples per sample, the slower original; for comparison). Both "
-                 "give the same gradient to rounding; coarser --lod levels and --sampling nearest "
-                 "always use samples")
-      ->capture_default_str();
   cmd.add_flag("--no-skip", o.noSkip, "Disable empty-space skipping (for measurements)");
   const std::string levels =
       "Volumes with mip levels (" + codec::RegisteredCodecs::traversalCodecNames() + ")";
@@ -540,6 +544,10 @@ void addLookOptions(CLI::App& cmd, RenderOptions& o) {
           "most), so later frames sharpen. render -v counts the samples taken from coarser "
           "levels");
   addCodecFlags(cmd, &codec::Codec::renderOptions, o.codecFlags);
+}
+
+// The backend: CPU or CUDA, threads, packets, decoded pages.
+void addBackendOptions(CLI::App& cmd, RenderOptions& o) {
   cmd.add_option("--backend", o.backend, "cpu or cuda")->capture_default_str();
   cmd.add_option("--device-decode", o.deviceDecode,
                  "CUDA backend, compressed volume: whole decodes it once on the host and uploads "
@@ -591,6 +599,8 @@ RenderOptionHandles addRenderOptions(CLI::App& cmd, RenderOptions& o) {
   addCutOptions(cmd, o, h);
   addCameraOptions(cmd, o, h);
   addLookOptions(cmd, o);
+  addMarchOptions(cmd, o);
+  addBackendOptions(cmd, o);
   addOutputOptions(cmd, o, h);
   o.raw.addTo(cmd);
   return h;

@@ -8,7 +8,10 @@
 
 namespace voxwall::cli {
 
-void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
+namespace {
+
+// The wall, where the sink listens, and the frames it writes.
+void addWallOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_option("--wall", o.wall, "Wall file (walls/*.json, or a Tide configuration)")->required();
   cmd.add_option("--surface", o.surface,
                  "Which surface of a Tide configuration with several to show (0: the first; "
@@ -30,6 +33,12 @@ void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_flag("--mosaic", o.mosaic,
                "Also write the whole virtual screen, bezels included (the ranks then send the "
                "bezels' pixels too, and a frame is complete when the whole screen arrived)");
+  cmd.add_flag("--no-stdin", o.noStdin, "Do not read camera commands from stdin");
+  cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
+}
+
+// Who may connect, and what the sink holds for them.
+void addPeerOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_option("--token", o.token,
                  "Refuse peers and pages that do not present this token (it travels in clear "
                  "text: tunnel the ports through SSH or keep them on a private network)");
@@ -57,6 +66,10 @@ void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
                  "send, so a silent peer (a squatter, a hung rank) cannot hold the wall for its "
                  "job; once its job has no peer left, another job may take the wall")
       ->capture_default_str();
+}
+
+// The wall's web pages and the display pages' swap barrier.
+void addPageOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_option("--http", o.http,
                  "Serve the wall's pages at HOST:PORT (e.g. 127.0.0.1:8080): / the overview (the "
                  "live wall, the load balancer's rectangles, camera control by mouse and touch), "
@@ -82,8 +95,14 @@ void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
                  "(display hosts' clocks must agree, e.g. through NTP; a page whose clock is off "
                  "by over a second shows at once)")
       ->capture_default_str();
-  cmd.add_flag("--no-stdin", o.noStdin, "Do not read camera commands from stdin");
-  cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
+}
+
+}  // namespace
+
+void addSinkOptions(CLI::App& cmd, SinkOptions& o) {
+  addWallOptions(cmd, o);
+  addPeerOptions(cmd, o);
+  addPageOptions(cmd, o);
 }
 
 walls::SinkSettings sinkSettings(const SinkOptions& o) {

@@ -150,11 +150,17 @@ class ControlChannel {
 
  private:
   void run();
+  // One connection's life: sends the playback and keep-alives, queues what the sink says. False
+  // when the sink ended the job (refused_ says why); throws when the connection is lost.
+  bool serve(Connection& c);
+  // Waits `wait`, or less when the channel is stopped; whether it is stopping.
+  bool stopsWithin(std::chrono::milliseconds wait);
   std::string host_;
   std::uint16_t port_;
   Hello hello_;
   int keepAliveMs_;
   mutable std::mutex mutex_;
+  std::condition_variable wake_;  // told when stop_ is set
   std::deque<Control> queue_;
   std::vector<std::string> notes_;
   std::uint64_t presented_ = 0;
