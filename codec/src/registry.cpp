@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -13,6 +14,11 @@ std::unique_ptr<RenderPayload> Codec::openWith(const VolumeInfo& info, const Sec
                                                const CodecOptionValues& renderOptions) const {
   (void)renderOptions;  // a codec without render options ignores them
   return open(info, sections);
+}
+
+std::uint64_t mintCacheIds(std::uint64_t count) {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(count);
 }
 
 CompressedVolume Codec::encodeSource(const VolumeSource& source, const CodecOptionValues& options,

@@ -1,7 +1,6 @@
 // The ksvd layout: every section checked against the header before anything reads it, the views
 // the raycasters sample, and the decoder. The byte layout is documented in ksvd_codec.hpp.
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <voxwall/codec/brick_volume.hpp>
@@ -92,8 +91,7 @@ void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t f
 }  // namespace
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  static std::atomic<std::uint64_t> nextCacheId{1};
-  cacheId_ = nextCacheId.fetch_add(1);
+  cacheId_ = mintCacheIds();
   readParams(sections);
   readLevels(sections);
   buildRenderBuffer(sections);

@@ -71,11 +71,8 @@ std::string encodeReport(const EncodeStats& s, const Volume& v, bool sizeTarget)
   return report;
 }
 
-class KsvdCodec final : public Codec {
+class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
  public:
-  CodecId id() const override { return KsvdCodecEntry::kId; }
-  std::string_view name() const override { return KsvdCodecEntry::kName; }
-
   std::string_view summary() const override {
     return "blocks as sparse combinations of a K-SVD dictionary learned on a coreset (Gobbetti "
            "et al., COVRA), lossy; any scalar type, the only compressed codec for float32";
@@ -134,11 +131,6 @@ class KsvdCodec final : public Codec {
       throw std::invalid_argument("--coreset must be a whole count (> 1) or a fraction (<= 1)");
     p.threads = options.threads;
     return p;
-  }
-
-  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
-                          Progress& progress, std::string& report) const override {
-    return encodeSource(*memorySource(volume), options, progress, report);
   }
 
   // Streams: a row of bricks of the input in memory at a time, besides the coarser levels.

@@ -26,7 +26,7 @@ class Payload final : public RenderPayload {
 
 namespace {
 
-class RawCodec final : public Codec {
+class RawCodec final : public CodecOf<RawCodecEntry> {
   static Params params(const CodecOptionValues& options) {
     const Params defaults;
     Params p;
@@ -36,8 +36,6 @@ class RawCodec final : public Codec {
   }
 
  public:
-  CodecId id() const override { return RawCodecEntry::kId; }
-  std::string_view name() const override { return RawCodecEntry::kName; }
   bool compresses() const override { return false; }
 
   std::string_view summary() const override {

@@ -1,7 +1,6 @@
 // The svmm layout: every section checked against the header before anything reads it, the view
 // and pools the raycasters sample, and the decoders. The format is documented in svmm_codec.hpp.
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <voxwall/codec/svmm_codec.hpp>
@@ -21,8 +20,7 @@ using kernels::svmmBaseBytes;
 using kernels::svmmWordBytes;
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  static std::atomic<std::uint64_t> nextCacheId{1};
-  cacheId_ = nextCacheId.fetch_add(1);
+  cacheId_ = mintCacheIds();
   readParams(sections);
   ByteReader data = readData(sections);
   checkSubBlockOffsets(data);

@@ -80,11 +80,8 @@ std::pair<std::string, std::string> levelLists(int levels, const std::vector<int
 
 namespace {
 
-class SvmmCodec final : public Codec {
+class SvmmCodec final : public StreamingCodecOf<SvmmCodecEntry> {
  public:
-  CodecId id() const override { return SvmmCodecEntry::kId; }
-  std::string_view name() const override { return SvmmCodecEntry::kName; }
-
   std::string_view summary() const override {
     return "sparse voxel mip-map (Faas): blocks within --quality of their mean dropped, lossless "
            "at "
@@ -106,11 +103,6 @@ class SvmmCodec final : public Codec {
              "svmm codec: store base blocks as 2^3 groups of an occupancy bitmap and one shared "
              "value (lossy; the thesis's Fig. 1.2c)",
              "", true}};
-  }
-
-  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
-                          Progress& progress, std::string& report) const override {
-    return encodeSource(*memorySource(volume), options, progress, report);
   }
 
   // Streams: level 1 from windows of slices, the base level from slabs of 2 w0 slices.

@@ -19,8 +19,7 @@
 namespace voxwall::codec::tvq {
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  static std::atomic<std::uint64_t> nextCacheId{1};
-  cacheId_ = nextCacheId.fetch_add(kProgressiveLevels);  // one id per progressive level
+  cacheId_ = mintCacheIds(kProgressiveLevels);  // one id per progressive level
   const std::uint64_t subCount = readParams(sections);
   readBasis(sections);
   const auto [words, recordBytes] = readSubvolumes(sections, subCount);

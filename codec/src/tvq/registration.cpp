@@ -68,11 +68,8 @@ std::string encodeReport(const EncodeStats& s, const Volume& v, const Params& p)
   return report;
 }
 
-class TvqCodec final : public Codec {
+class TvqCodec final : public StreamingCodecOf<TvqCodecEntry> {
  public:
-  CodecId id() const override { return TvqCodecEntry::kId; }
-  std::string_view name() const override { return TvqCodecEntry::kName; }
-
   std::string_view summary() const override {
     return "transform vector quantization of 4^3 blocks (Fout & Ma): KLT or DCT, classified "
            "partitioned VQ with associated codebooks, progressive levels; lossy, any scalar type";
@@ -102,11 +99,6 @@ class TvqCodec final : public Codec {
          "tvq codec: one class for every coded block (all zones), to compare with classified VQ",
          "", true},
         {"--iterations", "tvq codec: LBG iterations after the last split", "10"}};
-  }
-
-  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
-                          Progress& progress, std::string& report) const override {
-    return encodeSource(*memorySource(volume), options, progress, report);
   }
 
   // Streams: a row of sub-volumes of the input in memory at a time.

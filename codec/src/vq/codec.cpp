@@ -2,7 +2,6 @@
 #include <xxhash.h>
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -507,8 +506,7 @@ CompressedSeries encodeSeries(const SeriesSource& series, const Params& params, 
 // ---- reading ------------------------------------------------------------------------------
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  static std::atomic<std::uint64_t> nextCacheId{1};
-  cacheId_ = nextCacheId.fetch_add(1);
+  cacheId_ = mintCacheIds();
   const std::string& src = sections.source;
   ByteReader r(sections.get(kParams, "params"), src, "section 'params'");
   bits_ = int(r.get<std::uint32_t>());

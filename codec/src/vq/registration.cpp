@@ -64,11 +64,8 @@ std::string encodeReport(const Params& p, const EncodeStats& s) {
 
 namespace {
 
-class VqCodec final : public Codec {
+class VqCodec final : public StreamingCodecOf<VqCodecEntry> {
  public:
-  CodecId id() const override { return VqCodecEntry::kId; }
-  std::string_view name() const override { return VqCodecEntry::kName; }
-
   std::string_view summary() const override {
     return "4^3 bricks deduplicated into a codebook (Guthe & Goesele), lossless unless --reduction "
            "or --bits-per-voxel; 8/12/16-bit integer data";
@@ -87,11 +84,6 @@ class VqCodec final : public Codec {
          "vq codec: 'compressed' (RBUC variable-length codewords) or 'plain' (bit-packed at the "
          "data's bit depth: faster to decode, larger)",
          "compressed"}};
-  }
-
-  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
-                          Progress& progress, std::string& report) const override {
-    return encodeSource(*memorySource(volume), options, progress, report);
   }
 
   // Streams: a row of bricks in memory at a time, besides the unique bricks.

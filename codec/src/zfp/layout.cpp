@@ -3,7 +3,6 @@
 #include <zfp.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -278,8 +277,7 @@ namespace voxwall::codec::zfp {
 // ---- the sections ---------------------------------------------------------------------------
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  static std::atomic<std::uint64_t> nextCacheId{1};
-  cacheId_ = nextCacheId.fetch_add(1);
+  cacheId_ = mintCacheIds();
   const glm::ivec3 g = brickGrid(info.dims);
   bricks_ = std::uint64_t(g.x) * std::uint64_t(g.y) * std::uint64_t(g.z);
   rows_ = std::uint64_t(g.y) * std::uint64_t(g.z);

@@ -78,11 +78,8 @@ std::string encodeReport(const Params& p, const EncodeStats& s) {
   return report + formatLine("\n  PSNR %.2f dB, largest error %.4g", s.psnr, s.maxError);
 }
 
-class ZfpCodec final : public Codec {
+class ZfpCodec final : public StreamingCodecOf<ZfpCodecEntry> {
  public:
-  CodecId id() const override { return ZfpCodecEntry::kId; }
-  std::string_view name() const override { return ZfpCodecEntry::kName; }
-
   std::string_view summary() const override {
     return "16^3 bricks each compressed by the zfp library (fixed accuracy by default, fixed "
            "precision, fixed rate or lossless) with an index for random access; every scalar "
@@ -107,11 +104,6 @@ class ZfpCodec final : public Codec {
          ""},
         {"--lossless", "zfp codec: zfp's reversible mode: every voxel decodes to its value", "",
          true}};
-  }
-
-  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
-                          Progress& progress, std::string& report) const override {
-    return encodeSource(*memorySource(volume), options, progress, report);
   }
 
   // Streams: a row of bricks (16 slices) in memory at a time, besides the coded data.

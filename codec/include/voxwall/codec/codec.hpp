@@ -128,6 +128,30 @@ class Codec {
   virtual std::vector<std::string> exampleOptions() const = 0;
 };
 
+// What every codec writes alike, from its registry entry `Entry` (kId, kName): its id and name.
+template <class Entry>
+class CodecOf : public Codec {
+ public:
+  CodecId id() const final { return Entry::kId; }
+  std::string_view name() const final { return Entry::kName; }
+};
+
+// A codec that streams (it overrides encodeSource): encode() of a volume in memory is
+// encodeSource() of it, so that both give the same file byte for byte.
+template <class Entry>
+class StreamingCodecOf : public CodecOf<Entry> {
+ public:
+  CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
+                          Progress& progress, std::string& report) const final {
+    return this->encodeSource(*memorySource(volume), options, progress, report);
+  }
+};
+
+// `count` fresh ids for the caches of decoded bricks and pages, unique in the process whatever
+// the codec: a layout takes its ids when it is opened, so a cache never serves one layout's
+// bricks for another's.
+std::uint64_t mintCacheIds(std::uint64_t count = 1);
+
 // Whether `compressed` is larger than the voxels it codes: its sections hold more bytes than the
 // voxels at their scalar type, beyond an allowance of 4 KiB plus 1/256 for the codec's parameters
 // and indices (the container's header and table come on top of either).
