@@ -104,14 +104,14 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
   payloadId_ = nextPayloadId();
   ranges_ = payload_->rangeGrid();
   ranges_.pack();  // read again only when a transfer function changes
-  if (info_.codec != codec::raw::RawCodecEntry::kId && info_.steps == 1 &&
-      renderOptions.flags().empty())
+  // Raw bricks are what a decoded volume would be: only a codec that compresses gets one.
+  if (c.compresses() && info_.steps == 1 && renderOptions.flags().empty())
     decoded_ = std::make_shared<Decoded>();
 }
 
 struct RenderVolume::Decoded {
   std::once_flag once;
-  codec::CompressedVolume raw;
+  std::optional<codec::raw::DecodedBricks> bricks;
   std::unique_ptr<codec::RenderPayload> payload;
   std::uint64_t id = 0;
 };
@@ -121,10 +121,8 @@ const codec::RenderPayload* RenderVolume::decodedPayload() const {
   std::call_once(decoded_->once, [this] {
     const codec::Codec& c = codec::codecOf(info_, sections_.source);
     const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
-    Progress quiet;
-    decoded_->raw = codec::raw::encode(c.decode(own, sections_), {}, quiet);
-    decoded_->payload = codec::codecOf(decoded_->raw.info, sections_.source)
-                            .open(decoded_->raw.info, decoded_->raw.view(sections_.source));
+    decoded_->bricks.emplace(c.decode(own, sections_), sections_.source);
+    decoded_->payload = decoded_->bricks->payload();
     decoded_->id = nextPayloadId();
   });
   return decoded_->payload.get();
@@ -133,11 +131,7 @@ const codec::RenderPayload* RenderVolume::decodedPayload() const {
 std::uint64_t RenderVolume::decodedPayloadId() const { return decodedPayload() ? decoded_->id : 0; }
 
 std::uint64_t RenderVolume::decodedBytes() const {
-  if (!decoded_) return 0;
-  const int b = codec::raw::Params{}.brickVoxels;
-  const glm::u64vec3 bricks = (glm::u64vec3(info_.dims) + std::uint64_t(b - 1)) / std::uint64_t(b);
-  return bricks.x * bricks.y * bricks.z * std::uint64_t(b + 1) * std::uint64_t(b + 1) *
-         std::uint64_t(b + 1) * std::uint64_t(codec::scalarBytes(info_.type));
+  return decoded_ ? codec::raw::DecodedBricks::bytesFor(info_.dims, info_.type) : 0;
 }
 
 bool RenderVolume::traversal() const {

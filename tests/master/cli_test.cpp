@@ -60,6 +60,14 @@ TEST(Cli, GenerateCompressInfoDecompressRoundTrip) {
   ASSERT_EQ(quiet.status, 0) << quiet.out;
   EXPECT_EQ(quiet.out, "");
   EXPECT_TRUE(std::filesystem::exists(dir.path("quiet.nrrd")));
+  // generate too; without -q it says what it wrote.
+  const CliRun said = runVoxwall("generate menger --level 2 -o " + dir.path("said.nrrd"));
+  ASSERT_EQ(said.status, 0) << said.out;
+  EXPECT_NE(said.out.find("9x9x9"), std::string::npos) << said.out;
+  const CliRun generated = runVoxwall("generate menger --level 2 -q -o " + dir.path("q.nrrd"));
+  ASSERT_EQ(generated.status, 0) << generated.out;
+  EXPECT_EQ(generated.out, "");
+  EXPECT_TRUE(std::filesystem::exists(dir.path("q.nrrd")));
 }
 
 TEST(Cli, CompressReadsRawInputWithItsLayout) {

@@ -109,4 +109,22 @@ const Codec& RawCodecEntry::instance() {
   return codec;
 }
 
+DecodedBricks::DecodedBricks(const Volume& volume, const std::string& source) {
+  Progress quiet;
+  coded_ = encode(volume, Params{}, quiet);
+  sections_ = coded_.view(source);
+  layout_.emplace(coded_.info, sections_);
+}
+
+std::unique_ptr<RenderPayload> DecodedBricks::payload() const {
+  return RawCodecEntry::instance().open(coded_.info, sections_);
+}
+
+std::uint64_t DecodedBricks::bytesFor(glm::ivec3 dims, ScalarType type) {
+  const int b = Params{}.brickVoxels;
+  const glm::u64vec3 bricks = (glm::u64vec3(dims) + std::uint64_t(b - 1)) / std::uint64_t(b);
+  const auto side = std::uint64_t(b + 1);
+  return bricks.x * bricks.y * bricks.z * side * side * side * std::uint64_t(scalarBytes(type));
+}
+
 }  // namespace voxwall::codec::raw

@@ -21,19 +21,15 @@ class Payload final : public RenderPayload {
       : info_(info), sections_(sections), layout_(info, sections) {}
   RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
   std::span<const std::byte> bytes() const override {
-    std::call_once(decodedOnce_, [&] {
-      Progress quiet;
-      decoded_ = raw::encode(zfp::decode(info_, sections_), raw::Params{}, quiet);
-      decodedSections_ = decoded_.view(sections_.source);
-      decodedLayout_.emplace(decoded_.info, decodedSections_);
-    });
-    return decodedLayout_->brickBytes();
+    std::call_once(decodedOnce_,
+                   [&] { decoded_.emplace(zfp::decode(info_, sections_), sections_.source); });
+    return decoded_->layout().brickBytes();
   }
   AnyView view(const std::byte*) const override { return layout_.view(); }
   AnyView deviceView(const std::byte* base, std::span<const DeviceArray>) const override {
     bytes();
     return dispatchScalar(
-        info_.type, [&](auto t) -> AnyView { return decodedLayout_->view<decltype(t)>(base); });
+        info_.type, [&](auto t) -> AnyView { return decoded_->layout().view<decltype(t)>(base); });
   }
 
  private:
@@ -41,9 +37,7 @@ class Payload final : public RenderPayload {
   SectionSet sections_;
   Layout layout_;
   mutable std::once_flag decodedOnce_;
-  mutable CompressedVolume decoded_;
-  mutable SectionSet decodedSections_;
-  mutable std::optional<raw::Layout> decodedLayout_;
+  mutable std::optional<raw::DecodedBricks> decoded_;
 };
 
 std::string settingText(Mode mode, double setting) {

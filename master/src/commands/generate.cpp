@@ -15,6 +15,7 @@ namespace {
 struct GenerateOptions {
   std::string kind, output, type = "uint8";
   int size = 0, level = 4, steps = 1;
+  bool quiet = false;
 };
 
 // A time-varying volume of o.steps steps: a 4D NIfTI file, a file per step (a %d pattern) or a
@@ -46,8 +47,9 @@ void generateSeries(const GenerateOptions& o, codec::ScalarType type) {
   }
   if (container) codec::writeContainer(codec::makeSeries(std::move(coded)), o.output);
   if (nifti) codec::writeNiftiSeries(volumes, o.output);
-  std::printf("%s: %d steps of %dx%dx%d %s\n", o.output.c_str(), o.steps, n, n, n,
-              std::string(codec::scalarName(type)).c_str());
+  if (!o.quiet)
+    std::printf("%s: %d steps of %dx%dx%d %s\n", o.output.c_str(), o.steps, n, n, n,
+                std::string(codec::scalarName(type)).c_str());
 }
 
 void runGenerate(const GenerateOptions& o) {
@@ -77,8 +79,9 @@ void runGenerate(const GenerateOptions& o) {
   } else {
     codec::writeVolume(v, o.output);
   }
-  std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
-              std::string(codec::scalarName(v.type)).c_str());
+  if (!o.quiet)
+    std::printf("%s: %dx%dx%d %s\n", o.output.c_str(), v.dims.x, v.dims.y, v.dims.z,
+                std::string(codec::scalarName(v.type)).c_str());
 }
 
 }  // namespace
@@ -106,6 +109,7 @@ void addGenerateCommand(CLI::App& app) {
                   "Scalar type for marschner-lobb, shepp-logan and blobs: uint8, "
                   "uint16, int16 or float32")
       ->capture_default_str();
+  cmd->add_flag("-q,--quiet", o->quiet, "Print nothing but errors");
   cmd->callback([o] { runGenerate(*o); });
 }
 

@@ -13,6 +13,8 @@
 //             two bricks; voxels past the volume's edge repeat the edge voxel
 #pragma once
 
+#include <optional>
+#include <string>
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
@@ -63,6 +65,27 @@ class Layout {
 
 // Full reconstruction.
 Volume decode(const VolumeInfo& info, const SectionSet& sections);
+
+// A whole volume as raw bricks (the default Params), in memory with its layout: what a device
+// samples of a volume whose codec it does not decode per ray, decoded once on the host. The one
+// path for it (render_volume's decoded payload, zfp's device view). Not movable: the layout
+// points into the bricks.
+class DecodedBricks {
+ public:
+  DecodedBricks(const Volume& volume, const std::string& source);
+  DecodedBricks(const DecodedBricks&) = delete;
+  DecodedBricks& operator=(const DecodedBricks&) = delete;
+  const Layout& layout() const { return *layout_; }
+  // The raw codec's render payload over these bricks (they must outlive it).
+  std::unique_ptr<RenderPayload> payload() const;
+  // The bytes the bricks of a volume of these dims and type take.
+  static std::uint64_t bytesFor(glm::ivec3 dims, ScalarType type);
+
+ private:
+  CompressedVolume coded_;
+  SectionSet sections_;
+  std::optional<Layout> layout_;
+};
 
 // The codec's registry entry (registry.hpp): the view types its payloads produce, and the codec
 // object (src/raw/registration.cpp).
