@@ -148,13 +148,18 @@ struct Server::Impl {
       } catch (const FormatError& e) {
         return drop(e.what());
       }
-      if (closed) return;                // the handler hung up on this peer
+      if (closed) return;  // the handler hung up on this peer
+      // A large message's buffer is not kept for the small ones that follow (a peer sending
+      // KeepAlives kept 64 MiB): between messages a peer holds at most one chunk.
+      if (payload.capacity() > kPayloadChunk) std::vector<std::byte>().swap(payload);
       if (greeted() && !watchingIdle) {  // the Hello deadline gives way to the idle deadline
         watchingIdle = true;
         watchIdle();
       }
       readHeader();
     }
+
+    std::size_t receiveBufferBytes() const override { return payload.capacity(); }
 
     void send(std::vector<std::byte> bytes) override {
       if (closed) return;

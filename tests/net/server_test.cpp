@@ -40,6 +40,11 @@ class EchoHandler : public net::PeerHandler {
       peer.send(net::encodeMessage(net::decodeControl(payload, peer.name())));
       return true;
     }
+    if (type == net::MessageType::Tile || type == net::MessageType::KeepAlive) {
+      bufferBytes = peer.receiveBufferBytes();  // as the message is handled
+      ++kept;
+      return true;
+    }
     return false;
   }
   void refuse(net::Peer& peer, const std::string& reason) override {
@@ -64,6 +69,8 @@ class EchoHandler : public net::PeerHandler {
 
   std::atomic<int> attached{0}, detached{0}, drops{0}, connectionsRefused{0};
   std::atomic<std::uint64_t> bytesReceived{0};
+  std::atomic<std::size_t> bufferBytes{0};
+  std::atomic<int> kept{0};  // tiles and KeepAlives handled
 
  private:
   void remember(const std::string& text) {
@@ -166,6 +173,25 @@ TEST(Server, ASilentPeerIsDroppedAfterTheHelloTimeout) {
   char byte;
   EXPECT_EQ(::recv(fd, &byte, 1, 0), 0);  // the server closed the connection
   ::close(fd);
+}
+
+// A greeted peer that sent one large message and then only KeepAlives held the large message's
+// buffer (64 MiB a peer): it is let go, and between messages a peer holds at most a chunk.
+TEST(Server, APeersBufferShrinksAfterALargeMessage) {
+  EchoHandler handler;
+  handler.limit = 16u << 20;
+  RunningServer server(handler, {});
+  auto client = net::Connection::open("127.0.0.1", server.port(), helloFor("w"), 2000);
+  net::TileMessage big;
+  big.rect = {0, 0, 1, 1};
+  big.codec = net::TileCodec::Raw;
+  big.bytes.assign(8u << 20, std::byte{7});
+  client->send(net::encodeMessage(0, big));
+  ASSERT_TRUE(test::waitUntil([&] { return handler.kept == 1; }));
+  EXPECT_GE(handler.bufferBytes.load(), 8u << 20);  // the large message in hand
+  client->send(net::encodeKeepAlive());
+  ASSERT_TRUE(test::waitUntil([&] { return handler.kept == 2; }));
+  EXPECT_LE(handler.bufferBytes.load(), std::size_t(1) << 20);
 }
 
 TEST(Server, SettingsThatCannotWorkAreRefused) {

@@ -120,7 +120,10 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
     FAIL() << "a second job was let in while the first was running";
   } catch (const net::SinkRefused& e) {
     EXPECT_NE(std::string(e.what()).find("is showing on this wall"), std::string::npos) << e.what();
+    // The running job's id is never told: whoever says it joins that job.
+    EXPECT_EQ(std::string(e.what()).find("000000000000006f"), std::string::npos) << e.what();
   }
+  EXPECT_NE(sink.log().find("job 000000000000006f is showing"), std::string::npos) << sink.log();
   first->send(net::encodeMessage(net::Bye{"done"}));
   first.reset();
   std::unique_ptr<net::Connection> second;
@@ -170,6 +173,7 @@ TEST(SinkHardening, ASilentPeerIsDroppedAfterTheIdleTimeAndAnotherJobTakesTheWal
     return job != nullptr;
   })) << sink.log();
   EXPECT_NE(refusal.find("is showing on this wall"), std::string::npos) << refusal;
+  EXPECT_EQ(refusal.find("000000000000006f"), std::string::npos) << refusal;  // 111: not told
   EXPECT_NE(sink.log().find("sent nothing for 300 ms (--peer-idle)"), std::string::npos)
       << sink.log();
   job->send(net::encodeMessage(0, wholeScreen()));

@@ -127,8 +127,12 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
       for (const net::Peer* other : peers_)
         running += other != &peer && other->greeted() && other->hello().jobId == *job_;
       if (running > 0) {
-        refuse(peer, peer.name() + ": job " + jobName(*job_) + " is showing on this wall (" +
-                         std::to_string(running) + " peer(s) connected); try again when it ends");
+        // The running job's id is its peers' secret (whoever says it joins the job): the log
+        // names it, the refused peer hears only that a job is showing.
+        const std::string showing = " is showing on this wall (" + std::to_string(running) +
+                                    " peer(s) connected); try again when it ends";
+        say("sink: refused " + peer.name() + ": job " + jobName(*job_) + showing);
+        refuseQuietly(peer, peer.name() + ": a job" + showing);
         return false;
       }
       const std::string why =

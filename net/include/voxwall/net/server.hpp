@@ -41,6 +41,8 @@ class Peer {
   // Whether the handler accepted this peer's Hello (the server's Hello deadline ends then).
   bool greeted() const { return greeted_; }
   const Hello& hello() const { return hello_; }
+  // The memory held to receive this peer's messages (its payload buffer's capacity).
+  virtual std::size_t receiveBufferBytes() const { return 0; }
   // The handler accepted `hello`; `name` says who the peer is now (e.g. "... (rank 3)").
   void markGreeted(const Hello& hello, std::string name) {
     greeted_ = true;
