@@ -10,7 +10,6 @@
 #include <stdexcept>
 
 #include "commands/option_checks.hpp"
-
 #include "support/expect_refused.hpp"
 
 using namespace voxwall;
