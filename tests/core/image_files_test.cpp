@@ -24,9 +24,16 @@ bool mapped(const std::string& name) {
 }  // namespace
 
 TEST(ImageFiles, OpenImageIOIsLoadedByTheFirstImageWrittenAndTheImageReadsBack) {
-  if (mapped("libOpenImageIO"))
+#ifdef __SANITIZE_ADDRESS__
+  // The sanitizer build loads OpenImageIO's libraries with the program (core/CMakeLists.txt
+  // says why); the module itself is still loaded by the first image.
+  constexpr bool kLoadedAtStart = true;
+#else
+  constexpr bool kLoadedAtStart = false;
+#endif
+  if (mapped("libvoxwall_image_files"))
     GTEST_SKIP() << "an earlier test in this process read or wrote an image";
-  EXPECT_FALSE(mapped("libvoxwall_image_files"));
+  EXPECT_EQ(mapped("libOpenImageIO"), kLoadedAtStart);
   const auto path = (std::filesystem::temp_directory_path() /
                      ("voxwall-image-files-" + std::to_string(::getpid()) + ".png"))
                         .string();
