@@ -31,6 +31,35 @@ TEST(Registry, NamesAndIdsAreUniqueAndFound) {
   EXPECT_THROW(codecOf(info, "x.vwz"), voxwall::FormatError);
 }
 
+// The caches of decoded bricks and pages are keyed by a layout's cache id: ids are unique in the
+// process whatever the codec (each codec once counted its own from 1, so a vq and a zfp layout
+// could share one).
+TEST(Registry, EveryOpenedLayoutHasItsOwnCacheId) {
+  std::set<std::uint64_t> seen;
+  int views = 0;
+  for (const Codec* c : codecs())
+    for (const CodecSample& sample : c->samples()) {
+      const SectionSet sections = sample.volume.view(sample.name);
+      std::unique_ptr<RenderPayload> payload;
+      try {
+        payload = c->open(sample.volume.info, sections);
+      } catch (const voxwall::FormatError&) {
+        continue;  // a file its codec holds but cannot render (an RGBA svmm volume)
+      }
+      std::visit(
+          [&](const auto& view) {
+            if constexpr (requires { view.cacheId; }) {
+              ++views;
+              EXPECT_TRUE(seen.insert(view.cacheId).second) << sample.name;
+            }
+          },
+          payload->view(nullptr));
+    }
+  EXPECT_GE(views, 4);  // vq, ksvd, tvq and zfp views carry one
+  const std::uint64_t first = mintCacheIds(3);
+  EXPECT_GE(mintCacheIds(), first + 3);
+}
+
 TEST(Registry, OptionValuesAreParsedAndRefusedWithTheFlagsName) {
   CodecOptionValues v;
   v.set("--n", "12");

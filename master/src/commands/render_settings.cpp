@@ -1,6 +1,5 @@
 #include "render_settings.hpp"
 
-#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
