@@ -7,10 +7,13 @@
 #include "dicom_checks.hpp"
 
 #include <gdcmDicts.h>
+#include <gdcmFileMetaInformation.h>
 #include <gdcmGlobal.h>
+#include <gdcmMediaStorage.h>
 #include <gdcmReader.h>
 #include <gdcmSequenceOfFragments.h>
 #include <gdcmSequenceOfItems.h>
+#include <gdcmUIDs.h>
 
 #include <cmath>
 #include <cstdio>
@@ -132,7 +135,18 @@ class ElementWalk {
       if ((tag >> 16) == 0xfffe) fail(at, "has a misplaced item or delimiter");
       // Elements past `stop` (a file without Pixel Data) are checked like the others: GDCM's
       // scanner reads the first element past the tags it looks for.
-      if (depth == 0 && tag == stop) return at;
+      if (depth == 0 && tag == stop) {
+        // GDCM reads a header up to the first element at or past the Pixel Data's tag, and the
+        // whole file past it: an element DICOM orders after the Pixel Data but written before it
+        // hides what follows from the header checks (found by the DICOM fuzz target: functional
+        // groups after (8028,0102) made GDCM's spacing code assert).
+        if (late_.first)
+          fail(at, "has an element (" + hex(late_.first) + ") at byte " +
+                       std::to_string(late_.second) +
+                       " before its Pixel Data that DICOM orders after it");
+        return at;
+      }
+      if (depth == 0 && stop && tag > stop && !late_.first) late_ = {tag, at};
       // GDCM reads (00FF,4AA5) as pixel data running to the end of the file, asserting on what
       // it finds there (a workaround for one scanner's broken files).
       if (tag == 0x00ff4aa5u) fail(at, "has element (00FF,4AA5), which GDCM reads as pixel data");
@@ -280,6 +294,7 @@ class ElementWalk {
   std::ifstream in_;
   std::uint64_t size_;
   bool explicit_;
+  std::pair<std::uint32_t, std::uint64_t> late_{0, 0};  // the first element past `stop`, at
 };
 
 // Every transfer syntax voxwall reads is explicit VR little endian but one.
@@ -307,6 +322,9 @@ std::uint64_t walkToPixelData(const std::string& file, std::string* transferSynt
   if (uid == "1.2.840.10008.1.2.1.99" || uid == "1.2.840.10008.1.2.2")
     throw FormatError(file, "uses transfer syntax " + uid +
                                 " (deflated or big endian), which voxwall does not read");
+  // GDCM's image reader asserts on a transfer syntax it does not know (see checkImageHeader).
+  if (gdcm::TransferSyntax::GetTSType(uid.c_str()) == gdcm::TransferSyntax::TS_END)
+    throw FormatError(file, "uses transfer syntax " + uid + ", which GDCM does not know");
   return ElementWalk(file, fileSize, isExplicitVr(uid))
       .list(dataSet, fileSize, 0, false, 0x7fe00010u);
 }
@@ -568,6 +586,15 @@ bool hasFrameOrientation(const gdcm::DataSet& ds) {
   return sixNumbers(ds);
 }
 
+// A UID with its name where GDCM knows it: "1.2.840.10008.5.1.4.1.1.4.2 (MR Spectroscopy
+// Storage)".
+std::string uidName(const char* uid) {
+  const std::string text = uid ? uid : "";
+  gdcm::UIDs known;
+  if (!known.SetFromUID(text.c_str()) || !known.GetName()) return text;
+  return text + " (" + known.GetName() + ")";
+}
+
 }  // namespace
 
 // An image with functional groups (enhanced, usually multi-frame) must name its orientation
@@ -579,6 +606,17 @@ void checkImageHeader(const std::string& file) {
   if (!head.ReadUpToTag(kPixelData, {kPixelData}))
     throw FormatError(file, "GDCM cannot read it as DICOM (corrupt header)");
   const gdcm::DataSet& ds = head.GetFile().GetDataSet();
+  // GDCM's image reader asserts (Debian builds keep assertions) where it should fail on a
+  // transfer syntax it does not know, or a Media Storage SOP Class that is not an image when the
+  // SOP Class UID names none it knows (found by the DICOM fuzz target: MR Spectroscopy).
+  const gdcm::FileMetaInformation& meta = head.GetFile().GetHeader();
+  if (meta.GetDataSetTransferSyntax() == gdcm::TransferSyntax::TS_END)
+    throw FormatError(file, "names a transfer syntax GDCM does not know");
+  const gdcm::MediaStorage storage = meta.GetMediaStorage();
+  if (storage != gdcm::MediaStorage::MS_END && !gdcm::MediaStorage::IsImage(storage) &&
+      !gdcm::MediaStorage::IsImage(ds.GetMediaStorage()))
+    throw FormatError(file, "is not an image: its Media Storage SOP Class (0002,0002) is " +
+                                uidName(gdcm::MediaStorage::GetMSString(storage)));
   const gdcm::Tag recognition(0x0008, 0x0010);
   if (ds.FindDataElement(recognition) && !ds.GetDataElement(recognition).IsEmpty()) {
     const gdcm::ByteValue* bv = ds.GetDataElement(recognition).GetByteValue();
