@@ -28,10 +28,11 @@ void RawInputOptions::addTo(CLI::App& app) {
                  "DICOM input only: the Series Instance UID to read when the folder holds several "
                  "(without it such a folder is refused with a list of its series)");
   app.add_option("--dicom-image", dicomImage,
-                 "DICOM input only: which image of an enhanced multi-frame file that holds "
-                 "several (echoes, image types, stacks, time points), from 1 in the order of "
-                 "their first frames; without it such a file is refused with a list of its "
-                 "images")
+                 "DICOM input only: which image of a series or enhanced file that holds "
+                 "several at each position (echoes, image types, b-values, stacks), from 1 in "
+                 "the order of their first slices; without it such a series is refused with a "
+                 "list of its images (`info` lists them). Repeats that differ only in time are "
+                 "time steps, not images")
       ->check(CLI::PositiveNumber);
   app.add_flag("--resample-tilt", resampleTilt,
                "DICOM input only: resample a series acquired with a gantry tilt (its slices "

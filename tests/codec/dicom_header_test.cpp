@@ -54,6 +54,19 @@ std::string withMetaUid(std::string bytes, char element, std::string uid) {
   return bytes;
 }
 
+// Replaces the value of the data set's element `tag` (explicit VR, a 2-byte length) with `value`,
+// padded with a space to an even length.
+std::string withValue(std::string bytes, const std::string& tag, std::string value) {
+  if (value.size() % 2) value.push_back(' ');
+  const std::size_t at = bytes.rfind(tag);
+  EXPECT_NE(at, std::string::npos);
+  if (at == std::string::npos) return bytes;
+  const std::size_t old = std::uint8_t(bytes[at + 6]) | std::uint8_t(bytes[at + 7]) << 8;
+  bytes.replace(at + 8, old, value);
+  bytes[at + 6] = char(value.size()), bytes[at + 7] = 0;
+  return bytes;
+}
+
 }  // namespace
 
 TEST(DicomHeader, TheFramesReadBeforeAnyEdit) {
@@ -96,4 +109,36 @@ TEST(DicomHeader, ATransferSyntaxGdcmDoesNotKnowIsRefused) {
   writeFile(file, withMetaUid(readFile(file), '\x10', "1.2.840.10008.1.2.1.77"));
   expectFormatError([&] { codec::readVolume(file); }, file,
                     "uses transfer syntax 1.2.840.10008.1.2.1.77, which GDCM does not know");
+}
+
+// A palette colour image without its colour tables: GDCM asserted. Any palette image holds
+// indices, not values: refused.
+TEST(DicomHeader, APaletteColourImageIsRefused) {
+  TempDir dir;
+  const std::string file = writeFrames(dir, "palette.dcm");
+  writeFile(file, withValue(readFile(file),
+                            std::string("\x28\x00\x04\x00"
+                                        "CS",
+                                        6),
+                            "PALETTE COLOR"));
+  expectFormatError([&] { codec::readVolume(file); }, file,
+                    "has Photometric Interpretation PALETTE COLOR; voxwall reads greyscale DICOM");
+}
+
+// A JPEG frame GDCM's codecs do not know (a progressive frame of 16 bits): GDCM asserted.
+TEST(DicomHeader, AJpegFrameGdcmDoesNotDecodeIsRefused) {
+  TempDir dir;
+  voxwall::test::DicomSlice s;
+  s.columns = 6, s.rows = 5, s.syntax = voxwall::test::DicomSyntax::JpegLossless;
+  for (int i = 0; i < 30; ++i) s.pixels.push_back(std::int16_t(i * 9));
+  const std::string file = dir.path("progressive.dcm");
+  voxwall::test::writeDicom(file, s);
+  EXPECT_EQ(codec::readVolume(file).dims, glm::ivec3(6, 5, 1));
+  std::string bytes = readFile(file);
+  const std::size_t sof = bytes.find("\xff\xc3", bytes.rfind(std::string("\xe0\x7f\x10\x00", 4)));
+  ASSERT_NE(sof, std::string::npos);
+  bytes[sof + 1] = char(0xc2);
+  writeFile(file, bytes);
+  expectFormatError([&] { codec::readVolume(file); }, file,
+                    "its JPEG stream is a kind of frame GDCM does not decode (SOF2 of 16 bits)");
 }

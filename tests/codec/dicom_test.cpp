@@ -224,10 +224,12 @@ TEST(Dicom, AMissingSliceUnequalGapsAndDuplicatesAreNamed) {
   writeDicom(dir.path("uneven/odd"), odd);
   expectFormatError([&] { readVolume(dir.path("uneven")); }, dir.path("uneven"), "unequal gaps");
 
-  odd.position = uneven.origin;  // where the first slice already is
+  // Where the first slice already is: one position repeats, the others do not (not a time
+  // series, whose every position repeats as often).
+  odd.position = uneven.origin;
   writeDicom(dir.path("uneven/odd"), odd);
   expectFormatError([&] { readVolume(dir.path("uneven")); }, dir.path("uneven"),
-                    "lie at the same position");
+                    "repeats its positions unequally: 2 slices at the position of ");
 }
 
 TEST(Dicom, MixedSizesAndOrientationsNameTheFile) {

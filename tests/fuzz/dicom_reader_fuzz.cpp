@@ -33,9 +33,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     voxwall::codec::DicomOptions options;
     options.resampleTilt = size % 2 == 1;
-    options.image = int(size % 3);  // none, the first or the second image of an enhanced file
+    options.image = int(size % 3);  // none, the first or the second image of a series
     options.warn = [](const std::string&) {};
-    (void)voxwall::codec::readDicom(dir.string(), options);
+    (void)voxwall::codec::listDicomImages(dir.string(), options);
+    // Every time step of the picked image (one for a series whose positions do not repeat).
+    const voxwall::codec::DicomInput series(dir.string(), options);
+    for (int k = 0; k < series.steps(); ++k) (void)series.read(k);
   } catch (const voxwall::FormatError&) {
   }
   return 0;

@@ -1,6 +1,7 @@
 // Writes the DICOM reader fuzzer's seeds: make_dicom_seeds DIR. Each seed is a folder's files
 // joined by "\nSPLIT\n" (dicom_reader_fuzz.cpp): a small CT series, compressed slices, a
-// multi-frame file, an enhanced MR of two images.
+// multi-frame file, an enhanced MR of two images, a time series of slices, an enhanced file of
+// two time points.
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,9 @@
 
 namespace {
 
+namespace fs = std::filesystem;
+using namespace voxwall::test;
+
 std::string slurp(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::stringstream s;
@@ -19,31 +23,20 @@ std::string slurp(const std::string& path) {
   return s.str();
 }
 
-}  // namespace
+DicomSlice seedSlice(int k, DicomSyntax syntax) {
+  DicomSlice s;
+  s.columns = 6, s.rows = 5;
+  for (int i = 0; i < 30; ++i) s.pixels.push_back(std::int16_t(i * 7 + k * 3 - 20));
+  s.position = {0, 0, 2.0 * k};
+  s.slope = 2, s.intercept = -1024;
+  s.syntax = syntax;
+  return s;
+}
 
-int main(int argc, char** argv) {
-  using namespace voxwall::test;
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: make_dicom_seeds DIR\n");
-    return 2;
-  }
-  const std::filesystem::path dir = argv[1];
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) {
-    std::fprintf(stderr, "make_dicom_seeds: %s: %s\n", argv[1], ec.message().c_str());
-    return 1;
-  }
-  const std::string scratch = (dir / "scratch.dcm").string();
-  auto slice = [](int k, DicomSyntax syntax) {
-    DicomSlice s;
-    s.columns = 6, s.rows = 5;
-    for (int i = 0; i < 30; ++i) s.pixels.push_back(std::int16_t(i * 7 + k * 3 - 20));
-    s.position = {0, 0, 2.0 * k};
-    s.slope = 2, s.intercept = -1024;
-    s.syntax = syntax;
-    return s;
-  };
+// Series of three slices in each transfer syntax, a multi-frame file and a time series of
+// slices: two positions, two time points told apart by trigger time and instance, and an echo
+// time (an image key) on every slice.
+void writeSliceSeeds(const fs::path& dir, const std::string& scratch) {
   const std::pair<const char*, DicomSyntax> series[] = {{"explicit", DicomSyntax::ExplicitLittle},
                                                         {"rle", DicomSyntax::Rle},
                                                         {"jpegls", DicomSyntax::JpegLs},
@@ -52,19 +45,30 @@ int main(int argc, char** argv) {
   for (const auto& [name, syntax] : series) {
     std::string joined;
     for (int k = 0; k < 3; ++k) {
-      writeDicom(scratch, slice(k, syntax));
+      writeDicom(scratch, seedSlice(k, syntax));
       joined += (k ? "\nSPLIT\n" : "") + slurp(scratch);
     }
     std::ofstream(dir / name, std::ios::binary) << joined;
   }
-  DicomSlice multi = slice(0, DicomSyntax::ExplicitLittle);
+  DicomSlice multi = seedSlice(0, DicomSyntax::ExplicitLittle);
   multi.frames = 2, multi.isUnsigned = true, multi.slope = 1;
   multi.pixels.clear();
   for (int i = 0; i < 60; ++i) multi.pixels.push_back(std::int16_t(i));
   writeDicom(scratch, multi);
   std::ofstream(dir / "multiframe", std::ios::binary) << slurp(scratch);
-  // An enhanced MR of two images (frame types, a rescale each) at two positions, geometry in
-  // the functional groups only.
+  std::string steps;
+  for (int k = 0; k < 4; ++k) {
+    DicomSlice s = seedSlice(k % 2, DicomSyntax::ExplicitLittle);
+    s.modality = "MR", s.instance = k + 1, s.triggerTime = 40.0 * (k / 2), s.echoTime = 12;
+    writeDicom(scratch, s);
+    steps += (k ? "\nSPLIT\n" : "") + slurp(scratch);
+  }
+  std::ofstream(dir / "timeseries", std::ios::binary) << steps;
+}
+
+// An enhanced MR of two images (frame types, a rescale each) at two positions, geometry in the
+// functional groups only; and the same frames as two time points of one image.
+void writeEnhancedSeeds(const fs::path& dir, const std::string& scratch) {
   EnhancedImage enhanced;
   enhanced.columns = 6, enhanced.rows = 5;
   enhanced.pixelSpacing = {0.8, 0.9};
@@ -79,6 +83,28 @@ int main(int argc, char** argv) {
     }
   writeEnhancedDicom(scratch, enhanced);
   std::ofstream(dir / "enhanced", std::ios::binary) << slurp(scratch);
-  std::filesystem::remove(scratch);
+  for (EnhancedFrame& f : enhanced.frames) f.temporalIndex = f.imageIndex, f.imageIndex = 1;
+  writeEnhancedDicom(scratch, enhanced);
+  std::ofstream(dir / "enhanced-time", std::ios::binary) << slurp(scratch);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: make_dicom_seeds DIR\n");
+    return 2;
+  }
+  const fs::path dir = argv[1];
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "make_dicom_seeds: %s: %s\n", argv[1], ec.message().c_str());
+    return 1;
+  }
+  const std::string scratch = (dir / "scratch.dcm").string();
+  writeSliceSeeds(dir, scratch);
+  writeEnhancedSeeds(dir, scratch);
+  fs::remove(scratch);
   return 0;
 }

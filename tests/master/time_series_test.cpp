@@ -15,6 +15,7 @@
 #include <voxwall/core/image.hpp>
 
 #include "support/cli_run.hpp"
+#include "support/dicom_writer.hpp"
 #include "support/image_expect.hpp"
 #include "support/temp_dir.hpp"
 
@@ -101,6 +102,36 @@ TEST(TimeSeries, ARealFmriSeriesRoundTripsLosslessly) {
   EXPECT_NE(r.out.find("2 steps of 128x96x24 int16"), std::string::npos) << r.out;
   expectStepsDecompressTo(vwz, 2, dir, [&](int k) { return codec::readNiftiStep(fmri, k); });
   EXPECT_FALSE(codec::readNiftiStep(fmri, 0).data == codec::readNiftiStep(fmri, 1).data);
+}
+
+// A DICOM fMRI export (2 positions x 3 volumes, ordered only by their instance numbers): `info`
+// tells its steps, `compress` makes one .vwz of them, each step decompresses to the DICOM read of
+// that step; a single volume of it is refused in one line.
+TEST(TimeSeries, ADicomFmriFolderCompressesIntoOneFileOfItsSteps) {
+  test::TempDir dir;
+  std::filesystem::create_directories(dir.path("fmri"));
+  for (int k = 0; k < 6; ++k) {
+    test::DicomSlice s;
+    s.modality = "MR", s.columns = 8, s.rows = 6;
+    for (int i = 0; i < 48; ++i) s.pixels.push_back(std::int16_t(i + 100 * k));
+    s.position = {0, 0, 3.0 * (k % 2)};
+    s.instance = k + 1;
+    test::writeDicom(dir.path("fmri/IM" + std::to_string(5 - k)), s);
+  }
+  const CliRun info = runVoxwall("info " + dir.path("fmri"));
+  ASSERT_EQ(info.status, 0) << info.out;
+  EXPECT_NE(info.out.find("steps       3 time steps of 2 slices, ordered by instance number"),
+            std::string::npos)
+      << info.out;
+  const std::string vwz = dir.path("fmri.vwz");
+  const CliRun r = runVoxwall("compress -q " + dir.path("fmri") + " -o " + vwz + " --codec raw");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("3 steps of 8x6x2 int16"), std::string::npos) << r.out;
+  const codec::DicomInput input(dir.path("fmri"), {});
+  expectStepsDecompressTo(vwz, 3, dir, [&](int k) { return input.read(k); });
+  EXPECT_EQ(input.read(2).valueAt(0), 400);  // step 2, position 0: instance 5
+  expectOneLineError(runVoxwall("render " + dir.path("fmri") + " --out " + dir.path("x.png")),
+                     "voxwall: " + dir.path("fmri") + ": holds 3 time steps of 2 slices");
 }
 
 TEST(TimeSeries, AFilePatternAndAFileListCompressInNumberOrder) {

@@ -63,6 +63,39 @@ void rewritePosition(const std::string& path, const glm::dvec3& p, int decimals)
   if (!writer.Write()) throw std::runtime_error("GDCM cannot rewrite " + path);
 }
 
+// A text value (padded to an even length) or a binary one.
+void putValue(gdcm::DataSet& ds, const gdcm::Tag& tag, gdcm::VR vr, std::string bytes) {
+  if (bytes.size() % 2) bytes += vr == gdcm::VR::UI ? '\0' : ' ';
+  gdcm::DataElement de(tag);
+  de.SetVR(vr);
+  de.SetByteValue(bytes.data(), std::uint32_t(bytes.size()));
+  ds.Replace(de);
+}
+
+std::string decimal(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+void putRepeatKeys(gdcm::DataSet& ds, const DicomSlice& s) {
+  if (!s.imageType.empty()) putValue(ds, gdcm::Tag(0x0008, 0x0008), gdcm::VR::CS, s.imageType);
+  if (!s.acquisitionTime.empty())
+    putValue(ds, gdcm::Tag(0x0008, 0x0032), gdcm::VR::TM, s.acquisitionTime);
+  if (s.echoTime >= 0) putValue(ds, gdcm::Tag(0x0018, 0x0081), gdcm::VR::DS, decimal(s.echoTime));
+  if (s.echoNumber > 0)
+    putValue(ds, gdcm::Tag(0x0018, 0x0086), gdcm::VR::IS, std::to_string(s.echoNumber));
+  if (s.triggerTime >= 0)
+    putValue(ds, gdcm::Tag(0x0018, 0x1060), gdcm::VR::DS, decimal(s.triggerTime));
+  if (s.bValue >= 0) {
+    std::string bytes(8, '\0');
+    std::memcpy(bytes.data(), &s.bValue, 8);
+    putValue(ds, gdcm::Tag(0x0018, 0x9087), gdcm::VR::FD, bytes);
+  }
+  if (s.temporalPosition > 0)
+    putValue(ds, gdcm::Tag(0x0020, 0x0100), gdcm::VR::IS, std::to_string(s.temporalPosition));
+}
+
 }  // namespace
 
 void writeDicom(const std::string& path, const DicomSlice& s) {
@@ -94,10 +127,11 @@ void writeDicom(const std::string& path, const DicomSlice& s) {
   auto put = [&ds](auto attribute) { ds.Replace(attribute.GetAsDataElement()); };
   // GDCM picks the SOP class from the modality: CT Image Storage, or for frames (which CT Image
   // Storage cannot hold) Multi-frame Grayscale Word Secondary Capture, which needs unsigned pixels.
-  put(gdcm::Attribute<0x0008, 0x0060>{multi ? "OT" : "CT"});
+  put(gdcm::Attribute<0x0008, 0x0060>{multi ? "OT" : s.modality.c_str()});
   put(gdcm::Attribute<0x0008, 0x103e>{s.description.c_str()});
   put(gdcm::Attribute<0x0020, 0x000e>{s.seriesUid.c_str()});
   put(gdcm::Attribute<0x0020, 0x0013>{s.instance});
+  putRepeatKeys(ds, s);
   writer.GetFile().GetHeader().SetDataSetTransferSyntax(
       gdcm::TransferSyntax::ExplicitVRLittleEndian);
   gdcm::ImageChangeTransferSyntax change;
@@ -177,11 +211,12 @@ void writeEnhancedDicom(const std::string& path, const EnhancedImage& e) {
   const std::string sopClass =
       ct ? "1.2.840.10008.5.1.4.1.1.2.1" : "1.2.840.10008.5.1.4.1.1.4.1";  // Enhanced CT / MR
   ds.Insert(text(gdcm::Tag(0x0008, 0x0016), gdcm::VR::UI, sopClass));
-  ds.Insert(text(gdcm::Tag(0x0008, 0x0018), gdcm::VR::UI, e.seriesUid + ".1"));
+  ds.Insert(text(gdcm::Tag(0x0008, 0x0018), gdcm::VR::UI,
+                 e.seriesUid + "." + std::to_string(e.instance)));
   ds.Insert(text(gdcm::Tag(0x0008, 0x0060), gdcm::VR::CS, e.modality));
   ds.Insert(text(gdcm::Tag(0x0020, 0x000d), gdcm::VR::UI, e.seriesUid + ".0"));
   ds.Insert(text(gdcm::Tag(0x0020, 0x000e), gdcm::VR::UI, e.seriesUid));
-  ds.Insert(text(gdcm::Tag(0x0020, 0x0013), gdcm::VR::IS, "1"));
+  ds.Insert(text(gdcm::Tag(0x0020, 0x0013), gdcm::VR::IS, std::to_string(e.instance)));
   const std::uint16_t one = 1, rows = std::uint16_t(e.rows), columns = std::uint16_t(e.columns),
                       sixteen = 16, fifteen = 15;
   ds.Insert(binary(gdcm::Tag(0x0028, 0x0002), gdcm::VR::US, &one, 2));
@@ -222,7 +257,12 @@ void writeEnhancedDicom(const std::string& path, const EnhancedImage& e) {
     content.Insert(binary(gdcm::Tag(0x0020, 0x9157), gdcm::VR::UL, index, sizeof index));
     content.Insert(text(gdcm::Tag(0x0020, 0x9056), gdcm::VR::SH, f.stackId));
     content.Insert(binary(gdcm::Tag(0x0020, 0x9057), gdcm::VR::UL, &f.stackPosition, 4));
+    if (f.temporalIndex > 0)
+      content.Insert(binary(gdcm::Tag(0x0020, 0x9128), gdcm::VR::UL, &f.temporalIndex, 4));
     frame.Insert(sequenceOf(gdcm::Tag(0x0020, 0x9111), {content}));
+    if (f.triggerTime >= 0)
+      frame.Insert(wrap(gdcm::Tag(0x0018, 0x9118),
+                        binary(gdcm::Tag(0x0020, 0x9153), gdcm::VR::FD, &f.triggerTime, 8)));
     frame.Insert(
         wrap(gdcm::Tag(0x0020, 0x9113), text(gdcm::Tag(0x0020, 0x0032), gdcm::VR::DS,
                                              numbers({f.position.x, f.position.y, f.position.z}))));

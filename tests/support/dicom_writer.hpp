@@ -30,6 +30,15 @@ struct DicomSlice {
   // >= 0: Image Position (Patient) written with this many digits after the point (a scanner's
   // rounding), trailing zeros dropped; -1: as GDCM writes the double.
   int positionDecimals = -1;
+  std::string modality = "CT";  // a single frame: CT or MR (GDCM picks the SOP class from it)
+  // What tells repeats at one position apart, written when not empty, 0 or negative.
+  std::string imageType;        // Image Type (0008,0008)
+  int echoNumber = 0;           // Echo Numbers (0018,0086)
+  double echoTime = -1;         // Echo Time (0018,0081), ms
+  double bValue = -1;           // Diffusion b-value (0018,9087)
+  double triggerTime = -1;      // Trigger Time (0018,1060), ms
+  int temporalPosition = 0;     // Temporal Position Identifier (0020,0100)
+  std::string acquisitionTime;  // Acquisition Time (0008,0032): HHMMSS.FFFFFF
 };
 
 // Writes one DICOM file (CT Image Storage, or Multi-frame Grayscale Word SC for frames > 1,
@@ -47,6 +56,8 @@ struct EnhancedFrame {
   std::uint32_t imageIndex = 1;     // first Dimension Index Value (the image, e.g. its type)
   std::uint32_t stackPosition = 1;  // second: In-Stack Position Number
   std::string stackId = "1";
+  std::uint32_t temporalIndex = 0;  // Frame Content's Temporal Position Index; 0: not written
+  double triggerTime = -1;          // Cardiac Synchronization's Nominal Cardiac Trigger Delay Time
 };
 
 // An enhanced CT or MR image (Enhanced CT/MR Image Storage): geometry in the Shared (orientation,
@@ -61,6 +72,7 @@ struct EnhancedImage {
   std::vector<EnhancedFrame> frames;
   bool dimensionIndex = true;  // write the Dimension Index Sequence (image, in-stack position)
   std::string seriesUid = "1.2.826.0.1.3680043.2.1125.7";
+  int instance = 1;  // Instance Number (also makes the SOP Instance UID)
 };
 void writeEnhancedDicom(const std::string& path, const EnhancedImage& image);
 

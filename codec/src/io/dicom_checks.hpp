@@ -3,12 +3,18 @@
 // allocate far more than the file holds. Also the parsing of DICOM text values both files use.
 #pragma once
 
+#include <gdcmTag.h>
+
 #include <cstdint>
 #include <iosfwd>
 #include <string>
 #include <vector>
 
 namespace voxwall::codec::dicom {
+
+// The image attributes the checks read.
+inline const gdcm::Tag kRows{0x0028, 0x0010}, kColumns{0x0028, 0x0011}, kSamples{0x0028, 0x0002},
+    kBitsAllocated{0x0028, 0x0100}, kPixelData{0x7fe0, 0x0010};
 
 // A text value without DICOM's padding (spaces, NUL after UIDs); empty for nullptr.
 std::string trimmed(const char* value);

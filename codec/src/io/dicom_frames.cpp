@@ -172,9 +172,10 @@ std::vector<FrameGeometry> enhancedFrames(const std::string& file, int frames) {
         std::string others;
         for (std::size_t i = 0; i < index.size(); ++i) {
           const std::uint32_t pointer = pointers[i];
-          if (pointer == tagKey(kInStackPosition) || pointer == tagKey(kPosition)) continue;
-          if (pointer == tagKey(kTemporalIndex) || pointer == tagKey(kTriggerTime))
-            g.temporal = true;
+          // Time is not what tells images apart: it orders an image's frames into time steps.
+          if (pointer == tagKey(kInStackPosition) || pointer == tagKey(kPosition) ||
+              pointer == tagKey(kTemporalIndex) || pointer == tagKey(kTriggerTime))
+            continue;
           others += (others.empty() ? "" : ",") + std::to_string(index[i]);
         }
         part("dimension index", others);
@@ -182,7 +183,7 @@ std::vector<FrameGeometry> enhancedFrames(const std::string& file, int frames) {
       if (const auto stack = bytesOf(*content, kStackId)) part("stack", trimmed(stack->c_str()));
       if (const auto time = bytesOf(*content, kTemporalIndex)) {
         const auto t = ulValues(*time);
-        if (!t.empty()) part("temporal position", std::to_string(t.front())), g.temporal = true;
+        if (!t.empty()) g.temporalIndex = double(t.front());
       }
     }
     for (const gdcm::Tag& seq : {kMrFrameType, kCtFrameType})
@@ -190,8 +191,8 @@ std::vector<FrameGeometry> enhancedFrames(const std::string& file, int frames) {
     if (const auto echo = frameDouble(own, kMrEcho, kEchoTime)) part("echo time", *echo);
     if (const auto b = frameDouble(own, kDiffusion, kBValue)) part("b-value", *b);
     if (const auto trigger = frameDouble(own, kCardiacSync, kTriggerTime)) {
-      part("trigger time", *trigger);
-      g.temporal = true;
+      const auto ms = numbersOf(*trigger);
+      if (ms.size() == 1) g.triggerTime = ms[0];
     }
   }
   return out;

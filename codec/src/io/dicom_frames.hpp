@@ -3,6 +3,7 @@
 // io/dicom.cpp: where each frame lies, its pixel size and rescale, and which image it belongs to.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -19,10 +20,12 @@ struct FrameGeometry {
   bool rescaled = false;             // Pixel Value Transformation given
   double slope = 1, intercept = 0;
   // What tells the frame's image apart from the file's others: its dimension index values other
-  // than the in-stack position's, its stack, frame type, echo time, b-value and temporal
-  // position. Frames of one image have the same `image`; `label` says it in words.
+  // than the in-stack position's and the temporal ones, its stack, frame type, echo time and
+  // b-value. Frames of one image have the same `image`; `label` says it in words.
   std::string image, label;
-  bool temporal = false;  // a temporal position (index, trigger time) is part of `image`
+  // Where the frame lies in time (NaN: not given): Temporal Position Index, Trigger Time (ms).
+  double temporalIndex = std::numeric_limits<double>::quiet_NaN();
+  double triggerTime = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The frames of `file`, `frames` of them, from its functional groups; empty when it has no

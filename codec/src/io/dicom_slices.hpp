@@ -5,6 +5,7 @@
 #pragma once
 
 #include <glm/vec3.hpp>
+#include <limits>
 #include <string>
 #include <vector>
 #include <voxwall/codec/volume.hpp>
@@ -12,15 +13,31 @@
 
 namespace voxwall::codec::dicom {
 
-// What the scanner found of one image file.
+// What the scanner found of one image file, or of one frame of an enhanced multi-frame file.
 struct SliceHeader {
   std::string file, series;
   int columns = 0, rows = 0, frames = 1, samples = 1;
   std::vector<double> position, orientation;
   glm::dvec3 ipp{0};
-  double along = 0;   // ipp projected on the slice normal
-  int frame = -1;     // a frame of an enhanced multi-frame file: which (from 0)
-  int decimals = 16;  // the digits after the point its Image Position (Patient) was written with
+  double along = 0;    // ipp projected on the slice normal
+  int frame = -1;      // a frame of an enhanced multi-frame file: which (from 0)
+  std::string source;  // a frame: the file that holds it (`file` then names the frame)
+  int decimals = 16;   // the digits after the point its Image Position (Patient) was written with
+  // What tells the slice's image apart from the series' others (image type, echo, b-value, an
+  // enhanced frame's dimension index values, stack and frame type), as a key and in words.
+  std::string image, label;
+  // What orders slices at one position in time, in this order of precedence (NaN: not given):
+  // temporal position, trigger time (ms), acquisition time and content time (s of the day),
+  // Instance Number.
+  enum TimeKey { kTemporalPosition, kTriggerTime, kAcquisitionTime, kContentTime, kInstance };
+  static constexpr int kTimeKeys = 5;
+  static constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
+  double time[kTimeKeys] = {kNone, kNone, kNone, kNone, kNone};
+  // A frame's own Pixel Measures and Pixel Value Transformation (enhanced files).
+  std::vector<double> pixelSpacing;  // rows apart, columns apart (mm); empty: not given
+  double sliceThickness = 0;
+  bool rescaled = false;
+  double slope = 1, intercept = 0;
 };
 
 // The patient directions of a series' rows, columns and slice normal.

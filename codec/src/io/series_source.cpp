@@ -81,7 +81,9 @@ std::vector<SeriesSource::Step> patternSteps(const std::string& path) {
 std::vector<SeriesSource::Step> volumesOf(const std::string& path, int count,
                                           SeriesSource::Kind kind) {
   std::vector<SeriesSource::Step> steps;
-  const std::string name = std::filesystem::path(path).filename().string();
+  std::filesystem::path named(path);
+  if (!named.has_filename()) named = named.parent_path();  // a folder given as "dicom/"
+  const std::string name = named.filename().string();
   for (int k = 0; k < count; ++k)
     steps.push_back({name + " step " + std::to_string(k), path, k, kind});
   return steps;
@@ -89,8 +91,9 @@ std::vector<SeriesSource::Step> volumesOf(const std::string& path, int count,
 
 }  // namespace
 
-SeriesSource::SeriesSource(std::vector<Step> steps, ReadOptions options)
-    : steps_(std::move(steps)), options_(std::move(options)) {
+SeriesSource::SeriesSource(std::vector<Step> steps, ReadOptions options,
+                           std::shared_ptr<const DicomInput> dicom)
+    : steps_(std::move(steps)), options_(std::move(options)), dicom_(std::move(dicom)) {
   if (steps_.empty()) throw std::invalid_argument("a series of no steps");
   if (steps_.size() > kMaxSteps)
     throw std::invalid_argument(std::to_string(steps_.size()) +
@@ -114,6 +117,8 @@ std::unique_ptr<VolumeSource> SeriesSource::read(int k, Progress& progress) cons
         return slabSource(step.file, *slab, progress);
       return memorySource(readVolumeStep(step.file, step.index));
     }
+    case Kind::DicomStep:
+      return memorySource(dicom_->read(step.index));
     case Kind::File:
       break;
   }
@@ -176,6 +181,13 @@ std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOpti
   }
   if (isStepPattern(path)) return std::make_unique<SeriesSource>(patternSteps(path), options);
   std::error_code ec;
+  if (!options.isRaw() && std::filesystem::exists(path, ec) &&
+      volumeFormatOf(path) == VolumeFormat::Dicom) {
+    auto dicom = std::make_shared<const DicomInput>(path, options.dicom);
+    if (dicom->steps() <= 1) return nullptr;
+    return std::make_unique<SeriesSource>(
+        volumesOf(path, dicom->steps(), SeriesSource::Kind::DicomStep), options, std::move(dicom));
+  }
   if (!options.isRaw() && std::filesystem::is_regular_file(path, ec)) {
     const int count = volumeStepCount(path);
     if (count <= 1) return nullptr;

@@ -87,9 +87,42 @@ void printContainer(const std::string& path) {
   if (c) printCodecLines(file, *c);
 }
 
+// A DICOM input: its images when the series holds several, then the picked image's time steps
+// and step 0.
+void printDicom(const InfoOptions& o) {
+  const codec::DicomOptions options = o.raw.readOptions().dicom;
+  const auto images = codec::listDicomImages(o.input, options);
+  std::printf("file        %s\n", o.input.c_str());
+  if (images.size() > 1) {
+    std::printf("images      %zu (read one with --dicom-image N)\n", images.size());
+    for (std::size_t i = 0; i < images.size(); ++i) {
+      const codec::DicomImageInfo& image = images[i];
+      std::printf("  %zu: %s, %d slices", i + 1, image.label.c_str(), image.slices);
+      if (image.steps > 1)
+        std::printf(", %d time steps ordered by %s", image.steps, image.orderedBy.c_str());
+      std::printf("\n");
+    }
+    if (options.image == 0) return;
+  }
+  const codec::DicomInput input(o.input, options);
+  if (input.steps() > 1)
+    std::printf("steps       %s (step 0 below; `voxwall compress` makes one .vwz of them)\n",
+                input.describeSteps().c_str());
+  codec::Volume v = input.read(0);
+  o.raw.applyOverrides(v);
+  printVolumeLines(v.dims, v.type, v.spacing, v.orientation, v.valueMin, v.valueMax);
+  std::printf("size        %s uncompressed\n", humanBytes(double(v.data.size())).c_str());
+}
+
 void runInfo(const InfoOptions& o) {
   if (o.raw.dims.empty() && codec::isContainerFile(o.input)) {
     printContainer(o.input);
+    return;
+  }
+  std::error_code ec;
+  if (o.raw.dims.empty() && std::filesystem::exists(o.input, ec) &&
+      codec::volumeFormatOf(o.input) == codec::VolumeFormat::Dicom) {
+    printDicom(o);
     return;
   }
   if (o.raw.dims.empty() && std::filesystem::is_regular_file(o.input) &&

@@ -1,4 +1,5 @@
-// A time series of volumes read one step at a time: a 4D NIfTI file (dim[4] the steps), a file
+// A time series of volumes read one step at a time: a 4D NIfTI or NRRD file, a DICOM series
+// whose positions repeat in time (DicomInput), a file
 // pattern ("sim_%04d.nrrd": every file in its folder the pattern prints, in the order of their
 // numbers), a list of 3D files, or a raw file holding several volumes one after the other. Every
 // step must agree with step 0 on size, type and spacing; the first that does not is named in one
@@ -22,9 +23,9 @@ struct SeriesInput {
 
 class SeriesSource {
  public:
-  // Where a step's voxels are: a file of its own, or one volume of a 4D NIfTI or NRRD file or of
-  // a raw file of several volumes (read with the ReadOptions' raw layout).
-  enum class Kind { File, FileVolume, RawVolume };
+  // Where a step's voxels are: a file of its own, or one volume of a 4D NIfTI or NRRD file, of
+  // a raw file of several volumes (read with the ReadOptions' raw layout) or of a DICOM series.
+  enum class Kind { File, FileVolume, RawVolume, DicomStep };
   struct Step {
     std::string name;  // "sim_0003.nrrd", or "fmri.nii.gz step 3"
     std::string file;  // the file it is read from
@@ -32,7 +33,9 @@ class SeriesSource {
     Kind kind = Kind::File;
   };
 
-  SeriesSource(std::vector<Step> steps, ReadOptions options);
+  // `dicom`: the scanned series DicomStep steps are read from.
+  SeriesSource(std::vector<Step> steps, ReadOptions options,
+               std::shared_ptr<const DicomInput> dicom = nullptr);
   int steps() const { return int(steps_.size()); }
   const std::string& stepName(int k) const { return steps_.at(std::size_t(k)).name; }
   // Step k, read in slabs where the format allows (volume_source.hpp), else whole. Throws
@@ -44,6 +47,7 @@ class SeriesSource {
   std::unique_ptr<VolumeSource> read(int k, Progress& progress) const;
   std::vector<Step> steps_;
   ReadOptions options_;
+  std::shared_ptr<const DicomInput> dicom_;
   mutable bool haveFirst_ = false;
   mutable glm::ivec3 dims_{0};
   mutable ScalarType type_ = ScalarType::UInt8;
@@ -52,9 +56,9 @@ class SeriesSource {
 
 // Whether `path` is a file pattern: it holds a printf integer conversion (%d, %04d, %3d).
 bool isStepPattern(const std::string& path);
-// The series `path` and `input` name, or null when they name one volume: a NIfTI file of one
-// step, any other file, no --time-files and no --time. Throws FormatError for a pattern no file
-// matches and std::invalid_argument for inputs that contradict each other.
+// The series `path` and `input` name, or null when they name one volume: a NIfTI file or DICOM
+// series of one step, any other file, no --time-files and no --time. Throws FormatError for a
+// pattern no file matches and std::invalid_argument for inputs that contradict each other.
 std::unique_ptr<SeriesSource> openSeries(const std::string& path, const ReadOptions& options,
                                          const SeriesInput& input);
 

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -83,10 +84,42 @@ Volume readSliceStack(const std::string& path);
 // slices sorted by their position along the slice normal. Rescale Slope/Intercept are applied:
 // int16 when every slice's rescale is integral and the values fit, float32 otherwise; unscaled
 // uint8/uint16/int16 keep their type. Refuses, in one line naming the file or the series: several
-// series without `options.series`, slices of different sizes or orientations, two slices at one
-// position, a missing slice or unequal gaps, a gantry tilt (unless options.resampleTilt), colour
-// images, and files GDCM cannot decode.
+// series without `options.series`, several images (echoes, image types, b-values) without
+// `options.image`, a time series (DicomInput reads it), slices of different sizes or
+// orientations, positions that repeat unequally or that nothing tells apart, a missing slice or
+// unequal gaps, a gantry tilt (unless options.resampleTilt), colour images, and files GDCM cannot
+// decode.
 Volume readDicom(const std::string& path, const DicomOptions& options = {});
+
+// A DICOM series scanned once: the image `options` picks and its time steps, read one at a time.
+// A series whose positions repeat, one image (same image type, echo, b-value), is a time series:
+// each position's slices ordered by the first of temporal position, trigger time, acquisition
+// time, content time and Instance Number that tells all of them apart (an enhanced file's frames
+// by their temporal position index or trigger time, then the file's Instance Number and the
+// frames' order), step k taking the k-th of each. Throws FormatError as readDicom does.
+class DicomInput {
+ public:
+  DicomInput(const std::string& path, const DicomOptions& options);
+  int steps() const;
+  // "3 time steps of 48 slices, ordered by instance number"; empty for one step.
+  std::string describeSteps() const;
+  Volume read(int step) const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+};
+
+// One image of a DICOM series: what tells it from the others (empty for a series of one), its
+// slices a step, its time steps and what ordered them.
+struct DicomImageInfo {
+  std::string label;
+  int slices = 0, steps = 1;
+  std::string orderedBy;
+};
+// The images of the series `options.series` names (or the only one) under `path`.
+std::vector<DicomImageInfo> listDicomImages(const std::string& path,
+                                            const DicomOptions& options = {});
 
 // One series of a DICOM folder, as listed when the folder holds several.
 struct DicomSeriesInfo {
