@@ -106,8 +106,8 @@ TEST(TimeSeries, ARealFmriSeriesRoundTripsLosslessly) {
 
 // A DICOM fMRI export (2 positions x 3 volumes, ordered only by their instance numbers): `info`
 // tells its steps, `compress` makes one .vwz of them, each step decompresses to the DICOM read of
-// that step; a single volume of it is refused in one line.
-TEST(TimeSeries, ADicomFmriFolderCompressesIntoOneFileOfItsSteps) {
+// that step; a single volume of it is refused in one line. Echoes are listed as images.
+TEST(TimeSeries, ADicomFmriFolderCompressesIntoOneFileAndEchoesAreListedAsImages) {
   test::TempDir dir;
   std::filesystem::create_directories(dir.path("fmri"));
   for (int k = 0; k < 6; ++k) {
@@ -132,6 +132,24 @@ TEST(TimeSeries, ADicomFmriFolderCompressesIntoOneFileOfItsSteps) {
   EXPECT_EQ(input.read(2).valueAt(0), 400);  // step 2, position 0: instance 5
   expectOneLineError(runVoxwall("render " + dir.path("fmri") + " --out " + dir.path("x.png")),
                      "voxwall: " + dir.path("fmri") + ": holds 3 time steps of 2 slices");
+  // The same slices as three echoes: images, listed by `info`, never time steps.
+  std::filesystem::create_directories(dir.path("echoes"));
+  for (int k = 0; k < 6; ++k) {
+    test::DicomSlice s;
+    s.modality = "MR", s.columns = 8, s.rows = 6, s.pixels.assign(48, std::int16_t(k));
+    s.position = {0, 0, 3.0 * (k % 2)};
+    s.instance = k + 1, s.echoNumber = k / 2 + 1;
+    test::writeDicom(dir.path("echoes/IM" + std::to_string(k)), s);
+  }
+  const CliRun images = runVoxwall("info " + dir.path("echoes"));
+  ASSERT_EQ(images.status, 0) << images.out;
+  EXPECT_NE(images.out.find("images      3 (read one with --dicom-image N)\n  1: echo 1, 2 "
+                            "slices\n  2: echo 2, 2 slices\n  3: echo 3, 2 slices\n"),
+            std::string::npos)
+      << images.out;
+  const CliRun third = runVoxwall("info " + dir.path("echoes") + " --dicom-image 3");
+  ASSERT_EQ(third.status, 0) << third.out;
+  EXPECT_NE(third.out.find("values      4 .. 5"), std::string::npos) << third.out;
 }
 
 TEST(TimeSeries, AFilePatternAndAFileListCompressInNumberOrder) {
