@@ -154,6 +154,44 @@ TEST(SinkHardening, OneJobAtATimeAndANewJobStartsANewFrameSequence) {
   }
 }
 
+// Whoever said a running job's id joined it: a second controller beside rank 0's, a rank twice,
+// a rank past the job's count. Now a place of the job (its controller, a rank) is held by one
+// connection: a new one for it is that place reconnecting and replaces the old (which hears why);
+// a rank count other than the job's is refused.
+TEST(SinkHardening, AJobHasOneControllerEachRankOnceAndOneRankCount) {
+  test::SinkRunner sink(test::twoDisplaySink());
+  auto rank0 = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 2, 333), 2000);
+  net::Hello control{net::Role::Controller, 0, 2, "t2x1", ""};
+  control.jobId = 333;
+  auto controller = net::Connection::open("127.0.0.1", sink.port(), control, 2000);
+  try {
+    net::Connection::open("127.0.0.1", sink.port(), rendererHello(2, 3, 333), 2000);
+    ADD_FAILURE() << "a rank of a job of 3 joined a job of 2";
+  } catch (const net::SinkRefused& e) {
+    EXPECT_NE(std::string(e.what()).find("says the job has 3 ranks where"), std::string::npos)
+        << e.what();
+  }
+  auto again = net::Connection::open("127.0.0.1", sink.port(), control, 2000);
+  auto rank0again = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 2, 333), 2000);
+  for (auto* old : {controller.get(), rank0.get()}) {
+    std::string bye;
+    try {
+      for (int i = 0; i < 500 && bye.empty(); ++i)
+        if (const auto m = old->receive(10); m && m->type == net::MessageType::Bye)
+          bye = net::decodeBye(m->payload, "sink").reason;
+    } catch (const net::NetError&) {
+      // closed after its Bye
+    }
+    EXPECT_EQ(bye, "replaced by a new connection of the same place");
+  }
+  auto rank1 = net::Connection::open("127.0.0.1", sink.port(), rendererHello(1, 2, 333), 2000);
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
+    return s.renderersConnected == 2 && s.controllerConnected;
+  })) << sink.log();
+  EXPECT_NE(sink.log().find("(controller) replaced by"), std::string::npos) << sink.log();
+  EXPECT_NE(sink.log().find("(rank 0) replaced by"), std::string::npos) << sink.log();
+}
+
 // A peer that says Hello with its job id and then nothing held the wall for its job forever:
 // every other render job was refused. A greeted peer silent for the peer-idle time is dropped,
 // and once its job has no peer left another job takes the wall.

@@ -119,7 +119,12 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
                      " has ended: a newer job took this wall");
     return false;
   }
-  if (job_ != hello.jobId) {
+  if (job_ == hello.jobId) {
+    if (const std::string why = joinProblem(peer, hello); !why.empty()) {
+      refuse(peer, peer.name() + ": " + why);
+      return false;
+    }
+  } else {
     if (job_) {
       // One job at a time: a running job keeps the wall; once all its peers are gone, the next
       // job takes it and the old one can never come back (its frame ids would mean nothing).
@@ -164,6 +169,32 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   for (const auto& d : wall.displays) welcome.displays.push_back(d.rect);
   peer.send(net::encodeMessage(welcome));
   return true;
+}
+
+// A job has one controller and each of its ranks once, all its peers agreeing on how many ranks
+// it has. The job's id is a secret only its ranks know (the sink never tells it), so a peer that
+// says it and a place the job has filled is that place reconnecting (its old connection not yet
+// found dead): it takes the place and the old connection is hung up on. A rank count other than
+// the job's is refused.
+std::string SinkCore::joinProblem(const net::Peer& peer, const net::Hello& hello) {
+  net::Peer* samePlace = nullptr;
+  for (net::Peer* other : peers_) {
+    if (other == &peer || !other->greeted() || other->hello().jobId != hello.jobId) continue;
+    const net::Hello& them = other->hello();
+    if (them.rankCount != hello.rankCount)
+      return "says the job has " + std::to_string(hello.rankCount) + " ranks where " +
+             other->name() + " says " + std::to_string(them.rankCount);
+    if (them.role == hello.role && (hello.role == net::Role::Controller || them.rank == hello.rank))
+      samePlace = other;
+  }
+  if (samePlace) {
+    say("sink: " + samePlace->name() + " replaced by " + peer.name() +
+        " (the same place of the job connected again)");
+    samePlace->send(net::encodeMessage(net::Bye{"replaced by a new connection of the same place"}));
+    samePlace->hangUp();
+    detach(*samePlace);
+  }
+  return "";
 }
 
 bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t frame,
