@@ -411,10 +411,11 @@ class MasterLoop {
     s.sinkNotes = control_->drainNotes();
     s.controlsPending = [channel = control_.get()] { return channel->pending(); };
     for (const auto& c : control_->drain()) {
-      // Play and pause change no picture: they count as no steering.
+      // Play and pause change no picture: they count as no steering; nor do step and seek in a
+      // job of one volume (the sink refuses them once it knows; one may arrive before).
       if (player_.take(c, now)) {
-        s.controls +=
-            c.command == net::ControlCommand::StepBy || c.command == net::ControlCommand::Seek;
+        s.controls += job_.time.count() > 1 && (c.command == net::ControlCommand::StepBy ||
+                                                c.command == net::ControlCommand::Seek);
       } else {
         ++s.controls;
         offset_.take(c, job_.path.at(f));

@@ -271,7 +271,9 @@ std::string controlProblem(const Control& m) {
   const double steps = double(kMaxPlaybackStep);
   switch (m.command) {
     case ControlCommand::Zoom:
-      if (!(m.a > 0)) return "zoom takes a factor above 0";
+      // A factor far from 1 (a denormal, 1e6) would put the camera at a distance no frame
+      // shows anything from.
+      if (!(m.a >= 1e-3 && m.a <= 1e3)) return "zoom takes a factor from 0.001 to 1000";
       break;
     case ControlCommand::StepBy:
       if (m.a != std::trunc(m.a) || std::abs(m.a) > steps)

@@ -316,6 +316,57 @@ TEST(Sink, ForwardsCameraCommandsToTheController) {
   EXPECT_EQ(got[1].command, net::ControlCommand::Zoom);
   EXPECT_THROW(walls::parseControlLine("spin 3"), std::invalid_argument);
   EXPECT_THROW(walls::parseControlLine("zoom -1"), std::invalid_argument);
+  // Numbers are decimal: hexadecimal, inf and nan are not numbers; a value too small for a
+  // double is a number (refused by the command's own range).
+  for (const char* line : {"seek 0x10", "zoom inf", "pan nan 0", "zoom 1.5f", "rotate 1,5 0"}) {
+    try {
+      walls::parseControlLine(line);
+      ADD_FAILURE() << line;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("is not a number"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(walls::parseControlLine("pan -.5 +2e-3").a, -0.5);
+  try {
+    walls::parseControlLine("zoom 4.9e-324");
+    ADD_FAILURE() << "a denormal zoom factor was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("zoom takes a factor from 0.001 to 1000"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// A job of one volume has no time: once it presented a frame without telling a time series,
+// play, pause, step and seek are refused at the sink in one line (they were taken as steering:
+// `seek 0` every 0.3 s reduced every frame); camera commands still go.
+TEST(Sink, TimeCommandsForAJobOfOneVolumeAreRefused) {
+  RunningSink sink(settings());
+  auto hello = renderer(0, 1);
+  hello.jobId = 41;
+  net::ControlChannel channel("127.0.0.1", sink.port(), hello);
+  auto rank = net::Connection::open("127.0.0.1", sink.port(), hello, 2000);
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.controllerConnected; }));
+  const auto tile = solidTile({0, 0, 44, 10}, 0x808080);
+  rank->send(net::encodeMessage(0, net::TileMessage{tile.rect, tile.codec, 0, tile.bytes}));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesPresented == 1; }))
+      << sink.log();
+  // (The sink settles the frame in the same io-thread step that counts it presented; commands
+  // are posted to that thread after it.)
+  for (const char* line : {"seek 0", "step 1", "play", "rotate 5 0"})
+    sink.sink().sendControl(walls::parseControlLine(line));
+  std::vector<net::Control> got;
+  test::waitUntil([&] {
+    auto more = channel.drain();
+    got.insert(got.end(), more.begin(), more.end());
+    return !got.empty();
+  });
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].command, net::ControlCommand::Rotate);
+  EXPECT_NE(sink.log().find("sink: the job renders one volume: play, pause, step and seek have "
+                            "no time to move"),
+            std::string::npos)
+      << sink.log();
 }
 
 // Time commands: a page's or stdin's play, pause, step and seek reach rank 0, and rank 0's

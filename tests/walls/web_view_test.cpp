@@ -384,7 +384,7 @@ TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
       {"binary", "binary messages are not taken"},
       {"oversized", ""},
       {"fly to the moon", "\"fly to the moon\": commands"},
-      {"zoom -1", "\"zoom -1\": zoom takes a factor above 0"},
+      {"zoom -1", "\"zoom -1\": zoom takes a factor from 0.001 to 1000"},
       {"rotate 1e308 1e308", "\"1e308\" is not a number within +-1e6"},
       {"zoom 2abc", "\"2abc\" is not a number"},
       {"rotate 1 2 3", "rotate takes 2 numbers"},

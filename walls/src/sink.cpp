@@ -8,8 +8,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <vector>
 #include <voxwall/core/errors.hpp>
@@ -206,8 +208,8 @@ void Sink::stop() {
 
 void Sink::sendControl(const net::Control& control) {
   asio::post(impl_->io, [this, control] {
-    if (!impl_->core->sendControl(control))
-      impl_->say("sink: no render job connected to take the command");
+    if (const std::string why = impl_->core->sendControl(control); !why.empty())
+      impl_->say("sink: " + why);
   });
 }
 
@@ -229,15 +231,18 @@ net::Control parseControlLine(const std::string& line) {
       "commands: rotate DAZ DEL | zoom FACTOR | pan DX DY | reset | play | pause | step N | "
       "seek STEP";
   const std::string quoted = quotedForLog(line);
+  // Decimal numbers only (strtod also takes hexadecimal, "inf" and "nan"); a value too small
+  // for a double (4.9e-324) is that small value, not an error.
   auto number = [&](const std::string& text) {
-    std::size_t used = 0;
+    static const std::regex decimal(R"([+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?)");
     double v = 0;
-    try {
-      v = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
+    bool ok = std::regex_match(text, decimal);
+    if (ok) {
+      errno = 0;
+      v = std::strtod(text.c_str(), nullptr);
+      ok = errno != ERANGE || std::abs(v) < 1;
     }
-    if (used != text.size() || !std::isfinite(v) || std::abs(v) > 1e6)
+    if (!ok || !std::isfinite(v) || std::abs(v) > 1e6)
       throw std::invalid_argument(quoted + ": " + quotedForLog(text, 24) +
                                   " is not a number within +-1e6 (" + usage + ")");
     return v;

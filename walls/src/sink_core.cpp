@@ -90,14 +90,21 @@ void SinkCore::onEvent(const FrameEvent& e) {
 }
 
 void SinkCore::frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note) {
+  if (job_ == job && note.status == net::FrameStatus::Presented) jobPresented_ = true;
   if (controller_ && job_ == job && controller_->hello().jobId == job)
     controller_->send(net::encodeMessage(frame, note));
 }
 
-bool SinkCore::sendControl(const net::Control& control) {
-  if (!controller_) return false;
+std::string SinkCore::sendControl(const net::Control& control) {
+  if (!controller_) return "no render job connected to take the command";
+  const bool time = control.command == net::ControlCommand::Play ||
+                    control.command == net::ControlCommand::Pause ||
+                    control.command == net::ControlCommand::StepBy ||
+                    control.command == net::ControlCommand::Seek;
+  if (time && jobPresented_ && !stats().playback)
+    return "the job renders one volume: play, pause, step and seek have no time to move";
   controller_->send(net::encodeMessage(control));
-  return true;
+  return "";
 }
 
 SinkStats SinkCore::stats() const {
@@ -151,6 +158,7 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
       assembler_.startSequence(hello.nextFrame, "");
     }
     job_ = hello.jobId;
+    jobPresented_ = false;
     updateStats([](SinkStats& s) { s.playback.reset(); });
   }
   peer.markGreeted(hello, peer.name() + (hello.role == net::Role::Controller

@@ -53,8 +53,10 @@ class SinkCore {
   // The presenter's word on a complete frame (presented, skipped, not written), told to the
   // job's controller; dropped or refused frames are told by the core itself.
   void frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note);
-  // Forwards a camera command to the current job's controller; false when none is connected.
-  bool sendControl(const net::Control& control);
+  // Forwards a command to the current job's controller. Returns why it did not: no controller
+  // connected, or a time command (play, pause, step, seek) for a job that renders one volume (it
+  // presented a frame and never told a time series); empty when sent.
+  std::string sendControl(const net::Control& control);
 
   // Thread-safe.
   SinkStats stats() const;
@@ -84,6 +86,7 @@ class SinkCore {
   std::set<net::Peer*> peers_;
   net::Peer* controller_ = nullptr;
   std::optional<std::uint64_t> job_;
+  bool jobPresented_ = false;  // a frame of the current job was presented
   std::set<std::uint64_t> endedJobs_;
   TokenGuard tokens_;  // the token and its back-off per address
   mutable std::mutex statsMutex_;
