@@ -142,6 +142,7 @@ std::unique_ptr<net::TileStreamer> makeStreamer(const JobSettings& job, int rank
   hello.rank = rank, hello.rankCount = ranks;
   hello.wallId = job.stream->wallId, hello.token = job.stream->token;
   auto streamer = std::make_unique<net::TileStreamer>(job.stream->host, job.stream->port, hello);
+  streamer->expectScreen(job.width, job.height, job.stream->displays);
   if (job.clock) streamer->setClock(job.clock);
   return streamer;
 }
@@ -384,6 +385,14 @@ class MasterLoop {
     summary.writeSeconds = writer_.totalWriteSeconds();
   }
 
+  // Rank 0 of a streaming job whose frames reached the sink: why the sink presented none of
+  // `frames` (waiting up to `wait` for its notes), or empty when it presented one.
+  std::string nothingPresented(int frames, std::chrono::milliseconds wait) {
+    if (!control_ || control_->waitForPresented(std::uint64_t(frames), wait)) return "";
+    const auto notes = control_->drainNotes();
+    return notes.empty() ? "the sink said nothing of them" : notes.back();
+  }
+
  private:
   // A steered job with a frame budget predicts what a full frame costs before it renders one,
   // so that its first steered frame keeps the budget: rank 0 renders the first frame's view at
@@ -571,6 +580,15 @@ JobSummary runRenderJob(Communicator& comm, node::Backend& backend,
   if (job.stream && summary.framesRendered > 0 && !reached)
     throw net::NetError(sinkName + ": none of the " + std::to_string(summary.framesRendered) +
                         " frame(s) reached it (" + missed + ")");
+  // Tiles that reached the sink may still not show (a frame dropped incomplete, refused): a
+  // job none of whose frames the sink presented fails too.
+  if (job.stream && summary.framesRendered > 0) {
+    const auto wait =
+        std::chrono::milliseconds(std::int64_t(1000 * std::min(10.0, job.stream->deadlineSeconds)));
+    if (const std::string why = loop.nothingPresented(summary.framesRendered, wait); !why.empty())
+      throw net::NetError(sinkName + ": it presented none of the " +
+                          std::to_string(summary.framesRendered) + " frame(s) (" + why + ")");
+  }
   summary.seconds = since(jobStart);
   return summary;
 }

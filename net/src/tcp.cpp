@@ -1,3 +1,5 @@
+#include <algorithm>
+#include <tuple>
 #include <utility>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/net/asio.hpp>
@@ -206,6 +208,10 @@ bool TileStreamer::ensureConnected() {
   ++connectAttempts_;
   try {
     auto connection = Connection::open(host_, port_, hello_, connectTimeoutMs_);
+    if (const std::string why = screenMismatch(connection->welcome()); !why.empty()) {
+      lastError_ = refused_ = connection->name() + ": " + why;
+      return false;  // the connection closes: the sink sees the peer leave
+    }
     cut_ = connection->welcome().cut();
     backoff_ = std::chrono::milliseconds(100);
     {
@@ -225,6 +231,41 @@ bool TileStreamer::ensureConnected() {
     backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(5000));
     return false;
   }
+}
+
+void TileStreamer::expectScreen(int width, int height, std::vector<voxwall::Rect> displays) {
+  expectWidth_ = width, expectHeight_ = height;
+  expectDisplays_ = std::move(displays);
+}
+
+std::string TileStreamer::screenMismatch(const Welcome& welcome) const {
+  if (expectWidth_ <= 0) return "";
+  const auto size = [](int w, int h) { return std::to_string(w) + "x" + std::to_string(h); };
+  if (welcome.screenWidth != expectWidth_ || welcome.screenHeight != expectHeight_)
+    return "the sink's wall " + welcome.wallId + " is a " +
+           size(welcome.screenWidth, welcome.screenHeight) + " screen where this job renders " +
+           size(expectWidth_, expectHeight_) + " (not the same wall file?)";
+  if (expectDisplays_.empty()) return "";
+  const auto sorted = [](std::vector<voxwall::Rect> rects) {
+    std::sort(rects.begin(), rects.end(), [](const voxwall::Rect& a, const voxwall::Rect& b) {
+      return std::tie(a.y, a.x, a.width, a.height) < std::tie(b.y, b.x, b.width, b.height);
+    });
+    return rects;
+  };
+  const auto theirs = sorted(welcome.displays), ours = sorted(expectDisplays_);
+  if (theirs.size() != ours.size())
+    return "the sink's wall " + welcome.wallId + " has " + std::to_string(theirs.size()) +
+           " displays where this job's has " + std::to_string(ours.size()) +
+           " (not the same wall file?)";
+  for (std::size_t i = 0; i < ours.size(); ++i)
+    if (theirs[i].x != ours[i].x || theirs[i].y != ours[i].y || theirs[i].width != ours[i].width ||
+        theirs[i].height != ours[i].height)
+      return "the sink's wall " + welcome.wallId + " has a display at " +
+             std::to_string(theirs[i].x) + "," + std::to_string(theirs[i].y) + " of " +
+             size(theirs[i].width, theirs[i].height) + " where this job's has one at " +
+             std::to_string(ours[i].x) + "," + std::to_string(ours[i].y) + " of " +
+             size(ours[i].width, ours[i].height) + " (not the same wall file?)";
+  return "";
 }
 
 bool TileStreamer::beginFrame(std::uint64_t frame) {
@@ -356,6 +397,12 @@ std::vector<Control> ControlChannel::drain() {
   return out;
 }
 
+bool ControlChannel::waitForPresented(std::uint64_t frames, std::chrono::milliseconds wait) {
+  std::unique_lock lock(mutex_);
+  wake_.wait_for(lock, wait, [&] { return stop_ || presented_ > 0 || noted_ >= frames; });
+  return presented_ > 0;
+}
+
 bool ControlChannel::stopsWithin(std::chrono::milliseconds wait) {
   std::unique_lock lock(mutex_);
   return wake_.wait_for(lock, wait, [&] { return stop_; });
@@ -389,11 +436,15 @@ bool ControlChannel::serve(Connection& c) {
       queue_.push_back(control);
     } else if (m->type == MessageType::FrameNote) {
       const auto note = decodeFrameNote(m->payload, c.name());
-      std::lock_guard lock(mutex_);
-      if (note.status == FrameStatus::Presented)
-        ++presented_;
-      else if (notes_.size() < 1024)
-        notes_.push_back("sink: " + describe(m->frame, note));
+      {
+        std::lock_guard lock(mutex_);
+        ++noted_;
+        if (note.status == FrameStatus::Presented)
+          ++presented_;
+        else if (notes_.size() < 1024)
+          notes_.push_back("sink: " + describe(m->frame, note));
+      }
+      wake_.notify_all();
     } else if (m->type == MessageType::Bye) {
       // A Bye after the job was accepted: the sink ended it (another job took the wall).
       const auto bye = decodeBye(m->payload, c.name());

@@ -481,3 +481,32 @@ TEST(Stream, BatchJobsNeverAbandonOrRefine) {
   ASSERT_TRUE(waitSettled(*sink, 3)) << sink->log();
   EXPECT_EQ(sink->sink().stats().framesSuperseded, 0);
 }
+
+// A wall file with the sink's wall id but other displays (or another screen): the job showed no
+// frame and exited 0. Rank 0's streamer compares the sink's Welcome with its own wall: the job
+// fails at once, in one line that says what differs.
+TEST(Stream, AWallOtherThanTheSinksFailsTheJob) {
+  test::TempDir dir;
+  auto sink = startSink(dir.path("out"));
+  auto job = streamJob(sink->port(), net::TileCodec::Raw, 3);
+  for (const auto& d : wall().displays) job.stream->displays.push_back(d.rect);
+  job.stream->displays[1].width -= 2;
+  try {
+    runStreamingJob(1, job);
+    ADD_FAILURE() << "a job for other displays ran";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("the sink's wall mini has a display at"),
+              std::string::npos)
+        << e.what();
+  }
+  job.stream->displays.clear();
+  job.width += 4;
+  try {
+    runStreamingJob(1, job);
+    ADD_FAILURE() << "a job for another screen ran";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("screen where this job renders"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(sink->sink().stats().framesPresented, 0);
+}

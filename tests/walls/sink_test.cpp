@@ -150,6 +150,25 @@ TEST(Sink, DropsTheOldestWhenTooManyFramesAreOpen) {
   EXPECT_EQ(sink.sink().stats().framesPresented, 0);
 }
 
+// Rank 0 hears whether the sink presented any frame of its job (a job none of whose frames was
+// presented fails): frames dropped are noted but not presented; a whole frame is.
+TEST(Sink, TheControllerHearsWhetherAFrameWasPresented) {
+  auto s = settings();
+  s.pendingFrames = 2;
+  RunningSink sink(s);
+  net::ControlChannel channel("127.0.0.1", sink.port(), renderer(0, 1));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.controllerConnected; }));
+  auto c = net::Connection::open("127.0.0.1", sink.port(), renderer(0, 1), 2000);
+  const auto half = solidTile({0, 0, 22, 10}, 0x123456);
+  for (std::uint64_t frame : {1, 2, 3})
+    c->send(net::encodeMessage(frame, net::TileMessage{half.rect, half.codec, 0, half.bytes}));
+  EXPECT_FALSE(channel.waitForPresented(1, std::chrono::seconds(10)));  // frame 1 dropped
+  EXPECT_EQ(channel.framesPresented(), 0u);
+  const auto whole = solidTile({0, 0, 44, 10}, 0x808080);
+  c->send(net::encodeMessage(4, net::TileMessage{whole.rect, whole.codec, 0, whole.bytes}));
+  EXPECT_TRUE(channel.waitForPresented(100, std::chrono::seconds(10))) << sink.log();
+}
+
 // A frame the render job abandoned (the camera moved while it rendered) is dropped as
 // superseded, whichever rank says so first; its late tiles do not bring it back, the next frame
 // is shown, and a controller cannot abandon frames.

@@ -131,35 +131,8 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
       refuse(peer, peer.name() + ": " + why);
       return false;
     }
-  } else {
-    if (job_) {
-      // One job at a time: a running job keeps the wall; once all its peers are gone, the next
-      // job takes it and the old one can never come back (its frame ids would mean nothing).
-      int running = 0;
-      for (const net::Peer* other : peers_)
-        running += other != &peer && other->greeted() && other->hello().jobId == *job_;
-      if (running > 0) {
-        // The running job's id is its peers' secret (whoever says it joins the job): the log
-        // names it, the refused peer hears only that a job is showing.
-        const std::string showing = " is showing on this wall (" + std::to_string(running) +
-                                    " peer(s) connected); try again when it ends";
-        say("sink: refused " + peer.name() + ": job " + jobName(*job_) + showing);
-        refuseQuietly(peer, peer.name() + ": a job" + showing);
-        return false;
-      }
-      const std::string why =
-          "job " + jobName(*job_) + " ended; job " + jobName(hello.jobId) + " took the wall";
-      say("sink: " + why);
-      endedJobs_.insert(*job_);
-      if (endedJobs_.size() > kEndedJobsKept) endedJobs_.erase(endedJobs_.begin());
-      assembler_.startSequence(hello.nextFrame, why);
-    } else {
-      say("sink: job " + jobName(hello.jobId) + " started");
-      assembler_.startSequence(hello.nextFrame, "");
-    }
-    job_ = hello.jobId;
-    jobPresented_ = false;
-    updateStats([](SinkStats& s) { s.playback.reset(); });
+  } else if (!takeWall(peer, hello)) {
+    return false;
   }
   peer.markGreeted(hello, peer.name() + (hello.role == net::Role::Controller
                                              ? " (controller)"
@@ -176,6 +149,40 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   net::Welcome welcome{wall.id, wall.width, wall.height, {}, settings_.mosaic};
   for (const auto& d : wall.displays) welcome.displays.push_back(d.rect);
   peer.send(net::encodeMessage(welcome));
+  return true;
+}
+
+// A peer of another job than the running one: its job takes the wall once the running job has
+// no peer left; false (the peer refused) while it has.
+bool SinkCore::takeWall(net::Peer& peer, const net::Hello& hello) {
+  if (job_) {
+    // One job at a time: a running job keeps the wall; once all its peers are gone, the next
+    // job takes it and the old one can never come back (its frame ids would mean nothing).
+    int running = 0;
+    for (const net::Peer* other : peers_)
+      running += other != &peer && other->greeted() && other->hello().jobId == *job_;
+    if (running > 0) {
+      // The running job's id is its peers' secret (whoever says it joins the job): the log
+      // names it, the refused peer hears only that a job is showing.
+      const std::string showing = " is showing on this wall (" + std::to_string(running) +
+                                  " peer(s) connected); try again when it ends";
+      say("sink: refused " + peer.name() + ": job " + jobName(*job_) + showing);
+      refuseQuietly(peer, peer.name() + ": a job" + showing);
+      return false;
+    }
+    const std::string why =
+        "job " + jobName(*job_) + " ended; job " + jobName(hello.jobId) + " took the wall";
+    say("sink: " + why);
+    endedJobs_.insert(*job_);
+    if (endedJobs_.size() > kEndedJobsKept) endedJobs_.erase(endedJobs_.begin());
+    assembler_.startSequence(hello.nextFrame, why);
+  } else {
+    say("sink: job " + jobName(hello.jobId) + " started");
+    assembler_.startSequence(hello.nextFrame, "");
+  }
+  job_ = hello.jobId;
+  jobPresented_ = false;
+  updateStats([](SinkStats& s) { s.playback.reset(); });
   return true;
 }
 

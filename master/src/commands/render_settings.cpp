@@ -118,6 +118,7 @@ std::optional<master::StreamSettings> streamSettings(const RenderOptions& o,
   std::tie(st.host, st.port) = net::parseEndpoint(o.sink, "--sink");
   st.token = o.token;
   st.wallId = wall->id;
+  for (const auto& d : wall->displays) st.displays.push_back(d.rect);
   if (!(o.sinkDeadline > 0) || !std::isfinite(o.sinkDeadline))
     throw std::invalid_argument("--sink-deadline must be a positive number of seconds");
   st.deadlineSeconds = o.sinkDeadline;

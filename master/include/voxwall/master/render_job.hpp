@@ -29,6 +29,9 @@ struct StreamSettings {
   std::string host;
   std::uint16_t port = 0;
   std::string token, wallId;
+  // The wall's displays (the job's screen is JobSettings' width x height): a sink whose Welcome
+  // shows another screen or other displays is refused, and the job fails.
+  std::vector<voxwall::Rect> displays;
   glm::dvec3 background{0.0};  // JPEG has no alpha: tiles are composited onto this
   net::TileCodecSettings codec;
   // A job whose tiles have not reached the sink (from every rank that had tiles) for this long

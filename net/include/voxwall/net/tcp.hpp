@@ -92,9 +92,15 @@ class TileStreamer {
   // The clock the reconnect back-off reads (default: the steady clock): a test advances its own
   // instead of waiting the back-off out. The keeper's KeepAlive interval stays on the real clock.
   void setClock(std::function<Clock::time_point()> clock) { clock_ = std::move(clock); }
+  // The screen this job renders and its displays (empty: only the screen is compared): a sink
+  // whose Welcome shows another is refused for good, as a sink's own refusal is (a wall file
+  // with the sink's wall id but other displays showed nothing and the job exited 0).
+  void expectScreen(int width, int height, std::vector<voxwall::Rect> displays);
 
  private:
   bool ensureConnected();
+  // Why the sink's Welcome does not show this job's screen; empty when it does.
+  std::string screenMismatch(const Welcome& welcome) const;
   // Sends one whole message (the keeper may send between two); throws NetError when the
   // connection is gone.
   void send(std::span<const std::byte> bytes);
@@ -112,6 +118,8 @@ class TileStreamer {
   int connectAttempts_ = 0;
   std::string lastError_, refused_;
   DisplayCut cut_;
+  int expectWidth_ = 0, expectHeight_ = 0;  // 0: not compared
+  std::vector<voxwall::Rect> expectDisplays_;
   std::uint64_t bytesSent_ = 0;
   bool sending_ = false;  // between a beginFrame that connected and endFrame or a failed send
   std::uint64_t frame_ = 0;
@@ -142,6 +150,9 @@ class ControlChannel {
   std::vector<std::string> drainNotes();
   std::string refused() const;            // empty while the sink has not refused the job
   std::uint64_t framesPresented() const;  // frames of this job the sink said it presented
+  // Waits up to `wait` until the sink has said something of `frames` frames (presented,
+  // dropped, refused, superseded) or presented one; whether it presented any.
+  bool waitForPresented(std::uint64_t frames, std::chrono::milliseconds wait);
   // The frame the job renders next: a (re)connection announces it in its Hello.
   void setNextFrame(std::uint64_t frame);
   // Where a time series job is from `frame` on: sent when it differs from the last one sent
@@ -160,10 +171,10 @@ class ControlChannel {
   Hello hello_;
   int keepAliveMs_;
   mutable std::mutex mutex_;
-  std::condition_variable wake_;  // told when stop_ is set
+  std::condition_variable wake_;  // told when stop_ is set or a frame note arrives
   std::deque<Control> queue_;
   std::vector<std::string> notes_;
-  std::uint64_t presented_ = 0;
+  std::uint64_t presented_ = 0, noted_ = 0;  // notes of presented frames, of any
   std::optional<Playback> playback_;
   std::uint64_t playbackFrame_ = 0, playbackVersion_ = 0;
   std::string refused_;

@@ -71,6 +71,7 @@ class SinkCore {
  private:
   bool greet(net::Peer& peer, std::span<const std::byte> payload);
   std::string joinProblem(const net::Peer& peer, const net::Hello& hello);
+  bool takeWall(net::Peer& peer, const net::Hello& hello);
   // The token check with its per-address back-off; false when the peer was refused.
   bool tokenAccepted(net::Peer& peer, const net::Hello& hello);
   void refuseQuietly(net::Peer& peer, const std::string& reason);
