@@ -211,8 +211,8 @@ Welcome decodeWelcome(std::span<const std::byte> payload, const std::string& sou
 TileMessage decodeTileMessage(std::span<const std::byte> payload, const std::string& source);
 FrameEnd decodeFrameEnd(std::span<const std::byte> payload, const std::string& source);
 Control decodeControl(std::span<const std::byte> payload, const std::string& source);
-// Why a command's numbers are out of its bounds ("zoom takes a factor from 0.001 to 1000"); empty when
-// they are within them.
+// Why a command's numbers are out of its bounds ("zoom takes a factor from 0.001 to 1000"); empty
+// when they are within them.
 std::string controlProblem(const Control& m);
 Bye decodeBye(std::span<const std::byte> payload, const std::string& source);
 FrameNote decodeFrameNote(std::span<const std::byte> payload, const std::string& source);
