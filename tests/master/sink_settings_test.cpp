@@ -41,6 +41,7 @@ TEST(SinkSettings, Defaults) {
   EXPECT_EQ(s.maxPeers, 256);
   EXPECT_EQ(s.helloTimeoutMs, 5000);
   EXPECT_EQ(s.peerIdleMs, 30000);
+  EXPECT_EQ(s.jobIdleMs, 300000);
   EXPECT_TRUE(s.httpHost.empty());
   EXPECT_EQ(s.maxViewers, 64);
   EXPECT_EQ(s.maxDisplayPages, 0);
@@ -109,6 +110,7 @@ TEST(SinkSettings, ValuesOutsideTheirRangeAreRefusedNamingTheOption) {
           "--hello-timeout-ms must be in [1, 600000]");
   refused([](SinkOptions& o) { o.peerIdle = 5; }, "--peer-idle 5: expected 10 to 86400 seconds");
   refused([](SinkOptions& o) { o.peerIdle = std::nan(""); }, "--peer-idle");
+  refused([](SinkOptions& o) { o.jobIdle = 9; }, "--job-idle 9: expected 10 to 86400 seconds");
   refused([](SinkOptions& o) { o.pendingMiB = (1ull << 20) + 1; }, "--pending-mib is over 1 TiB");
   refused([](SinkOptions& o) { o.maxViewers = 4097; }, "--max-viewers must be in [1, 4096]");
   refused([](SinkOptions& o) { o.maxDisplayPages = -1; },

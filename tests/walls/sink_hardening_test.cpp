@@ -192,6 +192,42 @@ TEST(SinkHardening, AJobHasOneControllerEachRankOnceAndOneRankCount) {
   EXPECT_NE(sink.log().find("(rank 0) replaced by"), std::string::npos) << sink.log();
 }
 
+// A squatter (a Hello with a job id of its own, then only keep-alives) held the wall for ever:
+// every render was refused. A job that presents no frame for --job-idle gives the wall up to the
+// next job that asks; its peers hear why.
+TEST(SinkHardening, AJobThatPresentsNothingGivesTheWallUpAfterTheJobIdleTime) {
+  auto s = test::twoDisplaySink();
+  s.jobIdleMs = 300;
+  test::SinkRunner sink(s);
+  auto squatter = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 4, 501), 2000);
+  std::unique_ptr<net::Connection> next;
+  int refused = 0;
+  test::waitUntil([&] {
+    squatter->send(net::encodeKeepAlive());
+    try {
+      next = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 502), 2000);
+    } catch (const net::SinkRefused&) {
+      ++refused;  // the squatter's job is younger than --job-idle
+    }
+    return next != nullptr;
+  });
+  ASSERT_TRUE(next) << sink.log();
+  EXPECT_NE(sink.log().find("job 00000000000001f5 presented no frame for"), std::string::npos)
+      << sink.log();
+  std::string bye;
+  try {
+    for (int i = 0; i < 500 && bye.empty(); ++i)
+      if (const auto m = squatter->receive(10); m && m->type == net::MessageType::Bye)
+        bye = net::decodeBye(m->payload, "sink").reason;
+  } catch (const net::NetError&) {
+  }
+  EXPECT_EQ(bye,
+            "this job presented no frame for 0.3 s (--job-idle) and another job took the wall");
+  next->send(net::encodeMessage(0, wholeScreen()));
+  EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }))
+      << sink.log();
+}
+
 // A peer that says Hello with its job id and then nothing held the wall for its job forever:
 // every other render job was refused. A greeted peer silent for the peer-idle time is dropped,
 // and once its job has no peer left another job takes the wall.

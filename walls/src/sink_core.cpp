@@ -90,7 +90,10 @@ void SinkCore::onEvent(const FrameEvent& e) {
 }
 
 void SinkCore::frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note) {
-  if (job_ == job && note.status == net::FrameStatus::Presented) jobPresented_ = true;
+  if (job_ == job && note.status == net::FrameStatus::Presented) {
+    jobPresented_ = true;
+    jobShown_ = std::chrono::steady_clock::now();
+  }
   if (controller_ && job_ == job && controller_->hello().jobId == job)
     controller_->send(net::encodeMessage(frame, note));
 }
@@ -161,6 +164,7 @@ bool SinkCore::takeWall(net::Peer& peer, const net::Hello& hello) {
     int running = 0;
     for (const net::Peer* other : peers_)
       running += other != &peer && other->greeted() && other->hello().jobId == *job_;
+    if (running > 0 && endIdleJob(hello.jobId)) running = 0;
     if (running > 0) {
       // The running job's id is its peers' secret (whoever says it joins the job): the log
       // names it, the refused peer hears only that a job is showing.
@@ -182,7 +186,31 @@ bool SinkCore::takeWall(net::Peer& peer, const net::Hello& hello) {
   }
   job_ = hello.jobId;
   jobPresented_ = false;
+  jobShown_ = std::chrono::steady_clock::now();
   updateStats([](SinkStats& s) { s.playback.reset(); });
+  return true;
+}
+
+// The running job, when it has presented no frame for --job-idle, gives the wall up to job
+// `next`: its peers hear why and are hung up on. Whether it did.
+bool SinkCore::endIdleJob(std::uint64_t next) {
+  const auto idle = std::chrono::steady_clock::now() - jobShown_;
+  if (idle < std::chrono::milliseconds(settings_.jobIdleMs)) return false;
+  const std::string why =
+      "job " + jobName(*job_) + " presented no frame for " +
+      std::to_string(std::chrono::duration_cast<std::chrono::seconds>(idle).count()) +
+      " s (--job-idle); job " + jobName(next) + " asked for the wall";
+  say("sink: " + why);
+  std::vector<net::Peer*> old;
+  for (net::Peer* other : peers_)
+    if (other->greeted() && other->hello().jobId == *job_) old.push_back(other);
+  for (net::Peer* other : old) {
+    other->send(net::encodeMessage(net::Bye{"this job presented no frame for " +
+                                            formatLine("%g", settings_.jobIdleMs / 1e3) +
+                                            " s (--job-idle) and another job took the wall"}));
+    other->hangUp();
+    detach(*other);
+  }
   return true;
 }
 

@@ -66,6 +66,12 @@ void addPeerOptions(CLI::App& cmd, SinkOptions& o) {
                  "send, so a silent peer (a squatter, a hung rank) cannot hold the wall for its "
                  "job; once its job has no peer left, another job may take the wall")
       ->capture_default_str();
+  cmd.add_option("--job-idle", o.jobIdle,
+                 "Seconds (10 to 86400) after which a running job that has presented no frame "
+                 "(since it started or its last one) gives the wall up to another job that asks "
+                 "for it: longer than the longest honest frame (frames of 35 s were measured on "
+                 "a 2-core VM; a first frame also loads the volume)")
+      ->capture_default_str();
 }
 
 // The wall's web pages and the display pages' swap barrier.
@@ -126,6 +132,10 @@ walls::SinkSettings sinkSettings(const SinkOptions& o) {
                                 ": expected 10 to 86400 seconds (ranks send a keep-alive every "
                                 "5 s)");
   s.peerIdleMs = int(o.peerIdle * 1000);
+  if (!(o.jobIdle >= 10 && o.jobIdle <= 86400))
+    throw std::invalid_argument("--job-idle " + formatLine("%g", o.jobIdle) +
+                                ": expected 10 to 86400 seconds");
+  s.jobIdleMs = int(o.jobIdle * 1000);
   if (o.pendingMiB > (1u << 20)) throw std::invalid_argument("--pending-mib is over 1 TiB");
   s.pendingBytes = o.pendingMiB << 20;
   if (!o.http.empty()) {

@@ -18,6 +18,7 @@ struct SinkOptions {
   int maxViewers = 64, maxDisplayPages = 0, swapTimeoutMs = 500, writeQueue = 8;
   int swapLeadMs = 25;
   double peerIdle = 30;
+  double jobIdle = 300;
   std::uint64_t pendingMiB = 0;
   bool mosaic = false, quiet = false, noStdin = false;
 };

@@ -44,8 +44,12 @@ struct SinkSettings {
   int maxPeers = 256;                   // connections at once; more are refused
   int helloTimeoutMs = 5000;            // a peer that sends no Hello by then is dropped
   int peerIdleMs = 30000;               // a greeted peer silent this long is dropped
-  int viewerAuthTimeoutMs = 5000;       // WebViewSettings::authTimeoutMs
-  int viewerWriteTimeoutMs = 10000;     // WebViewSettings::writeTimeoutMs
+  // A running job that has presented no frame this long (since it started or its last one)
+  // gives the wall up to another job that asks for it: a squatter sending keep-alives, a job
+  // that never completes a frame, a rank left over after its job ended.
+  int jobIdleMs = 300000;
+  int viewerAuthTimeoutMs = 5000;    // WebViewSettings::authTimeoutMs
+  int viewerWriteTimeoutMs = 10000;  // WebViewSettings::writeTimeoutMs
   // The browser view (web_view.hpp): empty httpHost: none. The token above guards it too.
   std::string httpHost;
   std::uint16_t httpPort = 0;            // 0: any free port (see Sink::httpPort)

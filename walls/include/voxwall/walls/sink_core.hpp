@@ -72,6 +72,7 @@ class SinkCore {
   bool greet(net::Peer& peer, std::span<const std::byte> payload);
   std::string joinProblem(const net::Peer& peer, const net::Hello& hello);
   bool takeWall(net::Peer& peer, const net::Hello& hello);
+  bool endIdleJob(std::uint64_t next);
   // The token check with its per-address back-off; false when the peer was refused.
   bool tokenAccepted(net::Peer& peer, const net::Hello& hello);
   void refuseQuietly(net::Peer& peer, const std::string& reason);
@@ -87,7 +88,8 @@ class SinkCore {
   std::set<net::Peer*> peers_;
   net::Peer* controller_ = nullptr;
   std::optional<std::uint64_t> job_;
-  bool jobPresented_ = false;  // a frame of the current job was presented
+  bool jobPresented_ = false;                         // a frame of the current job was presented
+  std::chrono::steady_clock::time_point jobShown_{};  // the job's start or last presented frame
   std::set<std::uint64_t> endedJobs_;
   TokenGuard tokens_;  // the token and its back-off per address
   mutable std::mutex statsMutex_;
