@@ -55,6 +55,7 @@ struct Server::Impl {
     std::uint64_t frame = 0;
     bool closing = false, closed = false;
     std::deque<std::vector<std::byte>> outbox;
+    std::size_t outboxBytes = 0;
 
     static std::string nameOf(tcp::socket& socket) {
       asio::error_code ec;
@@ -163,6 +164,12 @@ struct Server::Impl {
 
     void send(std::vector<std::byte> bytes) override {
       if (closed) return;
+      // A write is in flight whenever the outbox holds bytes, and holds this session: dropping
+      // it here does not destroy it under the caller.
+      if (outboxBytes + bytes.size() > server.settings.maxOutboxBytes)
+        return drop("has " + std::to_string(outboxBytes) +
+                    " bytes waiting that it has not read (it does not read what it is sent)");
+      outboxBytes += bytes.size();
       outbox.push_back(std::move(bytes));
       if (outbox.size() == 1) writeNext();
     }
@@ -177,6 +184,7 @@ struct Server::Impl {
       asio::async_write(socket, asio::buffer(outbox.front()),
                         [self](asio::error_code ec, std::size_t) {
                           if (self->closed) return;
+                          self->outboxBytes -= self->outbox.front().size();
                           self->outbox.pop_front();
                           if (ec) return self->drop(ec.message());
                           if (!self->outbox.empty()) return self->writeNext();

@@ -194,6 +194,28 @@ TEST(Server, APeersBufferShrinksAfterALargeMessage) {
   EXPECT_LE(handler.bufferBytes.load(), std::size_t(1) << 20);
 }
 
+// A peer that never reads what it is sent (a controller that reads no frame notes) grew the
+// server's memory without bound: past maxOutboxBytes queued for it, it is dropped.
+TEST(Server, APeerThatReadsNothingItIsSentIsDropped) {
+  EchoHandler handler;
+  net::ServerSettings settings;
+  settings.maxOutboxBytes = 64u << 10;
+  RunningServer server(handler, settings);
+  auto client = net::Connection::open("127.0.0.1", server.port(), helloFor("w"), 2000);
+  // Controls the server echoes, far more than the socket buffers hold; the client reads none.
+  const auto one = net::encodeMessage(net::Control{net::ControlCommand::Rotate, 1, 2});
+  std::vector<std::byte> many;
+  for (int i = 0; i < 400000; ++i) many.insert(many.end(), one.begin(), one.end());
+  try {
+    client->send(many, 20000);
+  } catch (const net::NetError&) {
+    // the server hung up while the client still sent
+  }
+  ASSERT_TRUE(test::waitUntil([&] { return handler.drops == 1; }));
+  EXPECT_NE(handler.lastReason().find("it does not read what it is sent"), std::string::npos)
+      << handler.lastReason();
+}
+
 TEST(Server, SettingsThatCannotWorkAreRefused) {
   EchoHandler handler;
   asio::io_context io;

@@ -86,6 +86,9 @@ struct ServerSettings {
   int maxPeers = 256;         // connections at once; more are refused
   int helloTimeoutMs = 5000;  // a peer the handler has not greeted by then is dropped
   int peerIdleMs = 30000;     // a greeted peer that sends no byte for this long is dropped
+  // Bytes queued for a peer that does not read them (a controller's frame notes, replies): past
+  // this the peer is dropped, so no peer can grow the server's memory by not reading.
+  std::size_t maxOutboxBytes = std::size_t(8) << 20;
 };
 
 class Server {
