@@ -305,6 +305,17 @@ TEST(SinkHardening, AFrameIdFarAheadIsRefusedAndReportedAndCannotWedgeTheWall) {
   });
   ASSERT_FALSE(notes.empty());
   EXPECT_NE(notes[0].find("refused"), std::string::npos) << notes[0];
+  // A flood of them (77,127 log lines a second before): counted each, logged once in 10 s.
+  for (std::uint64_t f = 0; f < 300; ++f)
+    c->send(net::encodeMessage(~std::uint64_t(0) - f - 1, wholeScreen()));
+  ASSERT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesRefused == 301; }))
+      << sink.log();
+  const std::string log = sink.log();
+  std::size_t lines = 0;
+  for (auto at = log.find(" refused: frame id"); at != std::string::npos;
+       at = log.find(" refused: frame id", at + 1))
+    ++lines;
+  EXPECT_LE(lines, 2u) << log;
 }
 
 // under a descriptor limit, one failed accept ended accepting for good.

@@ -24,7 +24,7 @@
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/web_view.hpp>
 
-#include "log_throttle.hpp"
+#include <voxwall/walls/log_throttle.hpp>
 
 namespace voxwall::walls {
 

@@ -85,7 +85,14 @@ void SinkCore::onEvent(const FrameEvent& e) {
     if (e.note.status == net::FrameStatus::Refused) ++s.framesRefused;
     if (e.note.status == net::FrameStatus::Superseded) ++s.framesSuperseded;
   });
-  say(net::describe(e.frame, e.note));
+  // Refused frame ids are a peer's to send (ids outside the job's window, thousands a second):
+  // their lines are throttled; the controller still hears of each.
+  if (e.note.status == net::FrameStatus::Refused) {
+    const std::string line = refusedFrames_.line("frame", net::describe(e.frame, e.note));
+    if (!line.empty()) say(line);
+  } else {
+    say(net::describe(e.frame, e.note));
+  }
   if (controller_) controller_->send(net::encodeMessage(e.frame, e.note));
 }
 

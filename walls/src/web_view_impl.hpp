@@ -27,7 +27,7 @@
 #include <voxwall/walls/token_guard.hpp>
 #include <voxwall/walls/web_view.hpp>
 
-#include "log_throttle.hpp"
+#include <voxwall/walls/log_throttle.hpp>
 #include "web_messages.hpp"
 
 namespace voxwall::walls {

@@ -24,6 +24,7 @@
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/wire.hpp>
 #include <voxwall/walls/frame_assembler.hpp>
+#include <voxwall/walls/log_throttle.hpp>
 #include <voxwall/walls/sink.hpp>
 #include <voxwall/walls/token_guard.hpp>
 
@@ -91,7 +92,8 @@ class SinkCore {
   bool jobPresented_ = false;                         // a frame of the current job was presented
   std::chrono::steady_clock::time_point jobShown_{};  // the job's start or last presented frame
   std::set<std::uint64_t> endedJobs_;
-  TokenGuard tokens_;  // the token and its back-off per address
+  TokenGuard tokens_;          // the token and its back-off per address
+  LogThrottle refusedFrames_;  // frame ids peers send outside the window: a line every 10 s
   mutable std::mutex statsMutex_;
   SinkStats stats_;
 };

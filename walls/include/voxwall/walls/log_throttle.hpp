@@ -1,5 +1,5 @@
 // Refusals the sink's log tells at most once every 10 s per kind, with how many it did not tell
-// since: a flood of connections must not flood the log. Private to walls/src.
+// since: a flood of connections or of refused frames must not flood the log.
 #pragma once
 
 #include <chrono>
