@@ -5,6 +5,7 @@
 // is tests/web/display_pages_test.py.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <nlohmann/json.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/net/tile_codec.hpp>
@@ -84,6 +85,17 @@ std::unique_ptr<net::Connection> rank(std::uint16_t port, const std::string& tok
 
 }  // namespace
 
+namespace {
+
+// The time a page says it showed a frame at: now, in Unix milliseconds.
+std::string nowMs() {
+  return std::to_string(
+      std::chrono::duration<double, std::milli>(std::chrono::system_clock::now().time_since_epoch())
+          .count());
+}
+
+}  // namespace
+
 TEST(DisplayPages, ThePagesAndTheListWithLaunchLinesAreServed) {
   test::SinkRunner sink(webSink());
   const auto port = sink.sink().httpPort();
@@ -114,6 +126,48 @@ TEST(DisplayPages, ThePagesAndTheListWithLaunchLinesAreServed) {
   EXPECT_EQ(page.info()["swap_timeout_ms"], 500);
 }
 
+// A page that says an implausible time (1e308 once made a 300-digit spread) or none does not
+// forge or silence the swap log: the line counts it and spreads the times that are plausible.
+TEST(DisplayPages, TheSwapLogUsesOnlyPlausibleShownTimes) {
+  test::SinkRunner sink(webSink());
+  Page left(sink.sink().httpPort(), "r0c0"), right(sink.sink().httpPort(), "r0c1");
+  ASSERT_TRUE(left.open());
+  ASSERT_TRUE(right.open());
+  auto r = rank(sink.port());
+  sendFrame(*r, 0, 0x40);
+  const auto seqOf = [](Page& page) {
+    const auto meta = page.frame(nullptr);
+    return meta.is_null() ? std::uint64_t(0) : meta["seq"].get<std::uint64_t>();
+  };
+  const std::uint64_t seq = seqOf(left);
+  ASSERT_EQ(seqOf(right), seq);
+  for (Page* page : {&left, &right}) page->say("ready " + std::to_string(seq));
+  ASSERT_TRUE(left.shown(seq));
+  ASSERT_TRUE(right.shown(seq));
+  left.say("shown " + std::to_string(seq) + " " + nowMs());
+  right.say("shown " + std::to_string(seq) + " 1e308");
+  EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats&) {
+    return sink.log().find(
+               "frame 0 shown together on 2 display page(s), spread 0.0 ms, from "
+               "the times of 1 (1 said none or an implausible one)") != std::string::npos;
+  })) << sink.log();
+  // The right page now says nothing at all: each frame is still reported, 16 frames later.
+  for (std::uint64_t f = 1; f <= 17; ++f) {
+    sendFrame(*r, f, 0x40);
+    const std::uint64_t next = seqOf(left);
+    ASSERT_EQ(seqOf(right), next);
+    for (Page* page : {&left, &right}) page->say("ready " + std::to_string(next));
+    ASSERT_TRUE(left.shown(next));
+    ASSERT_TRUE(right.shown(next));
+    left.say("shown " + std::to_string(next) + " " + nowMs());
+  }
+  EXPECT_TRUE(sink.waitFor([&](const walls::SinkStats&) {
+    return sink.log().find(
+               "frame 1 shown together on 2 display page(s), spread 0.0 ms, from "
+               "the times of 1") != std::string::npos;
+  })) << sink.log();
+}
+
 TEST(DisplayPages, APageGetsItsDisplaysSegmentsAsTheRankSentThem) {
   test::SinkRunner sink(webSink());
   Page right(sink.sink().httpPort(), "r0c1");
@@ -136,7 +190,7 @@ TEST(DisplayPages, APageGetsItsDisplaysSegmentsAsTheRankSentThem) {
   const auto seq = meta["seq"].get<std::uint64_t>();
   right.say("ready " + std::to_string(seq));
   EXPECT_TRUE(right.shown(seq));
-  right.say("shown " + std::to_string(seq) + " 1733150000123.5");
+  right.say("shown " + std::to_string(seq) + " " + nowMs());
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) { return s.framesSwapped >= 1; }));
   ASSERT_TRUE(sink.waitFor([&](const walls::SinkStats&) {
     return sink.log().find("frame 0 shown together on 1 display page(s), spread 0.0 ms") !=

@@ -4,6 +4,8 @@
 // clang-format off
 #include <utility>
 // clang-format on
+#include <cmath>
+
 #include "web_messages.hpp"
 #include "web_view_impl.hpp"
 
@@ -37,20 +39,32 @@ void WebView::Impl::pageReady(Page page, std::uint64_t seq) {
 }
 
 void WebView::Impl::pageShown(Page page, std::uint64_t seq, double unixMs) {
-  for (auto& s : skews) {
-    if (s.seq != seq || !s.pages.erase(page)) continue;
-    s.unixMs.push_back(unixMs);
-    if (!s.pages.empty()) return;
-    const auto [lo, hi] = std::minmax_element(s.unixMs.begin(), s.unixMs.end());
-    swapStats.lastSpreadMs = *hi - *lo;
-    char line[160];
-    std::snprintf(line, sizeof line,
-                  "frame %llu shown together on %zu display page(s), spread %.1f ms",
-                  (unsigned long long)s.frame, s.unixMs.size(), swapStats.lastSpreadMs);
-    say(line);
-    reportSwap();
+  const double nowMs =
+      std::chrono::duration<double, std::milli>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
+  for (auto it = skews.begin(); it != skews.end(); ++it) {
+    if (it->seq != seq || !it->pages.erase(page)) continue;
+    if (std::abs(unixMs - nowMs) <= kPlausibleShownMs) it->unixMs.push_back(unixMs);
+    if (!it->pages.empty()) return;
+    reportSkew(*it);
+    skews.erase(it);
     return;
   }
+}
+
+void WebView::Impl::reportSkew(const Skew& s) {
+  if (s.unixMs.empty()) return;
+  const auto [lo, hi] = std::minmax_element(s.unixMs.begin(), s.unixMs.end());
+  swapStats.lastSpreadMs = *hi - *lo;
+  char line[160];
+  std::snprintf(line, sizeof line,
+                "frame %llu shown together on %zu display page(s), spread %.1f ms",
+                (unsigned long long)s.frame, s.together, swapStats.lastSpreadMs);
+  const std::size_t silent = s.together - s.unixMs.size();
+  say(line + (silent ? ", from the times of " + std::to_string(s.unixMs.size()) + " (" +
+                           std::to_string(silent) + " said none or an implausible one)"
+                     : std::string()));
+  reportSwap();
 }
 
 std::string WebView::Impl::pageName(Page page) const {
@@ -93,8 +107,14 @@ void WebView::Impl::apply(SwapBarrier::Actions a) {
     skews.push_back({seq,
                      held != frames.end() ? held->second.frame.frame->frame : 0,
                      std::set<Page>(shown.begin(), shown.end()),
+                     shown.size(),
                      {}});
-    if (skews.size() > kSkewsKept) skews.pop_front();
+    if (skews.size() > kSkewsKept) {
+      // A page that never says `shown` does not silence the log: the frame is reported with the
+      // times that came once it is this old.
+      reportSkew(skews.front());
+      skews.pop_front();
+    }
   }
   for (const auto& [page, seq] : a.send)
     if (const auto s = pages.count(page) ? pages[page].lock() : nullptr)

@@ -22,12 +22,12 @@
 #include <optional>
 #include <set>
 #include <thread>
+#include <voxwall/walls/log_throttle.hpp>
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/swap_barrier.hpp>
 #include <voxwall/walls/token_guard.hpp>
 #include <voxwall/walls/web_view.hpp>
 
-#include <voxwall/walls/log_throttle.hpp>
 #include "web_messages.hpp"
 
 namespace voxwall::walls {
@@ -50,6 +50,9 @@ inline constexpr std::size_t kMaxQueuedText = 32;  // a viewer with more unsent 
 inline constexpr std::size_t kMaxRequests = 256;   // HTTP requests being read or answered at once
 inline constexpr std::size_t kMaxRequestsPerAddress = 16;  // of those, from one remote address
 inline constexpr std::size_t kSkewsKept = 16;  // swapped frames whose show times are collected
+// A page's `shown` time further than this from the sink's clock is not used: display hosts keep
+// their clocks within NTP's milliseconds, and a time from 1e308 once made a 300-digit spread.
+inline constexpr double kPlausibleShownMs = 60000;
 // With a token: WebSockets waiting for theirs, per remote address (all of them: viewers and pages).
 inline constexpr int kMaxPendingPerAddress = 4;
 
@@ -95,7 +98,8 @@ struct WebView::Impl {
   };
   struct Skew {
     std::uint64_t seq = 0, frame = 0;
-    std::set<Page> pages;  // shown together; each reports its time once
+    std::set<Page> pages;      // shown together and not reported yet; each reports its time once
+    std::size_t together = 0;  // pages that showed it together
     std::vector<double> unixMs;
   };
   SwapBarrier barrier;
@@ -158,6 +162,9 @@ struct WebView::Impl {
   void pageLeft(Page page);
   void pageReady(Page page, std::uint64_t seq);
   void pageShown(Page page, std::uint64_t seq, double unixMs);
+  // The "shown together" line of a swapped frame, from the times its pages reported (those that
+  // did not, or said an implausible time, are counted); nothing when none reported.
+  void reportSkew(const Skew& s);
   void apply(SwapBarrier::Actions actions);
   std::shared_ptr<const std::string> frameFor(std::uint64_t seq, int display);
   void armBarrierTimer();
