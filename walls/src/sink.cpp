@@ -20,11 +20,10 @@
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/frame_files.hpp>
+#include <voxwall/walls/log_throttle.hpp>
 #include <voxwall/walls/sink.hpp>
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/web_view.hpp>
-
-#include <voxwall/walls/log_throttle.hpp>
 
 namespace voxwall::walls {
 
