@@ -252,6 +252,12 @@ TEST(Dicom, MixedSizesAndOrientationsNameTheFile) {
   writeDicom(dir.path("turned/turned"), turned);
   expectFormatError([&] { readVolume(dir.path("turned")); }, dir.path("turned/turned"),
                     "oriented differently");
+  // Where another slice lies too (a three-plane localizer's planes cross): still the orientation,
+  // not a repeated position.
+  turned.position = s.origin;
+  writeDicom(dir.path("turned/turned"), turned);
+  expectFormatError([&] { readVolume(dir.path("turned")); }, dir.path("turned/turned"),
+                    "oriented differently");
 }
 
 TEST(Dicom, AGantryTiltIsRefusedOrResampledOntoABox) {

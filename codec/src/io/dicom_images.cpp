@@ -19,13 +19,20 @@ const char* const kTimeNames[SliceHeader::kTimeKeys] = {
 constexpr double kSamePosition = 1e-3;
 
 // The slices grouped by position along the normal of the first slice's orientation, in order
-// along it; one group a slice when the slices cannot be placed (placeSlices refuses them later).
+// along it; one group a slice when the slices cannot be placed (placeSlices refuses them later
+// with the reason: no position, no orientation, or slices in other orientations, as a
+// three-plane localizer has).
 std::vector<std::vector<std::size_t>> byPosition(const std::vector<SliceHeader>& slices,
                                                  const std::vector<std::size_t>& members) {
   const SliceHeader& first = slices[members.front()];
   std::vector<std::vector<std::size_t>> groups;
   bool placeable = first.orientation.size() == 6;
-  for (const std::size_t i : members) placeable = placeable && slices[i].position.size() == 3;
+  for (const std::size_t i : members) {
+    const SliceHeader& s = slices[i];
+    placeable = placeable && s.position.size() == 3 && s.orientation.size() == 6;
+    for (std::size_t k = 0; placeable && k < 6; ++k)
+      placeable = std::abs(s.orientation[k] - first.orientation[k]) <= 1e-3;
+  }
   if (!placeable) {
     for (const std::size_t i : members) groups.push_back({i});
     return groups;
