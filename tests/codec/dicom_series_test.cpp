@@ -237,3 +237,14 @@ TEST(DicomSeries, AFolderOfEnhancedFilesOnePerTimePointIsATimeSeries) {
   EXPECT_EQ(input.describeSteps(), "3 time steps of 6 slices, ordered by instance number");
   for (int t = 0; t < 3; ++t) expectStep(input.read(t), t);
 }
+
+// What tells images apart is the files' text: the list stays one printable line.
+TEST(DicomSeries, AnImageListFromTheFilesIsOnePrintableLine) {
+  TempDir dir;
+  auto run = runSlices(2);
+  for (RunSlice& r : run) r.slice.imageType = r.t ? "DERIVED\nsink: forged" : "ORIGINAL";
+  writeRun(dir, "types", run);
+  expectFormatError([&] { readVolume(dir.path("types")); }, dir.path("types"),
+                    "(1: image type ORIGINAL (6 files); 2: image type DERIVED?sink: forged (6 "
+                    "files))");
+}

@@ -135,7 +135,7 @@ void setImageAndTime(SliceHeader& h, Value&& value) {
     const std::string text = value(tag);
     if (text.empty()) continue;
     h.image += std::string(name) + "=" + text + ";";
-    h.label += (h.label.empty() ? "" : ", ") + std::string(name) + " " + text;
+    h.label += (h.label.empty() ? "" : ", ") + std::string(name) + " " + dicom::printable(text);
   }
   h.time[SliceHeader::kTemporalPosition] = numberOf(value(kTemporalPosition));
   h.time[SliceHeader::kTriggerTime] = numberOf(value(kTriggerTime));

@@ -558,4 +558,13 @@ std::string fixed(double v, int digits) {
   return buf;
 }
 
+std::string printable(const std::string& text, std::size_t maxChars) {
+  std::string out;
+  for (const char c : text) {
+    if (out.size() == maxChars) return out + "...";
+    out += c >= 0x20 && c < 0x7f ? c : '?';
+  }
+  return out;
+}
+
 }  // namespace voxwall::codec::dicom

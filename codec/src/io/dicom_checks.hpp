@@ -25,6 +25,8 @@ std::vector<double> numbersOf(const std::string& text);
 int decimalsOf(const std::string& text);
 // `v` with `digits` digits after the point, for messages.
 std::string fixed(double v, int digits = 2);
+// A file's text for a one-line message: printable ASCII, anything else '?', at most `maxChars`.
+std::string printable(const std::string& text, std::size_t maxChars = 64);
 
 // What checkElements() found of a file.
 struct CheckedFile {

@@ -162,7 +162,7 @@ std::vector<FrameGeometry> enhancedFrames(const std::string& file, int frames) {
     auto part = [&g](const std::string& name, const std::string& value) {
       if (value.empty()) return;
       g.image += name + "=" + value + ";";
-      g.label += (g.label.empty() ? "" : ", ") + name + " " + value;
+      g.label += (g.label.empty() ? "" : ", ") + name + " " + printable(value);
     };
     if (const gdcm::DataSet* content = firstItem(*own, kFrameContent)) {
       // Without the Dimension Index Sequence nothing says which index is the position.
