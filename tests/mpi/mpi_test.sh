@@ -38,6 +38,9 @@
 # Needs VOXWALL_WALLS (the walls/ folder) and VOXWALL_COMPARE_CROP (tests/tools) for the sink
 # scenarios; ctest sets both.
 set -uo pipefail
+# Under pipefail, `producer | grep -q` fails whenever grep's early exit gives the producer
+# SIGPIPE (a resume check failed so, on a match): text is matched with here-strings
+# (grep -q ... <<< "$out"), listings with a grep that reads them whole.
 voxwall=$1 mpiexec=$2 preflags=$3 scenario=$4
 shift 4
 work=$(mktemp -d "${TMPDIR:-/tmp}/voxwall-mpi.XXXXXX")
@@ -108,7 +111,7 @@ check_wall_frames() {
   for f in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)_r[01]c[01].png$/\1/p' | sort -u); do
     [ -f "$dir/frame_$f.done" ] || fail "frame $f in $dir has pictures but no marker (a partial frame)"
   done
-  ls "$dir" | grep -q '\.tmp\.' && fail "temporary files left in $dir"
+  ls "$dir" | grep '\.tmp\.' > /dev/null && fail "temporary files left in $dir"
   for f in $(ls "$dir" | sed -n 's/^frame_\([0-9]*\)\.done$/\1/p'); do
     for d in r0c0 r0c1 r1c0 r1c1; do
       [ -f "$dir/frame_${f}_$d.png" ] || fail "frame $f in $dir lacks display $d (a partial frame)"
@@ -251,7 +254,7 @@ case $scenario in
     [ "$abandoned" -eq "$superseded" ] ||
       fail "rank 0 abandoned $abandoned frame(s), the sink superseded $superseded"
     last=$(grep "presented" wall.log | grep -v "frame(s) presented" | tail -1)
-    echo "$last" | grep -q " 1/" && fail "the job did not end on a full frame: $last"
+    grep -q " 1/" <<< "$last" && fail "the job did not end on a full frame: $last"
     echo "$presented presented, $superseded abandoned and superseded, $dropped dropped; $last"
     ;;
   full-disk)
@@ -270,7 +273,7 @@ case $scenario in
     for f in $(frames_in fullfs/frames); do
       cmp -s "fullfs/frames/$f" "ref/$f" || fail "$f under its final name differs (partial?)"
     done
-    ls fullfs/frames | grep -q '\.tmp\.' && fail "temporaries left on the full disk"
+    ls fullfs/frames | grep '\.tmp\.' > /dev/null && fail "temporaries left on the full disk"
     recorded=$(grep -oE '"frame_[0-9]+\.png": \{' fullfs/frames/voxwall-job.json | tr -d '":{ ')
     kept=$(echo "$recorded" | grep -c png)
     cp -r fullfs/frames roomy
@@ -282,9 +285,9 @@ case $scenario in
     fi
     out=$("$voxwall" "${frames[@]}" --out roomy --resume 2> resume.err) || { cat resume.err; fail "resume"; }
     if [ "$kept" -gt 0 ]; then
-      echo "$out" | grep -q "resume: $kept frame(s) already complete" || { echo "$out"; fail "resume kept other than the $kept whole frames"; }
+      grep -q "resume: $kept frame(s) already complete" <<< "$out" || { echo "$out"; fail "resume kept other than the $kept whole frames"; }
     else
-      echo "$out" | grep -q "resume:" && { echo "$out"; fail "resume kept frames the manifest does not hold"; }
+      grep -q "resume:" <<< "$out" && { echo "$out"; fail "resume kept frames the manifest does not hold"; }
     fi
     [ -z "$damaged" ] || grep -q "roomy/$damaged: not as the job manifest recorded it" resume.err \
       || { cat resume.err; fail "the damaged frame was not named"; }
@@ -314,8 +317,8 @@ case $scenario in
     "$voxwall" render vol.vwz --wall "$VOXWALL_WALLS/ci-2x2.json" --sink "127.0.0.1:$sink_port" \
       --tile-codec deflate --frames 40 --orbit-deg 20 --threads 1 -q > render.log 2>&1 &
     render_pid=$!
-    for _ in $(seq 400); do ls wall | grep -q '\.done$' && break; sleep 0.02; done
-    ls wall | grep -q '\.done$' || fail "the sink wrote nothing"
+    for _ in $(seq 400); do ls wall | grep '\.done$' > /dev/null && break; sleep 0.02; done
+    ls wall | grep '\.done$' > /dev/null || fail "the sink wrote nothing"
     kills=0
     # Kill it again and again mid-frame, restarting it on the same folder each time.
     for delay in 0.01 0.03 0.05 0.07 0.11; do
@@ -459,11 +462,11 @@ case $scenario in
     done_before=$(grep -cE '"frame_[0-9]+\.png": \{' killed/voxwall-job.json || true)
     [ "$done_before" -lt 30 ] || fail "the run finished before it could be killed"
     out=$(run "$n" "${slow[@]}" --out killed --resume) || fail "resumed run"
-    echo "$out" | grep -q "resume: $done_before frame(s) already complete" || fail "resume did not skip the $done_before complete frames: $out"
+    grep -q "resume: $done_before frame(s) already complete" <<< "$out" || fail "resume did not skip the $done_before complete frames: $out"
     out=$(run "$n" "${slow[@]}" --out killed --resume) || fail "second resume"
-    echo "$out" | grep -q "resume: 30 frame(s) already complete" || fail "second resume rendered frames again: $out"
+    grep -q "resume: 30 frame(s) already complete" <<< "$out" || fail "second resume rendered frames again: $out"
     same_frames ref killed
-    ls killed | grep -q '\.tmp\.' && fail "temporary files left behind"
+    ls killed | grep '\.tmp\.' > /dev/null && fail "temporary files left behind"
     echo "killed after $done_before complete frames; resumed to the same 30 frames"
     ;;
   bad-volume)
