@@ -167,6 +167,10 @@ TEST(Sink, TheControllerHearsWhetherAFrameWasPresented) {
   const auto whole = solidTile({0, 0, 44, 10}, 0x808080);
   c->send(net::encodeMessage(4, net::TileMessage{whole.rect, whole.codec, 0, whole.bytes}));
   EXPECT_TRUE(channel.waitForPresented(100, std::chrono::seconds(10))) << sink.log();
+  // A controller that connects once the frames were shown (it replaces the first) hears of the
+  // last one at once.
+  net::ControlChannel late("127.0.0.1", sink.port(), renderer(0, 1));
+  EXPECT_TRUE(late.waitForPresented(1000, std::chrono::seconds(10))) << sink.log();
 }
 
 // A frame the render job abandoned (the camera moved while it rendered) is dropped as

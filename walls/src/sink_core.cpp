@@ -99,6 +99,7 @@ void SinkCore::onEvent(const FrameEvent& e) {
 void SinkCore::frameSettled(std::uint64_t job, std::uint64_t frame, const net::FrameNote& note) {
   if (job_ == job && note.status == net::FrameStatus::Presented) {
     jobPresented_ = true;
+    lastPresented_ = frame;
     jobShown_ = std::chrono::steady_clock::now();
   }
   if (controller_ && job_ == job && controller_->hello().jobId == job)
@@ -159,6 +160,10 @@ bool SinkCore::greet(net::Peer& peer, std::span<const std::byte> payload) {
   net::Welcome welcome{wall.id, wall.width, wall.height, {}, settings_.mosaic};
   for (const auto& d : wall.displays) welcome.displays.push_back(d.rect);
   peer.send(net::encodeMessage(welcome));
+  // A controller that connects after its job's frames were shown (its job fails when it hears
+  // of none) is told of the last one.
+  if (hello.role == net::Role::Controller && jobPresented_)
+    peer.send(net::encodeMessage(lastPresented_, net::FrameNote{net::FrameStatus::Presented, ""}));
   return true;
 }
 

@@ -89,7 +89,8 @@ class SinkCore {
   std::set<net::Peer*> peers_;
   net::Peer* controller_ = nullptr;
   std::optional<std::uint64_t> job_;
-  bool jobPresented_ = false;                         // a frame of the current job was presented
+  bool jobPresented_ = false;  // a frame of the current job was presented (lastPresented_)
+  std::uint64_t lastPresented_ = 0;
   std::chrono::steady_clock::time_point jobShown_{};  // the job's start or last presented frame
   std::set<std::uint64_t> endedJobs_;
   TokenGuard tokens_;          // the token and its back-off per address
