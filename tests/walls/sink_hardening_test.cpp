@@ -84,6 +84,18 @@ bool closedWithin(int fd, int ms) {
   return false;
 }
 
+// The reason of the Bye the sink sent on `c` (within 5 s; empty when none came).
+std::string byeOf(net::Connection& c) {
+  try {
+    for (int i = 0; i < 500; ++i)
+      if (const auto m = c.receive(10); m && m->type == net::MessageType::Bye)
+        return net::decodeBye(m->payload, "sink").reason;
+  } catch (const net::NetError&) {
+    // closed (after its Bye, which was read above, or without one)
+  }
+  return "";
+}
+
 }  // namespace
 
 // x + width overflowed a signed int and the sink wrote far outside its frame.
@@ -173,17 +185,8 @@ TEST(SinkHardening, AJobHasOneControllerEachRankOnceAndOneRankCount) {
   }
   auto again = net::Connection::open("127.0.0.1", sink.port(), control, 2000);
   auto rank0again = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 2, 333), 2000);
-  for (auto* old : {controller.get(), rank0.get()}) {
-    std::string bye;
-    try {
-      for (int i = 0; i < 500 && bye.empty(); ++i)
-        if (const auto m = old->receive(10); m && m->type == net::MessageType::Bye)
-          bye = net::decodeBye(m->payload, "sink").reason;
-    } catch (const net::NetError&) {
-      // closed after its Bye
-    }
-    EXPECT_EQ(bye, "replaced by a new connection of the same place");
-  }
+  for (auto* old : {controller.get(), rank0.get()})
+    EXPECT_EQ(byeOf(*old), "replaced by a new connection of the same place");
   auto rank1 = net::Connection::open("127.0.0.1", sink.port(), rendererHello(1, 2, 333), 2000);
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& s) {
     return s.renderersConnected == 2 && s.controllerConnected;
@@ -201,27 +204,19 @@ TEST(SinkHardening, AJobThatPresentsNothingGivesTheWallUpAfterTheJobIdleTime) {
   test::SinkRunner sink(s);
   auto squatter = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 4, 501), 2000);
   std::unique_ptr<net::Connection> next;
-  int refused = 0;
   test::waitUntil([&] {
     squatter->send(net::encodeKeepAlive());
     try {
       next = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1, 502), 2000);
     } catch (const net::SinkRefused&) {
-      ++refused;  // the squatter's job is younger than --job-idle
+      // the squatter's job is younger than --job-idle
     }
     return next != nullptr;
   });
   ASSERT_TRUE(next) << sink.log();
   EXPECT_NE(sink.log().find("job 00000000000001f5 presented no frame for"), std::string::npos)
       << sink.log();
-  std::string bye;
-  try {
-    for (int i = 0; i < 500 && bye.empty(); ++i)
-      if (const auto m = squatter->receive(10); m && m->type == net::MessageType::Bye)
-        bye = net::decodeBye(m->payload, "sink").reason;
-  } catch (const net::NetError&) {
-  }
-  EXPECT_EQ(bye,
+  EXPECT_EQ(byeOf(*squatter),
             "this job presented no frame for 0.3 s (--job-idle) and another job took the wall");
   next->send(net::encodeMessage(0, wholeScreen()));
   EXPECT_TRUE(sink.waitFor([](const walls::SinkStats& st) { return st.framesPresented == 1; }))
