@@ -60,6 +60,7 @@
 #include <voxwall/codec/kernels/trilinear.hpp>
 #include <voxwall/codec/volume.hpp>
 #include <voxwall/core/parallel.hpp>
+#include <voxwall/node/page_decode.hpp>
 
 namespace voxwall::node {
 
@@ -79,11 +80,11 @@ enum class PageFormat : std::uint8_t { UInt8, UInt16, Float32 };
 
 class PageCache {
  public:
-  static constexpr int kShift = 5;  // 32 voxels per page side
-  static constexpr int kSide = 1 << kShift;
-  static constexpr int kRow = kSide + 3;  // the apron: one voxel below, two above
+  static constexpr int kShift = pages::kShift;  // 32 voxels per page side
+  static constexpr int kSide = pages::kSide;
+  static constexpr int kRow = pages::kRow;  // the apron: one voxel below, two above
   static constexpr int kSlice = kRow * kRow;
-  static constexpr int kVoxels = kSlice * kRow;
+  static constexpr int kVoxels = pages::kVoxels;
   // A page's table entry: the element offset of its page in the pool, or one of these.
   // kWanted: absent, and waiting for refill() (lod under pressure).
   static constexpr std::int32_t kAbsent = -1, kFilling = -2, kWanted = -3;
@@ -297,37 +298,16 @@ class PageCache {
 template <class Level>
 void PageCache::decode(std::int32_t page, const Level& level, std::int32_t slot) const {
   const int px = page % pagesX, py = (page / pagesX) % pagesY, pz = page / pagesX / pagesY;
-  typename Level::RayCache cache;
-  auto write = [&](auto* out) {
-    using Stored = std::remove_pointer_t<decltype(out)>;
-    for (int z = 0; z < kRow; ++z)
-      for (int y = 0; y < kRow; ++y) {
-        const int gz = codec::kernels::clampIndex(pz * kSide + z - 1, dimZ);
-        const int gy = codec::kernels::clampIndex(py * kSide + y - 1, dimY);
-        for (int x = 0; x < kRow; ++x) {
-          const int gx = codec::kernels::clampIndex(px * kSide + x - 1, dimX);
-          const float v = level.voxel(gx, gy, gz, cache);
-          if constexpr (std::is_same_v<Stored, float>) {
-            *out++ = v;
-          } else {
-            // Rounded to the data's integers (exact for the lossless codecs), clamped.
-            const float hi = std::is_same_v<Stored, std::uint8_t> ? 255.0f : 65535.0f;
-            const float s = std::nearbyint(v - bias_);
-            *out++ = Stored(s >= 0.0f ? (s <= hi ? s : hi) : 0.0f);
-          }
-        }
-      }
-  };
   std::byte* at = pool_.get() + std::size_t(slot) * pageBytes();
   switch (format_) {
     case PageFormat::UInt8:
-      write(reinterpret_cast<std::uint8_t*>(at));
+      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint8_t*>(at));
       break;
     case PageFormat::UInt16:
-      write(reinterpret_cast<std::uint16_t*>(at));
+      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint16_t*>(at));
       break;
     case PageFormat::Float32:
-      write(reinterpret_cast<float*>(at));
+      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<float*>(at));
       break;
   }
 }

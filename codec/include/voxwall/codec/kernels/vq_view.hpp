@@ -7,6 +7,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
+#if !defined(__CUDA_ARCH__)
+#include <bit>
+#include <cstring>
+#endif
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
 
 namespace voxwall::codec::kernels {
@@ -15,12 +19,24 @@ inline constexpr int kVqBrick = 4;  // voxels per brick side
 inline constexpr int kVqBrickVoxels = 64;
 inline constexpr int kVqEscape = 255;  // RBUC header byte: the raw voxels follow
 
+// The 8 bytes at `q` as a little-endian word.
+VOXWALL_HD_INLINE std::uint64_t loadWord(const std::uint8_t* q) {
+#if defined(__CUDA_ARCH__)
+  std::uint64_t word = 0;
+  for (int i = 0; i < 8; ++i) word |= std::uint64_t(q[i]) << (8 * i);
+  return word;
+#else
+  static_assert(std::endian::native == std::endian::little, "hosts are little-endian");
+  std::uint64_t word;
+  std::memcpy(&word, q, 8);
+  return word;
+#endif
+}
+
 // Reads `bits` (0..57) bits at bit offset `bit` of a little-endian bit stream. The stream must
 // have 8 readable bytes past the byte that holds its last bit (the encoder pads every array).
 VOXWALL_HD_INLINE std::uint64_t readBits(const std::uint8_t* p, std::uint64_t bit, int bits) {
-  const std::uint8_t* q = p + (bit >> 3);
-  std::uint64_t word = 0;
-  for (int i = 0; i < 8; ++i) word |= std::uint64_t(q[i]) << (8 * i);
+  const std::uint64_t word = loadWord(p + (bit >> 3));
   const std::uint64_t mask = bits >= 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << bits) - 1;
   return (word >> (bit & 7)) & mask;
 }
@@ -62,6 +78,52 @@ VOXWALL_HD_INLINE std::int32_t vqPredict(const std::uint16_t* u, int i, int t, s
   return pred < 0 ? 0 : (pred > range ? range : pred);
 }
 
+// vqPredict for a transformation known at compile time, with the voxel's position within the
+// brick spelled out: the same prediction, without the loops over axes and subsets (the decoder's
+// inner loop; vqPredict stays the definition the encoder uses).
+template <int T>
+VOXWALL_HD_INLINE std::int32_t vqPredictAt(const std::uint16_t* u, int i, std::int32_t range) {
+  const bool ax = (i & 3) != 0, ay = ((i >> 2) & 3) != 0, az = (i >> 4) != 0;
+  std::int32_t pred = 0;
+  if constexpr (T == 1) {
+    pred = ax ? u[i - 1] : ay ? u[i - 4] : az ? u[i - 16] : 0;
+  } else if constexpr (T == 2) {
+    if (ax && ay)
+      pred = std::int32_t(u[i - 1]) + std::int32_t(u[i - 4]) - std::int32_t(u[i - 5]);
+    else
+      pred = ax ? u[i - 1] : ay ? u[i - 4] : az ? u[i - 16] : 0;
+  } else {
+    if (ax) pred += u[i - 1];
+    if (ay) pred += u[i - 4];
+    if (az) pred += u[i - 16];
+    if (ax && ay) pred -= u[i - 5];
+    if (ax && az) pred -= u[i - 17];
+    if (ay && az) pred -= u[i - 20];
+    if (ax && ay && az) pred += u[i - 21];
+  }
+  return pred < 0 ? 0 : (pred > range ? range : pred);
+}
+
+// The eight groups of a predicted codeword (transformation T): group g's code width at `widths`
+// (c2 bits each), its codes in the groups' bytes at `codes`. Values relative to the minimum.
+template <int T>
+VOXWALL_HD_INLINE void vqDecodeGroups(const std::uint8_t* widths, int c2, const std::uint8_t* codes,
+                                      std::int32_t range, std::uint16_t* out) {
+  for (int g = 0; g < 8; ++g) {
+    const int c1 = int(readBits(widths, std::uint64_t(g) * std::uint64_t(c2), c2));
+    for (int j = 0; j < 8; ++j) {
+      const int i = g * 8 + j;
+      const std::uint32_t code =
+          std::uint32_t(readBits(codes, std::uint64_t(j) * std::uint64_t(c1), c1));
+      if constexpr (T == 0)
+        out[i] = std::uint16_t(code);
+      else
+        out[i] = std::uint16_t(vqPredictAt<T>(out, i, range) + std::int32_t(zigzagDecode(code)));
+    }
+    codes += c1;
+  }
+}
+
 // Decodes one compressed codeword at `p` into 64 values (x fastest, the data's unsigned values).
 // `bits` is the data's bit depth (8, 12 or 16). The layout is in vq_codec.hpp. The encoder
 // guarantees well-formed codewords; the host validates every codeword before rendering.
@@ -83,18 +145,19 @@ VOXWALL_HD_INLINE void vqDecodeCodeword(const std::uint8_t* p, int bits, std::ui
   const int c2 = header & 63, t = header >> 6;
   const std::uint8_t* c0 = p + c2;  // the eight groups follow the c1 values
   const std::int32_t range = std::int32_t(hi - lo);
-  for (int g = 0; g < 8; ++g) {
-    const int c1 = int(readBits(p, std::uint64_t(g) * std::uint64_t(c2), c2));
-    for (int j = 0; j < 8; ++j) {
-      const int i = g * 8 + j;
-      const std::uint32_t code =
-          std::uint32_t(readBits(c0, std::uint64_t(j) * std::uint64_t(c1), c1));
-      const std::int32_t pred = vqPredict(out, i, t, range);
-      const std::int32_t value =
-          t == 0 ? std::int32_t(code) : pred + std::int32_t(zigzagDecode(code));
-      out[i] = std::uint16_t(value);
-    }
-    c0 += c1;
+  switch (t) {
+    case 0:
+      vqDecodeGroups<0>(p, c2, c0, range, out);
+      break;
+    case 1:
+      vqDecodeGroups<1>(p, c2, c0, range, out);
+      break;
+    case 2:
+      vqDecodeGroups<2>(p, c2, c0, range, out);
+      break;
+    default:
+      vqDecodeGroups<3>(p, c2, c0, range, out);
+      break;
   }
   for (int i = 0; i < kVqBrickVoxels; ++i) out[i] = std::uint16_t(out[i] + lo);
 }

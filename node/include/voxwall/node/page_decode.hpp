@@ -1,0 +1,125 @@
+// Writing one decoded page (page_cache.hpp: 32^3 voxels and an apron, clamped at the volume's
+// faces) from a level of a compressed volume. Two ways give the same values:
+//
+// - voxel by voxel, through the level's voxel(x, y, z, cache): any PageableLevel (svmm's view, a
+//   test's formula). Each voxel pays the view's brick lookup (the per-parity memo, the thread's
+//   hashed brick cache) and a call: about 33 Mvox/s a core on vq.
+// - a brick at a time, for the brick views (kernels::BrickView: vq, tvq, ksvd's levels, zfp):
+//   every brick under the page is decoded once, a row of bricks in z at a time, straight from the
+//   codec's decoder (no cache, no lookup per voxel; a brick whose key is the one before it in the
+//   row is copied, not decoded again: the empty bricks of a codebook share one), and the page's
+//   rows are read out of that row through per-axis offsets that do the faces' clamping.
+//
+// Values are stored as PageCache documents them: float(stored) + bias gives the voxel; integer
+// pages round the decoded value and clamp it to the stored type.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#include <vector>
+#include <voxwall/codec/kernels/cached_brick_view.hpp>
+#include <voxwall/codec/kernels/trilinear.hpp>
+
+namespace voxwall::node::pages {
+
+inline constexpr int kShift = 5;
+inline constexpr int kSide = 1 << kShift;  // voxels per page side
+inline constexpr int kRow = kSide + 3;     // with the apron: one voxel below, two above
+inline constexpr int kVoxels = kRow * kRow * kRow;
+
+// A decoded value as stored in a page of type Stored (see above).
+template <class Stored>
+inline Stored store(float v, float bias) {
+  if constexpr (std::is_same_v<Stored, float>) {
+    return v;
+  } else {
+    const float hi = std::is_same_v<Stored, std::uint8_t> ? 255.0f : 65535.0f;
+    const float s = std::nearbyint(v - bias);
+    return Stored(s >= 0.0f ? (s <= hi ? s : hi) : 0.0f);
+  }
+}
+
+// The reference: page (px, py, pz) of `level` into `out`, voxel by voxel.
+template <class Level, class Stored>
+void decodePageByVoxel(const Level& level, int px, int py, int pz, float bias, Stored* out) {
+  typename Level::RayCache cache;
+  for (int z = 0; z < kRow; ++z)
+    for (int y = 0; y < kRow; ++y) {
+      const int gz = codec::kernels::clampIndex(pz * kSide + z - 1, level.dimZ);
+      const int gy = codec::kernels::clampIndex(py * kSide + y - 1, level.dimY);
+      for (int x = 0; x < kRow; ++x) {
+        const int gx = codec::kernels::clampIndex(px * kSide + x - 1, level.dimX);
+        *out++ = store<Stored>(level.voxel(gx, gy, gz, cache), bias);
+      }
+    }
+}
+
+// Where the page's voxels along one axis lie among the bricks of side S: the first brick, how
+// many, and per page coordinate its brick (relative to the first) and its index within it.
+template <int S>
+struct PageAxis {
+  int first = 0, count = 0;
+  int brick[kRow], within[kRow];
+  PageAxis(int page, int dim) {
+    for (int i = 0; i < kRow; ++i) {
+      const int g = codec::kernels::clampIndex(page * kSide + i - 1, dim);
+      brick[i] = g / S, within[i] = g % S;
+    }
+    first = brick[0], count = brick[kRow - 1] - first + 1;
+    for (int i = 0; i < kRow; ++i) brick[i] -= first;
+  }
+};
+
+// Page (px, py, pz) of a brick view, a brick at a time (see above). Equals decodePageByVoxel.
+template <codec::kernels::BrickView View, class Stored>
+void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Stored* out) {
+  constexpr int S = View::kSide, kBrick = View::kVoxels;
+  using Value = typename View::Value;
+  const PageAxis<S> ax(px, view.dimX), ay(py, view.dimY), az(pz, view.dimZ);
+  // One row of bricks (every brick under the page at one bz), brick (i, j) at (j * count + i).
+  thread_local std::vector<Value> row;
+  row.resize(std::size_t(ax.count) * std::size_t(ay.count) * kBrick);
+  int offX[kRow], offY[kRow];
+  for (int i = 0; i < kRow; ++i) {
+    offX[i] = ax.brick[i] * kBrick + ax.within[i];
+    offY[i] = ay.brick[i] * ax.count * kBrick + ay.within[i] * S;
+  }
+  int z = 0;
+  for (int bz = 0; bz < az.count; ++bz) {
+    std::uint64_t last = ~std::uint64_t(0);
+    const Value* lastBrick = nullptr;
+    Value* at = row.data();
+    for (int by = 0; by < ay.count; ++by)
+      for (int bx = 0; bx < ax.count; ++bx, at += kBrick) {
+        const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
+        if (key == last) {
+          std::copy(lastBrick, lastBrick + kBrick, at);
+        } else {
+          view.decoder.decode(key, at);
+        }
+        last = key, lastBrick = at;
+      }
+    for (; z < kRow && az.brick[z] == bz; ++z) {
+      const Value* slice = row.data() + az.within[z] * S * S;
+      for (int y = 0; y < kRow; ++y) {
+        const Value* line = slice + offY[y];
+        for (int x = 0; x < kRow; ++x)
+          *out++ = store<Stored>(view.decoder.scalar(line[offX[x]]), bias);
+      }
+    }
+  }
+}
+
+// Page (px, py, pz) of `level`: a brick at a time where it is a brick view, else voxel by voxel.
+template <class Level, class Stored>
+void decodePage(const Level& level, int px, int py, int pz, float bias, Stored* out) {
+  if constexpr (codec::kernels::BrickView<Level>)
+    decodePageByBrick(level, px, py, pz, bias, out);
+  else
+    decodePageByVoxel(level, px, py, pz, bias, out);
+}
+
+}  // namespace voxwall::node::pages
