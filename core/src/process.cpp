@@ -18,6 +18,8 @@ ProcessMemory processMemory() {
     };
     value("VmRSS:", m.residentBytes);
     value("VmHWM:", m.peakBytes);
+    value("RssAnon:", m.privateBytes);
+    value("RssFile:", m.fileBytes);
   }
   return m;
 }

@@ -117,6 +117,11 @@ int TimePlayer::step(int f, Clock::time_point now) {
   return time_.first + time_.stride * lastIndex_;
 }
 
+int TimePlayer::expectedStep(int f) const {
+  if (rate_ <= 0 && !steered_) return time_.stepOfFrame(f, frames_);
+  return time_.first + time_.stride * lastIndex_;
+}
+
 net::Playback TimePlayer::state() const {
   net::Playback p;
   p.step = std::uint32_t(time_.first + time_.stride * lastIndex_);

@@ -35,6 +35,24 @@ void expectHeader(ByteReader& r, std::uint32_t magic, const char* name) {
            std::to_string(kFrameMessageVersion) + " (mixed voxwall versions in one job?)");
 }
 
+void putCamera(ByteWriter& w, const node::Camera& camera) {
+  for (const glm::dvec3& v : {camera.eye, camera.center, camera.up})
+    w.put(v.x), w.put(v.y), w.put(v.z);
+  w.put(camera.fovYDeg);
+}
+
+node::Camera getCamera(ByteReader& r) {
+  node::Camera camera;
+  for (glm::dvec3* v : {&camera.eye, &camera.center, &camera.up})
+    v->x = r.get<double>(), v->y = r.get<double>(), v->z = r.get<double>();
+  camera.fovYDeg = r.get<double>();
+  for (double v : {camera.eye.x, camera.eye.y, camera.eye.z, camera.center.x, camera.center.y,
+                   camera.center.z, camera.up.x, camera.up.y, camera.up.z})
+    if (!std::isfinite(v)) r.fail("camera is not finite");
+  if (!(camera.fovYDeg > 0 && camera.fovYDeg < 180)) r.fail("camera field of view");
+  return camera;
+}
+
 }  // namespace
 
 std::vector<std::byte> encode(const FrameTask& t) {
@@ -44,17 +62,17 @@ std::vector<std::byte> encode(const FrameTask& t) {
   const std::uint32_t phase = t.phase == net::FramePhase::Interactive ? 2u
                               : t.phase == net::FramePhase::Refining  ? 4u
                                                                       : 0u;
-  w.put<std::uint32_t>(t.frame), w.put<std::uint32_t>((t.stop ? 1u : 0u) | phase);
+  w.put<std::uint32_t>(t.frame),
+      w.put<std::uint32_t>((t.stop ? 1u : 0u) | phase | (t.ahead ? 8u : 0u));
   w.put<std::uint64_t>(t.decidedUnixMicros);
   w.put<std::uint64_t>(t.jobId);
-  for (const glm::dvec3& v : {t.camera.eye, t.camera.center, t.camera.up})
-    w.put(v.x), w.put(v.y), w.put(v.z);
-  w.put(t.camera.fovYDeg);
+  putCamera(w, t.camera);
   w.put<std::uint32_t>(t.watchdogMs);
   w.put<std::int32_t>(t.screenWidth), w.put<std::int32_t>(t.screenHeight);
   w.put<std::int32_t>(t.cellPixels);
   w.put<std::int32_t>(t.step);
   w.put<std::uint32_t>(t.timeStep);
+  if (t.ahead) putCamera(w, t.aheadCamera), w.put<std::uint32_t>(t.aheadTimeStep);
   w.put<std::uint32_t>(std::uint32_t(t.rects.size()));
   for (const auto& rects : t.rects) {
     w.put<std::uint32_t>(std::uint32_t(rects.size()));
@@ -69,21 +87,15 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   FrameTask t;
   t.frame = r.get<std::uint32_t>();
   const auto flags = r.get<std::uint32_t>();
-  if (flags > 5 || (flags & 6) == 6) r.fail("unknown flags " + std::to_string(flags));
+  if ((flags & ~15u) != 0 || (flags & 6) == 6) r.fail("unknown flags " + std::to_string(flags));
   t.stop = flags & 1;
+  t.ahead = flags & 8;
   t.phase = flags & 2   ? net::FramePhase::Interactive
             : flags & 4 ? net::FramePhase::Refining
                         : net::FramePhase::Full;
   t.decidedUnixMicros = r.get<std::uint64_t>();
   t.jobId = r.get<std::uint64_t>();
-  for (glm::dvec3* v : {&t.camera.eye, &t.camera.center, &t.camera.up})
-    v->x = r.get<double>(), v->y = r.get<double>(), v->z = r.get<double>();
-  t.camera.fovYDeg = r.get<double>();
-  for (double v :
-       {t.camera.eye.x, t.camera.eye.y, t.camera.eye.z, t.camera.center.x, t.camera.center.y,
-        t.camera.center.z, t.camera.up.x, t.camera.up.y, t.camera.up.z})
-    if (!std::isfinite(v)) r.fail("camera is not finite");
-  if (!(t.camera.fovYDeg > 0 && t.camera.fovYDeg < 180)) r.fail("camera field of view");
+  t.camera = getCamera(r);
   t.watchdogMs = r.get<std::uint32_t>();
   t.screenWidth = r.get<std::int32_t>(), t.screenHeight = r.get<std::int32_t>();
   t.cellPixels = r.get<std::int32_t>();
@@ -95,6 +107,12 @@ FrameTask decodeFrameTask(std::span<const std::byte> bytes, const std::string& s
   if (t.step < 1 || t.step > kMaxTaskStep) r.fail("step " + std::to_string(t.step));
   t.timeStep = r.get<std::uint32_t>();
   if (t.timeStep >= kMaxTimeSteps) r.fail("time step " + std::to_string(t.timeStep));
+  if (t.ahead) {
+    t.aheadCamera = getCamera(r);
+    t.aheadTimeStep = r.get<std::uint32_t>();
+    if (t.aheadTimeStep >= kMaxTimeSteps)
+      r.fail("next frame's time step " + std::to_string(t.aheadTimeStep));
+  }
   const auto ranks = r.get<std::uint32_t>();
   if (ranks > std::uint32_t(kMaxRanks)) r.fail(std::to_string(ranks) + " ranks");
   // Each rank takes at least 4 bytes: a count larger than the rest of the message is corrupt.
@@ -122,10 +140,12 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put<std::uint32_t>(rep.frame), w.put<std::int32_t>(rep.rank);
   w.put(rep.renderSeconds), w.put<std::uint64_t>(rep.samples);
   w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
+  w.put<std::uint64_t>(rep.privateBytes), w.put<std::uint64_t>(rep.fileBytes);
   w.put<std::uint64_t>(rep.pages.hits), w.put<std::uint64_t>(rep.pages.missed);
   w.put<std::uint64_t>(rep.pages.decoded);
   w.put<std::uint64_t>(rep.pages.evictions), w.put<std::uint64_t>(rep.pages.residentBytes);
-  w.put<std::uint64_t>(rep.pages.coarse);
+  w.put<std::uint64_t>(rep.pages.coarse), w.put<std::uint64_t>(rep.pages.waited);
+  w.put<std::uint64_t>(rep.pages.ahead);
   w.put<std::uint64_t>(rep.rays), w.put<std::int32_t>(rep.latticeStride);
   w.put<std::uint32_t>((rep.pixels ? 1u : 0u) | (rep.streamed ? 2u : 0u) |
                        (rep.streamRefused ? 4u : 0u) | (rep.abandoned ? 8u : 0u));
@@ -178,10 +198,12 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.renderSeconds = r.get<double>();
   rep.samples = r.get<std::uint64_t>();
   rep.residentBytes = r.get<std::uint64_t>(), rep.peakResidentBytes = r.get<std::uint64_t>();
+  rep.privateBytes = r.get<std::uint64_t>(), rep.fileBytes = r.get<std::uint64_t>();
   rep.pages.hits = r.get<std::uint64_t>(), rep.pages.missed = r.get<std::uint64_t>();
   rep.pages.decoded = r.get<std::uint64_t>();
   rep.pages.evictions = r.get<std::uint64_t>(), rep.pages.residentBytes = r.get<std::uint64_t>();
-  rep.pages.coarse = r.get<std::uint64_t>();
+  rep.pages.coarse = r.get<std::uint64_t>(), rep.pages.waited = r.get<std::uint64_t>();
+  rep.pages.ahead = r.get<std::uint64_t>();
   rep.rays = r.get<std::uint64_t>();
   rep.latticeStride = r.get<std::int32_t>();
   if (rep.latticeStride < 0 || rep.latticeStride > kMaxScreenSide)

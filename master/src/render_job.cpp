@@ -60,6 +60,20 @@ std::vector<std::vector<voxwall::Rect>> byRank(const std::vector<std::vector<vox
 // MPI_THREAD_FUNNELED), while a rank renders a frame that may be abandoned: whether it is.
 using AbandonWatch = std::function<bool()>;
 
+void setMemory(master::RankReport& report, const ProcessMemory& memory) {
+  report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
+  report.privateBytes = memory.privateBytes, report.fileBytes = memory.fileBytes;
+}
+
+master::RankMemory memoryOf(int rank, const master::RankReport& report) {
+  return {rank,
+          "",
+          report.residentBytes,
+          report.peakResidentBytes,
+          report.privateBytes,
+          report.fileBytes};
+}
+
 // Has this rank's renderer render `rects` of `task`, streams each finished part to the sink (if
 // any) and makes this rank's report. A rank whose pixels nobody gathers renders, encodes and sends
 // a band at a time (bands()), so it holds one band's pixels however much of the screen the
@@ -118,8 +132,7 @@ master::RankReport renderRects(int rank, node::RankRenderer& renderer,
     report.streamRefused = !streamer->refused().empty();
     report.streamedBytes = streamer->bytesSent() - before;
   }
-  const ProcessMemory memory = renderer.memory();
-  report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
+  setMemory(report, renderer.memory());
   return report;
 }
 
@@ -130,8 +143,7 @@ master::RankReport finalReport(int rank, const node::RankRenderer& renderer,
   report.frame = stop.frame;
   report.rank = rank;
   report.pixels = false;
-  const ProcessMemory memory = renderer.memory();
-  report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
+  setMemory(report, renderer.memory());
   return report;
 }
 
@@ -194,6 +206,28 @@ class StepVolumes {
   std::optional<node::RenderVolume> other_;
 };
 
+// While this rank waits for the next task (and rank 0 for the other ranks), its renderer decodes
+// the pages the next frame of the path will sample on this rank's rectangles
+// (RankRenderer::decodeAhead); the next render ends it.
+void decodeAhead(node::RankRenderer& renderer, StepVolumes& steps, const master::FrameTask& task,
+                 const std::vector<voxwall::Rect>& mine, const JobSettings& job) {
+  if (!task.ahead || task.stop || mine.empty()) return;
+  master::FrameTask next = task;
+  next.timeStep = task.aheadTimeStep;
+  const node::RankFrame frame{&steps.volume(next),
+                              &steps.tf(next),
+                              task.aheadCamera,
+                              task.screenWidth,
+                              task.screenHeight,
+                              task.cellPixels,
+                              mine,
+                              false,
+                              bandRows(job),
+                              {},
+                              {}};
+  renderer.decodeAhead(frame);
+}
+
 JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::RenderVolume& volume,
                      const node::TransferFunction& tf, const node::RenderSettings& render,
                      const JobSettings& job) {
@@ -209,6 +243,8 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
     std::vector<std::byte> bytes;
     comm.broadcast(bytes, 2 * timeoutMs);
     const auto task = master::decodeFrameTask(bytes, "frame task from rank 0");
+    // The pass ahead reads the step's volume StepVolumes may now let go.
+    renderer.endAhead();
     if (task.rects.size() != std::size_t(comm.size()))
       throw FormatError("frame task from rank 0",
                         "has rectangles for " + std::to_string(task.rects.size()) +
@@ -222,6 +258,7 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
                             ? finalReport(comm.rank(), renderer, task)
                             : renderRects(comm.rank(), renderer, steps.volume(task), steps.tf(task),
                                           job, streamer.get(), task, mine, watch);
+    decodeAhead(renderer, steps, task, mine, job);
     // Rank 0 takes the report after rendering its own part, which may take longer than ours.
     comm.gather(master::encode(report), 2 * timeoutMs);
     if (task.stop) break;
@@ -287,6 +324,7 @@ class MasterLoop {
 
   FrameSummary frame(int f) {
     const auto frameStart = Clock::now();
+    renderer_.endAhead();  // its volume may be let go below
     FrameSummary s;
     s.frame = f;
     readWall(f, frameStart, s);
@@ -297,6 +335,7 @@ class MasterLoop {
     master::FrameTask t = task(f, s.rects, choice);
     t.timeStep = std::uint32_t(player_.step(f, frameStart));
     s.timeStep = int(t.timeStep);
+    expectNext(t);
     if (control_ && job_.time.count() > 1) control_->setPlayback(std::uint64_t(f), player_.state());
     auto taskBytes = master::encode(t);
     comm_.broadcast(taskBytes, timeoutMs_);
@@ -313,6 +352,7 @@ class MasterLoop {
       };
     auto own = renderRects(0, renderer_, steps_.volume(t), steps_.tf(t), job_, streamer_.get(), t,
                            t.rects[0], watch);
+    decodeAhead(renderer_, steps_, t, t.rects[0], job_);
     const auto gatherStart = Clock::now();
     // Rank 0 keeps its own report as it is; only the others' travel. It goes on watching while
     // the others render.
@@ -378,7 +418,7 @@ class MasterLoop {
                            ? ownLast
                            : master::decodeRankReport(finals[std::size_t(r)], stop,
                                                       "final report of rank " + std::to_string(r));
-      summary.memory.push_back({r, "", rep.residentBytes, rep.peakResidentBytes});
+      summary.memory.push_back(memoryOf(r, rep));
     }
     writer_.finish();
     if (control_) summary.sinkNotes = control_->drainNotes();
@@ -456,6 +496,20 @@ class MasterLoop {
     return slotRects;
   }
 
+  // Where the path goes after task t's frame, for decoding ahead (FrameTask::ahead): full frames
+  // of a job with a next frame whose camera or time step differ.
+  void expectNext(master::FrameTask& t) const {
+    const int next = int(t.frame) + 1;
+    if (t.step != 1 || next >= job_.frames) return;
+    t.aheadCamera =
+        node::orbitCamera(offset_.apply(job_.path.at(next)), node::boundingRadius(volume_.info()));
+    t.aheadTimeStep = std::uint32_t(player_.expectedStep(next));
+    const node::Camera& a = t.camera;
+    const node::Camera& b = t.aheadCamera;
+    t.ahead = t.aheadTimeStep != t.timeStep || a.eye != b.eye || a.center != b.center ||
+              a.up != b.up || a.fovYDeg != b.fovYDeg;
+  }
+
   master::FrameTask task(int f, const std::vector<std::vector<voxwall::Rect>>& slotRects,
                          const FrameChoice& choice) const {
     const int step = choice.step;
@@ -504,6 +558,7 @@ class MasterLoop {
     s.ranks.push_back(r);
     s.rankSeconds.push_back(report.renderSeconds);
     s.rankPages.push_back(report.pages);
+    s.rankMemory.push_back(memoryOf(r, report));
     s.samples += report.samples;
     s.rays += report.rays;
     s.latticeStride = std::max(s.latticeStride, report.latticeStride);

@@ -69,6 +69,7 @@ class CpuBackend final : public Backend {
             if (job.pages) {
               before = job.pages->counts();
               job.pages->setPressure(plan.lodUnderPressure);
+              job.pages->setEvicting(!plan.decodeAhead);
             }
             if constexpr (cpu::kLevels<decltype(view)>)
               if (job.pages && plan.lodUnderPressure && view.levels > 1)
@@ -105,6 +106,8 @@ class CpuBackend final : public Backend {
       stats.pageDecoded = after.misses + after.scratch - before.misses - before.scratch;
       stats.pageEvictions = after.evictions - before.evictions;
       stats.pageCoarse = after.coarse - before.coarse;
+      stats.pageWaited = after.waited - before.waited;
+      stats.pageScratch = after.scratch - before.scratch;
       stats.pageResidentBytes = std::uint64_t(job.pages->residentPages()) * job.pages->pageBytes();
       if (job.coarsePages)
         stats.pageResidentBytes +=

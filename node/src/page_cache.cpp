@@ -127,7 +127,8 @@ void PageCache::reclaimLocked() {
   }
 }
 
-PageCache::Reader::Reader(PageCache& cache) : cache_(cache), pressure_(cache.pressure_) {
+PageCache::Reader::Reader(PageCache& cache)
+    : cache_(cache), pressure_(cache.pressure_), evicting_(cache.evicting_) {
   for (auto& p : scratchPage_) p = -1;
   for (auto& p : scratchStep_) p = ~std::uint64_t(0);
   // A slot of its own: the backend makes the cache for as many readers as it has threads, so
@@ -156,6 +157,7 @@ PageCache::Reader::~Reader() {
     cache_.totals_.misses += counts_.misses;
     cache_.totals_.scratch += counts_.scratch;
     cache_.totals_.coarse += coarse;
+    cache_.totals_.waited += counts_.waited;
     cache_.wanted_.insert(cache_.wanted_.end(), wanted_.begin(), wanted_.end());
   }
   slot.busy.store(false, std::memory_order_release);

@@ -1,6 +1,8 @@
+#include <algorithm>
 #include <chrono>
 #include <future>
 #include <stdexcept>
+#include <utility>
 #include <voxwall/node/rank_renderer.hpp>
 
 namespace voxwall::node {
@@ -18,6 +20,7 @@ void add(PageStats& sum, const TileStats& stats) {
   sum.decoded += stats.pageDecoded;
   sum.evictions += stats.pageEvictions;
   sum.coarse += stats.pageCoarse;
+  sum.waited += stats.pageWaited;
   sum.residentBytes = stats.pageResidentBytes;
 }
 
@@ -34,14 +37,27 @@ std::vector<Rect> rowBands(const Rect& rect, int rows) {
 RankRenderer::RankRenderer(Backend& backend, const RenderSettings& settings)
     : backend_(backend), settings_(settings) {}
 
+RankRenderer::~RankRenderer() {
+  try {
+    endAhead();
+  } catch (const std::exception&) {
+    // A pass that failed leaves nothing to undo; the job is ending anyway.
+  }
+}
+
 // The transfer function's part of a plan (its LUT and skip grids: most of the planning time on a
 // large volume) is kept while the volume, its time step and the transfer function stay; a frame
 // of another step plans afresh, since its value ranges skip other cells.
 const FramePlan& RankRenderer::plan(const RankFrame& frame) {
   const bool same = plan_ && planVolume_ == frame.volume && planStep_ == frame.volume->step() &&
                     planTf_ == frame.tf;
+  const bool ahead = aheadPlan_ && aheadVolume_ == frame.volume &&
+                     aheadStep_ == frame.volume->step() && aheadTf_ == frame.tf;
   plan_ = planFrame(*frame.volume, frame.camera, frame.screenWidth, frame.screenHeight, *frame.tf,
-                    settings_, same ? &*plan_ : nullptr);
+                    settings_,
+                    same    ? &*plan_
+                    : ahead ? &*aheadPlan_
+                            : nullptr);
   planVolume_ = frame.volume, planStep_ = frame.volume->step(), planTf_ = frame.tf;
   return *plan_;
 }
@@ -67,7 +83,9 @@ TileStats RankRenderer::renderPart(const RankFrame& frame, const Rect& part, Ima
 }
 
 RankFrameResult RankRenderer::render(const RankFrame& frame) {
+  endAhead();
   RankFrameResult result;
+  result.pages.ahead = std::exchange(aheadDecoded_, 0);
   if (frame.rects.empty()) return result;
   result.latticeStride = plan(frame).latticeStride;
   result.costs = CostGrid(frame.screenWidth, frame.screenHeight, frame.cellPixels);
@@ -98,12 +116,67 @@ RankFrameResult RankRenderer::render(const RankFrame& frame) {
     }
     result.tiles.push_back({rect, frame.keepPixels ? std::move(image) : Image()});
   }
+  lastPaged_ = result.pages.hits + result.pages.missed > 0;
+  lastEvicted_ = result.pages.evictions > 0;
   releaseWhenSettled(result.pages);
   return result;
 }
 
+void RankRenderer::decodeAhead(const RankFrame& next, int reduce) {
+  endAhead();
+  if (!lastPaged_ || lastEvicted_ || !next.volume || !next.tf) return;
+  reduce = std::max(1, reduce);
+  const int width = (next.screenWidth + reduce - 1) / reduce;
+  const int height = (next.screenHeight + reduce - 1) / reduce;
+  // The rectangles on the reduced screen, edge by edge (they still tile what they tiled).
+  const auto edge = [reduce](int e, int side, int reduced) {
+    return e >= side ? reduced : e / reduce;
+  };
+  std::vector<Rect> rects;
+  for (const Rect& r : next.rects) {
+    const int x0 = edge(r.x, next.screenWidth, width);
+    const int x1 = edge(r.x + r.width, next.screenWidth, width);
+    const int y0 = edge(r.y, next.screenHeight, height);
+    const int y1 = edge(r.y + r.height, next.screenHeight, height);
+    if (x1 > x0 && y1 > y0) rects.push_back({x0, y0, x1 - x0, y1 - y0});
+  }
+  if (rects.empty()) return;
+  const FramePlan* reuse =
+      plan_ && planVolume_ == next.volume && planStep_ == next.volume->step() && planTf_ == next.tf
+          ? &*plan_
+          : nullptr;
+  aheadPlan_.reset();
+  aheadVolume_ = next.volume, aheadStep_ = next.volume->step(), aheadTf_ = next.tf;
+  aheadStop_ = false;
+  ahead_ =
+      std::async(std::launch::async, [this, next, width, height, reuse, rects = std::move(rects)] {
+        aheadPlan_ =
+            planFrame(*next.volume, next.camera, width, height, *next.tf, settings_, reuse);
+        aheadPlan_->decodeAhead = true;
+        std::uint64_t decoded = 0;
+        for (const Rect& r : rects) {
+          if (aheadStop_) break;
+          Image pixels;
+          const TileStats stats =
+              backend_.render(*next.volume, *aheadPlan_, r, pixels, nullptr, &aheadStop_);
+          decoded += stats.pageDecoded - stats.pageScratch;  // the pages kept for the frame
+        }
+        return decoded;
+      });
+}
+
+void RankRenderer::endAhead() {
+  aheadStop_ = true;
+  finishAhead();
+}
+
+void RankRenderer::finishAhead() {
+  if (ahead_.valid()) aheadDecoded_ += ahead_.get();
+}
+
 FrameProbe RankRenderer::probe(const RankFrame& frame, int step) {
   if (step < 1) throw std::invalid_argument("probe step must be at least 1");
+  endAhead();
   RankFrame reduced = frame;
   reduced.screenWidth = (frame.screenWidth + step - 1) / step;
   reduced.screenHeight = (frame.screenHeight + step - 1) / step;
@@ -127,7 +200,7 @@ FrameProbe RankRenderer::probe(const RankFrame& frame, int step) {
 void RankRenderer::releaseWhenSettled(const PageStats& frame) {
   if (frame.evictions > 0) {
     decodedSinceRelease_ = false;
-  } else if (frame.decoded > 0) {
+  } else if (frame.decoded + frame.ahead > 0) {
     decodedSinceRelease_ = true;
   } else if (decodedSinceRelease_ && planVolume_) {
     planVolume_->releaseDecodeSources();

@@ -1,4 +1,6 @@
 #include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -18,6 +20,38 @@ TEST(Process, MemoryFollowsWhatThisProcessTouches) {
   EXPECT_GE(after.residentBytes, before.residentBytes + kBytes / 2);
   EXPECT_GE(after.peakBytes, after.residentBytes);
   EXPECT_EQ(block[kBytes - 1], 1);
+  // Memory of its own is private; a file it maps and reads is the mapped files' part.
+  EXPECT_GE(after.privateBytes, before.privateBytes + kBytes / 2);
+  EXPECT_LE(after.privateBytes + after.fileBytes, after.residentBytes + (1u << 20));
+}
+
+// Reading a mapped file raises the mapped files' part, not the private one.
+TEST(Process, AMappedFileReadIsNotPrivateMemory) {
+  char path[] = "/tmp/voxwall-process-XXXXXX";
+  const int fd = mkstemp(path);
+  ASSERT_GE(fd, 0);
+  constexpr std::size_t kBytes = std::size_t(32) << 20;
+  ASSERT_EQ(ftruncate(fd, off_t(kBytes)), 0);
+  {
+    // Written through a mapping of its own, then dropped: the file's pages are in the page cache.
+    void* w = mmap(nullptr, kBytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    ASSERT_NE(w, MAP_FAILED);
+    std::memset(w, 3, kBytes);
+    munmap(w, kBytes);
+  }
+  const auto before = voxwall::processMemory();
+  void* m = mmap(nullptr, kBytes, PROT_READ, MAP_SHARED, fd, 0);
+  ASSERT_NE(m, MAP_FAILED);
+  const auto* bytes = static_cast<const volatile unsigned char*>(m);
+  unsigned sum = 0;
+  for (std::size_t i = 0; i < kBytes; i += 4096) sum += bytes[i];
+  const auto after = voxwall::processMemory();
+  munmap(m, kBytes);
+  close(fd);
+  unlink(path);
+  EXPECT_EQ(sum, 3u * unsigned(kBytes / 4096));
+  EXPECT_GE(after.fileBytes, before.fileBytes + kBytes / 2);
+  EXPECT_LT(after.privateBytes, before.privateBytes + kBytes / 4);
 }
 
 // A block freed in a thread goes back to the system at once, even after a larger block freed

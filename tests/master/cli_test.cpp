@@ -14,6 +14,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/core/image.hpp>
+#include <voxwall/core/text.hpp>
 #include <voxwall/node/renderer.hpp>
 
 #include "support/cli_run.hpp"
@@ -760,11 +761,11 @@ TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
   };
   // The pages a dry run counts for rank 0, in pages of 35^3 bytes (-1: no such line).
   auto pagesOf = [](const std::string& out) {
-    const auto at = out.find("(decoded pages ");
+    const auto at = out.find(", of it decoded pages ");
     if (at == std::string::npos) return -1.0;
     double value = 0;
     char unit[8] = {};
-    if (std::sscanf(out.c_str() + at, "(decoded pages %lf %7[KMGi]B)", &value, unit) != 2)
+    if (std::sscanf(out.c_str() + at, ", of it decoded pages %lf %7[KMGi]B,", &value, unit) != 2)
       return -1.0;
     const double scale = unit[0] == 'K' ? 1024.0 : unit[0] == 'M' ? 1048576.0 : 1.0;
     return value * scale / (35.0 * 35.0 * 35.0);
@@ -778,12 +779,24 @@ TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
     EXPECT_GE(inside, 0.99) << dryRun("1G", "30,20,0.3");
     EXPECT_LT(inside, whole) << dryRun("1G", "30,20,0.3");
     // 100K holds two pages.
-    EXPECT_NE(dryRun("100K").find("(decoded pages 83.7 KiB)"), std::string::npos) << dryRun("100K");
-    // -v prints the rank's page cache each frame: hits, pages decoded, evicted, resident.
+    EXPECT_NE(dryRun("100K").find(", of it decoded pages 83.7 KiB, "), std::string::npos)
+        << dryRun("100K");
+    // The mapped .vwz is told apart from the rank's own memory: the file's size.
+    EXPECT_NE(
+        dryRun("100K").find(", mapped file " + humanBytes(double(std::filesystem::file_size(vq))) +
+                            ", shared by the ranks on one host)"),
+        std::string::npos)
+        << dryRun("100K");
+    // -v prints the rank's page cache each frame: hits, pages decoded, evicted, resident, the
+    // samples that waited for another thread's page; and its memory, private and mapped.
     const CliRun v = runVoxwall("render " + vq + " --size 40x30 --frames 2 --no-write -v");
     EXPECT_EQ(v.status, 0) << v.out;
     EXPECT_NE(v.out.find("    decoded pages: "), std::string::npos) << v.out;
     EXPECT_NE(v.out.find(" evicted, "), std::string::npos) << v.out;
+    EXPECT_NE(v.out.find(" samples waited for a page another thread decoded; "), std::string::npos)
+        << v.out;
+    EXPECT_NE(v.out.find("\n    private "), std::string::npos) << v.out;
+    EXPECT_NE(v.out.find("rank 0 on "), std::string::npos) << v.out;
   }
   EXPECT_EQ(dryRun("off").find("decoded pages"), std::string::npos);
   EXPECT_EQ(dryRun("0").find("decoded pages"), std::string::npos);

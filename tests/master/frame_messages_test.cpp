@@ -32,7 +32,8 @@ master::RankReport sampleReport(const master::FrameTask& t) {
   r.samples = 12345;
   r.rays = 678, r.latticeStride = 4;
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
-  r.pages = {1000, 20, 3, 2, 5 << 20, 17};
+  r.privateBytes = 3 << 18, r.fileBytes = 1 << 18;
+  r.pages = {1000, 20, 3, 2, 5 << 20, 17, 9};
   for (const auto& rect : t.rects[1]) {
     master::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
     for (std::size_t i = 0; i < tile.image.pixels.size(); ++i)
@@ -177,6 +178,9 @@ TEST(RankReport, RoundTrips) {
   EXPECT_EQ(back.pages.evictions, 2u);
   EXPECT_EQ(back.pages.residentBytes, 5u << 20);
   EXPECT_EQ(back.pages.coarse, 17u);
+  EXPECT_EQ(back.pages.waited, 9u);
+  EXPECT_EQ(back.privateBytes, 3u << 18);
+  EXPECT_EQ(back.fileBytes, 1u << 18);
   ASSERT_EQ(back.tiles.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i) {
     EXPECT_EQ(back.tiles[i].rect, r.tiles[i].rect);
@@ -225,14 +229,43 @@ TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   auto extra = bytes;
   extra.push_back(std::byte{0});
   expectRejected(extra, &t);
-  // A stream error longer than the limit (its u16 length follows 128 bytes of fields).
+  // A stream error longer than the limit (its u16 length follows 160 bytes of fields).
   auto longError = bytes;
   const std::uint16_t huge = 60000;
-  std::memcpy(longError.data() + 128, &huge, 2);
+  std::memcpy(longError.data() + 160, &huge, 2);
   expectRejected(longError, &t);
-  // A ray lattice of negative stride (the i32 after 96 bytes of fields and the u64 of rays).
+  // A ray lattice of negative stride (the i32 after 128 bytes of fields and the u64 of rays).
   auto negative = bytes;
   const std::int32_t minusOne = -1;
-  std::memcpy(negative.data() + 104, &minusOne, 4);
+  std::memcpy(negative.data() + 136, &minusOne, 4);
   expectRejected(negative, &t);
+}
+
+// The next frame's camera and time step (for decoding ahead) travel when set, and are checked
+// as the frame's own are.
+TEST(FrameTask, TheNextFramesCameraAndTimeStepRoundTripAndAreChecked) {
+  auto t = sampleTask();
+  EXPECT_FALSE(master::decodeFrameTask(master::encode(t), "test").ahead);
+  t.ahead = true;
+  t.aheadCamera.eye = {4, 5, -6};
+  t.aheadCamera.fovYDeg = 35;
+  t.aheadTimeStep = 3;
+  const auto back = master::decodeFrameTask(master::encode(t), "test");
+  EXPECT_TRUE(back.ahead);
+  EXPECT_EQ(back.aheadCamera.eye, t.aheadCamera.eye);
+  EXPECT_EQ(back.aheadCamera.fovYDeg, 35.0);
+  EXPECT_EQ(back.aheadTimeStep, 3u);
+  EXPECT_EQ(back.rects, t.rects);
+  auto bad = t;
+  bad.aheadCamera.center.x = std::nan("");
+  expectRejected(master::encode(bad), nullptr);
+  bad = t;
+  bad.aheadCamera.fovYDeg = 0;
+  expectRejected(master::encode(bad), nullptr);
+  bad = t;
+  bad.aheadTimeStep = 1u << 30;
+  expectRejected(master::encode(bad), nullptr);
+  const auto bytes = master::encode(t);
+  for (std::size_t n = 0; n < bytes.size(); n += 5)
+    expectRejected(std::span(bytes).first(n), nullptr);
 }

@@ -135,3 +135,123 @@ TEST(RankRenderer, AProbePredictsMoreForABiggerScreen) {
   EXPECT_LT(double(b.samples), 5.0 * double(a.samples));
   EXPECT_THROW(renderer.probe(small, 0), std::invalid_argument);
 }
+
+namespace {
+
+// A vq volume of several pages (its pages are decoded by the packets), an orbit's frames over the
+// whole screen, and renderers on backends of `budget` bytes of pages.
+struct AheadFixture {
+  RenderVolume volume = [] {
+    voxwall::Progress quiet;
+    std::string report;
+    return RenderVolume::fromCompressed(
+        codec::codecNamed("vq").encode(codec::generateSheppLogan(160), {}, quiet, report));
+  }();
+  // Nearly opaque: the rays stop at the surface they meet, so each side of the volume needs pages
+  // of its own.
+  TransferFunction tf = TransferFunction::preset("grey").rescaled(0, 255);
+  RenderSettings settings;
+
+  RankFrame frame(double azimuth) const {
+    RankFrame f;
+    f.volume = &volume, f.tf = &tf;
+    Orbit orbit;
+    orbit.azimuthDeg = azimuth;
+    orbit.distance = 1.3;
+    f.camera = orbitCamera(orbit, boundingRadius(volume.info()));
+    f.screenWidth = 160, f.screenHeight = 120;
+    f.rects = {{0, 0, 160, 120}};
+    return f;
+  }
+};
+
+}  // namespace
+
+// Decoding the next frame's pages while the rank waits gives the same pictures, byte for byte, as
+// decoding them on the rays. A pass at full resolution leaves the rays of every later frame of the
+// orbit no page to decode; the default pass, at half resolution a side, nearly none (rays a
+// quarter as dense miss the odd page that only a sliver of the screen reaches: 1 of 31 here).
+TEST(RankRenderer, DecodingAheadGivesTheSamePicturesAndLeavesTheRaysNoPageToDecode) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "no SIMD packets on this CPU: no decoded pages";
+  const AheadFixture fx;
+  const auto full = makeCpuBackend(2), half = makeCpuBackend(2), onRays = makeCpuBackend(2);
+  RankRenderer fullAhead(*full, fx.settings), halfAhead(*half, fx.settings);
+  RankRenderer without(*onRays, fx.settings);
+  std::uint64_t needed = 0, fullDecoded = 0, fullAheadPages = 0, halfDecoded = 0;
+  for (int k = 0; k < 4; ++k) {
+    const RankFrame frame = fx.frame(30.0 + 60.0 * k);
+    const RankFrameResult a = fullAhead.render(frame), h = halfAhead.render(frame);
+    const RankFrameResult b = without.render(frame);
+    ASSERT_EQ(a.tiles.size(), 1u);
+    EXPECT_EQ(a.tiles[0].image.pixels, b.tiles[0].image.pixels) << "frame " << k;
+    EXPECT_EQ(h.tiles[0].image.pixels, b.tiles[0].image.pixels) << "frame " << k;
+    EXPECT_GT(a.pages.hits, 0u);
+    EXPECT_EQ(a.pages.evictions + h.pages.evictions, 0u);
+    if (k == 0) {
+      EXPECT_GT(a.pages.decoded, 0u);
+      EXPECT_EQ(a.pages.ahead + h.pages.ahead, 0u);
+    } else {
+      needed += b.pages.decoded;
+      fullDecoded += a.pages.decoded, fullAheadPages += a.pages.ahead;
+      halfDecoded += h.pages.decoded;
+    }
+    const RankFrame next = fx.frame(30.0 + 60.0 * (k + 1));
+    fullAhead.decodeAhead(next, 1);
+    halfAhead.decodeAhead(next);
+    fullAhead.finishAhead();
+    halfAhead.finishAhead();
+  }
+  EXPECT_GT(needed, 10u);  // the later frames do need pages of their own
+  EXPECT_EQ(fullDecoded, 0u) << "pages the full-resolution pass ahead missed";
+  EXPECT_EQ(fullAheadPages, needed);
+  EXPECT_LE(halfDecoded * 10, needed) << "the half-resolution pass missed over a tenth";
+}
+
+// A path that stays where it is needs no new page: nothing is decoded ahead.
+TEST(RankRenderer, AStillPathDecodesNothingAhead) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "no SIMD packets on this CPU: no decoded pages";
+  const AheadFixture fx;
+  const auto backend = makeCpuBackend(2);
+  RankRenderer renderer(*backend, fx.settings);
+  const RankFrame frame = fx.frame(40);
+  EXPECT_GT(renderer.render(frame).pages.decoded, 0u);
+  renderer.decodeAhead(frame);
+  renderer.finishAhead();
+  const RankFrameResult again = renderer.render(frame);
+  EXPECT_EQ(again.pages.ahead, 0u);
+  EXPECT_EQ(again.pages.decoded, 0u);
+}
+
+// A budget that holds a frame's pages and little more: decoding ahead fills the free slots and
+// evicts none of the pages the rank holds (the pages it finds no slot for are decoded for its
+// rays only, and not counted as decoded ahead); after a frame that had to evict, nothing is
+// decoded ahead at all.
+TEST(RankRenderer, DecodingAheadNeverEvictsAndStaysOutOfABudgetTooSmall) {
+  if (cpuPacketLanes() <= 1) GTEST_SKIP() << "no SIMD packets on this CPU: no decoded pages";
+  const AheadFixture fx;
+  const std::uint64_t page = std::uint64_t(PageCache::kVoxels);  // a uint8 page's bytes
+  std::uint64_t firstPages = 0;
+  {
+    const auto probe = makeCpuBackend(2);
+    RankRenderer renderer(*probe, fx.settings);
+    firstPages = renderer.render(fx.frame(30)).pages.decoded;
+    ASSERT_GT(firstPages, 2u);
+  }
+  // Room for the first frame's pages and two more.
+  const auto tight = makeCpuBackend(2, true, (firstPages + 2) * page);
+  RankRenderer renderer(*tight, fx.settings);
+  const RankFrameResult first = renderer.render(fx.frame(30));
+  ASSERT_EQ(first.pages.evictions, 0u);
+  renderer.decodeAhead(fx.frame(120));
+  renderer.finishAhead();
+  const DecodeCacheUse use = cpuDecodeCacheUse(*tight);
+  EXPECT_EQ(use.evictions, 0u) << "decoding ahead evicted a page";
+  EXPECT_EQ(use.misses, firstPages + 2) << "the two free slots are filled ahead";
+  // The next frame needs more than the budget: it evicts, and then nothing is decoded ahead.
+  const RankFrameResult second = renderer.render(fx.frame(120));
+  EXPECT_EQ(second.pages.ahead, 2u);
+  EXPECT_GT(second.pages.evictions, 0u);
+  renderer.decodeAhead(fx.frame(210));
+  renderer.finishAhead();
+  EXPECT_EQ(renderer.render(fx.frame(210)).pages.ahead, 0u);
+}

@@ -296,27 +296,31 @@ void setUpTogether(const RenderOptions& o, master::Communicator& comm, bool quie
 struct RankHosts {
   std::vector<std::string> hosts;
   std::vector<std::uint64_t> needs;
-  std::vector<std::uint64_t> pages;  // of needs: decoded pages
+  std::vector<std::uint64_t> pages;   // of needs: decoded pages
+  std::vector<std::uint64_t> mapped;  // of needs: the mapped file
 };
 
 // Every rank must hold the same volume, or the tiles would not fit together. Returns every
 // rank's host and memory need.
 RankHosts checkSameVolume(master::Communicator& comm, const Setup& s, std::uint64_t fingerprint,
                           int timeoutMs) {
-  char mine[320];  // fingerprint, need, pages and a host name of up to 199 characters
-  std::snprintf(mine, sizeof mine, "%016llx %llu %llu %s", (unsigned long long)fingerprint,
+  char mine[360];  // fingerprint, need, pages, mapped and a host name of up to 199 characters
+  const std::uint64_t mapped = s.volume->mapsFile() ? s.volume->storedBytes() : 0;
+  std::snprintf(mine, sizeof mine, "%016llx %llu %llu %llu %s", (unsigned long long)fingerprint,
                 (unsigned long long)s.needBytes, (unsigned long long)s.pageBytes,
-                comm.hostName().c_str());
+                (unsigned long long)mapped, comm.hostName().c_str());
   const auto all = master::gatherStrings(comm, mine, timeoutMs);
   std::string verdict;
   RankHosts out;
   for (std::size_t r = 0; r < all.size(); ++r) {
     char hash[32] = {}, host[200] = {};
-    unsigned long long need = 0, pages = 0;
-    std::sscanf(all[r].c_str(), "%31s %llu %llu %199s", hash, &need, &pages, host);
+    unsigned long long need = 0, pages = 0, mappedBytes = 0;
+    std::sscanf(all[r].c_str(), "%31s %llu %llu %llu %199s", hash, &need, &pages, &mappedBytes,
+                host);
     out.hosts.push_back(host);
     out.needs.push_back(need);
     out.pages.push_back(pages);
+    out.mapped.push_back(mappedBytes);
     if (verdict.empty() && std::string(hash) != std::string(all[0].substr(0, 16)))
       verdict = "rank " + std::to_string(r) + " (" + host +
                 ") holds a different volume than rank 0 (fingerprint " + hash + " vs " +
@@ -349,11 +353,16 @@ void printDryRun(const RenderOptions& o, master::Communicator& comm, const Setup
         s.render.lodUnderPressure ? ", and level 1's where they are more (a quarter of it)" : "");
   for (int r = 0; r < comm.size(); ++r) {
     const std::string list = rectList(rects[std::size_t(r)]);
-    const std::uint64_t pages = ranks.pages[std::size_t(r)];
-    std::printf("rank %d on %s: needs %s%s; tiles:%s\n", r, ranks.hosts[std::size_t(r)].c_str(),
-                humanBytes(double(ranks.needs[std::size_t(r)])).c_str(),
-                pages ? (" (decoded pages " + humanBytes(double(pages)) + ")").c_str() : "",
-                list.empty() ? " none (assembles and writes)" : list.c_str());
+    const std::uint64_t pages = ranks.pages[std::size_t(r)], need = ranks.needs[std::size_t(r)];
+    const std::uint64_t mapped = std::min(need, ranks.mapped[std::size_t(r)]);
+    std::printf(
+        "rank %d on %s: needs %s (private %s%s, mapped file %s, shared by the ranks on "
+        "one host); tiles:%s\n",
+        r, ranks.hosts[std::size_t(r)].c_str(), humanBytes(double(need)).c_str(),
+        humanBytes(double(need - mapped)).c_str(),
+        pages ? (", of it decoded pages " + humanBytes(double(pages))).c_str() : "",
+        humanBytes(double(mapped)).c_str(),
+        list.empty() ? " none (assembles and writes)" : list.c_str());
   }
 }
 
@@ -363,6 +372,12 @@ unsigned long long framePixels(const master::FrameSummary& f) {
   for (const auto& rects : f.rects)
     for (const auto& r : rects) pixels += (unsigned long long)r.area();
   return pixels;
+}
+
+// A rank's resident memory split into its own and its mapped files'.
+std::string memoryText(const master::RankMemory& m) {
+  return "private " + humanBytes(double(m.privateBytes)) + ", mapped files " +
+         humanBytes(double(m.fileBytes)) + " (shared by the ranks on one host)";
 }
 
 // The per-frame lines on rank 0 and the totals at the end.
@@ -406,13 +421,16 @@ class Report {
         if (p.hits + p.missed > 0)
           std::printf(
               "    decoded pages: %.2f%% hits (%llu of %llu samples), %llu decoded, %llu "
-              "evicted, %s resident%s\n",
+              "evicted, %s resident%s, %llu samples waited for a page another thread "
+              "decoded; %llu pages decoded ahead of the rays\n",
               100.0 * double(p.hits) / double(p.hits + p.missed), (unsigned long long)p.hits,
               (unsigned long long)(p.hits + p.missed), (unsigned long long)p.decoded,
               (unsigned long long)p.evictions, humanBytes(double(p.residentBytes)).c_str(),
               s_.render.lodUnderPressure
                   ? (", " + std::to_string(p.coarse) + " samples from coarser levels").c_str()
-                  : "");
+                  : "",
+              (unsigned long long)p.waited, (unsigned long long)p.ahead);
+        if (i < f.rankMemory.size()) std::printf("    %s\n", memoryText(f.rankMemory[i]).c_str());
       }
       std::printf(
           "  %llu samples, %llu rays for %llu pixels (ray lattice %d, refined above %d "
@@ -432,10 +450,10 @@ class Report {
                   summary.framesSkipped, s_.job.outDir.c_str(), summary.framesRendered);
     if (frames_ > 0) times(summary);
     for (const auto& m : summary.memory)
-      std::printf("rank %d on %s: resident %s, peak %s\n", m.rank,
+      std::printf("rank %d on %s: resident %s, peak %s; %s\n", m.rank,
                   ranks.hosts[std::size_t(m.rank)].c_str(),
                   humanBytes(double(m.residentBytes)).c_str(),
-                  humanBytes(double(m.peakResidentBytes)).c_str());
+                  humanBytes(double(m.peakResidentBytes)).c_str(), memoryText(m).c_str());
   }
 
  private:

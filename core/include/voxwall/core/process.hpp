@@ -9,6 +9,10 @@ namespace voxwall {
 struct ProcessMemory {
   std::uint64_t residentBytes = 0;  // now (VmRSS)
   std::uint64_t peakBytes = 0;      // the most since the process started (VmHWM)
+  // Of residentBytes: the process's own (RssAnon: the heap, decoded pages, frame buffers), and
+  // pages of mapped files (RssFile: a mapped .vwz, the libraries), which processes on one host
+  // mapping the same file share and the system can drop and read again.
+  std::uint64_t privateBytes = 0, fileBytes = 0;
 };
 
 // From /proc/self/status; zeros where the system has no such file.

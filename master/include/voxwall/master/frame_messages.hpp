@@ -11,20 +11,23 @@
 //
 // Layout (little-endian, serialized field by field):
 //   FrameTask:  u32 magic 'VWFT', u32 version, u32 frame, u32 flags (bit 0: stop, bit 1: an
-//               interactive frame, bit 2: a refining frame; neither: a full one),
+//               interactive frame, bit 2: a refining frame; neither: a full one; bit 3: the
+//               next frame's camera and time step follow the time step),
 //               u64 decidedUnixMicros, u64 jobId, f64 eye[3], center[3], up[3], fovYDeg, u32
 //               watchdogMs, i32 screenWidth, screenHeight, i32 cellPixels, i32 step, u32
-//               timeStep, u32 rankCount, per rank: u32 rectCount, then i32 x, y, width, height per
-//               rect.
+//               timeStep, (bit 3) f64 eye[3], center[3], up[3], fovYDeg, u32 timeStep of the
+//               next frame, u32 rankCount, per rank: u32 rectCount, then i32 x, y, width, height
+//               per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
-//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 pageHits,
-//               pageMissed, pageDecoded, pageEvictions, pageResidentBytes, pageCoarse, u64
-//               rays, i32 latticeStride, u32 flags (bit 0: pixels included, bit 1: streamed to the
-//               sink, bit 2: the sink refused this rank for good, bit 3: the rank abandoned the
-//               frame), f64 encodeSeconds, u64 streamedBytes, u16 length + bytes of streamError,
-//               u32 tileCount, per tile: i32 x, y, width, height, then (with pixels) width*height
-//               u32 RGBA8, then i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells
-//               under this rank's tiles) and cw*ch f64 seconds, row by row.
+//               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 privateBytes,
+//               u64 fileBytes, u64 pageHits, pageMissed, pageDecoded, pageEvictions,
+//               pageResidentBytes, pageCoarse, pageWaited, pageAhead, u64 rays, i32 latticeStride,
+//               u32 flags (bit 0: pixels included, bit 1: streamed to the sink, bit 2: the sink
+//               refused this rank for good, bit 3: the rank abandoned the frame), f64
+//               encodeSeconds, u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
+//               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8, then
+//               i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells under this
+//               rank's tiles) and cw*ch f64 seconds, row by row.
 #pragma once
 
 #include <cstdint>
@@ -43,7 +46,7 @@ inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
 // 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
 // RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse; 8: FrameTask.timeStep;
 // 9: RankReport.rays and latticeStride.
-inline constexpr std::uint32_t kFrameMessageVersion = 9;
+inline constexpr std::uint32_t kFrameMessageVersion = 10;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -66,6 +69,11 @@ struct FrameTask {
   int step = 1;
   net::FramePhase phase = net::FramePhase::Full;  // why it has that step (the sink shows it)
   std::uint32_t timeStep = 0;  // the volume's time step the frame shows (0 for one volume)
+  // Where the job's path goes next (a batch job's next frame: unless the wall steers it, what
+  // the next task will say), for decoding its pages ahead (RankRenderer::decodeAhead).
+  bool ahead = false;
+  node::Camera aheadCamera;
+  std::uint32_t aheadTimeStep = 0;
   std::vector<std::vector<voxwall::Rect>> rects;  // per rank (index = rank); may be empty
 };
 
@@ -84,6 +92,8 @@ struct RankReport {
   std::uint64_t rays = 0;  // rays cast (fewer than the pixels where the ray lattice interpolates)
   int latticeStride = 0;   // the frame's ray lattice (1: a ray a pixel; 0: nothing rendered)
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
+  // Of residentBytes: the rank's own memory and its mapped files' (ProcessMemory).
+  std::uint64_t privateBytes = 0, fileBytes = 0;
   PageStats pages;
   bool pixels = true;        // tiles carry their pixels (rank 0 writes frames)
   bool streamed = false;     // the tiles went to the wall sink

@@ -81,6 +81,10 @@ class TimePlayer {
   bool take(const net::Control& command, Clock::time_point now);
   // The step frame f shows (frames are asked for in order, each once).
   int step(int f, Clock::time_point now);
+  // The step frame f (after the last step()) is expected to show, for decoding ahead: a batch
+  // job's f-th, where no command came; otherwise the step shown last (the clock or the wall
+  // moves it).
+  int expectedStep(int f) const;
   // Where the player is after the last step(): for the wall's page.
   net::Playback state() const;
 
@@ -138,6 +142,15 @@ struct JobSettings {
 // and writes no frames (a batch job never reduces, refines or abandons a frame).
 SteeringSettings steeringSettings(const JobSettings& job);
 
+struct RankMemory {
+  int rank = 0;
+  std::string host;
+  std::uint64_t residentBytes = 0, peakResidentBytes = 0;
+  // Of residentBytes: the rank's own (decoded pages, frame buffers, the heap) and its mapped
+  // files' (the .vwz, shared by the ranks on one host; the libraries).
+  std::uint64_t privateBytes = 0, fileBytes = 0;
+};
+
 struct FrameSummary {
   int frame = 0;
   double frameSeconds = 0;      // camera decided -> frame handed to the writer, on rank 0
@@ -148,6 +161,7 @@ struct FrameSummary {
   std::vector<int> ranks;       // the rendering ranks
   std::vector<double> rankSeconds;
   std::vector<master::PageStats> rankPages;       // per rendering rank: its decoded pages
+  std::vector<RankMemory> rankMemory;             // per rendering rank: its memory after it
   std::vector<std::vector<voxwall::Rect>> rects;  // per rendering rank
   double imbalance = 1;                           // max / mean of rankSeconds
   std::uint64_t samples = 0;
@@ -172,12 +186,6 @@ struct FrameSummary {
   // Streaming to a sink: how many of the wall's commands have arrived on rank 0 since this
   // frame took its own; callable until the job ends (a test waits on it before the next frame).
   std::function<std::size_t()> controlsPending;
-};
-
-struct RankMemory {
-  int rank = 0;
-  std::string host;
-  std::uint64_t residentBytes = 0, peakResidentBytes = 0;
 };
 
 struct JobSummary {

@@ -99,6 +99,7 @@ class PageCache {
     std::uint64_t scratch = 0;    // pages decoded into a lane's scratch page (no slot free)
     std::uint64_t evictions = 0;  // pages evicted
     std::uint64_t coarse = 0;     // lane samples taken from a coarser level instead (of missed)
+    std::uint64_t waited = 0;     // lane samples that waited for a page another thread decoded
   };
 
   // The storage of a volume of this scalar type.
@@ -218,10 +219,15 @@ class PageCache {
     std::uint64_t scratchStep_[kScratchPerReader];  // the step that last used it
     std::vector<std::int32_t> wanted_;              // pages this Reader marked kWanted
     bool pressure_;
+    bool evicting_;
   };
 
   // Lod under pressure for the Readers made from now on (the backend sets it per tile).
   void setPressure(bool on) { pressure_ = on; }
+  // Whether the Readers made from now on may evict a page to make room (the backend sets it per
+  // tile). Off while decoding ahead of the rays (RankRenderer::decodeAhead): a page finds a free
+  // slot or goes to a scratch page, so decoding ahead never evicts a page a frame holds.
+  void setEvicting(bool on) { evicting_ = on; }
 
   // Decodes the pages lanes wanted under pressure since the last call (at most a quarter of the
   // pool, evicting by CLOCK; the rest are forgotten and wanted again when rays reach them), on
@@ -293,6 +299,7 @@ class PageCache {
   Counts totals_;                     // of Readers that left
   std::vector<std::int32_t> wanted_;  // pages in state kWanted, for refill()
   bool pressure_ = false;
+  bool evicting_ = true;
 };
 
 template <class Level>
@@ -316,15 +323,17 @@ template <class Level>
 std::int32_t PageCache::Reader::fill(std::int32_t page, const Level& level, int lane) {
   PageCache& c = cache_;
   auto& entry = c.entry_[std::size_t(page)];
+  bool waiting = false;
   for (;;) {
     std::int32_t state = entry.load(std::memory_order_acquire);
     if (state >= 0) return state;
     if (state == kFilling) {  // another thread decodes it: it never waits on anything
+      if (!waiting) ++counts_.waited, waiting = true;
       std::this_thread::yield();
       continue;
     }
     if (!entry.compare_exchange_weak(state, kFilling, std::memory_order_acq_rel)) continue;
-    const std::int32_t slot = c.takeSlot();
+    const std::int32_t slot = c.takeSlot(evicting_);
     if (slot < 0) {
       entry.store(kAbsent, std::memory_order_release);
       // A scratch page of this Reader's: one already holding the page, else one no lane of
@@ -356,10 +365,12 @@ template <class Level>
 std::int32_t PageCache::Reader::fillIfRoom(std::int32_t page, const Level& level) {
   PageCache& c = cache_;
   auto& entry = c.entry_[std::size_t(page)];
+  bool waiting = false;
   for (;;) {
     std::int32_t state = entry.load(std::memory_order_acquire);
     if (state >= 0) return state;
     if (state == kFilling) {  // another thread decodes it into a slot it had free: wait
+      if (!waiting) ++counts_.waited, waiting = true;
       std::this_thread::yield();
       continue;
     }

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <future>
 #include <optional>
 #include <vector>
 #include <voxwall/core/image.hpp>
@@ -73,9 +74,29 @@ class RankRenderer {
  public:
   // The backend and settings outlive the renderer.
   RankRenderer(Backend& backend, const RenderSettings& settings);
+  ~RankRenderer();
+  RankRenderer(const RankRenderer&) = delete;
+  RankRenderer& operator=(const RankRenderer&) = delete;
 
-  // Renders the frame's rectangles. Throws what planning and the backend throw.
+  // Renders the frame's rectangles (after ending any decoding ahead: the pages it decoded count
+  // in the result's pages.ahead). Throws what planning and the backend throw.
   RankFrameResult render(const RankFrame& frame);
+
+  // Starts decoding, on the backend's threads, the pages the frame `next` will sample, while
+  // this rank waits for it (its task, the other ranks): `next` is rendered at 1/reduce a side
+  // over its rectangles (the rank's rectangles of the frame before, at the next camera and time
+  // step) and the pixels are dropped. Returns at once; render(), probe() and the destructor end
+  // it first (the blocks begun finish, the rest are skipped). Nothing is started after a frame
+  // whose rays read no decoded page (raw data, per-ray decoding) or evicted one (the budget does
+  // not hold the working set: pages decoded ahead would only push out pages in use), and the
+  // pass evicts nothing (FramePlan::decodeAhead). `next`'s volume and transfer function must
+  // outlive the pass.
+  void decodeAhead(const RankFrame& next, int reduce = 2);
+  // Ends decoding ahead, if any: returns once its blocks in flight have finished.
+  void endAhead();
+  // Waits until decoding ahead, if any, has gone over all it was to decode (a rank with nothing
+  // else to do; the tests).
+  void finishAhead();
 
   // Predicts what the whole screen of `frame` (its rectangles are ignored) costs at full
   // resolution on this rank alone: the screen at 1/step a side, a ray a pixel, scaled by step^2.
@@ -100,6 +121,19 @@ class RankRenderer {
   // Pages were decoded since the decode sources were last released (releaseWhenSettled).
   bool decodedSinceRelease_ = false;
   std::atomic<bool> stop_{false};
+  // The last frame's pages: whether its rays read decoded pages, and evicted any.
+  bool lastPaged_ = false, lastEvicted_ = false;
+  // Decoding ahead: the pass in flight (its pages decoded), told to stop by aheadStop_, and the
+  // pages the passes ended since the last frame decoded.
+  std::future<std::uint64_t> ahead_;
+  std::atomic<bool> aheadStop_{false};
+  std::uint64_t aheadDecoded_ = 0;
+  // The last pass's plan (its transfer-function part serves the next frame's plan when that
+  // frame shows the same volume, step and transfer function), made on the pass's thread.
+  std::optional<FramePlan> aheadPlan_;
+  const RenderVolume* aheadVolume_ = nullptr;
+  int aheadStep_ = -1;
+  const TransferFunction* aheadTf_ = nullptr;
 };
 
 }  // namespace voxwall::node

@@ -88,6 +88,9 @@ class RenderVolume {
     releaseMappedPages();
     payload_->releaseDecodeTables();
   }
+  // Whether the volume's bytes are a mapped .vwz file (storedBytes() of them: pages the ranks on
+  // one host share, and the system drops and reads again) rather than this process's memory.
+  bool mapsFile() const { return file_ != nullptr; }
   // Bytes of the mapped .vwz resident in this process (0 for a volume in memory; nullopt where
   // the system cannot tell).
   std::optional<std::uint64_t> mappedResidentBytes() const {

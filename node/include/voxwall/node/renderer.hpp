@@ -73,8 +73,11 @@ struct FramePlan {
   double emptyFraction = 0.0;      // share of coarse cells skipped
   double fineEmptyFraction = 0.0;  // share of fine cells skipped
   bool lodUnderPressure = false;   // RenderSettings::lodUnderPressure
-  int latticeStride = 1;           // the ray lattice's side in pixels (1: a ray a pixel)
-  int refineAboveLevels = 8;       // RenderSettings::refineAboveLevels
+  // A pass that only decodes pages ahead of a frame (RankRenderer::decodeAhead): its pixels are
+  // not used, and it evicts no decoded page (PageCache::setEvicting).
+  bool decodeAhead = false;
+  int latticeStride = 1;      // the ray lattice's side in pixels (1: a ray a pixel)
+  int refineAboveLevels = 8;  // RenderSettings::refineAboveLevels
 };
 
 inline constexpr int kMaxLatticeStride = 16;
@@ -101,9 +104,11 @@ struct TileStats {
   bool stopped = false;       // told to stop before every pixel was rendered
   // The CPU backend's decoded pages (node/page_cache.hpp) in this tile: lane samples that found
   // their page resident and that did not, pages decoded, pages evicted, and the bytes resident
-  // after it; of the samples that missed, those taken from a coarser level (lod under pressure).
+  // after it; of the samples that missed, those taken from a coarser level (lod under pressure)
+  // and those that waited for a page another thread was decoding; of the pages decoded, those
+  // decoded into a thread's scratch page for one step, as no slot could be taken.
   std::uint64_t pageHits = 0, pageMissed = 0, pageDecoded = 0, pageEvictions = 0, pageCoarse = 0;
-  std::uint64_t pageResidentBytes = 0;
+  std::uint64_t pageWaited = 0, pageScratch = 0, pageResidentBytes = 0;
 };
 
 enum class BackendKind { Cpu, Cuda };
