@@ -20,6 +20,9 @@ The volume is scale_bench.py's: the MRI template (mricron-data) upsampled --scal
 with mild noise (1: 301x370x316; 3: 903x1110x948, 0.95 Gvox), generated into a temporary directory
 and never kept; each codec compresses it with scale_bench.py's options.
 
+With --compare VOXWALL (an earlier build's program), each ratio is followed by that program's,
+in parentheses, from the same files in the same run.
+
 Prints markdown tables. Stops with an error when a run fails or prints something it cannot parse.
 Needs a release build (build/), numpy and Open MPI.
 

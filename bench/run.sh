@@ -32,6 +32,12 @@ echo "== The wall's frame rate at the sink: a bigeye stream to 12 display pages,
   --replay "$build/bench/voxwall_bench_wall_replay" --chromium 4 --chromium-rate 3
 echo "== Big volumes: the MRI upsampled 3x (0.95 Gvox): compress, frames vs raw, memory per rank, page cache"
 /usr/bin/python3 bench/scale_bench.py --voxwall "$build/master/voxwall"
+echo "== Page decode per codec on one core, and frames that meet new pages (first frame, orbits, ranks)"
+/usr/bin/python3 bench/page_decode_bench.py --build "$build"
+/usr/bin/python3 bench/pages_ahead_bench.py --voxwall "$build/master/voxwall" --scale 1.5
+echo "== Time series: playback of new steps against raw's"
+/usr/bin/python3 bench/time_series_bench.py --voxwall "$build/master/voxwall" --size 160 --steps 8 \
+  --vq-rates "" --render-size 1920x1080 --codecs raw,vq,svmm,ksvd,tvq,zfp
 if nvidia-smi -L > /dev/null 2>&1 && [ -x "$build/bench/voxwall_bench_cuda" ]; then
   echo "== CUDA against the CPU on the MRI template, raw and each codec's default file"
   work=$(mktemp -d)

@@ -75,7 +75,7 @@ def main():
     ap.add_argument("--size", type=int, default=96)
     ap.add_argument("--codecs", default="raw,vq,ksvd,tvq")
     ap.add_argument("--ranks", type=int, default=2)
-    ap.add_argument("--vq-rates", default="0.25,0.5")
+    ap.add_argument("--vq-rates", default="0.25,0.5", help="empty: no vq rate table")
     ap.add_argument("--render-size", default="960x540")
     a = ap.parse_args()
     voxwall = os.path.abspath(a.voxwall)
@@ -108,7 +108,7 @@ def main():
                   f"{8 * s_size / voxels:.3f} | {fmt(s_psnr)} | {8 * a_size / voxels:.3f} | "
                   f"{fmt(a_psnr)} | {s_size / a_size:.2f} |")
 
-        if "vq" in a.codecs.split(","):
+        if "vq" in a.codecs.split(",") and a.vq_rates:
             print("\n## vq reduced: one codebook for every step against a codebook a step at "
                   "equal PSNR\n")
             print("| target bits/voxel | shared: bits/voxel | shared: mean PSNR | alone at that "

@@ -7,8 +7,9 @@
 // - a brick at a time, for the brick views (kernels::BrickView: vq, tvq, ksvd's levels, zfp):
 //   every brick under the page is decoded once, a row of bricks in z at a time, straight from the
 //   codec's decoder (no cache, no lookup per voxel; a brick whose key is the one before it in the
-//   row is copied, not decoded again: the empty bricks of a codebook share one), and the page's
-//   rows are read out of that row through per-axis offsets that do the faces' clamping.
+//   row is copied, not decoded again: the empty bricks of a codebook share one; big bricks the
+//   thread's last page decoded are copied from it), and the page's rows are read out of that row
+//   through per-axis offsets that do the faces' clamping.
 //
 // Values are stored as PageCache documents them: float(stored) + bias gives the voxel; integer
 // pages round the decoded value and clamp it to the stored type.
@@ -87,6 +88,30 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
     offX[i] = ax.brick[i] * kBrick + ax.within[i];
     offY[i] = ay.brick[i] * ax.count * kBrick + ay.within[i] * S;
   }
+  // Big bricks (zfp's 16^3, ksvd's 8^3): the apron reaches into the bricks around the page, half
+  // of which the page beside it decodes too; the bricks of the last page this thread decoded are
+  // kept and copied instead of decoded again (a ray's pages follow each other, and most of them
+  // share a face). [0]: the last page's, [1]: this one's; for zfp 1 MiB each a thread.
+  constexpr bool kKeep = kBrick >= 512;
+  struct Kept {
+    std::uint64_t id = 0;
+    std::vector<std::uint64_t> keys;
+    std::vector<Value> voxels;
+  };
+  thread_local Kept kept[2];
+  if constexpr (kKeep) kept[1].id = view.cacheId, kept[1].keys.clear(), kept[1].voxels.clear();
+  const auto decode = [&](std::uint64_t key, Value* at) {
+    if constexpr (kKeep) {
+      if (kept[0].id == view.cacheId)
+        for (std::size_t i = 0; i < kept[0].keys.size(); ++i)
+          if (kept[0].keys[i] == key) {
+            const Value* from = kept[0].voxels.data() + i * kBrick;
+            std::copy(from, from + kBrick, at);
+            return;
+          }
+    }
+    view.decoder.decode(key, at);
+  };
   int z = 0;
   for (int bz = 0; bz < az.count; ++bz) {
     std::uint64_t last = ~std::uint64_t(0);
@@ -95,12 +120,15 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
     for (int by = 0; by < ay.count; ++by)
       for (int bx = 0; bx < ax.count; ++bx, at += kBrick) {
         const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
-        if (key == last) {
+        if (key == last)
           std::copy(lastBrick, lastBrick + kBrick, at);
-        } else {
-          view.decoder.decode(key, at);
-        }
+        else
+          decode(key, at);
         last = key, lastBrick = at;
+        if constexpr (kKeep) {
+          kept[1].keys.push_back(key);
+          kept[1].voxels.insert(kept[1].voxels.end(), at, at + kBrick);
+        }
       }
     for (; z < kRow && az.brick[z] == bz; ++z) {
       const Value* slice = row.data() + az.within[z] * S * S;
@@ -111,6 +139,7 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
       }
     }
   }
+  if constexpr (kKeep) std::swap(kept[0], kept[1]);
 }
 
 // Page (px, py, pz) of `level`: a brick at a time where it is a brick view, else voxel by voxel.
