@@ -27,14 +27,6 @@ double seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-template <class View>
-const auto& pagedLevelOf(const View& view) {
-  if constexpr (requires { view.pagedLevel(); })
-    return view.pagedLevel();
-  else
-    return view;
-}
-
 volatile unsigned sink;
 
 // Passes over every page of `level` in `Stored` with `decodeOne` for at least `budget` seconds;
@@ -67,9 +59,9 @@ bool measure(const node::RenderVolume& v, float bias, double budget, double& byV
   const double voxels = double(v.info().voxelCount());
   std::visit(
       [&](const auto& view) {
-        using Level = std::remove_cvref_t<decltype(pagedLevelOf(view))>;
+        using Level = std::remove_cvref_t<decltype(node::pages::pagedLevel(view))>;
         if constexpr (node::PageableLevel<Level>) {
-          const Level& level = pagedLevelOf(view);
+          const Level& level = node::pages::pagedLevel(view);
           paged = true;
           byVoxel =
               voxels / 1e6 / bestPass<Stored>(level, budget, [&](int x, int y, int z, Stored* out) {

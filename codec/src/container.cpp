@@ -393,32 +393,21 @@ std::optional<std::uint64_t> ContainerFile::residentMappedBytes() const {
   return kib * 1024;
 }
 
-ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::string& source) {
-  ContainerFile file;
-  file.bytes_ = bytes;
-  file.source_ = source;
-  auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
-  if (bytes.size() < kHeaderBytes)
-    fail("not a .vwz file: " + std::to_string(bytes.size()) + " bytes is shorter than the " +
-         std::to_string(kHeaderBytes) + "-byte header");
-  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) fail("not a .vwz file (bad magic)");
-  ByteReader r(bytes.first(kHeaderBytes), source, "header");
-  r.skip(8);
-  const auto version = r.get<std::uint32_t>();
-  if (version < 1 || version > kContainerVersion)
-    fail("unsupported .vwz format version " + std::to_string(version) + " (this build reads 1 to " +
-         std::to_string(kContainerVersion) + ")");
-  file.version_ = version;
-  const auto headerBytes = r.get<std::uint32_t>();
-  if (headerBytes != kHeaderBytes) fail("header size " + std::to_string(headerBytes) + " is wrong");
-  const auto storedHeaderHash = [&] {
-    ByteReader h(bytes.subspan(kOffHeaderHash, 8), source, "header");
-    return h.get<std::uint64_t>();
-  }();
-  if (kVerifyChecksums && hashBytes(bytes.first(kOffHeaderHash)) != storedHeaderHash)
-    fail("header checksum mismatch (the file is corrupt)");
+namespace {
 
-  VolumeInfo& info = file.info_;
+// What the fixed header says beyond the volume's description: the format version, the section
+// table (it lies in the file: its size is bounded by the file's) and the steps.
+struct Header {
+  std::uint32_t version = 1, sectionCount = 0, steps = 1;
+  std::size_t tableEnd = 0;
+  std::span<const std::byte> table;
+};
+
+// The volume's description in the header (codec, scalar type, dims, spacing, value range) into
+// `info`, and the section count among them.
+void readDescription(ByteReader& r, const std::string& source, std::uint32_t version,
+                     VolumeInfo& info, std::uint32_t& sectionCount) {
+  auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
   const auto codec = r.get<std::uint32_t>();
   if (codec == 0) fail("codec id 0 (no codec has it)");
   info.codec = CodecId(codec);
@@ -431,7 +420,7 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     info.dims[i] = int(d);
   }
   checkDims(info.dims, source);
-  const auto sectionCount = r.get<std::uint32_t>();
+  sectionCount = r.get<std::uint32_t>();
   if (sectionCount > (version >= 3 ? kMaxSections : kMaxSingleVolumeSections))
     fail("section count " + std::to_string(sectionCount) + " is too large");
   for (int i = 0; i < 3; ++i) {
@@ -443,42 +432,72 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
   if (!std::isfinite(info.valueMin) || !std::isfinite(info.valueMax) ||
       info.valueMin > info.valueMax)
     fail("invalid value range");
+}
+
+// The header: its checks, its checksums and the table's, the volume's description into `info`.
+Header readHeader(std::span<const std::byte> bytes, const std::string& source, VolumeInfo& info) {
+  auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
+  if (bytes.size() < kHeaderBytes)
+    fail("not a .vwz file: " + std::to_string(bytes.size()) + " bytes is shorter than the " +
+         std::to_string(kHeaderBytes) + "-byte header");
+  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) fail("not a .vwz file (bad magic)");
+  ByteReader r(bytes.first(kHeaderBytes), source, "header");
+  r.skip(8);
+  Header h;
+  h.version = r.get<std::uint32_t>();
+  if (h.version < 1 || h.version > kContainerVersion)
+    fail("unsupported .vwz format version " + std::to_string(h.version) +
+         " (this build reads 1 to " + std::to_string(kContainerVersion) + ")");
+  const auto headerBytes = r.get<std::uint32_t>();
+  if (headerBytes != kHeaderBytes) fail("header size " + std::to_string(headerBytes) + " is wrong");
+  ByteReader hashReader(bytes.subspan(kOffHeaderHash, 8), source, "header");
+  if (kVerifyChecksums && hashBytes(bytes.first(kOffHeaderHash)) != hashReader.get<std::uint64_t>())
+    fail("header checksum mismatch (the file is corrupt)");
+  readDescription(r, source, h.version, info, h.sectionCount);
   const auto fileBytes = r.get<std::uint64_t>();
   if (fileBytes != bytes.size())
     fail("file is " + std::to_string(bytes.size()) + " bytes but its header says " +
          std::to_string(fileBytes) + (fileBytes > bytes.size() ? " (truncated)" : ""));
-
-  const std::size_t tableEnd = kHeaderBytes + kTableEntryBytes * sectionCount;
-  if (tableEnd > bytes.size()) fail("section table runs past the end of the file (truncated)");
-  const auto table = bytes.subspan(kHeaderBytes, tableEnd - kHeaderBytes);
+  h.tableEnd = kHeaderBytes + kTableEntryBytes * h.sectionCount;
+  if (h.tableEnd > bytes.size()) fail("section table runs past the end of the file (truncated)");
+  h.table = bytes.subspan(kHeaderBytes, h.tableEnd - kHeaderBytes);
   const std::uint64_t storedTableHash = r.get<std::uint64_t>();
-  if (kVerifyChecksums && hashBytes(table) != storedTableHash)
+  if (kVerifyChecksums && hashBytes(h.table) != storedTableHash)
     fail("section table checksum mismatch (the file is corrupt)");
-  std::uint32_t steps = 1;
-  if (version >= 3) {
-    steps = r.get<std::uint32_t>();
-    if (steps < 1 || steps > kMaxSteps)
-      fail("step count " + std::to_string(steps) + " is not 1 to " + std::to_string(kMaxSteps));
+  if (h.version >= 3) {
+    h.steps = r.get<std::uint32_t>();
+    if (h.steps < 1 || h.steps > kMaxSteps)
+      fail("step count " + std::to_string(h.steps) + " is not 1 to " + std::to_string(kMaxSteps));
   }
-  info.steps = int(steps);
-  // The table first (it lies in the file, so its size is bounded by the file's), then the steps.
-  struct Entry {
-    std::uint32_t id, step;
-    std::span<const std::byte> data;
-    std::string name;
-  };
+  info.steps = int(h.steps);
+  return h;
+}
+
+// A codec's section as the table lists it.
+struct Entry {
+  std::uint32_t id, step;
+  std::span<const std::byte> data;
+  std::string name;
+};
+// The table: the codecs' sections in order, and the container's own (orientation, step ranges).
+struct Table {
   std::vector<Entry> entries;
-  ByteReader t(table, source, "section table");
-  std::uint64_t previousEnd = tableEnd;
   std::span<const std::byte> orientation, stepRanges;
-  for (std::uint32_t i = 0; i < sectionCount; ++i) {
+};
+
+Table readTable(std::span<const std::byte> bytes, const std::string& source, const Header& h) {
+  auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
+  Table out;
+  ByteReader t(h.table, source, "section table");
+  std::uint64_t previousEnd = h.tableEnd;
+  for (std::uint32_t i = 0; i < h.sectionCount; ++i) {
     const auto id = t.get<std::uint32_t>();
-    const auto step = version >= 3 ? t.get<std::uint32_t>() : (t.skip(4), 0u);
+    const auto step = h.version >= 3 ? t.get<std::uint32_t>() : (t.skip(4), 0u);
     const auto offset = t.get<std::uint64_t>();
     const auto length = t.get<std::uint64_t>();
     const auto hash = t.get<std::uint64_t>();
     std::string name = "section " + std::to_string(i) + " (id " + std::to_string(id) +
-                       (steps == 1            ? std::string()
+                       (h.steps == 1          ? std::string()
                         : step == kSharedStep ? std::string(", shared by every step")
                                               : ", step " + std::to_string(step)) +
                        ")";
@@ -491,62 +510,83 @@ ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::
     auto data = bytes.subspan(offset, length);
     if (kVerifyChecksums && hashBytes(data) != hash)
       fail(name + ": checksum mismatch (the file is corrupt)");
-    if (step != kSharedStep && step >= steps)
+    if (step != kSharedStep && step >= h.steps)
       fail(name + ": step " + std::to_string(step) + " is past the file's " +
-           std::to_string(steps) + " step(s)");
+           std::to_string(h.steps) + " step(s)");
     previousEnd = offset + length;
-    if (id >= kContainerSectionIds) {
-      std::span<const std::byte>* known = id == kOrientationSectionId && version >= 2 ? &orientation
-                                          : id == kStepRangesSectionId && version >= 3 ? &stepRanges
-                                                                                       : nullptr;
-      if (!known)
-        fail("section id " + std::to_string(id) + " is reserved for the container and unknown");
-      if (step != (version >= 3 ? kSharedStep : 0u))
-        fail(name + ": the container's own section belongs to no step");
-      if (!known->empty() || known->data()) fail(name + ": duplicate section id");
-      *known = data;
+    if (id < kContainerSectionIds) {
+      out.entries.push_back({id, step, data, std::move(name)});
       continue;
     }
-    entries.push_back({id, step, data, std::move(name)});
+    std::span<const std::byte>* known =
+        id == kOrientationSectionId && h.version >= 2  ? &out.orientation
+        : id == kStepRangesSectionId && h.version >= 3 ? &out.stepRanges
+                                                       : nullptr;
+    if (!known)
+      fail("section id " + std::to_string(id) + " is reserved for the container and unknown");
+    if (step != (h.version >= 3 ? kSharedStep : 0u))
+      fail(name + ": the container's own section belongs to no step");
+    if (!known->empty() || known->data()) fail(name + ": duplicate section id");
+    *known = data;
   }
+  return out;
+}
+
+// Each step's value range (a version 3 file's section; the file's range before).
+std::vector<std::pair<double, double>> readStepRanges(std::span<const std::byte> stepRanges,
+                                                      const std::string& source, const Header& h,
+                                                      const VolumeInfo& info) {
+  if (h.version < 3) return {{info.valueMin, info.valueMax}};
+  if (stepRanges.size() != 16 * std::size_t(h.steps))
+    throw FormatError(source, "the step ranges section has " + std::to_string(stepRanges.size()) +
+                                  " bytes, not 16 for each of " + std::to_string(h.steps) +
+                                  " step(s)");
+  std::vector<std::pair<double, double>> out;
+  ByteReader sr(stepRanges, source, "step ranges");
+  for (std::uint32_t k = 0; k < h.steps; ++k) {
+    const double lo = sr.get<double>(), hi = sr.get<double>();
+    if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi || lo < info.valueMin ||
+        hi > info.valueMax)
+      throw FormatError(source, "step " + std::to_string(k) +
+                                    ": its value range is not finite or lies outside the file's");
+    out.emplace_back(lo, hi);
+  }
+  return out;
+}
+
+}  // namespace
+
+ContainerFile ContainerFile::parse(std::span<const std::byte> bytes, const std::string& source) {
+  ContainerFile file;
+  file.bytes_ = bytes;
+  file.source_ = source;
+  auto fail = [&](const std::string& what) -> void { throw FormatError(source, what); };
+  const Header h = readHeader(bytes, source, file.info_);
+  file.version_ = h.version;
+  const Table table = readTable(bytes, source, h);
   // Version 1 files predate orientation: their voxels are taken as LPS, as they were rendered.
-  if (version >= 2) {
-    if (!orientation.data()) fail("the orientation section is missing");
-    info.orientation = parseOrientation(orientation, source);
+  if (h.version >= 2) {
+    if (!table.orientation.data()) fail("the orientation section is missing");
+    file.info_.orientation = parseOrientation(table.orientation, source);
   }
-  if (version >= 3) {
-    if (stepRanges.size() != 16 * std::size_t(steps))
-      fail("the step ranges section has " + std::to_string(stepRanges.size()) +
-           " bytes, not 16 for each of " + std::to_string(steps) + " step(s)");
-    ByteReader sr(stepRanges, source, "step ranges");
-    for (std::uint32_t k = 0; k < steps; ++k) {
-      const double lo = sr.get<double>(), hi = sr.get<double>();
-      if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi || lo < info.valueMin ||
-          hi > info.valueMax)
-        fail("step " + std::to_string(k) +
-             ": its value range is not finite or lies outside the file's");
-      file.stepRanges_.emplace_back(lo, hi);
-    }
-  } else {
-    file.stepRanges_.emplace_back(info.valueMin, info.valueMax);
-  }
-  file.steps_.assign(steps, SectionSet{source, {}});
-  file.stepBytes_.assign(steps, 0);
-  for (const Entry& e : entries) {
+  file.stepRanges_ = readStepRanges(table.stepRanges, source, h, file.info_);
+  file.steps_.assign(h.steps, SectionSet{source, {}});
+  file.stepBytes_.assign(h.steps, 0);
+  for (const Entry& e : table.entries) {
     if (e.step == kSharedStep) continue;
     if (!file.steps_[e.step].sections.emplace(e.id, e.data).second)
       fail(e.name + ": duplicate section id");
     file.stepBytes_[e.step] += e.data.size();
   }
-  const auto shared = std::count_if(entries.begin(), entries.end(),
+  const auto shared = std::count_if(table.entries.begin(), table.entries.end(),
                                     [](const Entry& e) { return e.step == kSharedStep; });
   if (shared > std::ptrdiff_t(kMaxSingleVolumeSections))
     fail(std::to_string(shared) + " shared sections: at most " +
          std::to_string(kMaxSingleVolumeSections));
-  for (const Entry& e : entries) {
+  for (const Entry& e : table.entries) {
     if (e.step != kSharedStep) continue;
     file.sharedBytes_ += e.data.size();
-    for (std::uint32_t k = 0; k < steps; ++k)
+    for (std::uint32_t k = 0; k < h.steps; ++k)
       if (!file.steps_[k].sections.emplace(e.id, e.data).second)
         fail(e.name + ": step " + std::to_string(k) + " has a section of the same id");
   }

@@ -22,13 +22,7 @@ inline constexpr int kBlockPixels = 16;
 
 // The level of `view` whose full-resolution voxels the packets sample from the backend's decoded
 // pages: the view itself, or what its pagedLevel() names (ksvd's level 0).
-template <class View>
-decltype(auto) pagedLevel(const View& view) {
-  if constexpr (requires { view.pagedLevel(); })
-    return view.pagedLevel();
-  else
-    return (view);
-}
+using pages::pagedLevel;
 // Views with such a level (PageableLevel, page_cache.hpp): the brick views (vq, tvq), ksvd, svmm.
 template <class V>
 inline constexpr bool kPaged =

@@ -109,24 +109,15 @@ TEST(PageCache, RoomForEveryPageDecodesEachOnce) {
 
 namespace {
 
-// The level a view's pages hold (ksvd's level 0), or the view.
-template <class View>
-const auto& pagedLevelOf(const View& view) {
-  if constexpr (requires { view.pagedLevel(); })
-    return view.pagedLevel();
-  else
-    return view;
-}
-
 // Every page of `volume`'s paged level, decoded a brick at a time and voxel by voxel, in every
 // page format: the number of pages compared (0: no paged level), and any voxel that differs fails.
 int expectPagesDecodeAlike(const RenderVolume& volume, const std::string& name) {
   int compared = 0;
   std::visit(
       [&](const auto& view) {
-        using Level = std::remove_cvref_t<decltype(pagedLevelOf(view))>;
+        using Level = std::remove_cvref_t<decltype(pages::pagedLevel(view))>;
         if constexpr (PageableLevel<Level>) {
-          const Level& level = pagedLevelOf(view);
+          const Level& level = pages::pagedLevel(view);
           const auto each = [&](auto zero, float bias) {
             using Stored = decltype(zero);
             std::vector<Stored> fast(pages::kVoxels), slow(pages::kVoxels);

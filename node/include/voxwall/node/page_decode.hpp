@@ -31,6 +31,16 @@ inline constexpr int kSide = 1 << kShift;  // voxels per page side
 inline constexpr int kRow = kSide + 3;     // with the apron: one voxel below, two above
 inline constexpr int kVoxels = kRow * kRow * kRow;
 
+// The level of `view` whose voxels pages hold: what its pagedLevel() names (ksvd's level 0), or
+// the view itself.
+template <class View>
+decltype(auto) pagedLevel(const View& view) {
+  if constexpr (requires { view.pagedLevel(); })
+    return view.pagedLevel();
+  else
+    return (view);
+}
+
 // A decoded value as stored in a page of type Stored (see above).
 template <class Stored>
 inline Stored store(float v, float bias) {
