@@ -1,7 +1,8 @@
 // Writing one decoded page (page_cache.hpp: 32^3 voxels and an apron, clamped at the volume's
-// faces) from a level of a compressed volume. Two ways give the same values:
+// faces) from a level of a compressed volume. These ways give the same values:
 //
-// - voxel by voxel, through the level's voxel(x, y, z, cache): any PageableLevel (svmm's view, a
+// - voxel by voxel, through the level's voxel(x, y, z, cache): any PageableLevel (svmm's coarse
+// level, a
 //   test's formula). Each voxel pays the view's brick lookup (the per-parity memo, the thread's
 //   hashed brick cache) and a call: about 33 Mvox/s a core on vq.
 // - a brick at a time, for the brick views (kernels::BrickView: vq, tvq, ksvd's levels, zfp):
@@ -10,6 +11,8 @@
 //   row is copied, not decoded again: the empty bricks of a codebook share one; big bricks the
 //   thread's last page decoded are copied from it), and the page's rows are read out of that row
 //   through per-axis offsets that do the faces' clamping.
+// - a base block at a time, for svmm's view (baseBlockSide(), baseBlock()): one walk down the
+//   mip-map per block of the page, the same way.
 //
 // Values are stored as PageCache documents them: float(stored) + bias gives the voxel; integer
 // pages round the decoded value and clamp it to the stored type.
@@ -17,6 +20,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
@@ -68,36 +72,54 @@ void decodePageByVoxel(const Level& level, int px, int py, int pz, float bias, S
     }
 }
 
-// Where the page's voxels along one axis lie among the bricks of side S: the first brick, how
-// many, and per page coordinate its brick (relative to the first) and its index within it.
-template <int S>
+// Where the page's voxels along one axis lie among the bricks of side `side`: the first brick,
+// how many, and per page coordinate its brick (relative to the first) and its index within it.
 struct PageAxis {
   int first = 0, count = 0;
   int brick[kRow], within[kRow];
-  PageAxis(int page, int dim) {
+  PageAxis(int page, int dim, int side) {
     for (int i = 0; i < kRow; ++i) {
       const int g = codec::kernels::clampIndex(page * kSide + i - 1, dim);
-      brick[i] = g / S, within[i] = g % S;
+      brick[i] = g / side, within[i] = g % side;
     }
     first = brick[0], count = brick[kRow - 1] - first + 1;
     for (int i = 0; i < kRow; ++i) brick[i] -= first;
   }
 };
 
+// Writes the page's voxels from one row of decoded bricks at a time: `row(bz, bricks)` fills the
+// bricks of row bz (relative to az.first), brick (i, j) at (j * ax.count + i) * side^3, each x
+// fastest; `voxel(value)` is a stored brick value as the voxel.
+template <class Value, class Stored, class Row, class Voxel>
+void writePageRows(int side, const PageAxis& ax, const PageAxis& ay, const PageAxis& az, float bias,
+                   Row row, Voxel voxel, Stored* out) {
+  const int brickVoxels = side * side * side;
+  thread_local std::vector<Value> bricks;
+  bricks.resize(std::size_t(ax.count) * std::size_t(ay.count) * std::size_t(brickVoxels));
+  int offX[kRow], offY[kRow];
+  for (int i = 0; i < kRow; ++i) {
+    offX[i] = ax.brick[i] * brickVoxels + ax.within[i];
+    offY[i] = ay.brick[i] * ax.count * brickVoxels + ay.within[i] * side;
+  }
+  int z = 0;
+  for (int bz = 0; bz < az.count; ++bz) {
+    row(bz, bricks.data());
+    for (; z < kRow && az.brick[z] == bz; ++z) {
+      const Value* slice = bricks.data() + az.within[z] * side * side;
+      for (int y = 0; y < kRow; ++y) {
+        const Value* line = slice + offY[y];
+        for (int x = 0; x < kRow; ++x) *out++ = store<Stored>(voxel(line[offX[x]]), bias);
+      }
+    }
+  }
+}
+
 // Page (px, py, pz) of a brick view, a brick at a time (see above). Equals decodePageByVoxel.
 template <codec::kernels::BrickView View, class Stored>
 void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Stored* out) {
   constexpr int S = View::kSide, kBrick = View::kVoxels;
   using Value = typename View::Value;
-  const PageAxis<S> ax(px, view.dimX), ay(py, view.dimY), az(pz, view.dimZ);
-  // One row of bricks (every brick under the page at one bz), brick (i, j) at (j * count + i).
-  thread_local std::vector<Value> row;
-  row.resize(std::size_t(ax.count) * std::size_t(ay.count) * kBrick);
-  int offX[kRow], offY[kRow];
-  for (int i = 0; i < kRow; ++i) {
-    offX[i] = ax.brick[i] * kBrick + ax.within[i];
-    offY[i] = ay.brick[i] * ax.count * kBrick + ay.within[i] * S;
-  }
+  const PageAxis ax(px, view.dimX, S), ay(py, view.dimY, S), az(pz, view.dimZ, S);
   // Big bricks (zfp's 16^3, ksvd's 8^3): the apron reaches into the bricks around the page, half
   // of which the page beside it decodes too; the bricks of the last page this thread decoded are
   // kept and copied instead of decoded again (a ray's pages follow each other, and most of them
@@ -122,11 +144,9 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
     }
     view.decoder.decode(key, at);
   };
-  int z = 0;
-  for (int bz = 0; bz < az.count; ++bz) {
+  const auto row = [&](int bz, Value* at) {
     std::uint64_t last = ~std::uint64_t(0);
     const Value* lastBrick = nullptr;
-    Value* at = row.data();
     for (int by = 0; by < ay.count; ++by)
       for (int bx = 0; bx < ax.count; ++bx, at += kBrick) {
         const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
@@ -140,25 +160,43 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
           kept[1].voxels.insert(kept[1].voxels.end(), at, at + kBrick);
         }
       }
-    for (; z < kRow && az.brick[z] == bz; ++z) {
-      const Value* slice = row.data() + az.within[z] * S * S;
-      for (int y = 0; y < kRow; ++y) {
-        const Value* line = slice + offY[y];
-        for (int x = 0; x < kRow; ++x)
-          *out++ = store<Stored>(view.decoder.scalar(line[offX[x]]), bias);
-      }
-    }
-  }
+  };
+  writePageRows<Value>(
+      S, ax, ay, az, bias, row, [&](Value v) { return view.decoder.scalar(v); }, out);
   if constexpr (kKeep) std::swap(kept[0], kept[1]);
 }
 
-// Page (px, py, pz) of `level`: a brick at a time where it is a brick view, else voxel by voxel.
+// Page (px, py, pz) of a view that reads its base blocks whole (svmm: baseBlockSide() > 0).
+template <class View, class Stored>
+void decodePageByBaseBlock(const View& view, int px, int py, int pz, float bias, Stored* out) {
+  const int w = view.baseBlockSide(), blockVoxels = w * w * w;
+  const PageAxis ax(px, view.dimX, w), ay(py, view.dimY, w), az(pz, view.dimZ, w);
+  const auto row = [&](int bz, std::uint32_t* at) {
+    for (int by = 0; by < ay.count; ++by)
+      for (int bx = 0; bx < ax.count; ++bx, at += blockVoxels)
+        view.baseBlock(ax.first + bx, ay.first + by, az.first + bz, at);
+  };
+  writePageRows<std::uint32_t>(
+      w, ax, ay, az, bias, row, [&](std::uint32_t v) { return view.scalar(v); }, out);
+}
+
+// Page (px, py, pz) of `level`: a brick at a time where it is a brick view, a base block at a time
+// where it reads them whole (svmm), else voxel by voxel.
 template <class Level, class Stored>
 void decodePage(const Level& level, int px, int py, int pz, float bias, Stored* out) {
-  if constexpr (codec::kernels::BrickView<Level>)
+  if constexpr (codec::kernels::BrickView<Level>) {
     decodePageByBrick(level, px, py, pz, bias, out);
-  else
-    decodePageByVoxel(level, px, py, pz, bias, out);
+    return;
+  } else if constexpr (requires(std::uint32_t * at) {
+                         { level.baseBlockSide() } -> std::convertible_to<int>;
+                         level.baseBlock(0, 0, 0, at);
+                       }) {
+    if (level.baseBlockSide() > 0) {
+      decodePageByBaseBlock(level, px, py, pz, bias, out);
+      return;
+    }
+  }
+  decodePageByVoxel(level, px, py, pz, bias, out);
 }
 
 }  // namespace voxwall::node::pages

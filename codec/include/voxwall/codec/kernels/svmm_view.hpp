@@ -355,6 +355,31 @@ struct SvmmView {
   // Under pressure the CPU's decoded pages (node/page_cache.hpp) also hold level 1 (only where
   // levels > 1): its grid, looked up through the mip-map. Defined below SvmmLevelPages.
   SvmmLevelPages coarsePages() const;
+
+#if !defined(__CUDA_ARCH__)
+  // The CPU's decoded pages (node/page_decode.hpp) read base blocks whole, one walk down the
+  // mip-map a block instead of a lookup a voxel: the base blocks' side, or 0 where the view has
+  // one level (no blocks) or level 1's voxels are not base blocks.
+  int baseBlockSide() const {
+    return levels > 1 && level[1].shift == level[0].widthLog2 ? 1 << level[0].widthLog2 : 0;
+  }
+  // Base block (bx, by, bz)'s stored values, x fastest, baseBlockSide()^3 of them (only those of
+  // voxels inside the volume are written). A block under a terminal voxel of a coarser level is
+  // that voxel's value throughout: a level-1 voxel is one base block.
+  void baseBlock(int bx, int by, int bz, std::uint32_t* out) const {
+    const int wl = level[0].widthLog2, w = 1 << wl;
+    RayCache c;
+    int stop = 0;
+    const std::uint32_t v = lookup(bx << wl, by << wl, bz << wl, 0, c, stop);
+    const int nx = dimX - (bx << wl) < w ? dimX - (bx << wl) : w;
+    const int ny = dimY - (by << wl) < w ? dimY - (by << wl) : w;
+    const int nz = dimZ - (bz << wl) < w ? dimZ - (bz << wl) : w;
+    const std::uint64_t b = c.block0[(bx & 1) | ((by & 1) << 1) | ((bz & 1) << 2)];
+    for (int z = 0; z < nz; ++z)
+      for (int y = 0; y < ny; ++y)
+        for (int x = 0; x < nx; ++x) out[(z * w + y) * w + x] = stop > 0 ? v : base(b, x, y, z);
+  }
+#endif
   float coarseScale() const { return float(1 << level[1].shift); }
 
   // The level whose voxels are at most `footprint` voxels wide (0 when footprint < 2).
