@@ -124,7 +124,9 @@ RankFrameResult RankRenderer::render(const RankFrame& frame) {
 
 void RankRenderer::decodeAhead(const RankFrame& next, int reduce) {
   endAhead();
-  if (!lastPaged_ || lastEvicted_ || !next.volume || !next.tf) return;
+  // (Under --lod-under-pressure a lane that finds no free slot marks its page wanted, and a page
+  // the pass marked would be sampled coarser in the next frame than without the pass.)
+  if (settings_.lodUnderPressure || !lastPaged_ || lastEvicted_ || !next.volume || !next.tf) return;
   reduce = std::max(1, reduce);
   const int width = (next.screenWidth + reduce - 1) / reduce;
   const int height = (next.screenHeight + reduce - 1) / reduce;
@@ -154,13 +156,14 @@ void RankRenderer::decodeAhead(const RankFrame& next, int reduce) {
             planFrame(*next.volume, next.camera, width, height, *next.tf, settings_, reuse);
         aheadPlan_->decodeAhead = true;
         std::uint64_t decoded = 0;
-        for (const Rect& r : rects) {
-          if (aheadStop_) break;
-          Image pixels;
-          const TileStats stats =
-              backend_.render(*next.volume, *aheadPlan_, r, pixels, nullptr, &aheadStop_);
-          decoded += stats.pageDecoded - stats.pageScratch;  // the pages kept for the frame
-        }
+        for (const Rect& r : rects)
+          for (const Rect& band : rowBands(r, next.bandRows)) {  // one band's pixels at a time
+            if (aheadStop_) break;
+            Image pixels;
+            const TileStats stats =
+                backend_.render(*next.volume, *aheadPlan_, band, pixels, nullptr, &aheadStop_);
+            decoded += stats.pageDecoded - stats.pageScratch;  // the pages kept for the frame
+          }
         return decoded;
       });
 }

@@ -88,8 +88,9 @@ class RankRenderer {
   // step) and the pixels are dropped. Returns at once; render(), probe() and the destructor end
   // it first (the blocks begun finish, the rest are skipped). Nothing is started after a frame
   // whose rays read no decoded page (raw data, per-ray decoding) or evicted one (the budget does
-  // not hold the working set: pages decoded ahead would only push out pages in use), and the
-  // pass evicts nothing (FramePlan::decodeAhead). `next`'s volume and transfer function must
+  // not hold the working set: pages decoded ahead would only push out pages in use), nor under
+  // --lod-under-pressure; the pass evicts nothing (FramePlan::decodeAhead) and holds one band of
+  // next.bandRows rows of pixels at a time. `next`'s volume and transfer function must
   // outlive the pass.
   void decodeAhead(const RankFrame& next, int reduce = 2);
   // Ends decoding ahead, if any: returns once its blocks in flight have finished.
