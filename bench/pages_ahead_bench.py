@@ -35,7 +35,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from scale_bench import OPTIONS, generate, run, size_bytes  # noqa: E402
+from scale_bench import OPTIONS, generate, mib, run, size_bytes  # noqa: E402
 
 FRAME = re.compile(r"^frame (\d+)/(\d+): ([0-9.]+) ms", re.M)
 RANK_LINE = re.compile(r"^  rank (\d+):", re.M)
@@ -82,10 +82,6 @@ def render(args, path, frames, degrees, ranks=0, voxwall=None):
         sys.exit("cannot find %d ranks' memory in the output of %s:\n%s"
                  % (max(ranks, 1), " ".join(cmd), out[-4000:]))
     return [times[f] for f in range(1, frames + 1)], decoded, waited, memory
-
-
-def mib(b):
-    return "%.0f MiB" % (b / 1048576.0)
 
 
 def main():

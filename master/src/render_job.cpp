@@ -473,26 +473,14 @@ class MasterLoop {
   }
 
   // Each rendering slot's rectangles this frame: at step > 1, the full-screen cut mapped onto the
-  // reduced screen (edge by edge, so the rectangles still tile it; one narrower than a step may
-  // vanish).
+  // reduced screen (node::reducedRects).
   std::vector<std::vector<voxwall::Rect>> cut(int step) const {
     std::vector<std::vector<voxwall::Rect>> slotRects = staticCut_;
     if (balancer_)
       for (int i = 0; i < slots_; ++i)
         slotRects[std::size_t(i)] = {balancer_->cut()[std::size_t(i)]};
     if (step == 1) return slotRects;
-    const auto edge = [step](int e, int side) {
-      return e >= side ? net::reducedSide(side, step) : e / step;
-    };
-    for (auto& rects : slotRects) {
-      std::vector<voxwall::Rect> reduced;
-      for (const auto& r : rects) {
-        const int x0 = edge(r.x, job_.width), x1 = edge(r.x + r.width, job_.width);
-        const int y0 = edge(r.y, job_.height), y1 = edge(r.y + r.height, job_.height);
-        if (x1 > x0 && y1 > y0) reduced.push_back({x0, y0, x1 - x0, y1 - y0});
-      }
-      rects = std::move(reduced);
-    }
+    for (auto& rects : slotRects) rects = node::reducedRects(rects, job_.width, job_.height, step);
     return slotRects;
   }
 

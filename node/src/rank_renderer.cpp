@@ -34,6 +34,20 @@ std::vector<Rect> rowBands(const Rect& rect, int rows) {
   return out;
 }
 
+std::vector<Rect> reducedRects(const std::vector<Rect>& rects, int width, int height, int step) {
+  step = std::max(1, step);
+  const auto edge = [step](int e, int side) {
+    return e >= side ? (side + step - 1) / step : e / step;
+  };
+  std::vector<Rect> out;
+  for (const Rect& r : rects) {
+    const int x0 = edge(r.x, width), x1 = edge(r.x + r.width, width);
+    const int y0 = edge(r.y, height), y1 = edge(r.y + r.height, height);
+    if (x1 > x0 && y1 > y0) out.push_back({x0, y0, x1 - x0, y1 - y0});
+  }
+  return out;
+}
+
 RankRenderer::RankRenderer(Backend& backend, const RenderSettings& settings)
     : backend_(backend), settings_(settings) {}
 
@@ -130,18 +144,7 @@ void RankRenderer::decodeAhead(const RankFrame& next, int reduce) {
   reduce = std::max(1, reduce);
   const int width = (next.screenWidth + reduce - 1) / reduce;
   const int height = (next.screenHeight + reduce - 1) / reduce;
-  // The rectangles on the reduced screen, edge by edge (they still tile what they tiled).
-  const auto edge = [reduce](int e, int side, int reduced) {
-    return e >= side ? reduced : e / reduce;
-  };
-  std::vector<Rect> rects;
-  for (const Rect& r : next.rects) {
-    const int x0 = edge(r.x, next.screenWidth, width);
-    const int x1 = edge(r.x + r.width, next.screenWidth, width);
-    const int y0 = edge(r.y, next.screenHeight, height);
-    const int y1 = edge(r.y + r.height, next.screenHeight, height);
-    if (x1 > x0 && y1 > y0) rects.push_back({x0, y0, x1 - x0, y1 - y0});
-  }
+  std::vector<Rect> rects = reducedRects(next.rects, next.screenWidth, next.screenHeight, reduce);
   if (rects.empty()) return;
   const FramePlan* reuse =
       plan_ && planVolume_ == next.volume && planStep_ == next.volume->step() && planTf_ == next.tf

@@ -255,3 +255,23 @@ TEST(RankRenderer, DecodingAheadNeverEvictsAndStaysOutOfABudgetTooSmall) {
   renderer.finishAhead();
   EXPECT_EQ(renderer.render(fx.frame(210)).pages.ahead, 0u);
 }
+
+// Rectangles that tile a screen still tile it at 1/step a side (ceil), edge by edge; one narrower
+// than a step may vanish, and step 1 keeps them as they are.
+TEST(RankRenderer, ReducedRectanglesStillTileTheReducedScreen) {
+  const std::vector<Rect> cut = {{0, 0, 50, 61}, {50, 0, 1, 61}, {51, 0, 48, 30}, {51, 30, 48, 31}};
+  EXPECT_EQ(reducedRects(cut, 99, 61, 1), cut);
+  const auto reduced = reducedRects(cut, 99, 61, 4);  // a 25 x 16 screen
+  long long area = 0;
+  for (const Rect& r : reduced) {
+    EXPECT_GE(r.x, 0);
+    EXPECT_LE(r.x + r.width, 25);
+    EXPECT_LE(r.y + r.height, 16);
+    area += r.area();
+  }
+  EXPECT_EQ(area, 25 * 16);       // no gap, no overlap (they are disjoint by construction of edges)
+  ASSERT_EQ(reduced.size(), 3u);  // the 1-pixel strip at x 50 vanished
+  EXPECT_EQ(reduced[0], (Rect{0, 0, 12, 16}));
+  EXPECT_EQ(reduced[1], (Rect{12, 0, 13, 7}));
+  EXPECT_EQ(reduced[2], (Rect{12, 7, 13, 9}));
+}

@@ -69,6 +69,11 @@ struct FrameProbe {
 // `rect` cut into bands of `rows` rows (at least 1), top to bottom.
 std::vector<Rect> rowBands(const Rect& rect, int rows);
 
+// `rects` of a width x height screen mapped onto that screen at 1/step a side (ceil(side / step)),
+// edge by edge, so that rectangles that tiled the screen still tile the reduced one; one narrower
+// than a step may vanish.
+std::vector<Rect> reducedRects(const std::vector<Rect>& rects, int width, int height, int step);
+
 // Not thread-safe: one frame at a time, from one thread.
 class RankRenderer {
  public:
