@@ -6,7 +6,7 @@
 #include <mutex>
 #include <type_traits>
 #include <voxwall/codec/codec.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/progress.hpp>
 #include <voxwall/node/render_volume.hpp>
@@ -33,7 +33,7 @@ void RenderVolume::refuseRenderOptions(const codec::CodecOptionValues& renderOpt
                                        const std::string& path) {
   if (!renderOptions.flags().empty())
     throw std::invalid_argument(renderOptions.flags().front() + " needs a .vwz file; " + path +
-                                " is rendered with the raw codec");
+                                " is rendered from raw bricks (no codec)");
 }
 
 RenderVolume RenderVolume::fromContainer(codec::ContainerFile file,
@@ -74,7 +74,7 @@ RenderVolume RenderVolume::atStep(int step) const {
 
 RenderVolume RenderVolume::fromVolume(const codec::Volume& volume, int brickVoxels) {
   voxwall::Progress quiet;
-  return fromCompressed(codec::raw::encode(volume, {brickVoxels}, quiet));
+  return fromCompressed(codec::rawbricks::encode(volume, {brickVoxels}, quiet));
 }
 
 RenderVolume RenderVolume::fromCompressed(codec::CompressedVolume volume) {
@@ -111,7 +111,7 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
 
 struct RenderVolume::Decoded {
   std::once_flag once;
-  std::optional<codec::raw::DecodedBricks> bricks;
+  std::optional<codec::rawbricks::DecodedBricks> bricks;
   std::unique_ptr<codec::RenderPayload> payload;
   std::uint64_t id = 0;
 };
@@ -131,7 +131,7 @@ const codec::RenderPayload* RenderVolume::decodedPayload() const {
 std::uint64_t RenderVolume::decodedPayloadId() const { return decodedPayload() ? decoded_->id : 0; }
 
 std::uint64_t RenderVolume::decodedBytes() const {
-  return decoded_ ? codec::raw::DecodedBricks::bytesFor(info_.dims, info_.type) : 0;
+  return decoded_ ? codec::rawbricks::DecodedBricks::bytesFor(info_.dims, info_.type) : 0;
 }
 
 bool RenderVolume::traversal() const {

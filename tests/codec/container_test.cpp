@@ -6,7 +6,7 @@
 #include <cstring>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/core/errors.hpp>
 
 #include "support/temp_dir.hpp"
@@ -19,7 +19,7 @@ namespace {
 CompressedVolume sample() {
   Volume v = generateMarschnerLobb(11, ScalarType::UInt16);
   Progress quiet;
-  return raw::encode(v, {4}, quiet);
+  return rawbricks::encode(v, {4}, quiet);
 }
 
 std::string parseError(const std::vector<std::byte>& bytes) {
@@ -50,7 +50,7 @@ TEST(Container, RoundTripsHeaderAndSections) {
   const auto file = ContainerFile::parse(bytes, "mem");
   EXPECT_EQ(file.info().dims, c.info.dims);
   EXPECT_EQ(file.info().type, ScalarType::UInt16);
-  EXPECT_EQ(file.info().codec, raw::RawCodecEntry::kId);
+  EXPECT_EQ(file.info().codec, rawbricks::kCodecId);
   EXPECT_EQ(file.info().valueMax, c.info.valueMax);
   ASSERT_EQ(file.sections().sections.size(), c.sections.size());
   for (auto& [id, data] : c.sections) {
@@ -73,7 +73,7 @@ TEST(Container, FileRoundTripIsMemoryMapped) {
   const std::string onDisk = test::readFile(dir.path("a.vwz"));
   ASSERT_EQ(onDisk.size(), joined.size());
   EXPECT_EQ(std::memcmp(onDisk.data(), joined.data(), joined.size()), 0);
-  const Volume back = raw::decode(file.info(), file.sections());
+  const Volume back = rawbricks::decode(file.info(), file.sections());
   EXPECT_EQ(back.dims, c.info.dims);
 }
 
@@ -275,7 +275,7 @@ std::vector<CompressedVolume> sampleSteps() {
     for (std::size_t i = 0; i < voxels.size(); ++i)
       voxels[i] = std::uint16_t(voxels[i] / (k + 1) + (i % 7 == 0 ? k : 0));
     v.computeRange();
-    steps.push_back(raw::encode(v, {4}, quiet));
+    steps.push_back(rawbricks::encode(v, {4}, quiet));
   }
   return steps;
 }
@@ -307,8 +307,8 @@ TEST(ContainerSeries, StepsRoundTripWithIdenticalSectionsStoredOnce) {
       const auto got = file.stepSections(k).get(id, "x");
       EXPECT_EQ(std::vector<std::byte>(got.begin(), got.end()), data) << "step " << k;
     }
-    const Volume back = raw::decode(file.stepInfo(k), file.stepSections(k));
-    const Volume want = raw::decode(steps[std::size_t(k)].info, steps[std::size_t(k)].view());
+    const Volume back = rawbricks::decode(file.stepInfo(k), file.stepSections(k));
+    const Volume want = rawbricks::decode(steps[std::size_t(k)].info, steps[std::size_t(k)].view());
     EXPECT_EQ(back.data, want.data) << "step " << k;
   }
   EXPECT_EQ(file.info().valueMin, lo);  // the header holds the whole series' range
@@ -332,7 +332,7 @@ TEST(ContainerSeries, OneStepIsAVersionTwoFile) {
 TEST(ContainerSeries, RefusesStepsThatDiffer) {
   auto steps = sampleSteps();
   Progress quiet;
-  steps.push_back(raw::encode(generateMarschnerLobb(12, ScalarType::UInt16), {4}, quiet));
+  steps.push_back(rawbricks::encode(generateMarschnerLobb(12, ScalarType::UInt16), {4}, quiet));
   try {
     (void)makeSeries(steps);
     FAIL();

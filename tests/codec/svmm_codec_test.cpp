@@ -6,7 +6,7 @@
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/kernels/raw_view.hpp>
 #include <voxwall/codec/metrics.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/core/errors.hpp>
 
@@ -310,8 +310,8 @@ TEST(SvmmView, TrilinearSamplesEqualTheDecodedVolumes) {
     Progress quiet;
     const auto c = svmm::encode(v, params(4, 8, q), quiet);
     const Volume d = svmm::decode(c.info, c.view());
-    const auto raw = raw::encode(d, {}, quiet);
-    const raw::Layout rawLayout(raw.info, raw.view());
+    const auto raw = rawbricks::encode(d, {}, quiet);
+    const rawbricks::Layout rawLayout(raw.info, raw.view());
     const auto rv = rawLayout.view<std::uint8_t>();
     const svmm::Layout layout(c.info, c.view());
     const auto sv = layout.view();

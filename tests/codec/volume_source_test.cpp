@@ -5,7 +5,7 @@
 #include <cstring>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/registry.hpp>
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/volume_source.hpp>

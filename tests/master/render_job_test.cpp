@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/master/render_job.hpp>
 
@@ -126,7 +126,7 @@ TEST(RenderJob, AFrameThatDecodedPagesLeavesNoneOfTheMappedFileResident) {
   EXPECT_GT(tight.mappedResidentBytes().value_or(0), 0u);
 
   voxwall::Progress quiet;
-  codec::writeContainer(codec::raw::encode(codec::generateSheppLogan(64), {}, quiet),
+  codec::writeContainer(codec::rawbricks::encode(codec::generateSheppLogan(64), {}, quiet),
                         dir.path("raw.vwz"));
   const auto raw = node::RenderVolume::open(dir.path("raw.vwz"));
   raw.releaseMappedPages();

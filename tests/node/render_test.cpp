@@ -5,7 +5,7 @@
 #include <voxwall/codec/codec.hpp>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -154,7 +154,7 @@ TEST(Render, AVwzFileRendersLikeTheVolumeItCameFrom) {
   test::TempDir dir;
   const codec::Volume v = codec::generateMarschnerLobb(40);
   voxwall::Progress quiet;
-  codec::writeContainer(codec::raw::encode(v, {16}, quiet), dir.path("ml.vwz"));
+  codec::writeContainer(codec::rawbricks::encode(v, {16}, quiet), dir.path("ml.vwz"));
   const auto fromFile = RenderVolume::open(dir.path("ml.vwz"));
   const auto fromMemory = RenderVolume::fromVolume(v, 8);  // other brick size, same voxels
   Orbit o;
@@ -247,7 +247,7 @@ TEST(RenderVolume, TheVolumeDecodedWholeRendersLikeItsCompressedView) {
       }
       const codec::Volume voxels = c->decode(file.info, file.view());
       const codec::RenderPayload* whole = volume->decodedPayload();
-      if (volume->info().codec == codec::raw::RawCodecEntry::kId) {
+      if (volume->info().codec == codec::rawbricks::kCodecId) {
         EXPECT_EQ(whole, nullptr);
         EXPECT_EQ(volume->decodedBytes(), 0u);
         continue;

@@ -4,7 +4,7 @@
 
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/tvq_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -55,7 +55,8 @@ TEST(TvqRender, EveryProgressiveLevelRendersLikeItsDecodedVolume) {
 TEST(TvqRender, ProgressiveIsRefusedForAnotherCodecsFile) {
   test::TempDir dir;
   voxwall::Progress quiet;
-  codec::writeContainer(codec::raw::encode(codec::generateMenger(2), {}, quiet), dir.path("r.vwz"));
+  codec::writeContainer(codec::rawbricks::encode(codec::generateMenger(2), {}, quiet),
+                        dir.path("r.vwz"));
   codec::CodecOptionValues options;
   options.set("--progressive", "dc");
   EXPECT_THROW(RenderVolume::open(dir.path("r.vwz"), std::nullopt, options), std::invalid_argument);

@@ -6,7 +6,7 @@
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/vq_codec.hpp>
 #include <voxwall/node/renderer.hpp>
 
@@ -111,8 +111,8 @@ TEST_P(VqViewSamples, EqualTheRawViewOfTheDecodedVolumeEverywhere) {
   codec::vq::Params p;
   p.reduction = GetParam();
   const auto vc = codec::vq::encode(v, p, quiet);
-  const auto rc = codec::raw::encode(codec::vq::decode(vc.info, vc.view()), {8}, quiet);
-  const auto rv = codec::raw::Layout(rc.info, rc.view()).view<std::uint8_t>();
+  const auto rc = codec::rawbricks::encode(codec::vq::decode(vc.info, vc.view()), {8}, quiet);
+  const auto rv = codec::rawbricks::Layout(rc.info, rc.view()).view<std::uint8_t>();
   const codec::vq::Layout layout(vc.info, vc.view());
   const auto vv = layout.view();
   std::mt19937 rng(1);

@@ -1,4 +1,5 @@
-// The raw codec's registry entry: its compress options, info lines, render payload and samples.
+// The raw codec's registry entry: raw bricks (raw_bricks.hpp) stored as they are; its compress
+// options, info lines, render payload and samples.
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/raw_codec.hpp>
 #include <voxwall/codec/render_payload.hpp>
@@ -6,30 +7,10 @@
 namespace voxwall::codec::raw {
 namespace {
 
-class Payload final : public RenderPayload {
- public:
-  Payload(const VolumeInfo& info, const SectionSet& sections)
-      : type_(info.type), layout_(info, sections) {}
-  RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
-  std::span<const std::byte> bytes() const override { return layout_.brickBytes(); }
-  AnyView view(const std::byte* base) const override {
-    return dispatchScalar(type_,
-                          [&](auto t) -> AnyView { return layout_.view<decltype(t)>(base); });
-  }
-
- private:
-  ScalarType type_;
-  Layout layout_;
-};
-
-}  // namespace
-
-namespace {
-
 class RawCodec final : public CodecOf<RawCodecEntry> {
-  static Params params(const CodecOptionValues& options) {
-    const Params defaults;
-    Params p;
+  static rawbricks::Params params(const CodecOptionValues& options) {
+    const rawbricks::Params defaults;
+    rawbricks::Params p;
     p.brickVoxels = options.integer("--brick", defaults.brickVoxels, 1, 1 << 20);
     p.rangeCellVoxels = options.integer("--range-cell", defaults.rangeCellVoxels, 1, 1 << 20);
     return p;
@@ -44,7 +25,7 @@ class RawCodec final : public CodecOf<RawCodecEntry> {
   }
 
   std::vector<CodecOption> options() const override {
-    const Params defaults;
+    const rawbricks::Params defaults;
     return {{"--brick",
              "raw codec: voxels per brick side (4, 8, 16, 32, 64); each brick is stored with a "
              "one-voxel apron, so 16 stores 1.2x the voxels and 8 stores 1.42x",
@@ -57,21 +38,21 @@ class RawCodec final : public CodecOf<RawCodecEntry> {
 
   CompressedVolume encode(const Volume& volume, const CodecOptionValues& options,
                           Progress& progress, std::string&) const override {
-    return raw::encode(volume, params(options), progress);
+    return rawbricks::encode(volume, params(options), progress);
   }
 
   // Streams: one row of bricks in memory at a time.
   CompressedVolume encodeSource(const VolumeSource& source, const CodecOptionValues& options,
                                 Progress& progress, std::string&) const override {
-    return raw::encode(source, params(options), progress);
+    return rawbricks::encode(source, params(options), progress);
   }
 
   Volume decode(const VolumeInfo& info, const SectionSet& sections) const override {
-    return raw::decode(info, sections);
+    return rawbricks::decode(info, sections);
   }
 
   InfoLines describe(const VolumeInfo& info, const SectionSet& sections) const override {
-    const Layout layout(info, sections);
+    const rawbricks::Layout layout(info, sections);
     const int b = 1 << layout.brickShift();
     const glm::ivec3 b3 = layout.bricks(), cells = layout.rangeCells();
     return {
@@ -85,17 +66,17 @@ class RawCodec final : public CodecOf<RawCodecEntry> {
 
   std::unique_ptr<RenderPayload> open(const VolumeInfo& info,
                                       const SectionSet& sections) const override {
-    return std::make_unique<Payload>(info, sections);
+    return rawbricks::openPayload(info, sections);
   }
 
   std::vector<CodecSample> samples() const override {
     Progress quiet;
     std::vector<CodecSample> out;
-    out.push_back({"raw-menger1", raw::encode(generateMenger(1), {4}, quiet)});
+    out.push_back({"raw-menger1", rawbricks::encode(generateMenger(1), {4}, quiet)});
+    out.push_back({"raw-ml5-float",
+                   rawbricks::encode(generateMarschnerLobb(5, ScalarType::Float32), {4}, quiet)});
     out.push_back(
-        {"raw-ml5-float", raw::encode(generateMarschnerLobb(5, ScalarType::Float32), {4}, quiet)});
-    out.push_back(
-        {"raw-sl6-int16", raw::encode(generateSheppLogan(6, ScalarType::Int16), {8}, quiet)});
+        {"raw-sl6-int16", rawbricks::encode(generateSheppLogan(6, ScalarType::Int16), {8}, quiet)});
     return out;
   }
 
@@ -107,24 +88,6 @@ class RawCodec final : public CodecOf<RawCodecEntry> {
 const Codec& RawCodecEntry::instance() {
   static const RawCodec codec;
   return codec;
-}
-
-DecodedBricks::DecodedBricks(const Volume& volume, const std::string& source) {
-  Progress quiet;
-  coded_ = encode(volume, Params{}, quiet);
-  sections_ = coded_.view(source);
-  layout_.emplace(coded_.info, sections_);
-}
-
-std::unique_ptr<RenderPayload> DecodedBricks::payload() const {
-  return RawCodecEntry::instance().open(coded_.info, sections_);
-}
-
-std::uint64_t DecodedBricks::bytesFor(glm::ivec3 dims, ScalarType type) {
-  const int b = Params{}.brickVoxels;
-  const glm::u64vec3 bricks = (glm::u64vec3(dims) + std::uint64_t(b - 1)) / std::uint64_t(b);
-  const auto side = std::uint64_t(b + 1);
-  return bricks.x * bricks.y * bricks.z * side * side * side * std::uint64_t(scalarBytes(type));
 }
 
 }  // namespace voxwall::codec::raw

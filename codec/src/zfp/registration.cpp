@@ -4,7 +4,7 @@
 #include <mutex>
 #include <optional>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/zfp_codec.hpp>
 #include <voxwall/core/text.hpp>
@@ -14,7 +14,7 @@ namespace {
 
 // The host samples the compressed bricks (ZfpView). libzfp decodes on the host only, so a device
 // backend samples the volume decoded once, as raw bricks: bytes() builds them on its first call
-// (only a device backend calls it) and deviceView() hands out raw's view over the device copy.
+// (only a device backend calls it) and deviceView() hands out their view over the device copy.
 class Payload final : public RenderPayload {
  public:
   Payload(const VolumeInfo& info, const SectionSet& sections)
@@ -37,7 +37,7 @@ class Payload final : public RenderPayload {
   SectionSet sections_;
   Layout layout_;
   mutable std::once_flag decodedOnce_;
-  mutable std::optional<raw::DecodedBricks> decoded_;
+  mutable std::optional<rawbricks::DecodedBricks> decoded_;
 };
 
 std::string settingText(Mode mode, double setting) {

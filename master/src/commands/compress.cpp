@@ -5,6 +5,7 @@
 #include <memory>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/metrics.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/registry.hpp>
 #include <voxwall/codec/series_source.hpp>
 #include <voxwall/core/errors.hpp>
@@ -19,7 +20,8 @@ namespace voxwall::cli {
 namespace {
 
 struct CompressOptions {
-  std::string input, output, codec = "raw";
+  // Without --codec: raw bricks, uncompressed (the format the raw codec stores as it is).
+  std::string input, output, codec = codec::codecName(codec::rawbricks::kCodecId);
   int threads = 0;
   bool quiet = false, allowLarger = false, stepsAlone = false;
   RawInputOptions raw;

@@ -2,7 +2,7 @@
 #include <memory>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/series_source.hpp>
 #include <voxwall/codec/volume_io.hpp>
 
@@ -36,7 +36,7 @@ void generateSeries(const GenerateOptions& o, codec::ScalarType type) {
   for (int k = 0; k < o.steps; ++k) {
     codec::Volume v = codec::generateOrbitingBlobs(n, k, o.steps, type);
     if (container) {
-      coded.push_back(codec::raw::encode(v, {}, quiet));
+      coded.push_back(codec::rawbricks::encode(v, {}, quiet));
     } else if (pattern) {
       char name[4096];
       std::snprintf(name, sizeof name, o.output.c_str(), k);
@@ -75,7 +75,7 @@ void runGenerate(const GenerateOptions& o) {
   }
   if (codec::isContainerFile(o.output) || o.output.ends_with(".vwz")) {
     voxwall::Progress quiet;
-    codec::writeContainer(codec::raw::encode(v, {}, quiet), o.output);
+    codec::writeContainer(codec::rawbricks::encode(v, {}, quiet), o.output);
   } else {
     codec::writeVolume(v, o.output);
   }

@@ -8,7 +8,7 @@
 #include <vector>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/range_grid.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/codec/render_payload.hpp>
 #include <voxwall/codec/volume_io.hpp>
 
@@ -20,14 +20,14 @@ using ViewVariant = codec::AnyView;
 
 class RenderVolume {
  public:
-  // Opens a .vwz file (memory-mapped) or reads any volume file and bricks it in memory with
-  // the raw codec. `renderOptions` are the codec's render flags (Codec::renderOptions; a flag
-  // the volume's codec does not own is refused with std::invalid_argument). Throws
+  // Opens a .vwz file (memory-mapped) or reads any volume file and bricks it in memory as raw
+  // bricks (raw_bricks.hpp). `renderOptions` are the codec's render flags (Codec::renderOptions; a
+  // flag the volume's codec does not own is refused with std::invalid_argument). Throws
   // FormatError("<path>: ...").
   static RenderVolume open(const std::string& path, const codec::ReadOptions& options = {},
                            const codec::CodecOptionValues& renderOptions = {});
-  // Throws std::invalid_argument ("--progressive needs a .vwz file; <path> is rendered with the
-  // raw codec") when codec render flags are given for a volume that is not a .vwz file.
+  // Throws std::invalid_argument ("--progressive needs a .vwz file; <path> is rendered from raw
+  // bricks (no codec)") when codec render flags are given for a volume that is not a .vwz file.
   static void refuseRenderOptions(const codec::CodecOptionValues& renderOptions,
                                   const std::string& path);
   static RenderVolume fromContainer(codec::ContainerFile file,
@@ -35,7 +35,7 @@ class RenderVolume {
   // A compressed volume held in memory (any registered codec).
   static RenderVolume fromCompressed(codec::CompressedVolume volume);
   static RenderVolume fromVolume(const codec::Volume& volume,
-                                 int brickVoxels = codec::raw::Params{}.brickVoxels);
+                                 int brickVoxels = codec::rawbricks::Params{}.brickVoxels);
 
   // The volume's description; for a time series, the whole series' (steps, the range of every
   // step together), whichever step this is.

@@ -1,21 +1,38 @@
-// The raw codec; section layout in raw_codec.hpp.
+// Raw bricks, the format; section layout in raw_bricks.hpp.
 #include <algorithm>
 #include <cstring>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
+#include <voxwall/codec/render_payload.hpp>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/parallel.hpp>
 
-namespace voxwall::codec::raw {
+namespace voxwall::codec::rawbricks {
 namespace {
 
 int shiftFor(int voxels, int minShift, const char* what) {
   for (int s = minShift; s <= 6; ++s)
     if ((1 << s) == voxels) return s;
-  throw std::invalid_argument(std::string("raw codec: ") + what + " must be a power of two from " +
+  throw std::invalid_argument(std::string("raw bricks: ") + what + " must be a power of two from " +
                               std::to_string(1 << minShift) + " to 64 voxels, not " +
                               std::to_string(voxels));
 }
+
+class Payload final : public RenderPayload {
+ public:
+  Payload(const VolumeInfo& info, const SectionSet& sections)
+      : type_(info.type), layout_(info, sections) {}
+  RangeGrid rangeGrid() const override { return layout_.rangeGrid(); }
+  std::span<const std::byte> bytes() const override { return layout_.brickBytes(); }
+  AnyView view(const std::byte* base) const override {
+    return dispatchScalar(type_,
+                          [&](auto t) -> AnyView { return layout_.view<decltype(t)>(base); });
+  }
+
+ private:
+  ScalarType type_;
+  Layout layout_;
+};
 
 }  // namespace
 
@@ -35,7 +52,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
   const std::size_t scalar = scalarBytes(volume.type);
 
   CompressedVolume out;
-  out.info = volumeInfo(volume.headerVolume(), RawCodecEntry::kId);
+  out.info = volumeInfo(volume.headerVolume(), kCodecId);
 
   std::vector<std::byte> paramBytes;
   ByteWriter pw(paramBytes);
@@ -94,7 +111,7 @@ CompressedVolume encode(const VolumeSource& volume, const Params& params, Progre
 }
 
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
-  ByteReader p(sections.get(kParams, "params"), sections.source, "raw codec section 'params'");
+  ByteReader p(sections.get(kParams, "params"), sections.source, "raw bricks section 'params'");
   const auto shift = p.get<std::uint32_t>();
   if (shift < 2 || shift > 6) p.fail("brick shift " + std::to_string(shift) + " is not in 2..6");
   brickShift_ = int(shift);
@@ -112,7 +129,7 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   rangeBytes_ = sections.get(kRanges, "ranges");
   if (rangeBytes_.size() != cellCount * 2 * scalarBytes(info.type))
     throw FormatError(sections.source,
-                      "raw codec section 'ranges': " + std::to_string(rangeBytes_.size()) +
+                      "raw bricks section 'ranges': " + std::to_string(rangeBytes_.size()) +
                           " bytes, expected " +
                           std::to_string(cellCount * 2 * scalarBytes(info.type)));
   brickBytes_ = sections.get(kBricks, "bricks");
@@ -120,12 +137,12 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
       brickCount * std::size_t((b + 1) * (b + 1) * (b + 1)) * scalarBytes(info.type);
   if (brickBytes_.size() != expected)
     throw FormatError(sections.source,
-                      "raw codec section 'bricks': " + std::to_string(brickBytes_.size()) +
+                      "raw bricks section 'bricks': " + std::to_string(brickBytes_.size()) +
                           " bytes, expected " + std::to_string(expected) + " for " +
                           std::to_string(info.dims.x) + "x" + std::to_string(info.dims.y) + "x" +
                           std::to_string(info.dims.z) + " " + std::string(scalarName(info.type)));
   if (reinterpret_cast<std::uintptr_t>(brickBytes_.data()) % scalarBytes(info.type))
-    throw FormatError(sections.source, "raw codec section 'bricks' is misaligned");
+    throw FormatError(sections.source, "raw bricks section 'bricks' is misaligned");
 }
 
 RangeGrid Layout::rangeGrid() const {
@@ -159,4 +176,26 @@ Volume decode(const VolumeInfo& info, const SectionSet& sections) {
   return v;
 }
 
-}  // namespace voxwall::codec::raw
+std::unique_ptr<RenderPayload> openPayload(const VolumeInfo& info, const SectionSet& sections) {
+  return std::make_unique<Payload>(info, sections);
+}
+
+DecodedBricks::DecodedBricks(const Volume& volume, const std::string& source) {
+  Progress quiet;
+  coded_ = encode(volume, Params{}, quiet);
+  sections_ = coded_.view(source);
+  layout_.emplace(coded_.info, sections_);
+}
+
+std::unique_ptr<RenderPayload> DecodedBricks::payload() const {
+  return openPayload(coded_.info, sections_);
+}
+
+std::uint64_t DecodedBricks::bytesFor(glm::ivec3 dims, ScalarType type) {
+  const int b = Params{}.brickVoxels;
+  const glm::u64vec3 bricks = (glm::u64vec3(dims) + std::uint64_t(b - 1)) / std::uint64_t(b);
+  const auto side = std::uint64_t(b + 1);
+  return bricks.x * bricks.y * bricks.z * side * side * side * std::uint64_t(scalarBytes(type));
+}
+
+}  // namespace voxwall::codec::rawbricks

@@ -2,7 +2,7 @@
 
 #include <voxwall/codec/generators.hpp>
 #include <voxwall/codec/metrics.hpp>
-#include <voxwall/codec/raw_codec.hpp>
+#include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/core/errors.hpp>
 
 using namespace voxwall;
@@ -36,14 +36,14 @@ TEST_P(RawCodecRoundTrip, EveryVoxelSurvivesAtOddSizes) {
   for (glm::ivec3 dims : {glm::ivec3(1, 1, 1), glm::ivec3(13, 7, 5), glm::ivec3(17, 16, 33)}) {
     const Volume v = noise(type, dims, 7);
     Progress quiet;
-    const auto c = raw::encode(v, {brick}, quiet);
-    const Volume back = raw::decode(c.info, c.view());
+    const auto c = rawbricks::encode(v, {brick}, quiet);
+    const Volume back = rawbricks::decode(c.info, c.view());
     EXPECT_EQ(back.data, v.data) << dims.x << "x" << dims.y << "x" << dims.z;
     EXPECT_TRUE(std::isinf(psnr(v, back)));
     // The view agrees with the dense volume everywhere, and clamps outside.
     dispatchScalar(type, [&](auto t) {
       using T = decltype(t);
-      const raw::Layout layout(c.info, c.view());
+      const rawbricks::Layout layout(c.info, c.view());
       const auto view = layout.view<T>();
       for (int z = 0; z < dims.z; ++z)
         for (int y = 0; y < dims.y; ++y)
@@ -62,11 +62,11 @@ INSTANTIATE_TEST_SUITE_P(TypesAndBricks, RawCodecRoundTrip,
                                                               ScalarType::Float32),
                                             ::testing::Values(4, 8)));
 
-TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
+TEST(RawBricks, RangeGridCoversEveryTrilinearNeighbourhood) {
   const Volume v = noise(ScalarType::UInt8, {19, 10, 9}, 3);
   Progress quiet;
-  const auto c = raw::encode(v, {8, 4}, quiet);  // range cells independent of the brick size
-  const raw::Layout layout(c.info, c.view());
+  const auto c = rawbricks::encode(v, {8, 4}, quiet);  // range cells independent of the brick size
+  const rawbricks::Layout layout(c.info, c.view());
   const RangeGrid grid = layout.rangeGrid();
   ASSERT_EQ(grid.cells(), glm::ivec3(5, 3, 3));
   EXPECT_EQ(layout.rangeCells(), grid.cells());
@@ -90,20 +90,22 @@ TEST(RawCodec, RangeGridCoversEveryTrilinearNeighbourhood) {
       }
 }
 
-TEST(RawCodec, RejectsBadBrickSizes) {
+TEST(RawBricks, RejectsBadBrickSizes) {
   const Volume v = noise(ScalarType::UInt8, {4, 4, 4}, 1);
   Progress quiet;
-  for (int b : {0, 3, 6, 128}) EXPECT_THROW(raw::encode(v, {b}, quiet), std::invalid_argument);
-  for (int r : {0, 1, 3, 128}) EXPECT_THROW(raw::encode(v, {8, r}, quiet), std::invalid_argument);
+  for (int b : {0, 3, 6, 128})
+    EXPECT_THROW(rawbricks::encode(v, {b}, quiet), std::invalid_argument);
+  for (int r : {0, 1, 3, 128})
+    EXPECT_THROW(rawbricks::encode(v, {8, r}, quiet), std::invalid_argument);
 }
 
-TEST(RawCodec, CorruptSectionsAreRefusedByName) {
+TEST(RawBricks, CorruptSectionsAreRefusedByName) {
   const Volume v = noise(ScalarType::UInt16, {9, 9, 9}, 1);
   Progress quiet;
-  const auto good = raw::encode(v, {4}, quiet);
+  const auto good = rawbricks::encode(v, {4}, quiet);
   auto expectError = [&](CompressedVolume c, const std::string& fragment) {
     try {
-      raw::Layout(c.info, c.view("f.vwz"));
+      rawbricks::Layout(c.info, c.view("f.vwz"));
       ADD_FAILURE() << "accepted: " << fragment;
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
@@ -133,8 +135,8 @@ TEST(RawView, SampleEqualsTheTrilinearReferenceEverywhere) {
   const Volume v = noise(ScalarType::UInt16, {19, 9, 13}, 5);
   Progress quiet;
   for (int brick : {4, 8}) {
-    const auto c = raw::encode(v, {brick, 4}, quiet);
-    const auto view = raw::Layout(c.info, c.view()).view<std::uint16_t>();
+    const auto c = rawbricks::encode(v, {brick, 4}, quiet);
+    const auto view = rawbricks::Layout(c.info, c.view()).view<std::uint16_t>();
     kernels::RawView<std::uint16_t>::RayCache cache;
     std::uint32_t s = 99;
     auto coordinate = [&](int dim) {
