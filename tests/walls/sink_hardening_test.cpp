@@ -18,6 +18,7 @@
 #include <voxwall/net/tcp.hpp>
 #include <voxwall/walls/frame_assembler.hpp>
 #include <voxwall/walls/frame_files.hpp>
+#include <voxwall/walls/log_throttle.hpp>
 #include <voxwall/walls/sink.hpp>
 #include <voxwall/walls/sink_core.hpp>
 
@@ -562,4 +563,62 @@ TEST(SinkHardening, FrameFilesAppearWholeAndLeftoversAreCleared) {
   // A picture changed after the marker no longer counts as complete.
   test::writeFile(dir.path("frame_00003_r0c0.png"), "cut");
   EXPECT_FALSE(walls::frameFilesComplete(dir.path(""), 3));
+}
+
+// A kind's first `burst` lines in 10 s are told, the rest counted and told with the next line.
+TEST(LogThrottle, TellsABurstAWindowThenCountsWhatItDidNotTell) {
+  walls::LogThrottle throttle(3);
+  const auto t0 = walls::LogThrottle::Clock::now();
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(throttle.line("a", "x", t0), "x") << i;
+  EXPECT_EQ(throttle.line("a", "x", t0 + std::chrono::seconds(9)), "");
+  EXPECT_EQ(throttle.line("a", "x", t0 + std::chrono::seconds(9)), "");
+  EXPECT_EQ(throttle.line("b", "y", t0 + std::chrono::seconds(9)), "y");  // kinds apart
+  EXPECT_EQ(throttle.line("a", "x", t0 + std::chrono::seconds(10)),
+            "x (and 2 more like it since the last such line)");
+  EXPECT_EQ(throttle.line("a", "x", t0 + std::chrono::seconds(11)), "x");
+}
+
+namespace {
+
+std::size_t countOf(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+}  // namespace
+
+// Garbage headers (11,227 log lines a second from one outsider before) and jobs of one Hello
+// each, coming and going: every one is refused or counted, and the log tells at most 5 lines per
+// kind every 10 s (bounded here by the time the test took, not timed).
+TEST(SinkHardening, OutsidersCannotFloodTheLog) {
+  auto s = test::twoDisplaySink();
+  s.token = "right";
+  test::SinkRunner sink(s);
+  const auto start = std::chrono::steady_clock::now();
+  std::byte garbage[net::kHeaderBytes];
+  std::memset(garbage, 0x5a, sizeof garbage);
+  for (int i = 0; i < 100; ++i) {
+    const int fd = rawConnect(sink.port());
+    ASSERT_GE(fd, 0);
+    (void)!::send(fd, garbage, sizeof garbage, MSG_NOSIGNAL);
+    EXPECT_TRUE(closedWithin(fd, 5000)) << i;
+    ::close(fd);
+  }
+  auto hello = rendererHello(0, 1);
+  hello.token = "right";
+  for (int i = 0; i < 30; ++i) {
+    hello.jobId = std::uint64_t(1000 + i);  // a new job each time, leaving at once
+    net::Connection::open("127.0.0.1", sink.port(), hello, 2000);
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::size_t windows = 1 + std::size_t(seconds / 10);
+  EXPECT_GE(sink.sink().stats().peersRefused, 100);
+  const std::string log = sink.log();
+  const std::size_t told = countOf(log, "sink: refused") + countOf(log, "sink: dropped");
+  EXPECT_GE(told, 1u) << log;
+  EXPECT_LE(told, 2 * 5 * windows) << log;
+  EXPECT_GE(countOf(log, "took the wall") + countOf(log, "started"), 1u) << log;
+  EXPECT_LE(countOf(log, "took the wall") + countOf(log, "started"), 5 * windows) << log;
 }

@@ -514,6 +514,32 @@ TEST(WebView, FiftyViewersAtOnceEachGetTheFrame) {
   }
 }
 
+// Viewers coming and going (10,649 log lines a second of churn beside a stream before): at most
+// 8 lines of comings and goings per kind every 10 s are told (bounded by the time the test took,
+// not timed), and the sink still serves.
+TEST(WebView, ViewersComingAndGoingCannotFloodTheLog) {
+  auto settings = webSink();
+  settings.maxViewers = 64;  // 40 in a row, each closing as the next comes
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 40; ++i) {
+    Viewer v(port);
+    ASSERT_TRUE(v.open()) << i;
+    v.read();
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::size_t windows = 1 + std::size_t(seconds / 10);
+  EXPECT_EQ(get(port, "/").first, 200);
+  const std::string log = sink.log();
+  std::size_t lines = 0;
+  for (auto at = log.find(" watching"); at != std::string::npos; at = log.find(" watching", at + 1))
+    ++lines;
+  EXPECT_GE(lines, 1u) << log;
+  EXPECT_LE(lines, 8 * windows) << log;
+}
+
 // An interactive frame (1/4 per side) is presented whole: every virtual-screen pixel repeats the
 // reduced pixel of its block, up to the clipped blocks at the right and bottom edges.
 TEST(WebView, AnInteractiveFrameArrivesUpsampledAndWhole) {

@@ -38,8 +38,13 @@ std::uint32_t SinkCore::payloadLimit(const net::Peer& peer) const {
   return peer.greeted() ? net::kMaxPayload : net::kMaxHelloPayload;
 }
 
+void SinkCore::sayOf(const net::Peer& peer, const std::string& kind, const std::string& line) {
+  if (peer.greeted()) return say(line);
+  if (const std::string told = outsiders_.line(kind, line); !told.empty()) say(told);
+}
+
 void SinkCore::refuse(net::Peer& peer, const std::string& reason) {
-  say("sink: refused " + reason);
+  sayOf(peer, "refused", "sink: refused " + reason);
   refuseQuietly(peer, reason);
 }
 
@@ -74,7 +79,8 @@ void SinkCore::dropped(net::Peer& peer, const std::string& why) {
     updateStats([](SinkStats& s) { ++s.peersDropped; });
     // Errors about the peer already start with its name.
     const std::string prefix = peer.name() + ": ";
-    say("sink: dropped " + prefix + (why.rfind(prefix, 0) == 0 ? why.substr(prefix.size()) : why));
+    sayOf(peer, "dropped",
+          "sink: dropped " + prefix + (why.rfind(prefix, 0) == 0 ? why.substr(prefix.size()) : why));
   }
   detach(peer);
 }
@@ -182,18 +188,18 @@ bool SinkCore::takeWall(net::Peer& peer, const net::Hello& hello) {
       // names it, the refused peer hears only that a job is showing.
       const std::string showing = " is showing on this wall (" + std::to_string(running) +
                                   " peer(s) connected); try again when it ends";
-      say("sink: refused " + peer.name() + ": job " + jobName(*job_) + showing);
+      sayOf(peer, "refused", "sink: refused " + peer.name() + ": job " + jobName(*job_) + showing);
       refuseQuietly(peer, peer.name() + ": a job" + showing);
       return false;
     }
     const std::string why =
         "job " + jobName(*job_) + " ended; job " + jobName(hello.jobId) + " took the wall";
-    say("sink: " + why);
+    sayOf(peer, "jobs", "sink: " + why);
     endedJobs_.insert(*job_);
     if (endedJobs_.size() > kEndedJobsKept) endedJobs_.erase(endedJobs_.begin());
     assembler_.startSequence(hello.nextFrame, why);
   } else {
-    say("sink: job " + jobName(hello.jobId) + " started");
+    sayOf(peer, "jobs", "sink: job " + jobName(hello.jobId) + " started");
     assembler_.startSequence(hello.nextFrame, "");
   }
   job_ = hello.jobId;

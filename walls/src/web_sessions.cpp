@@ -111,8 +111,8 @@ void WsSession::start(http::request<http::empty_body> request) {
 // right one are told only by the token guard's lines, so guessing cannot flood the log), told the
 // wall or its display, and a page joins the swap barrier.
 void WsSession::welcome() {
-  view->say("sink: " + name + " connected (" + std::to_string(count().load()) +
-            (display >= 0 ? " display page(s))" : " watching)"));
+  view->sayComing(display, "sink: " + name + " connected (" + std::to_string(count().load()) +
+                               (display >= 0 ? " display page(s))" : " watching)"));
   if (display < 0) return note(view->wallJson);
   note(web::displayJson(view->wall, view->wall.displays[std::size_t(display)],
                         !view->settings.token.empty(), view->settings.swapTimeoutMs));
@@ -128,8 +128,9 @@ void WsSession::gone(const std::string& why) {
     const int n = pending ? count().load() : --count();
     unpend();
     if (open && !wasPending)
-      view->say("sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") + ", " +
-                std::to_string(n) + (display >= 0 ? " display page(s)" : " watching"));
+      view->sayComing(display, "sink: " + name + " left" + (why.empty() ? "" : " (" + why + ")") +
+                                   ", " + std::to_string(n) +
+                                   (display >= 0 ? " display page(s)" : " watching"));
   }
   if (open) {
     open = false;
@@ -142,7 +143,7 @@ void WsSession::gone(const std::string& why) {
 void WsSession::refuse(websocket::close_code code, const std::string& reason) {
   if (closing) return;
   closing = true;
-  if (!pending) view->say("sink: " + name + " closed: " + reason);
+  if (!pending) view->sayComing(display, "sink: " + name + " closed: " + reason);
   if (page) view->pageLeft(std::exchange(page, 0));
   beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(5));
   ws.async_close(websocket::close_reason(code, reason.substr(0, 120)),
@@ -468,6 +469,12 @@ void HttpSession::serve(http::request<http::empty_body> req) {
                  "this wall has no such display: its displays are listed at /displays\n",
                  "text/plain", head);
   return reply(http::status::not_found, "not found\n", "text/plain", head);
+}
+
+void WebView::Impl::sayComing(int display, const std::string& line) {
+  const std::string told =
+      comings.line(display < 0 ? "viewers" : "display " + std::to_string(display), line);
+  if (!told.empty()) say(told);
 }
 
 void WebView::Impl::refused(const std::string& kind, const std::string& what) {

@@ -74,6 +74,12 @@ std::string WebView::Impl::pageName(Page page) const {
   return "a display page";
 }
 
+void WebView::Impl::sayOfPage(Page page, const std::string& line) {
+  const auto it = pages.find(page);
+  const auto session = it != pages.end() ? it->second.lock() : nullptr;
+  sayComing(session ? session->display : -1, line);
+}
+
 std::shared_ptr<const std::string> WebView::Impl::frameFor(std::uint64_t seq, int display) {
   const auto it = frames.find(seq);
   if (it == frames.end() || display < 0) return nullptr;
@@ -90,7 +96,8 @@ void WebView::Impl::apply(SwapBarrier::Actions a) {
   for (const Page page : a.left)
     say("sink: " + pageName(page) + " left the swap barrier: not ready within " +
         std::to_string(settings.swapTimeoutMs) + " ms (it rejoins when it keeps up)");
-  for (const Page page : a.joined) say("sink: " + pageName(page) + " is in the swap barrier");
+  for (const Page page : a.joined)
+    sayOfPage(page, "sink: " + pageName(page) + " is in the swap barrier");
   char at[48];
   std::snprintf(
       at, sizeof at, R"(,"at":%.3f})",

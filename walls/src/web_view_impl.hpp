@@ -74,6 +74,10 @@ struct WebView::Impl {
   std::map<WsSession*, std::weak_ptr<WsSession>> sessions;      // the io thread's
   std::map<HttpSession*, std::weak_ptr<HttpSession>> requests;  // likewise
   LogThrottle refusals;  // the io thread's: refusals told at most once every 10 s per kind
+  // The io thread's: pages and viewers connecting, leaving, joining the swap barrier; at most 8
+  // lines every 10 s per display (and for viewers), so churn cannot flood the log while a wall's
+  // pages coming up are all told.
+  LogThrottle comings{8};
   std::atomic<int> viewerCount{0}, pageCount{0};
   // With a token, WebSockets that have not authenticated yet: they hold no viewer's or page's
   // place, at most kMaxPendingPerAddress per address and maxViewers + maxDisplayPages in all.
@@ -154,6 +158,9 @@ struct WebView::Impl {
   // A request or WebSocket refused: "sink: web: refused <what>", at most once every 10 s per
   // `kind`, with the count of those not told.
   void refused(const std::string& kind, const std::string& what);
+  // A page or viewer came, went or joined the barrier: `line` through `comings`, by display.
+  void sayComing(int display, const std::string& line);
+  void sayOfPage(Page page, const std::string& line);
   void closeAll();
 
   // The barrier (io thread).

@@ -77,6 +77,9 @@ class SinkCore {
   // The token check with its per-address back-off; false when the peer was refused.
   bool tokenAccepted(net::Peer& peer, const net::Hello& hello);
   void refuseQuietly(net::Peer& peer, const std::string& reason);
+  // Logs `line` about `peer`: at once for a greeted peer, through outsiders_ (by `kind`) for one
+  // that is not.
+  void sayOf(const net::Peer& peer, const std::string& kind, const std::string& line);
   void onEvent(const FrameEvent& event);
   void say(const std::string& line) {
     if (log_) log_(line);
@@ -95,6 +98,10 @@ class SinkCore {
   std::set<std::uint64_t> endedJobs_;
   TokenGuard tokens_;          // the token and its back-off per address
   LogThrottle refusedFrames_;  // frame ids peers send outside the window: a line every 10 s
+  // What peers not greeted can make the sink say (refusals, drops, jobs taking the wall): at most
+  // 5 lines per kind every 10 s, so a flood of garbage headers or of one-message jobs cannot fill
+  // the log (each is still counted in the stats).
+  LogThrottle outsiders_{5};
   mutable std::mutex statsMutex_;
   SinkStats stats_;
 };
