@@ -79,8 +79,9 @@ void SinkCore::dropped(net::Peer& peer, const std::string& why) {
     updateStats([](SinkStats& s) { ++s.peersDropped; });
     // Errors about the peer already start with its name.
     const std::string prefix = peer.name() + ": ";
-    sayOf(peer, "dropped",
-          "sink: dropped " + prefix + (why.rfind(prefix, 0) == 0 ? why.substr(prefix.size()) : why));
+    sayOf(
+        peer, "dropped",
+        "sink: dropped " + prefix + (why.rfind(prefix, 0) == 0 ? why.substr(prefix.size()) : why));
   }
   detach(peer);
 }
