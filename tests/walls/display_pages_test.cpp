@@ -22,8 +22,9 @@ namespace {
 // A display page played by a test: reads the sink's messages, answers when told to.
 class Page {
  public:
-  Page(std::uint16_t port, const std::string& display)
-      : viewer_(port, "", "/ws/display/" + display) {
+  // `from`: the local address to connect from (127.0.0.2 is another loopback client).
+  Page(std::uint16_t port, const std::string& display, const std::string& from = "")
+      : viewer_(port, "", "/ws/display/" + display, from) {
     if (!viewer_.open()) return;
     info_ = nlohmann::json::parse(viewer_.read());
   }
@@ -293,4 +294,34 @@ TEST(DisplayPages, ATokenGuardsThePagesToo) {
   Page wrong(sink.sink().httpPort(), "r0c1");
   wrong.say("auth guess");
   EXPECT_TRUE(wrong.frame().is_null());  // closed
+}
+
+// 16 pages of one display from one address held every page's place (12 on this two-display
+// wall), and the wall's own pages were refused (503). Now a page of a display with fewer pages
+// takes the place of the most crowded display's oldest, and a page from another address takes
+// the crowding address's oldest: both of the wall's pages come in and show the frame.
+TEST(DisplayPages, PagesCrowdingADisplayLeaveRoomForEveryDisplaysPage) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  std::vector<std::unique_ptr<Page>> crowd;
+  int crowdIn = 0;
+  for (int i = 0; i < 16; ++i) {
+    crowd.push_back(std::make_unique<Page>(port, "r0c0", "127.0.0.2"));
+    crowdIn += crowd.back()->open();
+  }
+  EXPECT_EQ(crowdIn, 12);  // the rest found no place: one address, one display
+  Page right(port, "r0c1");
+  ASSERT_TRUE(right.open()) << sink.log();
+  Page left(port, "r0c0");
+  ASSERT_TRUE(left.open()) << sink.log();
+  // A page of the crowding address for the display it crowds is still refused.
+  EXPECT_FALSE(Page(port, "r0c0", "127.0.0.2").open());
+  EXPECT_NE(sink.log().find("held the most"), std::string::npos) << sink.log();
+  auto r = rank(sink.port());
+  sendFrame(*r, 0, 0x0000ff);
+  for (Page* page : {&left, &right}) {
+    const auto f = page->frame();
+    ASSERT_FALSE(f.is_null());
+    EXPECT_EQ(f["frame"], 0);
+  }
 }

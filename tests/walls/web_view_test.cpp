@@ -540,6 +540,31 @@ TEST(WebView, ViewersComingAndGoingCannotFloodTheLog) {
   EXPECT_LE(lines, 8 * windows) << log;
 }
 
+// Viewers from one address held every viewer's place and everyone else got 503 for as long as
+// they stayed. Now a viewer from another address takes the crowding address's oldest place;
+// one from the crowding address is refused.
+TEST(WebView, ViewersFromOneAddressLeaveRoomForOthers) {
+  auto settings = webSink();
+  settings.maxViewers = 8;
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  std::vector<std::unique_ptr<Viewer>> crowd;
+  for (int i = 0; i < 8; ++i) {
+    crowd.push_back(std::make_unique<Viewer>(port, "", "/ws", "127.0.0.2"));
+    ASSERT_TRUE(crowd.back()->open()) << i;
+    crowd.back()->read();
+  }
+  EXPECT_FALSE(Viewer(port, "", "/ws", "127.0.0.2").open());
+  Viewer mine(port);
+  ASSERT_TRUE(mine.open()) << sink.log();
+  mine.read();
+  Renderer rank(sink.port());
+  rank.frame(0);
+  const auto meta = mine.readFrame();
+  ASSERT_FALSE(meta.is_null()) << mine.error().message();
+  EXPECT_EQ(meta["frame"], 0);
+}
+
 // An interactive frame (1/4 per side) is presented whole: every virtual-screen pixel repeats the
 // reduced pixel of its block, up to the clipped blocks at the right and bottom edges.
 TEST(WebView, AnInteractiveFrameArrivesUpsampledAndWhole) {

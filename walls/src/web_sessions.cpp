@@ -52,6 +52,7 @@ WsSession::WsSession(tcp::socket socket, WebView::Impl* v, int displayIndex)
                             remote + ")"
                       : "viewer " + remote;
   authed = view->settings.token.empty();
+  serial = view->nextSerial++;
   tokens = 2 * rate();
   pending = !authed;
   if (pending) {
@@ -71,6 +72,37 @@ void WsSession::unpend() {
   pending = false;
   --view->pendingAuth;
   if (--view->pendingByAddress[address] <= 0) view->pendingByAddress.erase(address);
+}
+
+void WsSession::replace(const std::string& why) {
+  if (counted && !pending) {
+    counted = false;
+    --count();
+  }
+  refuse(websocket::close_code::try_again_later, why);
+}
+
+bool WebView::Impl::makeRoom(int display, const std::string& address) {
+  std::vector<std::shared_ptr<WsSession>> holders;
+  for (const auto& [_, weak] : sessions)
+    if (const auto s = weak.lock();
+        s && s->counted && !s->pending && !s->closing && (s->display < 0) == (display < 0))
+      holders.push_back(s);
+  std::sort(holders.begin(), holders.end(), [](auto& a, auto& b) { return a->serial < b->serial; });
+  std::vector<HeldPlace> held;
+  for (const auto& h : holders) held.push_back({h->display, h->address});
+  const int victim = fairShareVictim(held, display, address);
+  if (victim < 0) return false;
+  WsSession& gone = *holders[std::size_t(victim)];
+  const std::string why =
+      display < 0
+          ? "replaced: the viewers' places are full and " + gone.address + " held the most of them"
+          : "replaced: the display pages' places are full and " +
+                (gone.display == display ? gone.address + " held the most of this display's"
+                                         : std::string("this display held the most"));
+  refused(display < 0 ? "replaced-viewer" : "replaced-page", gone.name + " " + why);
+  gone.replace(why);
+  return true;
 }
 
 double WsSession::rate() const {
@@ -210,7 +242,7 @@ bool WsSession::take(const std::string& text) {
     }
     const bool first = !authed;
     if (pending) {  // it takes a viewer's (page's) place now
-      if (count() >= cap()) {
+      if (count() >= cap() && !view->makeRoom(display, address)) {
         refuse(websocket::close_code::try_again_later,
                display >= 0 ? "too many display pages" : "too many viewers");
         return false;
@@ -405,11 +437,10 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
   }
   if (!view->settings.token.empty()) {
     // Connections waiting for their token hold no viewer's place, but are few per address.
-    const std::string from = hostOf(stream.socket());
-    const auto mine = view->pendingByAddress.find(from);
+    const auto mine = view->pendingByAddress.find(address);
     if (mine != view->pendingByAddress.end() && mine->second >= kMaxPendingPerAddress) {
       view->refused("pending-address", "a WebSocket: " + std::to_string(kMaxPendingPerAddress) +
-                                           " from " + from + " are waiting for their token");
+                                           " from " + address + " are waiting for their token");
       return reply(http::status::service_unavailable, "too many waiting for their token\n",
                    "text/plain");
     }
@@ -420,12 +451,17 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
                    "text/plain");
     }
   }
-  if (display < 0 && view->viewerCount >= view->settings.maxViewers) {
+  // Without a token a WebSocket takes its place now (with one, when its token comes: take()),
+  // replacing one of a crowd (fair_share.hpp) when the places are all held.
+  const bool open = view->settings.token.empty();
+  if (open && display < 0 && view->viewerCount >= view->settings.maxViewers &&
+      !view->makeRoom(display, address)) {
     view->refused("viewers",
                   "a viewer: " + std::to_string(view->settings.maxViewers) + " already watching");
     return reply(http::status::service_unavailable, "too many viewers\n", "text/plain");
   }
-  if (display >= 0 && view->pageCount >= view->settings.maxDisplayPages) {
+  if (open && display >= 0 && view->pageCount >= view->settings.maxDisplayPages &&
+      !view->makeRoom(display, address)) {
     view->refused("pages", "a display page: " + std::to_string(view->settings.maxDisplayPages) +
                                " already open");
     return reply(http::status::service_unavailable, "too many display pages\n", "text/plain");

@@ -22,6 +22,7 @@
 #include <optional>
 #include <set>
 #include <thread>
+#include <voxwall/walls/fair_share.hpp>
 #include <voxwall/walls/log_throttle.hpp>
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/swap_barrier.hpp>
@@ -109,6 +110,7 @@ struct WebView::Impl {
   SwapBarrier barrier;
   std::map<Page, std::weak_ptr<WsSession>> pages;
   Page nextPage = 1;
+  std::uint64_t nextSerial = 1;  // WebSockets in the order they came (the io thread's)
   std::uint64_t lastSeq = 0;
   std::map<std::uint64_t, Held> frames;  // by seq: what the barrier may still send
   bnet::steady_timer barrierTimer{io};
@@ -158,6 +160,9 @@ struct WebView::Impl {
   // A request or WebSocket refused: "sink: web: refused <what>", at most once every 10 s per
   // `kind`, with the count of those not told.
   void refused(const std::string& kind, const std::string& what);
+  // Room for one more page of `display` (viewer: -1) from `address` when their places are all
+  // held: the place fairShareVictim picks is let go (told why). Whether there is room now.
+  bool makeRoom(int display, const std::string& address);
   // A page or viewer came, went or joined the barrier: `line` through `comings`, by display.
   void sayComing(int display, const std::string& line);
   void sayOfPage(Page page, const std::string& line);
@@ -207,6 +212,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   std::string writingNote;
   double tokens = 0;  // a display page's message budget (viewers': commandBudget)
   Clock::time_point refilled = Clock::now();
+  std::uint64_t serial = 0;  // the order it came in: the oldest of a crowd is replaced first
 
   // Counted among the viewers (or pages) from here (a handshake in progress takes a place too,
   // so the caps bound what handshakes can hold), until gone(); with a token, among those waiting
@@ -219,6 +225,8 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   void welcome();   // authenticated: logged, told the wall (or display), a page joins
   int cap() const;  // the most viewers (or pages) at once
   void unpend();    // no longer counted among those waiting for their token
+  // Gives its place up to a newcomer (fair_share.hpp): no longer counted, closed with `why`.
+  void replace(const std::string& why);
   // Closes with a reason the page can show; a viewer that does not take the close is cut off.
   void refuse(websocket::close_code code, const std::string& reason);
   void read();
