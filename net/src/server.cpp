@@ -10,6 +10,7 @@
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/text.hpp>
 #include <voxwall/net/asio.hpp>
+#include <voxwall/net/fair_share.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 
@@ -32,6 +33,7 @@ struct Server::Impl {
   tcp::acceptor acceptor{io};
   asio::steady_timer acceptPause{io};
   std::set<std::shared_ptr<Session>> sessions;
+  std::uint64_t nextSerial = 1;
 
   Impl(asio::io_context& i, const ServerSettings& s, PeerHandler& h,
        std::function<void(const std::string&)> l)
@@ -71,7 +73,12 @@ struct Server::Impl {
     }
 
     Session(Impl& s, tcp::socket sock)
-        : Peer(nameOf(sock), addressOf(sock)), server(s), socket(std::move(sock)), deadline(s.io) {}
+        : Peer(nameOf(sock), addressOf(sock)),
+          server(s),
+          socket(std::move(sock)),
+          deadline(s.io),
+          serial(s.nextSerial++) {}
+    std::uint64_t serial;  // the order it came in
 
     void start() {
       server.handler.attach(*this);
@@ -212,6 +219,25 @@ struct Server::Impl {
     }
   };
 
+  // Every place is held: the oldest connection that has not said Hello, of the address holding
+  // the most such, gives its place up (net::oldestOfCrowd); greeted peers keep theirs. Whether a
+  // place was freed.
+  bool makeRoom() {
+    std::vector<std::shared_ptr<Session>> waiting;
+    for (const auto& s : sessions)
+      if (!s->greeted() && !s->closed) waiting.push_back(s);
+    std::sort(waiting.begin(), waiting.end(),
+              [](auto& a, auto& b) { return a->serial < b->serial; });
+    std::vector<HeldPlace> places;
+    for (const auto& s : waiting) places.push_back({-1, s->address()});
+    const int victim = oldestOfCrowd(places);
+    if (victim < 0) return false;
+    waiting[std::size_t(victim)]->drop(
+        "replaced by a newer connection: " + std::to_string(settings.maxPeers) +
+        " peers connected (--max-peers) and it had not said Hello");
+    return true;
+  }
+
   void accept() {
     acceptor.async_accept([this](asio::error_code ec, tcp::socket socket) {
       if (!acceptor.is_open() || ec == asio::error::operation_aborted) return;
@@ -226,7 +252,7 @@ struct Server::Impl {
         return;
       }
       asio::error_code ignored;
-      if (int(sessions.size()) >= settings.maxPeers) {
+      if (int(sessions.size()) >= settings.maxPeers && !makeRoom()) {
         handler.refusedConnection(std::to_string(settings.maxPeers) +
                                   " peers connected (--max-peers)");
         socket.close(ignored);

@@ -11,6 +11,7 @@
 #include <mutex>
 #include <thread>
 #include <voxwall/net/asio.hpp>
+#include <voxwall/net/fair_share.hpp>
 #include <voxwall/net/server.hpp>
 #include <voxwall/net/tcp.hpp>
 
@@ -225,4 +226,31 @@ TEST(Server, SettingsThatCannotWorkAreRefused) {
   net::ServerSettings badHost;
   badHost.host = "not-an-address";
   EXPECT_THROW((net::Server{io, badHost, handler}), net::NetError);
+}
+
+// Which place a newcomer takes when a pool is full (fair_share.hpp).
+TEST(FairShare, PlacesGoToDisplaysThenToAddresses) {
+  using net::HeldPlace;
+  const std::vector<HeldPlace> crowded{{0, "a"}, {0, "a"}, {0, "a"}};
+  EXPECT_EQ(net::fairShareVictim(crowded, 1, "b"), 0);   // another display: the oldest of 0
+  EXPECT_EQ(net::fairShareVictim(crowded, 1, "a"), 0);   // through one tunnel too
+  EXPECT_EQ(net::fairShareVictim(crowded, 0, "b"), 0);   // another address, same display
+  EXPECT_EQ(net::fairShareVictim(crowded, 0, "a"), -1);  // the crowd itself
+  const std::vector<HeldPlace> even{{0, "a"}, {1, "a"}, {0, "b"}, {1, "b"}};
+  EXPECT_EQ(net::fairShareVictim(even, 0, "c"), -1);  // every display and address has its share
+  EXPECT_EQ(net::fairShareVictim(even, 1, "a"), -1);
+  const std::vector<HeldPlace> mixed{{1, "b"}, {0, "a"}, {1, "a"}, {1, "a"}, {1, "a"}};
+  EXPECT_EQ(net::fairShareVictim(mixed, 0, "c"), 2);  // display 1's, of its crowding address
+  EXPECT_EQ(net::fairShareVictim(mixed, 1, "c"), 2);  // within display 1: a holds 3, c none
+  const std::vector<HeldPlace> viewers{{-1, "x"}, {-1, "y"}, {-1, "x"}, {-1, "x"}};
+  EXPECT_EQ(net::fairShareVictim(viewers, -1, "y"), 0);
+  EXPECT_EQ(net::fairShareVictim(viewers, -1, "z"), 0);
+  EXPECT_EQ(net::fairShareVictim(viewers, -1, "x"), -1);
+  EXPECT_EQ(net::fairShareVictim({}, -1, "x"), -1);
+  // Pools of the unproven: always the oldest of the address holding the most.
+  EXPECT_EQ(net::oldestOfCrowd(mixed), 1);  // a holds the most: its oldest
+  EXPECT_EQ(net::oldestOfCrowd(viewers), 0);
+  const std::vector<HeldPlace> spread{{-1, "p"}, {-1, "q"}, {-1, "r"}};
+  EXPECT_EQ(net::oldestOfCrowd(spread), 0);  // one each: the oldest
+  EXPECT_EQ(net::oldestOfCrowd({}), -1);
 }

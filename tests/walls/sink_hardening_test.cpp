@@ -622,3 +622,23 @@ TEST(SinkHardening, OutsidersCannotFloodTheLog) {
   EXPECT_GE(countOf(log, "took the wall") + countOf(log, "started"), 1u) << log;
   EXPECT_LE(countOf(log, "took the wall") + countOf(log, "started"), 5 * windows) << log;
 }
+
+// Connections that said no Hello from a few addresses filled every place on the tile port
+// (--max-peers) and a new render job could not connect. Now a rank comes in, in place of the
+// oldest connection of the address holding the most that has not said Hello.
+TEST(SinkHardening, ConnectionsWithoutAHelloMakeRoomForARank) {
+  auto s = test::twoDisplaySink();
+  s.maxPeers = 8;
+  test::SinkRunner sink(s);
+  std::vector<int> silent;
+  for (int i = 0; i < 8; ++i) {
+    silent.push_back(rawConnect(sink.port(), i < 4 ? "127.0.0.2" : "127.0.0.3"));
+    ASSERT_GE(silent.back(), 0);
+  }
+  auto rank = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
+  rank->send(net::encodeMessage(0, wholeScreen()));
+  EXPECT_TRUE(sink.waitForLog("frame 0 presented")) << sink.log();
+  EXPECT_TRUE(closedWithin(silent.front(), 5000));
+  EXPECT_NE(sink.log().find("replaced by a newer connection"), std::string::npos) << sink.log();
+  for (const int fd : silent) ::close(fd);
+}

@@ -1,11 +1,9 @@
 // The displays' swap barrier without sockets or clocks: pages switch together, a page that never
 // answers leaves after the timeout and the others go on, a late page rejoins, frames that come
-// during a round wait (the newest wins), and a page has one frame in flight; and which place a
-// newcomer takes when the pages' or viewers' places are full.
+// during a round wait (the newest wins), and a page has one frame in flight.
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <voxwall/walls/fair_share.hpp>
 #include <voxwall/walls/swap_barrier.hpp>
 
 using namespace voxwall;
@@ -177,25 +175,4 @@ TEST(SwapBarrier, WithNoPageInTheBarrierARoundWaitsForEveryPage) {
   EXPECT_TRUE(barrier.member(1));
   EXPECT_FALSE(barrier.member(2));
   EXPECT_THROW(SwapBarrier(0ms), std::invalid_argument);
-}
-
-// Which place a newcomer takes when a pool is full (fair_share.hpp).
-TEST(FairShare, PlacesGoToDisplaysThenToAddresses) {
-  using walls::HeldPlace;
-  const std::vector<HeldPlace> crowded{{0, "a"}, {0, "a"}, {0, "a"}};
-  EXPECT_EQ(walls::fairShareVictim(crowded, 1, "b"), 0);   // another display: the oldest of 0
-  EXPECT_EQ(walls::fairShareVictim(crowded, 1, "a"), 0);   // through one tunnel too
-  EXPECT_EQ(walls::fairShareVictim(crowded, 0, "b"), 0);   // another address, same display
-  EXPECT_EQ(walls::fairShareVictim(crowded, 0, "a"), -1);  // the crowd itself
-  const std::vector<HeldPlace> even{{0, "a"}, {1, "a"}, {0, "b"}, {1, "b"}};
-  EXPECT_EQ(walls::fairShareVictim(even, 0, "c"), -1);  // every display and address has its share
-  EXPECT_EQ(walls::fairShareVictim(even, 1, "a"), -1);
-  const std::vector<HeldPlace> mixed{{1, "b"}, {0, "a"}, {1, "a"}, {1, "a"}, {1, "a"}};
-  EXPECT_EQ(walls::fairShareVictim(mixed, 0, "c"), 2);  // display 1's, of its crowding address
-  EXPECT_EQ(walls::fairShareVictim(mixed, 1, "c"), 2);  // within display 1: a holds 3, c none
-  const std::vector<HeldPlace> viewers{{-1, "x"}, {-1, "y"}, {-1, "x"}, {-1, "x"}};
-  EXPECT_EQ(walls::fairShareVictim(viewers, -1, "y"), 0);
-  EXPECT_EQ(walls::fairShareVictim(viewers, -1, "z"), 0);
-  EXPECT_EQ(walls::fairShareVictim(viewers, -1, "x"), -1);
-  EXPECT_EQ(walls::fairShareVictim({}, -1, "x"), -1);
 }

@@ -375,6 +375,52 @@ TEST(WebView, SlowRequestsFromOneAddressLeaveRoomForOthers) {
   EXPECT_TRUE(viewer.open()) << viewer.error().message();
 }
 
+// 256 requests in flight from 16 addresses (16 each, the most one address may have) left
+// nothing for anyone else: a request from another address was closed unanswered. Now it comes
+// in, in place of the oldest request of an address holding the most.
+TEST(WebView, RequestsFromManyAddressesLeaveRoomForAnother) {
+  test::SinkRunner sink(webSink());
+  const auto port = sink.sink().httpPort();
+  boost::asio::io_context io;
+  std::vector<std::unique_ptr<tcp::socket>> slow;
+  for (int a = 0; a < 16; ++a)
+    for (int i = 0; i < 16; ++i) {
+      auto s = std::make_unique<tcp::socket>(io);
+      s->open(tcp::v4());
+      s->bind(tcp::endpoint(boost::asio::ip::make_address("127.0.1." + std::to_string(a + 2)), 0));
+      s->connect(tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+      boost::system::error_code ignored;
+      boost::asio::write(*s, boost::asio::buffer(std::string("GET / HTTP/1.1\r\nHo")), ignored);
+      slow.push_back(std::move(s));
+    }
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(get(port, "/").first, 200) << i << sink.log();
+  EXPECT_TRUE(sink.waitForLog("its address had the most")) << sink.log();
+}
+
+// With a token, 14 WebSockets waiting for theirs from 4 addresses filled the waiting pool
+// (--max-viewers 2 plus 12 pages) and the token's holder got 503 while they reconnected. Now the
+// holder comes in, in place of the oldest of an address waiting most, and is let in.
+TEST(WebView, AWaitingPoolFullOfTheUnprovenLetsTheTokensHolderIn) {
+  auto settings = webSink("s3cret");
+  settings.maxViewers = 2;
+  test::SinkRunner sink(settings);
+  const auto port = sink.sink().httpPort();
+  std::vector<std::unique_ptr<Viewer>> waiting;
+  for (int i = 0; i < 14; ++i) {
+    waiting.push_back(
+        std::make_unique<Viewer>(port, "", "/ws", "127.0.2." + std::to_string(2 + i / 4)));
+    ASSERT_TRUE(waiting.back()->open()) << i << " " << waiting.back()->error().message();
+    waiting.back()->read();  // {"type":"login"}: it is in the pool
+  }
+  Viewer holder(port);
+  ASSERT_TRUE(holder.open()) << holder.error().message() << sink.log();
+  holder.read();
+  holder.send("auth s3cret");
+  EXPECT_EQ(nlohmann::json::parse(holder.read())["type"], "auth");
+  EXPECT_TRUE(waiting.front()->closedByServer());
+  EXPECT_EQ(waiting.front()->closeReason(), "replaced: too many waiting for their token");
+}
+
 TEST(WebView, GarbageAndOversizedMessagesCloseTheViewerNotTheSink) {
   test::SinkRunner sink(webSink());
   const auto port = sink.sink().httpPort();

@@ -83,15 +83,10 @@ void WsSession::replace(const std::string& why) {
 }
 
 bool WebView::Impl::makeRoom(int display, const std::string& address) {
-  std::vector<std::shared_ptr<WsSession>> holders;
-  for (const auto& [_, weak] : sessions)
-    if (const auto s = weak.lock();
-        s && s->counted && !s->pending && !s->closing && (s->display < 0) == (display < 0))
-      holders.push_back(s);
-  std::sort(holders.begin(), holders.end(), [](auto& a, auto& b) { return a->serial < b->serial; });
-  std::vector<HeldPlace> held;
-  for (const auto& h : holders) held.push_back({h->display, h->address});
-  const int victim = fairShareVictim(held, display, address);
+  const auto holders = oldestFirst(sessions, [&](const WsSession& s) {
+    return s.counted && !s.pending && !s.closing && (s.display < 0) == (display < 0);
+  });
+  const int victim = net::fairShareVictim(placesOf(holders), display, address);
   if (victim < 0) return false;
   WsSession& gone = *holders[std::size_t(victim)];
   const std::string why =
@@ -377,7 +372,10 @@ void WsSession::write() {
 }
 
 HttpSession::HttpSession(tcp::socket socket, WebView::Impl* v)
-    : stream(std::move(socket)), view(v), address(hostOf(stream.socket())) {}
+    : stream(std::move(socket)),
+      view(v),
+      address(hostOf(stream.socket())),
+      serial(v->nextSerial++) {}
 
 void HttpSession::start() {
   parser.emplace();
@@ -445,10 +443,21 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
                    "text/plain");
     }
     if (view->pendingAuth >= view->settings.maxViewers + view->settings.maxDisplayPages) {
-      view->refused("pending", "a WebSocket: " + std::to_string(view->pendingAuth) +
-                                   " are waiting for their token");
-      return reply(http::status::service_unavailable, "too many waiting for their token\n",
-                   "text/plain");
+      // Full of the unproven: the oldest of the address waiting most goes (net::oldestOfCrowd).
+      const auto waiting =
+          oldestFirst(view->sessions, [](const WsSession& s) { return s.pending && !s.closing; });
+      const int victim = net::oldestOfCrowd(placesOf(waiting));
+      if (victim < 0) {  // all still in their handshake
+        view->refused("pending", "a WebSocket: " + std::to_string(view->pendingAuth) +
+                                     " are waiting for their token");
+        return reply(http::status::service_unavailable, "too many waiting for their token\n",
+                     "text/plain");
+      }
+      view->refused("pending-replaced",
+                    waiting[std::size_t(victim)]->name + ": replaced by a newer connection (" +
+                        std::to_string(view->pendingAuth) + " were waiting for their token)");
+      waiting[std::size_t(victim)]->refuse(websocket::close_code::try_again_later,
+                                           "replaced: too many waiting for their token");
     }
   }
   // Without a token a WebSocket takes its place now (with one, when its token comes: take()),
@@ -535,17 +544,25 @@ void WebView::Impl::accept() {
     std::size_t fromThere = 0;
     for (const auto& [p, weak] : self->requests)
       if (const auto r = weak.lock(); r && r->address == from) ++fromThere;
-    if (self->requests.size() >= kMaxRequests || fromThere >= kMaxRequestsPerAddress) {
-      if (fromThere >= kMaxRequestsPerAddress)
-        self->refused("address", "a connection: " + std::to_string(fromThere) +
-                                     " requests in flight from " + from);
-      else
-        self->refused("requests", "a connection: " + std::to_string(self->requests.size()) +
-                                      " requests in flight");
+    if (fromThere >= kMaxRequestsPerAddress) {
+      self->refused("address", "a connection: " + std::to_string(fromThere) +
+                                   " requests in flight from " + from);
       boost::system::error_code ignored;
       socket.close(ignored);
       self->accept();
       return;
+    }
+    if (self->requests.size() >= kMaxRequests) {
+      // Full of requests from other addresses: the oldest of the address with the most in
+      // flight is closed unanswered (net::oldestOfCrowd) and this one comes in.
+      const auto inFlight = oldestFirst(self->requests, [](const HttpSession&) { return true; });
+      if (const int victim = net::oldestOfCrowd(placesOf(inFlight)); victim >= 0) {
+        self->refused("requests", "a request from " + inFlight[std::size_t(victim)]->address +
+                                      ": " + std::to_string(self->requests.size()) +
+                                      " requests in flight, its address had the most");
+        inFlight[std::size_t(victim)]->close();
+        self->requests.erase(inFlight[std::size_t(victim)].get());
+      }
     }
     // Small messages go out at once: the swap barrier's "show" must not wait for Nagle's
     // algorithm to gather more (40 ms per round on Linux, with delayed acknowledgements).

@@ -22,7 +22,7 @@
 #include <optional>
 #include <set>
 #include <thread>
-#include <voxwall/walls/fair_share.hpp>
+#include <voxwall/net/fair_share.hpp>
 #include <voxwall/walls/log_throttle.hpp>
 #include <voxwall/walls/sink_core.hpp>
 #include <voxwall/walls/swap_barrier.hpp>
@@ -61,6 +61,25 @@ inline constexpr int kMaxPendingPerAddress = 4;
 
 struct WsSession;
 struct HttpSession;
+
+// The live connections of `pool` that `take` takes, oldest first (by their serial).
+template <class Session, class Take>
+std::vector<std::shared_ptr<Session>> oldestFirst(
+    const std::map<Session*, std::weak_ptr<Session>>& pool, Take take) {
+  std::vector<std::shared_ptr<Session>> out;
+  for (const auto& [_, weak] : pool)
+    if (auto s = weak.lock(); s && take(*s)) out.push_back(std::move(s));
+  std::sort(out.begin(), out.end(), [](auto& a, auto& b) { return a->serial < b->serial; });
+  return out;
+}
+
+// Where they come from, for net::fairShareVictim and net::oldestOfCrowd.
+template <class Session>
+std::vector<net::HeldPlace> placesOf(const std::vector<std::shared_ptr<Session>>& sessions) {
+  std::vector<net::HeldPlace> out;
+  for (const auto& s : sessions) out.push_back({s->group(), s->address});
+  return out;
+}
 
 struct WebView::Impl {
   Wall wall;
@@ -213,6 +232,7 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   double tokens = 0;  // a display page's message budget (viewers': commandBudget)
   Clock::time_point refilled = Clock::now();
   std::uint64_t serial = 0;  // the order it came in: the oldest of a crowd is replaced first
+  int group() const { return display; }
 
   // Counted among the viewers (or pages) from here (a handshake in progress takes a place too,
   // so the caps bound what handshakes can hold), until gone(); with a token, among those waiting
@@ -249,6 +269,8 @@ struct HttpSession : std::enable_shared_from_this<HttpSession> {
   std::string address;  // remote, without the port
   beast::flat_buffer buffer;
   std::optional<http::request_parser<http::empty_body>> parser;
+  std::uint64_t serial = 0;  // the order it came in: the oldest of a crowd is replaced first
+  int group() const { return -1; }
 
   HttpSession(tcp::socket socket, WebView::Impl* v);
   void start();
