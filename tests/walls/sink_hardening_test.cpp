@@ -642,3 +642,19 @@ TEST(SinkHardening, ConnectionsWithoutAHelloMakeRoomForARank) {
   EXPECT_NE(sink.log().find("replaced by a newer connection"), std::string::npos) << sink.log();
   for (const int fd : silent) ::close(fd);
 }
+
+// A peer of the job saying it abandoned frames 0..4095 settled every frame of the window as
+// superseded before it was sent (0 of 300 presented, a line each). Now a FrameEnd supersedes
+// only a frame that is open or among the next 16 in flight, and only for its sender's own rank.
+TEST(SinkHardening, AbandoningFramesFarAheadSettlesNoneOfThem) {
+  test::SinkRunner sink(test::twoDisplaySink());
+  auto rank = net::Connection::open("127.0.0.1", sink.port(), rendererHello(0, 1), 2000);
+  for (std::uint64_t f = 0; f < 4096; ++f)
+    rank->send(net::encodeMessage(f, net::FrameEnd{0, 0, true}));
+  rank->send(net::encodeMessage(100, wholeScreen()));
+  ASSERT_TRUE(sink.waitForLog("frame 100 presented")) << sink.log();
+  EXPECT_EQ(sink.sink().stats().framesSuperseded, 16);
+  // Another rank's FrameEnd from this one is refused: the peer is dropped.
+  rank->send(net::encodeMessage(101, net::FrameEnd{1, 0, true}));
+  EXPECT_TRUE(sink.waitForLog("sent the FrameEnd of rank 1")) << sink.log();
+}

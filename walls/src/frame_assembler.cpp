@@ -86,13 +86,19 @@ void FrameAssembler::startSequence(std::uint64_t firstFrame, const std::string& 
   reported_.clear();
 }
 
-void FrameAssembler::supersede(std::uint64_t frame, const std::string& why) {
-  if (reported(frame) || outsideWindow(frame)) return;
+bool FrameAssembler::supersede(std::uint64_t frame, const std::string& why) {
+  if (reported(frame) || outsideWindow(frame)) return false;
   if (const auto it = open_.find(frame); it != open_.end()) {
     heldBytes_ -= it->second.heldBytes;
     open_.erase(it);
+  } else {
+    // Not open: one the job may have in flight with no tile sent yet, at most pendingFrames
+    // after the last complete frame (or the first); further ahead it is no frame of the job's.
+    const std::uint64_t next = lastComplete_ ? *lastComplete_ + 1 : firstFrame_;
+    if (frame - next >= std::uint64_t(limits_.pendingFrames)) return false;
   }
   report(frame, net::FrameStatus::Superseded, why);
+  return true;
 }
 
 std::optional<std::string> FrameAssembler::outsideWindow(std::uint64_t frame) const {

@@ -286,7 +286,12 @@ bool SinkCore::handle(net::Peer& peer, net::MessageType type, std::uint64_t fram
     case MessageType::FrameEnd: {
       if (peer.hello().role != net::Role::Renderer)
         throw FormatError(peer.name(), "a controller sent a FrameEnd");
-      if (net::decodeFrameEnd(payload, peer.name()).abandoned)
+      const auto end = net::decodeFrameEnd(payload, peer.name());
+      if (end.rank != peer.hello().rank)
+        throw FormatError(peer.name(), "rank " + std::to_string(peer.hello().rank) +
+                                           " sent the FrameEnd of rank " +
+                                           std::to_string(end.rank));
+      if (end.abandoned)
         assembler_.supersede(frame, "the render job abandoned it (the camera moved)");
       return true;
     }

@@ -89,9 +89,12 @@ class FrameAssembler {
   std::optional<AssembledFrame> addTile(std::uint64_t frame, net::TileMessage tile, int rank,
                                         const std::string& peer);
   // The render job abandoned `frame` (the camera moved while it was rendered): it is dropped as
-  // superseded if open, and its later tiles are ignored. Frames already settled, or outside the
-  // frame window, are left alone.
-  void supersede(std::uint64_t frame, const std::string& why);
+  // superseded and its later tiles are ignored, if it is open or among the `pendingFrames`
+  // frames after the last complete one (in flight with no tile sent yet: its ranks may all give
+  // it up before sending any). Frames already settled, further ahead or outside the frame window
+  // are left alone (a FrameEnd cannot settle frames the job has not begun). Whether it was
+  // superseded.
+  bool supersede(std::uint64_t frame, const std::string& why);
 
   std::uint64_t heldBytes() const { return heldBytes_; }
   std::size_t openFrames() const { return open_.size(); }
