@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <map>
 #include <voxwall/walls/swap_barrier.hpp>
 
 using namespace voxwall;
@@ -175,4 +176,83 @@ TEST(SwapBarrier, WithNoPageInTheBarrierARoundWaitsForEveryPage) {
   EXPECT_TRUE(barrier.member(1));
   EXPECT_FALSE(barrier.member(2));
   EXPECT_THROW(SwapBarrier(0ms), std::invalid_argument);
+}
+
+namespace {
+
+// Eleven fast pages (ready 5 ms after they are given a frame) and page 1, ready `slowMs` after,
+// until `fastFromMs` (then 5 ms too), on a stream of a frame every 33 ms for 5 s, on the
+// barrier's clock (500 ms timeout). What came of it.
+struct Simulated {
+  int together = 0;                         // rounds every fast page showed together
+  int offeredAfter = 0, togetherAfter = 0;  // frames offered, rounds together, once page 1 left
+  int slowShown = 0;                        // frames page 1 was told to show
+  int slowed = 0;                           // times page 1 left for slowness
+  int rejoined = 0;                         // times page 1 joined after that
+  bool slowInLastRound = false;
+};
+
+Simulated simulate(int slowMs, int fastFromMs = 1 << 30) {
+  SwapBarrier barrier(500ms);
+  const SwapBarrier::Clock::time_point t0{};
+  std::multimap<int, std::pair<SwapBarrier::Page, std::uint64_t>> due;  // ms -> ready
+  Simulated out;
+  auto apply = [&](const SwapBarrier::Actions& a, int ms) {
+    for (const auto& [page, frame] : a.send)
+      due.emplace(ms + (page == 1 && ms < fastFromMs ? slowMs : 5), std::pair{page, frame});
+    for (const auto& [frame, shown] : a.swapped) {
+      const auto fast = std::count_if(shown.begin(), shown.end(), [](auto p) { return p != 1; });
+      out.together += fast == 11;
+      out.togetherAfter += fast == 11 && out.slowed > 0;
+      out.slowInLastRound = std::count(shown.begin(), shown.end(), 1) > 0;
+    }
+    for (const auto& [page, frame] : a.show) out.slowShown += page == 1;
+    for (const auto& s : a.slowed) out.slowed += s.page == 1;
+    for (const auto page : a.joined) out.rejoined += page == 1 && out.slowed > 0;
+  };
+  for (SwapBarrier::Page p = 1; p <= 12; ++p) apply(barrier.add(p, t0), 0);
+  for (int ms = 0; ms <= 5000; ++ms) {
+    const auto now = t0 + std::chrono::milliseconds(ms);
+    if (ms % 33 == 0) {
+      out.offeredAfter += out.slowed > 0;
+      apply(barrier.offer(std::uint64_t(ms / 33 + 1), now), ms);
+    }
+    while (!due.empty() && due.begin()->first <= ms) {
+      const auto [page, frame] = due.begin()->second;
+      due.erase(due.begin());
+      apply(barrier.ready(page, frame, now), ms);
+    }
+    if (const auto d = barrier.deadline(); d && *d <= now) apply(barrier.expire(now), ms);
+  }
+  return out;
+}
+
+}  // namespace
+
+// A page ready 450 ms (or 200 ms) after each frame stays inside the 500 ms timeout, and it set
+// the whole wall's pace: 11 pages switched about 11 times in 5 s on a stream of 152 frames (24
+// at 200 ms). It now leaves the barrier after three slow rounds and is shown frames alone; the
+// others keep the stream's rate from then on (a round for every frame offered but the one in
+// progress when it left).
+TEST(SwapBarrier, ASlowPageLeavesTheBarrierAndTheOthersKeepTheStreamsRate) {
+  for (const int slowMs : {450, 200}) {
+    const auto s = simulate(slowMs);
+    EXPECT_EQ(s.slowed, 1) << slowMs;
+    EXPECT_GE(s.togetherAfter, s.offeredAfter - 1) << slowMs;
+    EXPECT_GE(s.offeredAfter, 90) << slowMs;                     // it left within 2 s
+    EXPECT_GE(s.slowShown, 5000 / (slowMs + 33) - 3) << slowMs;  // it keeps moving, behind
+    EXPECT_EQ(s.rejoined, 0) << slowMs;
+  }
+  // A page slower than the others but well within the stream's interval is not judged slow.
+  const auto modest = simulate(20);
+  EXPECT_EQ(modest.slowed, 0);
+  EXPECT_GE(modest.together, 150);
+}
+
+TEST(SwapBarrier, ASlowPageThatKeepsUpAgainRejoins) {
+  const auto s = simulate(450, 2000);
+  EXPECT_EQ(s.slowed, 1);
+  EXPECT_EQ(s.rejoined, 1);
+  EXPECT_TRUE(s.slowInLastRound);
+  EXPECT_GE(s.togetherAfter, s.offeredAfter - 1);
 }

@@ -23,6 +23,7 @@ void SwapBarrier::pump(Page page, Actions& a) {
 void SwapBarrier::start(std::uint64_t frame, Clock::time_point now, Actions& a) {
   Round r;
   r.frame = frame;
+  r.started = now;
   r.deadline = now + timeout_;
   const bool anyMember = members() > 0;
   for (const auto& [page, state] : pages_)
@@ -32,9 +33,40 @@ void SwapBarrier::start(std::uint64_t frame, Clock::time_point now, Actions& a) 
   if (round_->waiting.empty()) finish(now, a);  // nobody to wait for
 }
 
+std::optional<double> SwapBarrier::streamIntervalMs() const {
+  if (intervalsMs_.size() < 3) return std::nullopt;
+  std::vector<double> v = intervalsMs_;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+void SwapBarrier::judgeSlowness(const Round& r, Actions& a) {
+  const auto interval = streamIntervalMs();
+  if (!interval || r.readyMs.size() < 2) return;
+  for (const auto& [page, ms] : r.readyMs) {
+    std::vector<double> others;
+    for (const auto& [other, otherMs] : r.readyMs)
+      if (other != page) others.push_back(otherMs);
+    std::nth_element(others.begin(), others.begin() + std::ptrdiff_t(others.size() / 2),
+                     others.end());
+    const double median = others[others.size() / 2];
+    auto& p = pages_.at(page);
+    if (ms <= 2 * *interval || ms <= 3 * median) {
+      p.slowRounds = 0;
+      continue;
+    }
+    if (++p.slowRounds < kSlowRounds) continue;
+    p.member = false;
+    p.outForSlowness = true;
+    p.slowRounds = p.inTime = 0;
+    a.slowed.push_back({page, ms, median, *interval});
+  }
+}
+
 void SwapBarrier::finish(Clock::time_point now, Actions& a) {
   Round r = std::move(*round_);
   round_.reset();
+  judgeSlowness(r, a);
   std::vector<Page> shown(r.ready.begin(), r.ready.end());
   for (const Page page : shown) a.show.emplace_back(page, r.frame);
   a.swapped.emplace_back(r.frame, std::move(shown));
@@ -65,6 +97,11 @@ SwapBarrier::Actions SwapBarrier::remove(Page page, Clock::time_point now) {
 
 SwapBarrier::Actions SwapBarrier::offer(std::uint64_t frame, Clock::time_point now) {
   Actions a;
+  if (lastOffer_) {
+    if (intervalsMs_.size() == 9) intervalsMs_.erase(intervalsMs_.begin());
+    intervalsMs_.push_back(std::chrono::duration<double, std::milli>(now - *lastOffer_).count());
+  }
+  lastOffer_ = now;
   if (round_) {
     if (queued_) a.skipped.push_back(*queued_);
     queued_ = frame;
@@ -83,17 +120,27 @@ SwapBarrier::Actions SwapBarrier::ready(Page page, std::uint64_t frame, Clock::t
   auto& p = it->second;
   p.inFlight.reset();
   if (round_ && round_->frame == frame) {
-    round_->ready.insert(page);
-    if (!p.member) {
-      p.member = true;
-      a.joined.push_back(page);
-    }
-    if (round_->waiting.erase(page) && round_->waiting.empty()) finish(now, a);
+    readyInTime(page, p, now, a);
   } else {
     a.show.emplace_back(page, frame);  // its round is over: show it alone, behind the others
+    p.inTime = 0;
   }
   if (pages_.count(page)) pump(page, a);
   return a;
+}
+
+void SwapBarrier::readyInTime(Page page, PageState& p, Clock::time_point now, Actions& a) {
+  round_->ready.insert(page);
+  if (p.member)
+    round_->readyMs[page] =
+        std::chrono::duration<double, std::milli>(now - round_->started).count();
+  else if (!p.outForSlowness || ++p.inTime >= kSlowRounds) {
+    p.member = true;
+    p.outForSlowness = false;
+    p.slowRounds = p.inTime = 0;
+    a.joined.push_back(page);
+  }
+  if (round_->waiting.erase(page) && round_->waiting.empty()) finish(now, a);
 }
 
 SwapBarrier::Actions SwapBarrier::expire(Clock::time_point now) {

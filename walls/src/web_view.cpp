@@ -5,6 +5,7 @@
 #include <utility>
 // clang-format on
 #include <cmath>
+#include <voxwall/core/text.hpp>
 
 #include "web_messages.hpp"
 #include "web_view_impl.hpp"
@@ -96,6 +97,13 @@ void WebView::Impl::apply(SwapBarrier::Actions a) {
   for (const Page page : a.left)
     say("sink: " + pageName(page) + " left the swap barrier: not ready within " +
         std::to_string(settings.swapTimeoutMs) + " ms (it rejoins when it keeps up)");
+  for (const auto& slow : a.slowed)
+    say(
+        formatLine("sink: %s left the swap barrier: ready %.0f ms after the round began, the "
+                   "other pages in %.0f ms, a frame every %.0f ms, %d rounds in a row (it is "
+                   "shown frames alone and rejoins when it keeps up)",
+                   pageName(slow.page).c_str(), slow.readyMs, slow.othersMs, slow.intervalMs,
+                   SwapBarrier::kSlowRounds));
   for (const Page page : a.joined)
     sayOfPage(page, "sink: " + pageName(page) + " is in the swap barrier");
   char at[48];
