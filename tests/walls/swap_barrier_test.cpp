@@ -230,7 +230,7 @@ Simulated simulate(int slowMs, int fastFromMs = 1 << 30) {
 }  // namespace
 
 // A page ready 450 ms (or 200 ms) after each frame stays inside the 500 ms timeout, and it set
-// the whole wall's pace: 11 pages switched about 11 times in 5 s on a stream of 152 frames (24
+// the whole wall's pace: 11 pages switched about 11 times in 5 s on a stream of 152 frames (25
 // at 200 ms). It now leaves the barrier after three slow rounds and is shown frames alone; the
 // others keep the stream's rate from then on (a round for every frame offered but the one in
 // progress when it left).
