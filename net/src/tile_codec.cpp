@@ -181,10 +181,6 @@ std::vector<int> cutPositions(int begin, int end, int most, const std::vector<in
   return out;
 }
 
-bool intersects(const voxwall::Rect& a, const voxwall::Rect& b) {
-  return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
-}
-
 }  // namespace
 
 std::vector<voxwall::Rect> segmentRects(const voxwall::Rect& rect, int segmentPixels,
@@ -209,7 +205,7 @@ std::vector<voxwall::Rect> segmentRects(const voxwall::Rect& rect, int segmentPi
       }
       const auto shown = fullScreenRect(part, step, cut.screenWidth, cut.screenHeight);
       if (std::any_of(cut.displays.begin(), cut.displays.end(),
-                      [&](const voxwall::Rect& d) { return intersects(shown, d); }))
+                      [&](const voxwall::Rect& d) { return shown.overlaps(d); }))
         out.push_back(part);
     }
   return out;

@@ -658,3 +658,24 @@ TEST(SinkHardening, AbandoningFramesFarAheadSettlesNoneOfThem) {
   rank->send(net::encodeMessage(101, net::FrameEnd{1, 0, true}));
   EXPECT_TRUE(sink.waitForLog("sent the FrameEnd of rank 1")) << sink.log();
 }
+
+// Segments that overlap or straddle display edges multiplied the bytes past --pending-mib (800
+// overlapping segments of 61.6 MB went to the pages as 246.7 MB a frame; two 67 MB segments on
+// bigeye peaked at 2.64 GB). A straddling segment now costs its bytes once per display it goes
+// to, and tiles that cover their frame's screen more than twice over drop their peer.
+TEST(SinkHardening, OverlappingAndStraddlingSegmentsCostWhatTheyMultiply) {
+  const auto wall = test::twoDisplayWall();  // displays at x 0..20 and 24..44
+  walls::FrameAssembler assembler(wall, {}, {});
+  const auto before = assembler.heldBytes();
+  const auto one = solidTileMessage({0, 0, 20, 10}, 0xff);          // on display 0 only
+  const auto straddling = solidTileMessage({10, 0, 20, 10}, 0xff);  // on both
+  assembler.addTile(1, one, 0, "t");
+  const auto oneCost = assembler.heldBytes() - before;
+  assembler.addTile(2, straddling, 0, "t");
+  const auto straddlingCost = assembler.heldBytes() - before - oneCost;
+  EXPECT_EQ(straddlingCost - oneCost, straddling.bytes.size());  // its bytes once more
+  // Frame 3: 4 x 220 pixels are twice its 440; a fifth tile is refused and drops its peer.
+  for (int i = 0; i < 4; ++i)
+    EXPECT_NO_THROW(assembler.addTile(3, solidTileMessage({0, 0, 22, 10}, 0xff), 0, "t")) << i;
+  EXPECT_THROW(assembler.addTile(3, solidTileMessage({0, 0, 22, 10}, 0xff), 0, "t"), FormatError);
+}

@@ -413,8 +413,7 @@ void validateWall(const Wall& wall, const std::string& source) {
     if (wall.overlapping) continue;
     for (std::size_t k = 0; k < i; ++k) {
       const auto& o = wall.displays[k].rect;
-      if (r.x < o.x + o.width && o.x < r.x + r.width && r.y < o.y + o.height &&
-          o.y < r.y + r.height)
+      if (r.overlaps(o))
         throw FormatError(source, what + " overlaps display '" + wall.displays[k].name +
                                       "' (if they really overlap, as edge-blended projectors "
                                       "do, say \"overlap\": true)");

@@ -103,10 +103,6 @@ std::vector<Placement> mergePlacements(std::vector<Placement> tiles) {
   return tiles;
 }
 
-bool touches(const voxwall::Rect& a, const voxwall::Rect& b) {
-  return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
-}
-
 }  // namespace
 
 std::string wallJson(const Wall& wall, bool token) {
@@ -194,7 +190,7 @@ std::shared_ptr<const std::string> displayFrameMessage(const AssembledFrame& fra
   std::size_t bytes = 0;
   std::vector<const Segment*> mine;
   for (const auto& s : frame.segments)
-    if (touches(s.screen, display.rect)) {
+    if (s.screen.overlaps(display.rect)) {
       mine.push_back(&s);
       auto j = rectJson(s.rect);
       j["codec"] = net::tileCodecName(s.codec);

@@ -13,6 +13,11 @@ struct Rect {
     return x >= 0 && y >= 0 && width > 0 && height > 0 && (long long)x + width <= screenWidth &&
            (long long)y + height <= screenHeight;
   }
+  // Whether the two share a pixel (64-bit: no overflow).
+  bool overlaps(const Rect& o) const {
+    return x < (long long)o.x + o.width && o.x < (long long)x + width &&
+           y < (long long)o.y + o.height && o.y < (long long)y + height;
+  }
   bool operator==(const Rect&) const = default;
 };
 

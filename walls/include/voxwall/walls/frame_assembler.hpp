@@ -105,8 +105,15 @@ class FrameAssembler {
     std::vector<std::uint64_t> covered;  // bitmap over the virtual screen
     long long coveredPixels = 0;         // of the pixels that must arrive
     std::uint64_t heldBytes = 0;
+    std::uint64_t sentPixels = 0;  // the tiles' areas as sent (overlaps counted each time)
     AssembledFrame info;
   };
+  // What holding a tile costs: its bytes once per display it is forwarded to (at least once).
+  std::uint64_t tileCost(const net::TileMessage& tile, const voxwall::Rect& screen) const;
+  // Throws FormatError when `tile` would make the frame's tiles cover its screen (at the tile's
+  // step) more than twice over: no honest job overlaps its segments.
+  void checkOverlap(std::uint64_t frame, const net::TileMessage& tile, std::uint64_t sentBefore,
+                    const std::string& peer) const;
   // Marks `r` (virtual-screen pixels) as arrived in `f`.
   void cover(Open& f, const voxwall::Rect& r) const;
   void drop(std::uint64_t frame, const std::string& why);
