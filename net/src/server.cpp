@@ -3,6 +3,7 @@
 #include <sys/socket.h>
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <deque>
 #include <set>
@@ -34,6 +35,8 @@ struct Server::Impl {
   asio::steady_timer acceptPause{io};
   std::set<std::shared_ptr<Session>> sessions;
   std::uint64_t nextSerial = 1;
+  // The sessions' payload buffers' capacities, together (the io thread writes it).
+  std::atomic<std::size_t> receiving{0};
 
   Impl(asio::io_context& i, const ServerSettings& s, PeerHandler& h,
        std::function<void(const std::string&)> l)
@@ -136,7 +139,14 @@ struct Server::Impl {
       if (payload.size() == payloadBytes) return onMessage();
       const std::size_t have = payload.size();
       const std::size_t chunk = std::min<std::size_t>(payloadBytes - have, kPayloadChunk);
+      if (payload.capacity() < have + chunk &&
+          server.receiving + chunk > server.settings.maxReceivingBytes)
+        return drop(name() + ": the messages being received from all peers reach the limit (" +
+                    std::to_string(server.settings.maxReceivingBytes >> 20) +
+                    " MiB); this one's is not read");
+      const std::size_t before = payload.capacity();
       payload.resize(have + chunk);
+      server.receiving += payload.capacity() - before;
       auto self = shared_from_this();
       asio::async_read(
           socket, asio::buffer(payload.data() + have, chunk),
@@ -159,7 +169,7 @@ struct Server::Impl {
       if (closed) return;  // the handler hung up on this peer
       // A large message's buffer is not kept for the small ones that follow (a peer sending
       // KeepAlives kept 64 MiB): between messages a peer holds at most one chunk.
-      if (payload.capacity() > kPayloadChunk) std::vector<std::byte>().swap(payload);
+      if (payload.capacity() > kPayloadChunk) letGoOfPayload();
       if (greeted() && !watchingIdle) {  // the Hello deadline gives way to the idle deadline
         watchingIdle = true;
         watchIdle();
@@ -168,6 +178,12 @@ struct Server::Impl {
     }
 
     std::size_t receiveBufferBytes() const override { return payload.capacity(); }
+
+    void letGoOfPayload() {
+      if (countedCapacity) server.receiving -= payload.capacity();
+      std::vector<std::byte>().swap(payload);
+    }
+    bool countedCapacity = true;  // payload's capacity is in server.receiving (until close())
 
     void send(std::vector<std::byte> bytes) override {
       if (closed) return;
@@ -210,6 +226,9 @@ struct Server::Impl {
     void close() {
       if (closed) return;
       closed = true;
+      // Counted as let go; freed with the session, once no read can still be writing to it.
+      server.receiving -= payload.capacity();
+      countedCapacity = false;
       server.handler.detach(*this);
       asio::error_code ignored;
       deadline.cancel();
@@ -308,6 +327,8 @@ Server::Server(asio::io_context& io, const ServerSettings& settings, PeerHandler
 Server::~Server() = default;
 
 std::uint16_t Server::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+std::size_t Server::receivingBytes() const { return impl_->receiving.load(); }
 
 void Server::start() { impl_->accept(); }
 

@@ -98,6 +98,7 @@ class RunningServer {
     thread_.join();
   }
   std::uint16_t port() const { return server_.port(); }
+  std::size_t receivingBytes() const { return server_.receivingBytes(); }
 
  private:
   asio::io_context io_;
@@ -193,6 +194,38 @@ TEST(Server, APeersBufferShrinksAfterALargeMessage) {
   client->send(net::encodeKeepAlive());
   ASSERT_TRUE(test::waitUntil([&] { return handler.kept == 2; }));
   EXPECT_LE(handler.bufferBytes.load(), std::size_t(1) << 20);
+}
+
+// Greeted peers each in the middle of a large message held what had arrived of it, with no bound
+// across peers (16 such held 1,070 MB). Past maxReceivingBytes, together, the peer whose next
+// chunk would go over is dropped; the one within keeps its message.
+TEST(Server, MessagesBeingReceivedStayUnderALimitAcrossPeers) {
+  EchoHandler handler;
+  handler.limit = 16u << 20;
+  net::ServerSettings settings;
+  settings.maxReceivingBytes = 3u << 20;
+  RunningServer server(handler, settings);
+  auto first = net::Connection::open("127.0.0.1", server.port(), helloFor("w"), 2000);
+  auto second = net::Connection::open("127.0.0.1", server.port(), helloFor("w"), 2000);
+  net::TileMessage big;
+  big.rect = {0, 0, 1, 1};
+  big.codec = net::TileCodec::Raw;
+  big.bytes.assign(5u << 19, std::byte{7});  // 2.5 MiB: three chunks' room
+  const auto message = net::encodeMessage(0, big);
+  const std::size_t part = message.size() - 1000;
+  first->send(std::span(message).first(part));
+  ASSERT_TRUE(test::waitUntil([&] { return server.receivingBytes() >= (5u << 19) - 1000; }));
+  try {
+    second->send(message);
+  } catch (const net::NetError&) {
+    // dropped while it sent: what the test waits for
+  }
+  ASSERT_TRUE(test::waitUntil([&] { return handler.drops == 1; }));
+  EXPECT_NE(handler.lastReason().find("reach the limit (3 MiB)"), std::string::npos)
+      << handler.lastReason();
+  first->send(std::span(message).subspan(part));
+  EXPECT_TRUE(test::waitUntil([&] { return handler.kept == 1; }));
+  EXPECT_LE(server.receivingBytes(), 3u << 20);
 }
 
 // A peer that never reads what it is sent (a controller that reads no frame notes) grew the

@@ -89,6 +89,10 @@ struct ServerSettings {
   // Bytes queued for a peer that does not read them (a controller's frame notes, replies): past
   // this the peer is dropped, so no peer can grow the server's memory by not reading.
   std::size_t maxOutboxBytes = std::size_t(8) << 20;
+  // Bytes of messages being received, all peers together (a payload's memory grows as its bytes
+  // arrive; between messages a peer keeps at most one chunk of 1 MiB): a peer whose next chunk
+  // would go past this is dropped, so greeted peers mid-message cannot grow the server past it.
+  std::size_t maxReceivingBytes = std::size_t(1) << 30;
 };
 
 class Server {
@@ -99,6 +103,8 @@ class Server {
          std::function<void(const std::string&)> log = {});
   ~Server();
   std::uint16_t port() const;
+  // The bytes of messages being received (ServerSettings::maxReceivingBytes); any thread.
+  std::size_t receivingBytes() const;
   // Starts accepting peers on the io_context.
   void start();
   // Stops listening and hangs up on every peer at once (frees the port for a new server).
