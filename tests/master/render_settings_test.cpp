@@ -342,3 +342,41 @@ TEST(RenderSettings, TimeRangesMapFramesToSteps) {
     EXPECT_THROW(timeSettings(o, 10), std::invalid_argument) << bad;
   }
 }
+
+TEST(RenderSettings, TheTransferFunctionsOptionsAreReadOnce) {
+  RenderOptions o;
+  auto t = transferSettings(o);
+  EXPECT_EQ(t.map, "mri");
+  EXPECT_FALSE(t.range.has_value());
+  EXPECT_EQ(t.slope, 1);
+  EXPECT_EQ(t.intercept, 0);
+  EXPECT_FALSE(t.perStep);
+  o.tf = "hu-bone";
+  o.opacity = "grey";
+  o.window = "400,1800";
+  o.rescale = "1,-1024";
+  o.range = "per-step";
+  t = transferSettings(o);
+  EXPECT_EQ(t.map, "hu-bone");
+  EXPECT_EQ(t.opacity, "grey");
+  ASSERT_TRUE(t.range.has_value());
+  EXPECT_EQ(t.range->first, -500);
+  EXPECT_EQ(t.range->second, 1300);
+  EXPECT_EQ(t.slope, 1);
+  EXPECT_EQ(t.intercept, -1024);
+  EXPECT_TRUE(t.perStep);
+  o.window.clear();
+  o.tfRange = "10,20";
+  EXPECT_EQ(transferSettings(o).range, (std::pair{10.0, 20.0}));
+  const auto refused = [&](auto change, const std::string& why) {
+    RenderOptions bad;
+    change(bad);
+    expectRefused([&] { (void)transferSettings(bad); }, why);
+  };
+  refused([](RenderOptions& b) { b.tfRange = "20,10"; }, "--tf-range: expected LO,HI with LO < HI");
+  refused([](RenderOptions& b) { b.window = "40,0"; },
+          "--window: expected CENTER,WIDTH with WIDTH > 0");
+  refused([](RenderOptions& b) { b.rescale = "0,5"; },
+          "--rescale: expected SLOPE,INTERCEPT with SLOPE > 0");
+  refused([](RenderOptions& b) { b.range = "each"; }, "--range: expected series or per-step");
+}

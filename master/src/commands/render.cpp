@@ -27,37 +27,19 @@ namespace {
 
 // --tf (and --opacity) put on the data as ParaView applies a preset. `notes` gets what was
 // approximated and, for files, how the map met the data: said once, after setup succeeded.
-node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec::VolumeInfo& info,
+node::TransferFunction loadTransferFunction(const TransferSettings& t,
+                                            const codec::VolumeInfo& info,
                                             std::vector<std::string>& notes) {
-  std::optional<std::pair<double, double>> range;
-  if (!o.tfRange.empty()) {
-    const auto r = parseNumbers(o.tfRange, "--tf-range");
-    if (r.size() != 2 || !(r[1] > r[0]))
-      throw std::invalid_argument("--tf-range: expected LO,HI with LO < HI");
-    range = std::pair{r[0], r[1]};
-  }
-  if (!o.window.empty()) {
-    const auto w = parseNumbers(o.window, "--window");
-    if (w.size() != 2 || !(w[1] > 0))
-      throw std::invalid_argument("--window: expected CENTER,WIDTH with WIDTH > 0");
-    range = std::pair{w[0] - w[1] / 2, w[0] + w[1] / 2};
-  }
-  // Everything above is in the map's units; --rescale says how stored values reach them.
-  double slope = 1, intercept = 0;
-  if (!o.rescale.empty()) {
-    const auto r = parseNumbers(o.rescale, "--rescale");
-    if (r.size() != 2 || !(r[0] > 0))
-      throw std::invalid_argument("--rescale: expected SLOPE,INTERCEPT with SLOPE > 0");
-    slope = r[0], intercept = r[1];
-  }
+  const auto& range = t.range;
+  const double slope = t.slope, intercept = t.intercept;
   const double lo = info.valueMin * slope + intercept, hi = info.valueMax * slope + intercept;
-  node::TransferFunction tf = node::TransferFunction::load(o.tf);
+  node::TransferFunction tf = node::TransferFunction::load(t.map);
   const std::string placed = tf.placeOnData(lo, hi, range);
-  if (!o.opacity.empty()) {
+  if (!t.opacity.empty()) {
     // The opacity curve of another map, put on the data by the same rule.
-    node::TransferFunction other = node::TransferFunction::load(o.opacity);
+    node::TransferFunction other = node::TransferFunction::load(t.opacity);
     if (!other.ownOpacity)
-      throw std::invalid_argument("--opacity " + o.opacity + ": it has no opacity 'Points'");
+      throw std::invalid_argument("--opacity " + t.opacity + ": it has no opacity 'Points'");
     const std::string otherPlaced = other.placeOnData(lo, hi, range);
     tf.takeOpacityFrom(other);
     notes = tf.warnings;
@@ -66,13 +48,13 @@ node::TransferFunction loadTransferFunction(const RenderOptions& o, const codec:
     notes = tf.warnings;
   }
   // Built-in presets need no note on their range; files get one.
-  if (!node::TransferFunction::splitSpec(o.tf).file.empty()) notes.push_back(placed);
+  if (!node::TransferFunction::splitSpec(t.map).file.empty()) notes.push_back(placed);
   if (tf.hounsfield && !range && (lo > -500 || hi < 0))
     notes.push_back(formatLine(
         "'%s' is on Hounsfield units, but this volume's values %g..%g reach no air (about -1000) "
         "or no tissue: if it is a CT stored with an offset, give --rescale SLOPE,INTERCEPT (often "
         "1,-1024)",
-        o.tf.c_str(), lo, hi));
+        t.map.c_str(), lo, hi));
   // From the map's units back to stored values: x -> (x - intercept) / slope.
   if (slope != 1 || intercept != 0)
     tf = tf.rescaled((tf.domainMin() - intercept) / slope, (tf.domainMax() - intercept) / slope);
@@ -83,6 +65,7 @@ struct Setup {
   master::JobSettings job;
   node::RenderSettings render;
   BackendSettings backendSettings;
+  TransferSettings transfer;
   std::optional<node::RenderVolume> volume;
   std::optional<node::TransferFunction> tf;
   std::unique_ptr<node::Backend> backend;
@@ -152,8 +135,6 @@ std::uint64_t firstFramePageBytes(const Setup& s, master::Communicator& comm) {
 // step unless --frames is given), and for --range per-step a transfer function for each step.
 void applyTime(const RenderOptions& o, bool quiet, Setup& s) {
   const int steps = s.volume->steps();
-  if (o.range != "series" && o.range != "per-step")
-    throw std::invalid_argument("--range: expected series or per-step");
   if (o.timeRate > 0 && !s.job.stream)
     throw std::invalid_argument(
         "--time-rate plays a series on the wall (--sink); a batch job shows a step a frame "
@@ -170,12 +151,12 @@ void applyTime(const RenderOptions& o, bool quiet, Setup& s) {
                  "voxwall: %s holds %d time steps; rendering step 0 (--time FIRST:LAST or --time "
                  "all shows others)\n",
                  s.input.c_str(), steps);
-  if (o.range == "per-step") {
+  if (s.transfer.perStep) {
     std::vector<std::string> notes;
     for (int k = 0; k < steps; ++k) {
       codec::VolumeInfo info = s.volume->info();
       std::tie(info.valueMin, info.valueMax) = s.volume->stepRange(k);
-      s.job.stepTransferFunctions.push_back(loadTransferFunction(o, info, notes));
+      s.job.stepTransferFunctions.push_back(loadTransferFunction(s.transfer, info, notes));
     }
   }
 }
@@ -185,6 +166,7 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
   s.job = jobSettings(o);
   s.render = renderSettings(o);
   s.backendSettings = backendSettings(o);
+  s.transfer = transferSettings(o);
   const auto baseBytes = processMemory().residentBytes;
   s.input = o.input;
   if (s.input.empty()) {
@@ -198,7 +180,7 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
         "--sampling nearest, --lod and --lod-under-pressure need a volume with mip levels "
         "(compress it with --codec " +
         codec::RegisteredCodecs::traversalCodecNames() + ")");
-  s.tf = loadTransferFunction(o, s.volume->info(), s.tfNotes);
+  s.tf = loadTransferFunction(s.transfer, s.volume->info(), s.tfNotes);
   applyTime(o, quiet, s);
   // A CPU rank with packets may decode pages of a brick-coded volume, up to --decode-cache. A dry
   // run counts the pages this rank's rays reach in the first frame.

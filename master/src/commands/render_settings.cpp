@@ -22,6 +22,32 @@ std::optional<glm::dvec3> parseBackground(const std::string& text) {
   return glm::dvec3(v[0], v[1], v[2]);
 }
 
+TransferSettings transferSettings(const RenderOptions& o) {
+  TransferSettings t;
+  t.map = o.tf;
+  t.opacity = o.opacity;
+  if (!o.tfRange.empty()) {
+    const auto r = parseNumbers(o.tfRange, "--tf-range");
+    if (r.size() != 2 || !(r[1] > r[0]))
+      throw std::invalid_argument("--tf-range: expected LO,HI with LO < HI");
+    t.range = std::pair{r[0], r[1]};
+  }
+  if (!o.window.empty()) {
+    const auto w = parseNumbers(o.window, "--window");
+    if (w.size() != 2 || !(w[1] > 0))
+      throw std::invalid_argument("--window: expected CENTER,WIDTH with WIDTH > 0");
+    t.range = std::pair{w[0] - w[1] / 2, w[0] + w[1] / 2};
+  }
+  if (!o.rescale.empty()) {
+    const auto r = parseNumbers(o.rescale, "--rescale");
+    if (r.size() != 2 || !(r[0] > 0))
+      throw std::invalid_argument("--rescale: expected SLOPE,INTERCEPT with SLOPE > 0");
+    t.slope = r[0], t.intercept = r[1];
+  }
+  t.perStep = choose<bool>(o.range, "--range", {{"series", false}, {"per-step", true}});
+  return t;
+}
+
 BackendSettings backendSettings(const RenderOptions& o) {
   BackendSettings b;
   b.kind = choose<node::BackendKind>(

@@ -84,6 +84,16 @@ master::TimeSettings timeSettings(const RenderOptions& o, int steps);
 // The renderer: step, shading, skipping, sampling, level of detail.
 node::RenderSettings renderSettings(const RenderOptions& o);
 
+// The transfer function as --tf, --opacity, --tf-range, --window, --rescale and --range ask,
+// checked once (the maps themselves are loaded where the volume's values are known).
+struct TransferSettings {
+  std::string map = "mri", opacity;                // presets or files (FILE, FILE:NAME)
+  std::optional<std::pair<double, double>> range;  // --tf-range or --window, the map's units
+  double slope = 1, intercept = 0;                 // --rescale: stored values to the map's
+  bool perStep = false;                            // --range per-step (else series)
+};
+TransferSettings transferSettings(const RenderOptions& o);
+
 // The rank's backend and its memory, as --backend, --threads, --simd, --decode-cache,
 // --device-decode and --memory-budget ask.
 struct BackendSettings {
