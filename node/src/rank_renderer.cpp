@@ -3,6 +3,7 @@
 #include <future>
 #include <stdexcept>
 #include <utility>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/node/rank_renderer.hpp>
 
 namespace voxwall::node {
@@ -155,6 +156,9 @@ void RankRenderer::decodeAhead(const RankFrame& next, int reduce) {
   aheadStop_ = false;
   ahead_ =
       std::async(std::launch::async, [this, next, width, height, reuse, rects = std::move(rects)] {
+        // Its threads take only what the host's other work leaves: on a host shared by ranks, a
+        // rank that finished first must not slow the others' frames with the next one's pages.
+        yieldCoresToOthers();
         aheadPlan_ =
             planFrame(*next.volume, next.camera, width, height, *next.tf, settings_, reuse);
         aheadPlan_->decodeAhead = true;

@@ -1,11 +1,13 @@
 #include <gtest/gtest.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <thread>
+#include <voxwall/core/parallel.hpp>
 #include <voxwall/core/process.hpp>
 
 // Touching 64 MiB shows in the resident size and in the peak, which never falls below it.
@@ -77,4 +79,19 @@ TEST(Process, LargeBlocksFreedInAThreadLeaveNothingResident) {
   const auto after = voxwall::processMemory();
   EXPECT_GE(after.peakBytes, before.residentBytes + (std::size_t(20) << 20));
   EXPECT_LT(after.residentBytes, before.residentBytes + (std::size_t(4) << 20));
+}
+
+// Work for the next frame runs on a thread that gives way (nice 19), and the threads it starts
+// inherit that; the caller's own priority is untouched.
+TEST(Process, AThreadThatYieldsCoresRunsAtTheLeastPriorityAndSoDoItsThreads) {
+  const int mine = getpriority(PRIO_PROCESS, id_t(gettid()));
+  int yielded = -100, started = -100;
+  std::thread([&] {
+    voxwall::yieldCoresToOthers();
+    yielded = getpriority(PRIO_PROCESS, id_t(gettid()));
+    std::thread([&] { started = getpriority(PRIO_PROCESS, id_t(gettid())); }).join();
+  }).join();
+  EXPECT_EQ(yielded, 19);
+  EXPECT_EQ(started, 19);
+  EXPECT_EQ(getpriority(PRIO_PROCESS, id_t(gettid())), mine);
 }

@@ -9,6 +9,8 @@
 #include <thread>
 #ifdef __linux__
 #include <sched.h>
+#include <sys/resource.h>
+#include <unistd.h>
 #endif
 #include <vector>
 
@@ -29,6 +31,16 @@ inline int usableCores() {
 inline int resolveThreads(int requested) {
   if (requested > 0) return requested;
   return usableCores();
+}
+
+// Lowers the calling thread to the least CPU priority (nice 19; on Linux a thread's own, and the
+// threads it starts inherit it), for work that should take only the cores other work leaves: the
+// ranks of one host must not slow each other's frames with work for the next one. Without
+// privilege it cannot be raised again, so call it on a thread of its own that then ends.
+inline void yieldCoresToOthers() {
+#ifdef __linux__
+  (void)setpriority(PRIO_PROCESS, id_t(gettid()), 19);
+#endif
 }
 
 // Calls fn(i) for every i in [0, count) on `threads` threads, handing out indices dynamically.
