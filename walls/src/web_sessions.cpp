@@ -75,9 +75,12 @@ void WsSession::unpend() {
 }
 
 void WsSession::replace(const std::string& why) {
-  if (counted && !pending) {
+  if (counted) {  // its place is free now, not when the close handshake ends
     counted = false;
-    --count();
+    if (pending)
+      unpend();
+    else
+      --count();
   }
   refuse(websocket::close_code::try_again_later, why);
 }
@@ -222,6 +225,7 @@ bool WsSession::withinRate() {
 }
 
 bool WsSession::take(const std::string& text) {
+  if (closing) return false;  // refused or replaced: what it still says is not heard
   if (text.rfind("auth ", 0) == 0) {
     // The tile port's back-off per address: guessing gains nothing from speed.
     const auto checked = view->tokenGuard.check(address, text.substr(5));
@@ -456,8 +460,7 @@ void HttpSession::upgrade(http::request<http::empty_body> req, const std::string
       view->refused("pending-replaced",
                     waiting[std::size_t(victim)]->name + ": replaced by a newer connection (" +
                         std::to_string(view->pendingAuth) + " were waiting for their token)");
-      waiting[std::size_t(victim)]->refuse(websocket::close_code::try_again_later,
-                                           "replaced: too many waiting for their token");
+      waiting[std::size_t(victim)]->replace("replaced: too many waiting for their token");
     }
   }
   // Without a token a WebSocket takes its place now (with one, when its token comes: take()),

@@ -245,7 +245,8 @@ struct WsSession : std::enable_shared_from_this<WsSession> {
   void welcome();   // authenticated: logged, told the wall (or display), a page joins
   int cap() const;  // the most viewers (or pages) at once
   void unpend();    // no longer counted among those waiting for their token
-  // Gives its place up to a newcomer (fair_share.hpp): no longer counted, closed with `why`.
+  // Gives its place (or its place in the waiting pool) up to a newcomer (net/fair_share.hpp): no
+  // longer counted, closed with `why`.
   void replace(const std::string& why);
   // Closes with a reason the page can show; a viewer that does not take the close is cut off.
   void refuse(websocket::close_code code, const std::string& reason);
