@@ -2,6 +2,7 @@
 #include <netinet/tcp.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -139,14 +140,19 @@ struct Server::Impl {
       if (payload.size() == payloadBytes) return onMessage();
       const std::size_t have = payload.size();
       const std::size_t chunk = std::min<std::size_t>(payloadBytes - have, kPayloadChunk);
-      if (payload.capacity() < have + chunk &&
-          server.receiving + chunk > server.settings.maxReceivingBytes)
-        return drop(name() + ": the messages being received from all peers reach the limit (" +
-                    std::to_string(server.settings.maxReceivingBytes >> 20) +
-                    " MiB); this one's is not read");
-      const std::size_t before = payload.capacity();
+      if (payload.capacity() < have + chunk) {
+        // Grows by doubling (capped at the payload), each growth counted as it is made.
+        const std::size_t before = payload.capacity();
+        const std::size_t grown =
+            std::max(have + chunk, std::min<std::size_t>(payloadBytes, 2 * before));
+        if (server.receiving + (grown - before) > server.settings.maxReceivingBytes)
+          return drop(name() + ": the messages being received from all peers reach the limit (" +
+                      std::to_string(server.settings.maxReceivingBytes >> 20) +
+                      " MiB); this one's is not read");
+        payload.reserve(grown);
+        server.receiving += payload.capacity() - before;
+      }
       payload.resize(have + chunk);
-      server.receiving += payload.capacity() - before;
       auto self = shared_from_this();
       asio::async_read(
           socket, asio::buffer(payload.data() + have, chunk),
