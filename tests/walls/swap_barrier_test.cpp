@@ -256,3 +256,26 @@ TEST(SwapBarrier, ASlowPageThatKeepsUpAgainRejoins) {
   EXPECT_TRUE(s.slowInLastRound);
   EXPECT_GE(s.togetherAfter, s.offeredAfter - 1);
 }
+
+// A page that closes after it said ready, before the round ends, is not judged (its time was
+// kept for the judgement: a crash of the web thread's round before).
+TEST(SwapBarrier, APageThatClosesAfterItWasReadyIsForgotten) {
+  SwapBarrier barrier(500ms);
+  const SwapBarrier::Clock::time_point t0{};
+  for (SwapBarrier::Page p : {1, 2, 3}) barrier.add(p, t0);
+  std::uint64_t frame = 1;
+  auto t = t0;
+  // Three rounds to make every page a member and give the stream an interval.
+  for (; frame <= 4; ++frame, t += 33ms) {
+    barrier.offer(frame, t);
+    for (SwapBarrier::Page p : {1, 2, 3}) barrier.ready(p, frame, t + 5ms);
+  }
+  barrier.offer(frame, t);
+  barrier.ready(1, frame, t + 5ms);
+  barrier.ready(2, frame, t + 6ms);
+  barrier.remove(1, t + 7ms);
+  SwapBarrier::Actions a;
+  EXPECT_NO_THROW(a = barrier.ready(3, frame, t + 8ms));
+  ASSERT_EQ(a.swapped.size(), 1u);
+  EXPECT_EQ(a.swapped[0].second.size(), 2u);
+}

@@ -50,7 +50,9 @@ void SwapBarrier::judgeSlowness(const Round& r, Actions& a) {
     std::nth_element(others.begin(), others.begin() + std::ptrdiff_t(others.size() / 2),
                      others.end());
     const double median = others[others.size() / 2];
-    auto& p = pages_.at(page);
+    const auto it = pages_.find(page);
+    if (it == pages_.end()) continue;
+    auto& p = it->second;
     if (ms <= 2 * *interval || ms <= 3 * median) {
       p.slowRounds = 0;
       continue;
@@ -90,6 +92,7 @@ SwapBarrier::Actions SwapBarrier::remove(Page page, Clock::time_point now) {
   pages_.erase(page);
   if (round_) {
     round_->ready.erase(page);
+    round_->readyMs.erase(page);
     if (round_->waiting.erase(page) && round_->waiting.empty()) finish(now, a);
   }
   return a;
