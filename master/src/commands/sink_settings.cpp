@@ -86,14 +86,21 @@ void addPageOptions(CLI::App& cmd, SinkOptions& o) {
   cmd.add_option("--http-origin", o.httpOrigins,
                  "Another Origin whose pages may use the pages' WebSockets (e.g. "
                  "http://localhost:8080 when tunnelled under another name); repeatable");
-  cmd.add_option("--max-viewers", o.maxViewers, "Overview pages at once; more are refused")
+  cmd.add_option("--max-viewers", o.maxViewers,
+                 "Overview pages at once; when all are held, a viewer takes the place of the "
+                 "oldest viewer of an address holding at least two more than its own, else it is "
+                 "refused")
       ->capture_default_str();
   cmd.add_option("--max-display-pages", o.maxDisplayPages,
-                 "Display pages at once; more are refused (0: two per display, plus 8)")
+                 "Display pages at once (0: two per display, plus 8); when all are held, a page "
+                 "takes the place of the oldest page of a display (else of an address on its own "
+                 "display) holding at least two more than its own, else it is refused")
       ->capture_default_str();
   cmd.add_option("--swap-timeout", o.swapTimeoutMs,
                  "Milliseconds a display page may take to be ready for a frame before it leaves "
-                 "the swap barrier (it rejoins when it keeps up); the wall never waits longer")
+                 "the swap barrier (it rejoins when it keeps up); the wall never waits longer. A "
+                 "page ready later than both twice the frame interval and three times the other "
+                 "pages' median, 3 rounds in a row, leaves too")
       ->capture_default_str();
   cmd.add_option("--swap-lead", o.swapLeadMs,
                  "Display pages are told to show a frame this many milliseconds ahead, on the "
