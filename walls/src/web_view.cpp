@@ -94,16 +94,19 @@ std::shared_ptr<const std::string> WebView::Impl::frameFor(std::uint64_t seq, in
 // Shows go out before the next frame's segments: a page must never see frame N + 1 before it was
 // told to show N.
 void WebView::Impl::apply(SwapBarrier::Actions a) {
+  // A page's comings and goings in the barrier are a page's to cause (one without a token, too):
+  // told through the throttle of its display's lines.
   for (const Page page : a.left)
-    say("sink: " + pageName(page) + " left the swap barrier: not ready within " +
-        std::to_string(settings.swapTimeoutMs) + " ms (it rejoins when it keeps up)");
+    sayOfPage(page, "sink: " + pageName(page) + " left the swap barrier: not ready within " +
+                        std::to_string(settings.swapTimeoutMs) +
+                        " ms (it rejoins when it keeps up)");
   for (const auto& slow : a.slowed)
-    say(
-        formatLine("sink: %s left the swap barrier: ready %.0f ms after the round began, the "
-                   "other pages in %.0f ms, a frame every %.0f ms, %d rounds in a row (it is "
-                   "shown frames alone and rejoins when it keeps up)",
-                   pageName(slow.page).c_str(), slow.readyMs, slow.othersMs, slow.intervalMs,
-                   SwapBarrier::kSlowRounds));
+    sayOfPage(slow.page,
+              formatLine("sink: %s left the swap barrier: ready %.0f ms after the round began, the "
+                         "other pages in %.0f ms, a frame every %.0f ms, %d rounds in a row (it is "
+                         "shown frames alone and rejoins when it keeps up)",
+                         pageName(slow.page).c_str(), slow.readyMs, slow.othersMs, slow.intervalMs,
+                         SwapBarrier::kSlowRounds));
   for (const Page page : a.joined)
     sayOfPage(page, "sink: " + pageName(page) + " is in the swap barrier");
   char at[48];
