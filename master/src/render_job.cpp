@@ -235,8 +235,8 @@ JobSummary runWorker(Communicator& comm, node::Backend& backend, const node::Ren
   int timeoutMs = job.watchdogMs;
   const auto streamer = makeStreamer(job, comm.rank(), comm.size());
   const auto steering = steeringSettings(job);
-  node::RankRenderer renderer(backend, render);
   StepVolumes steps(volume, tf, job);
+  node::RankRenderer renderer(backend, render);  // ends its pass ahead before `steps` goes
   for (;;) {
     // The next task comes after rank 0 has waited (up to timeoutMs) for the slowest rank: wait
     // twice as long, so that rank 0's watchdog names the culprit before anyone blames rank 0.
@@ -303,9 +303,9 @@ class MasterLoop {
         jobId_(newJobId()),
         writer_(job.outDir, manifest_),
         streamer_(makeStreamer(job, 0, comm.size())),
+        steps_(volume, tf, job),
         renderer_(backend, render),
         steering_(steeringSettings(job)),
-        steps_(volume, tf, job),
         player_(job.time, job.frames, job.stream ? job.time.rate : 0, Clock::now()),
         timeoutMs_(job.watchdogMs) {
     if (job.balance == Balance::Dynamic)
@@ -566,11 +566,11 @@ class MasterLoop {
   FrameWriter writer_;
   const std::unique_ptr<net::TileStreamer> streamer_;
   std::optional<LoadBalancer> balancer_;
+  StepVolumes steps_;  // each frame's time step (before renderer_: its pass ahead reads steps_)
   node::RankRenderer renderer_;
   std::unique_ptr<net::ControlChannel> control_;
   CameraOffset offset_;
   Steering steering_;  // each frame's step, and which frames a command abandons
-  StepVolumes steps_;  // each frame's time step
   TimePlayer player_;
   double slowestFrame_ = 0;
   int timeoutMs_;
