@@ -1,13 +1,14 @@
 // Which held place a newcomer takes when a pool of connections is full.
 //
-// Places that were proven (the display pages, or the viewers, of a sink's web view): the places go
-// to the displays, then to the addresses, as evenly as the newcomer can make them. A newcomer
-// replaces the oldest place of the most crowded display when that display holds at least two more
-// places than the newcomer's; failing that, the oldest place of the address that holds the most of
-// the newcomer's display when it holds at least two more there than the newcomer's address.
-// Otherwise it is refused. So pages crowding one display cannot keep another display's page out,
-// one address cannot keep out another (each gets its share however many places the first opens),
-// and a wall's pages through one SSH tunnel (all from 127.0.0.1) still get one place per display.
+// Places already held (the display pages, or the viewers, of a sink's web view: past the token
+// where there is one, else as they came): the places go to the displays, then to the addresses,
+// as evenly as the newcomer can make them. A newcomer replaces the oldest place of the most
+// crowded display when that display holds at least two more places than the newcomer's; failing
+// that, the oldest place of the address that holds the most of the newcomer's display when it
+// holds at least two more there than the newcomer's address. Otherwise it is refused. So pages
+// crowding one display cannot keep another display's page out, one address cannot keep out
+// another (each gets its share however many places the first opens), and a wall's pages through
+// one SSH tunnel (all from 127.0.0.1) still get one place per display.
 // Viewers are all one group (display -1).
 #pragma once
 
