@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Page decode per codec: how many voxels a second one core turns into the CPU backend's decoded
 pages (the 32^3-voxel pages rays sample), voxel by voxel through the codec's view (the way every
-page was decoded before brick views were decoded a brick at a time) and the way the renderer does
-now.
+page was decoded before brick views were decoded a brick at a time), by page without the memo of
+decoded bricks (zfp and ksvd: the way before it), and the way the renderer does now, in page
+order and with the pages shuffled.
 
 The volume is the MRI template (mricron-data) at --scale (1: 301x370x316) as scale_bench.py
 makes it: trilinear upsampling with mild Gaussian noise of sigma 1.5, so no two bricks are alike
@@ -26,7 +27,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from scale_bench import OPTIONS, generate, run  # noqa: E402
 
 LINE = re.compile(r"^pages (\S+) codec (\S+) voxels (\d+) pages (\d+) by-voxel ([0-9.]+) "
-                  r"by-page ([0-9.]+)$", re.M)
+                  r"no-memo ([0-9.]+) by-page ([0-9.]+) shuffled-no-memo ([0-9.]+) "
+                  r"shuffled ([0-9.]+)$", re.M)
 
 
 def main():
@@ -58,16 +60,18 @@ def main():
             sys.exit("no measurement for %s in:\n%s" % (", ".join(missing), text))
         print("Page decode on one core, %s voxels (%d pages of 32^3), Mvox/s of the volume:\n" %
               ("x".join(map(str, dims)), int(rows[codecs[0]].group(4))))
-        print("| codec | bits/voxel | voxel by voxel | by page (now) | speed-up |")
-        print("|---|---|---|---|---|")
+        print("| codec | bits/voxel | voxel by voxel | by page, no memo | by page (now) | "
+              "speed-up | shuffled pages, no memo | shuffled pages (now) |")
+        print("|---|---|---|---|---|---|---|---|")
         for codec, path in zip(codecs, files):
             m = rows[codec]
             voxels = int(m.group(3))
-            slow, fast = float(m.group(5)), float(m.group(6))
-            if slow <= 0 or fast <= 0:
+            slow, alone, fast, mixedAlone, mixed = (float(m.group(i)) for i in range(5, 10))
+            if min(slow, alone, fast, mixedAlone, mixed) <= 0:
                 sys.exit("a rate of 0 for %s:\n%s" % (codec, text))
             bpv = 8.0 * os.path.getsize(path) / voxels
-            print("| %s | %.2f | %.1f | %.1f | %.2fx |" % (codec, bpv, slow, fast, fast / slow))
+            print("| %s | %.2f | %.1f | %.1f | %.1f | %.2fx | %.1f | %.1f |" %
+                  (codec, bpv, slow, alone, fast, fast / slow, mixedAlone, mixed))
 
 
 if __name__ == "__main__":

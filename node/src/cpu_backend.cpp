@@ -108,10 +108,8 @@ class CpuBackend final : public Backend {
       stats.pageCoarse = after.coarse - before.coarse;
       stats.pageWaited = after.waited - before.waited;
       stats.pageScratch = after.scratch - before.scratch;
-      stats.pageResidentBytes = std::uint64_t(job.pages->residentPages()) * job.pages->pageBytes();
-      if (job.coarsePages)
-        stats.pageResidentBytes +=
-            std::uint64_t(job.coarsePages->residentPages()) * job.coarsePages->pageBytes();
+      stats.pageResidentBytes = job.pages->residentBytes();
+      if (job.coarsePages) stats.pageResidentBytes += job.coarsePages->residentBytes();
     }
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
@@ -121,15 +119,15 @@ class CpuBackend final : public Backend {
   DecodeCacheUse decodeCacheUse() const {
     if (!pages_) return {};
     DecodeCacheUse use;
-    use.bytes = std::uint64_t(pages_->residentPages()) * pages_->pageBytes();
+    use.bytes = pages_->residentBytes();
     use.allPagesBytes = pages_->allPagesBytes();
-    use.capacityBytes = std::uint64_t(pages_->capacityPages()) * pages_->pageBytes();
+    use.capacityBytes = std::uint64_t(pages_->capacityPages()) * pages_->pageBytes() +
+                        (pages_->memo() ? pages_->memo()->capacityBytes() : 0);
     use.pageBytes = pages_->pageBytes();
     const PageCache::Counts c = pages_->counts();
     use.hits = c.hits, use.missed = c.missed, use.misses = c.misses, use.scratch = c.scratch,
     use.evictions = c.evictions, use.coarse = c.coarse;
-    if (coarsePages_)
-      use.coarseBytes = std::uint64_t(coarsePages_->residentPages()) * coarsePages_->pageBytes();
+    if (coarsePages_) use.coarseBytes = coarsePages_->residentBytes();
     return use;
   }
 

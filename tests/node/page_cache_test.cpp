@@ -1,8 +1,10 @@
 // The decoded-page cache on its own: threads that evict each other's pages from a pool of a few
 // slots never read a voxel of another page than the one they asked for (the quiescent-state
-// reclamation of page_cache.hpp), and the budget, formats and counts hold.
+// reclamation of page_cache.hpp), the budget, formats and counts hold, and pages of big bricks
+// share their bricks through the memo (brick_memo.hpp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <thread>
 #include <vector>
@@ -172,4 +174,107 @@ TEST(PageDecode, EveryCodecsPagesByBrickEqualThePagesByVoxel) {
     bricked += pages > 0;
   }
   EXPECT_GE(bricked, 5);  // vq, ksvd, tvq, zfp, svmm
+}
+
+// The memo of decoded bricks (brick_memo.hpp) on its own: what it keeps it gives back, a full
+// shard replaces its oldest brick, and a budget under a brick a shard makes none.
+TEST(BrickMemo, KeepsFindsAndReplacesTheOldest) {
+  pages::BrickMemo tiny(64, 64 * pages::BrickMemo::kShards - 1);
+  EXPECT_FALSE(tiny.usable());
+  EXPECT_EQ(pages::BrickMemo::bytesFor(64, 64 * pages::BrickMemo::kShards - 1), 0u);
+  std::vector<std::uint8_t> brick(64), out(64);
+  tiny.keep(1, brick.data());
+  EXPECT_FALSE(tiny.find(1, out.data()));
+
+  pages::BrickMemo memo(64, 2 * 64 * pages::BrickMemo::kShards);  // two bricks a shard
+  EXPECT_TRUE(memo.usable());
+  EXPECT_EQ(memo.capacityBytes(), 2u * 64u * pages::BrickMemo::kShards);
+  for (std::uint64_t key = 0; key < 1000; ++key) {
+    std::fill(brick.begin(), brick.end(), std::uint8_t(key * 7));
+    memo.keep(key, brick.data());
+    ASSERT_TRUE(memo.find(key, out.data()));
+    ASSERT_EQ(out, brick);
+  }
+  // Each shard holds its last two bricks: 128 of the 1000, and the newest are among them.
+  int held = 0;
+  for (std::uint64_t key = 0; key < 1000; ++key)
+    if (memo.find(key, out.data())) {
+      ++held;
+      EXPECT_EQ(out[0], std::uint8_t(key * 7));
+    }
+  EXPECT_EQ(held, 2 * pages::BrickMemo::kShards);
+  EXPECT_TRUE(memo.find(999, out.data()));
+  EXPECT_EQ(memo.counts().kept, 1000u);
+  EXPECT_EQ(memo.counts().replaced, 1000u - 128u);
+  EXPECT_EQ(memo.residentBytes(), 128u * 64u);
+}
+
+namespace {
+
+// zfp's file of an 80 x 70 x 66 Shepp-Logan crop (3 x 3 x 3 pages, bricks across every page
+// border).
+RenderVolume zfpCrop() {
+  voxwall::Progress quiet;
+  const codec::Volume sl = codec::generateSheppLogan(80);
+  codec::Volume crop = codec::Volume::allocate({80, 70, 66}, codec::ScalarType::UInt8);
+  for (int z = 0; z < 66; ++z)
+    for (int y = 0; y < 70; ++y)
+      for (int x = 0; x < 80; ++x)
+        crop.as<std::uint8_t>()[(std::size_t(z) * 70 + std::size_t(y)) * 80 + std::size_t(x)] =
+            sl.as<std::uint8_t>()[(std::size_t(z + 7) * 80 + std::size_t(y + 5)) * 80 +
+                                  std::size_t(x)];
+  crop.computeRange();
+  std::string report;
+  return RenderVolume::fromCompressed(codec::codecNamed("zfp").encode(crop, {}, quiet, report));
+}
+
+}  // namespace
+
+// Pages of big bricks decoded through a memo, in any order and from several threads at once, hold
+// the values of the reference decode; with room for every brick each is decoded once (zfp's 16^3
+// bricks: 64 under each page, 2^3 of them its own), and with room for one brick a shard, pages
+// still decode alike while bricks are replaced.
+TEST(PageDecode, PagesOfBigBricksDecodeEachBrickOnceThroughTheMemo) {
+  const RenderVolume volume = zfpCrop();
+  std::visit(
+      [&](const auto& view) {
+        using Level = std::remove_cvref_t<decltype(pages::pagedLevel(view))>;
+        if constexpr (pages::sharesBricks<Level>()) {
+          const Level& level = pages::pagedLevel(view);
+          const std::uint64_t bricks = 5 * 5 * 5;  // of 16^3
+          std::vector<int> order(27);
+          for (int i = 0; i < 27; ++i) order[std::size_t(i)] = i;
+          std::shuffle(order.begin(), order.end(), std::mt19937(5));
+          for (const std::uint64_t room : {bricks, std::uint64_t(1)}) {
+            // `room` a shard: with `bricks`, room for every brick however they fall in shards.
+            pages::BrickMemo memo(Level::kVoxels,
+                                  room * pages::BrickMemo::kShards * Level::kVoxels);
+            ASSERT_TRUE(memo.usable());
+            const auto work = [&](int first) {
+              std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
+              for (int i = first; i < 27; i += 3) {
+                const int p = order[std::size_t(i)], px = p % 3, py = p / 3 % 3, pz = p / 9;
+                pages::decodePage(level, px, py, pz, 0.0f, fast.data(), &memo);
+                pages::decodePageByVoxel(level, px, py, pz, 0.0f, slow.data());
+                EXPECT_EQ(fast, slow) << "page " << px << "," << py << "," << pz;
+              }
+            };
+            std::thread a(work, 0), b(work, 1);
+            work(2);
+            a.join(), b.join();
+            const auto c = memo.counts();
+            EXPECT_GT(c.found, 0u);
+            if (room == bricks) {
+              // Two threads may decode a brick at once; the memo keeps it once.
+              EXPECT_EQ(c.kept, bricks);
+              EXPECT_EQ(c.replaced, 0u);
+            } else {
+              EXPECT_GT(c.replaced, 0u);
+            }
+          }
+        } else {
+          ADD_FAILURE() << "zfp's paged level has no big bricks";
+        }
+      },
+      volume.view());
 }

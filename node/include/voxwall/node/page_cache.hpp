@@ -118,25 +118,38 @@ class PageCache {
     return f == PageFormat::UInt8 ? 1 : f == PageFormat::UInt16 ? 2 : 4;
   }
 
-  // Pages for `level` (a PageableLevel) of a volume
-  // of scalar type `type`, in at most `budgetBytes` of decoded voxels, for up to `readers`
-  // threads at once.
+  // Pages for `level` (a PageableLevel) of a volume of scalar type `type`, in at most
+  // `budgetBytes` of decoded voxels, for up to `readers`
+  // threads at once. For levels of big bricks (pages::sharesBricks: zfp's) up to an eighth of the
+  // budget holds decoded bricks that neighbouring pages share (brick_memo.hpp).
   template <class Level>
   static std::unique_ptr<PageCache> make(const Level& level, codec::ScalarType type,
                                          std::uint64_t budgetBytes, int readers) {
-    return std::unique_ptr<PageCache>(new PageCache(typeid(Level), level.cacheId, level.dimX,
-                                                    level.dimY, level.dimZ, type, budgetBytes,
-                                                    readers));
+    const std::uint64_t memo = memoBudget(level, budgetBytes, type);
+    std::unique_ptr<PageCache> c(new PageCache(typeid(Level), level.cacheId, level.dimX, level.dimY,
+                                               level.dimZ, type, budgetBytes - memo, readers));
+    c->memo_ = makeMemo(level, type, budgetBytes);
+    return c;
+  }
+  // The memo of bricks `make` gives `level`'s pages with this budget (null: none).
+  template <class Level>
+  static std::unique_ptr<pages::BrickMemo> makeMemo(const Level& level, codec::ScalarType type,
+                                                    std::uint64_t budgetBytes) {
+    const std::uint64_t memo = memoBudget(level, budgetBytes, type);
+    if (!memo) return nullptr;
+    return std::make_unique<pages::BrickMemo>(brickBytes<Level>(type), memo);
   }
 
-  // The pages `make` would hold for `level` with this budget, in bytes (what becomes resident
-  // when rays reach that many pages; scratch pages not counted).
+  // What `make` would hold for `level` with this budget, in bytes: its pages and its memo of
+  // bricks (what becomes resident when rays reach that many pages; scratch pages not counted).
   template <class Level>
   static std::uint64_t bytesFor(const Level& level, codec::ScalarType type,
                                 std::uint64_t budgetBytes) {
     const PageFormat f = formatOf(type);
-    return capacityFor(level.dimX, level.dimY, level.dimZ, f, budgetBytes, 1) *
-           std::uint64_t(kVoxels) * valueBytes(f);
+    const std::uint64_t memo = memoBudget(level, budgetBytes, type);
+    return capacityFor(level.dimX, level.dimY, level.dimZ, f, budgetBytes - memo, 1) *
+               std::uint64_t(kVoxels) * valueBytes(f) +
+           (memo ? pages::BrickMemo::bytesFor(brickBytes<Level>(type), memo) : 0);
   }
 
   // Whether these are the pages of `level` (its view type, cacheId and size: each codec numbers
@@ -169,6 +182,13 @@ class PageCache {
     return std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ) * pageBytes();
   }
   Counts counts() const;
+  // The memo of decoded bricks shared by pages (null for levels without big bricks, or where the
+  // budget leaves it no room).
+  const pages::BrickMemo* memo() const { return memo_.get(); }
+  // What is resident: the pages mapped now and the memo's bricks.
+  std::uint64_t residentBytes() const {
+    return std::uint64_t(residentPages()) * pageBytes() + (memo_ ? memo_->residentBytes() : 0);
+  }
 
   // Marks page `page` used (CLOCK's second chance), where a lane enters it.
   void touch(std::int32_t page) {
@@ -254,6 +274,34 @@ class PageCache {
   // Publishes a filled slot's page (makes it evictable).
   void filled(std::int32_t slot, std::int32_t page);
 
+  // The memo's part of the budget: an eighth, at most every brick of the level (with a quarter
+  // more and 16 a shard for the shards' unevenness); 0 where that holds too few bricks to be of
+  // use.
+  template <class Level>
+  static std::uint64_t memoBudget(const Level& level, std::uint64_t budgetBytes,
+                                  codec::ScalarType type) {
+    if constexpr (pages::sharesBricks<Level>()) {
+      const std::uint64_t side = std::uint64_t(Level::kSide);
+      const std::uint64_t bricks = (std::uint64_t(level.dimX) + side - 1) / side *
+                                   ((std::uint64_t(level.dimY) + side - 1) / side) *
+                                   ((std::uint64_t(level.dimZ) + side - 1) / side);
+      const std::size_t brick = brickBytes<Level>(type);
+      const std::uint64_t most = (bricks + bricks / 4 + 16 * pages::BrickMemo::kShards) * brick;
+      const std::uint64_t memo = std::min(budgetBytes / 8, most);
+      return pages::BrickMemo::bytesFor(brick, memo) ? memo : 0;
+    } else {
+      (void)level, (void)budgetBytes, (void)type;
+      return 0;
+    }
+  }
+  template <class Level>
+  static std::size_t brickBytes(codec::ScalarType type) {
+    if constexpr (pages::sharesBricks<Level>())
+      return std::size_t(Level::kVoxels) * valueBytes(formatOf(type));
+    else
+      return 0;
+  }
+
   template <class Level>
   void decode(std::int32_t page, const Level& level, std::int32_t slot) const;
   // Decodes `page` into `slot` (taken for it, its entry kFilling) and publishes it; returns its
@@ -276,6 +324,7 @@ class PageCache {
   std::unique_ptr<std::atomic<std::int32_t>[]> entry_;  // per page: its offset or kAbsent...
   std::unique_ptr<std::atomic<std::uint8_t>[]> ref_;    // per page: CLOCK's bit
   std::unique_ptr<std::byte[]> pool_;
+  std::unique_ptr<pages::BrickMemo> memo_;
   std::atomic<std::uint64_t> epoch_{1};
   struct alignas(64) ReaderSlot {
     std::atomic<std::uint64_t> seen{kOffline};
@@ -308,13 +357,14 @@ void PageCache::decode(std::int32_t page, const Level& level, std::int32_t slot)
   std::byte* at = pool_.get() + std::size_t(slot) * pageBytes();
   switch (format_) {
     case PageFormat::UInt8:
-      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint8_t*>(at));
+      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint8_t*>(at), memo_.get());
       break;
     case PageFormat::UInt16:
-      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint16_t*>(at));
+      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint16_t*>(at),
+                        memo_.get());
       break;
     case PageFormat::Float32:
-      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<float*>(at));
+      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<float*>(at), memo_.get());
       break;
   }
 }

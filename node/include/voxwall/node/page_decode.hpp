@@ -2,15 +2,16 @@
 // faces) from a level of a compressed volume. These ways give the same values:
 //
 // - voxel by voxel, through the level's voxel(x, y, z, cache): any PageableLevel (svmm's coarse
-// level, a
-//   test's formula). Each voxel pays the view's brick lookup (the per-parity memo, the thread's
-//   hashed brick cache) and a call: about 33 Mvox/s a core on vq.
+//   level, a test's formula). Each voxel pays the view's brick lookup (the per-parity memo, the
+//   thread's hashed brick cache) and a call: about 33 Mvox/s a core on vq.
 // - a brick at a time, for the brick views (kernels::BrickView: vq, tvq, ksvd's levels, zfp):
 //   every brick under the page is decoded once, a row of bricks in z at a time, straight from the
 //   codec's decoder (no cache, no lookup per voxel; a brick whose key is the one before it in the
-//   row is copied, not decoded again: the empty bricks of a codebook share one; big bricks the
-//   thread's last page decoded are copied from it), and the page's rows are read out of that row
-//   through per-axis offsets that do the faces' clamping.
+//   row is copied, not decoded again: the empty bricks of a codebook share one; ksvd's 8^3 bricks
+//   the thread's last page decoded are copied from it), and the page's rows are read out of that
+//   row through per-axis offsets that do the faces' clamping.
+// - the same through a memo of decoded bricks shared by the pages of the level (brick_memo.hpp),
+//   for zfp's 16^3 bricks: a brick another page decoded is copied from the memo.
 // - a base block at a time, for svmm's view (baseBlockSide(), baseBlock()): one walk down the
 //   mip-map per block of the page, the same way.
 //
@@ -27,6 +28,7 @@
 #include <vector>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
 #include <voxwall/codec/kernels/trilinear.hpp>
+#include <voxwall/node/brick_memo.hpp>
 
 namespace voxwall::node::pages {
 
@@ -89,10 +91,10 @@ struct PageAxis {
 
 // Writes the page's voxels from one row of decoded bricks at a time: `row(bz, bricks)` fills the
 // bricks of row bz (relative to az.first), brick (i, j) at (j * ax.count + i) * side^3, each x
-// fastest; `voxel(value)` is a stored brick value as the voxel.
-template <class Value, class Stored, class Row, class Voxel>
-void writePageRows(int side, const PageAxis& ax, const PageAxis& ay, const PageAxis& az, float bias,
-                   Row row, Voxel voxel, Stored* out) {
+// fastest; `put(value)` is a brick's value as the page stores it.
+template <class Value, class Stored, class Row, class Put>
+void writePageRows(int side, const PageAxis& ax, const PageAxis& ay, const PageAxis& az, Row row,
+                   Put put, Stored* out) {
   const int brickVoxels = side * side * side;
   thread_local std::vector<Value> bricks;
   bricks.resize(std::size_t(ax.count) * std::size_t(ay.count) * std::size_t(brickVoxels));
@@ -108,7 +110,7 @@ void writePageRows(int side, const PageAxis& ax, const PageAxis& ay, const PageA
       const Value* slice = bricks.data() + az.within[z] * side * side;
       for (int y = 0; y < kRow; ++y) {
         const Value* line = slice + offY[y];
-        for (int x = 0; x < kRow; ++x) *out++ = store<Stored>(voxel(line[offX[x]]), bias);
+        for (int x = 0; x < kRow; ++x) *out++ = put(line[offX[x]]);
       }
     }
   }
@@ -120,10 +122,11 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
   constexpr int S = View::kSide, kBrick = View::kVoxels;
   using Value = typename View::Value;
   const PageAxis ax(px, view.dimX, S), ay(py, view.dimY, S), az(pz, view.dimZ, S);
-  // Big bricks (zfp's 16^3, ksvd's 8^3): the apron reaches into the bricks around the page, half
-  // of which the page beside it decodes too; the bricks of the last page this thread decoded are
-  // kept and copied instead of decoded again (a ray's pages follow each other, and most of them
-  // share a face). [0]: the last page's, [1]: this one's; for zfp 1 MiB each a thread.
+  // Big bricks (ksvd's 8^3; zfp's 16^3 where no memo is given): the apron reaches into the bricks
+  // around the page, half of which the page beside it decodes too; the bricks of the last page
+  // this thread decoded are kept and copied instead of decoded again (a ray's pages follow each
+  // other, and most of them share a face). [0]: the last page's, [1]: this one's; for zfp 1 MiB
+  // each a thread.
   constexpr bool kKeep = kBrick >= 512;
   struct Kept {
     std::uint64_t id = 0;
@@ -162,8 +165,52 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
       }
   };
   writePageRows<Value>(
-      S, ax, ay, az, bias, row, [&](Value v) { return view.decoder.scalar(v); }, out);
+      S, ax, ay, az, row, [&](Value v) { return store<Stored>(view.decoder.scalar(v), bias); },
+      out);
   if constexpr (kKeep) std::swap(kept[0], kept[1]);
+}
+
+// Whether pages of `Level` decode through a BrickMemo (brick_memo.hpp): brick views of bricks of
+// 16^3 (zfp's), whose apron reaches into the 56 bricks around the page's 8, each of which the
+// pages beside it decode too. Smaller bricks decode in about what a lookup in the memo and a copy
+// cost: with pages in a shuffled order, ksvd's 8^3 bricks gave 138 Mvox/s of pages without it
+// and 132 with it, zfp's 16^3 25 and 98 (bench/page_decode_bench.py, the MRI template).
+template <class Level>
+constexpr bool sharesBricks() {
+  if constexpr (codec::kernels::BrickView<Level>)
+    return Level::kSide >= 16;
+  else
+    return false;
+}
+
+// Page (px, py, pz) of a brick view of big bricks, each brick taken from `memo` where another
+// page kept it, else decoded, stored as the page stores it and kept. Equals decodePageByVoxel.
+template <codec::kernels::BrickView View, class Stored>
+void decodePageByMemo(const View& view, int px, int py, int pz, float bias, BrickMemo& memo,
+                      Stored* out) {
+  constexpr int S = View::kSide, kBrick = View::kVoxels;
+  const PageAxis ax(px, view.dimX, S), ay(py, view.dimY, S), az(pz, view.dimZ, S);
+  thread_local std::vector<typename View::Value> decoded;
+  decoded.resize(kBrick);
+  const auto row = [&](int bz, Stored* at) {
+    std::uint64_t last = ~std::uint64_t(0);
+    const Stored* lastBrick = nullptr;
+    for (int by = 0; by < ay.count; ++by)
+      for (int bx = 0; bx < ax.count; ++bx, at += kBrick) {
+        const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
+        if (key == last) {
+          std::copy(lastBrick, lastBrick + kBrick, at);
+        } else if (!memo.find(key, at)) {
+          view.decoder.decode(key, decoded.data());
+          for (int i = 0; i < kBrick; ++i)
+            at[i] = store<Stored>(view.decoder.scalar(decoded[std::size_t(i)]), bias);
+          memo.keep(key, at);
+        }
+        last = key, lastBrick = at;
+      }
+  };
+  writePageRows<Stored>(
+      S, ax, ay, az, row, [](Stored v) { return v; }, out);
 }
 
 // Page (px, py, pz) of a view that reads its base blocks whole (svmm: baseBlockSide() > 0).
@@ -177,13 +224,22 @@ void decodePageByBaseBlock(const View& view, int px, int py, int pz, float bias,
         view.baseBlock(ax.first + bx, ay.first + by, az.first + bz, at);
   };
   writePageRows<std::uint32_t>(
-      w, ax, ay, az, bias, row, [&](std::uint32_t v) { return view.scalar(v); }, out);
+      w, ax, ay, az, row, [&](std::uint32_t v) { return store<Stored>(view.scalar(v), bias); },
+      out);
 }
 
-// Page (px, py, pz) of `level`: a brick at a time where it is a brick view, a base block at a time
-// where it reads them whole (svmm), else voxel by voxel.
+// Page (px, py, pz) of `level`: a brick at a time where it is a brick view (through `memo` where
+// it has big bricks and one is given), a base block at a time where it reads them whole (svmm),
+// else voxel by voxel.
 template <class Level, class Stored>
-void decodePage(const Level& level, int px, int py, int pz, float bias, Stored* out) {
+void decodePage(const Level& level, int px, int py, int pz, float bias, Stored* out,
+                BrickMemo* memo = nullptr) {
+  if constexpr (sharesBricks<Level>()) {
+    if (memo && memo->usable()) {
+      decodePageByMemo(level, px, py, pz, bias, *memo, out);
+      return;
+    }
+  }
   if constexpr (codec::kernels::BrickView<Level>) {
     decodePageByBrick(level, px, py, pz, bias, out);
     return;

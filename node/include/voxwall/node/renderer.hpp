@@ -182,7 +182,8 @@ inline constexpr std::uint64_t kDefaultDecodeCacheBytes = std::uint64_t(512) << 
 std::unique_ptr<Backend> makeCpuBackend(int threads, bool packets = true,
                                         std::uint64_t decodeCacheBytes = kDefaultDecodeCacheBytes);
 // The decoded pages a CPU backend made for the last compressed volume it rendered: bytes resident
-// now, the bytes every page of the volume would take, the pool's capacity and a page's bytes
+// now (pages, and the bricks they share for zfp: brick_memo.hpp), the bytes every page
+// of the volume would take, the capacity (the pool's and the shared bricks') and a page's bytes
 // (all 0: none), and the counts since they were made: lane samples that found their page
 // resident and that did not, pages decoded into the pool, pages decoded into a lane's scratch page
 // (no slot was free), pages evicted.
