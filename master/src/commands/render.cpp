@@ -106,8 +106,8 @@ std::unique_ptr<node::Backend> rankBackend(const BackendSettings& b, master::Com
 
 // The decoded pages this rank's rays reach in the first frame: its first-frame rectangles rendered
 // at a quarter of the resolution per side (pages are 32 voxels wide, so the fewer rays still
-// reach nearly every page the full frame's do) by a CPU backend with no page budget, counting
-// the pages it decodes.
+// reach nearly every page the full frame's do) by a CPU backend with no page budget: the bytes of
+// the pages it decodes and of the bricks they share (zfp's memo).
 std::uint64_t firstFramePageBytes(const Setup& s, master::Communicator& comm) {
   const auto rects = master::firstFrameRects(s.job, comm.size())[std::size_t(comm.rank())];
   if (rects.empty()) return 0;
@@ -118,17 +118,16 @@ std::uint64_t firstFramePageBytes(const Setup& s, master::Communicator& comm) {
       node::orbitCamera(s.job.path.at(0), node::boundingRadius(s.volume->info()));
   const node::FramePlan plan = node::planFrame(*s.volume, camera, width, height, *s.tf, s.render);
   const auto backend = node::makeCpuBackend(1, true, std::numeric_limits<std::uint64_t>::max() / 2);
-  std::uint64_t decoded = 0;
   for (const voxwall::Rect& r : rects) {
     const int x0 = r.x / kReduce, y0 = r.y / kReduce;
     const int x1 = std::min(width, (r.x + r.width + kReduce - 1) / kReduce);
     const int y1 = std::min(height, (r.y + r.height + kReduce - 1) / kReduce);
     if (x1 <= x0 || y1 <= y0) continue;
     voxwall::Image out;
-    decoded +=
-        backend->render(*s.volume, plan, voxwall::Rect{x0, y0, x1 - x0, y1 - y0}, out).pageDecoded;
+    (void)backend->render(*s.volume, plan, voxwall::Rect{x0, y0, x1 - x0, y1 - y0}, out);
   }
-  return decoded * node::cpuDecodeCacheUse(*backend).pageBytes;
+  // The pages decoded (none evicted with this budget) and, for zfp, the bricks they share.
+  return node::cpuDecodeCacheUse(*backend).bytes;
 }
 
 // --time, --time-rate and --range on the volume's steps: which step each frame shows (one frame a
