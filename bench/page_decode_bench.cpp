@@ -105,6 +105,7 @@ bool measure(const node::RenderVolume& v, float bias, double budget, double& byV
             node::pages::decodePage(level, x, y, z, bias, out, memo.get());
           };
           byPage = voxels / 1e6 / bestPass<Stored>(level, inOrder, budget, fresh, renderers);
+          shuffled = voxels / 1e6 / bestPass<Stored>(level, mixed, budget, fresh, renderers);
           alone = byPage, aloneShuffled = shuffled;
           if constexpr (node::pages::sharesBricks<Level>()) {
             const auto before = [&](int x, int y, int z, Stored* out) {
@@ -117,7 +118,6 @@ bool measure(const node::RenderVolume& v, float bias, double budget, double& byV
                             bestPass<Stored>(
                                 level, mixed, budget, [] {}, before);
           }
-          shuffled = voxels / 1e6 / bestPass<Stored>(level, mixed, budget, fresh, renderers);
         }
       },
       v.view());
