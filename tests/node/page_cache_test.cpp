@@ -111,6 +111,22 @@ TEST(PageCache, RoomForEveryPageDecodesEachOnce) {
 
 namespace {
 
+// A `dims` box of a Shepp-Logan phantom of `side`^3 voxels, from voxel `at` on.
+codec::Volume sheppLoganCrop(int side, glm::ivec3 dims, glm::ivec3 at) {
+  const codec::Volume sl = codec::generateSheppLogan(side);
+  codec::Volume crop = codec::Volume::allocate(dims, codec::ScalarType::UInt8);
+  const auto index = [](int x, int y, int z, glm::ivec3 d) {
+    return (std::size_t(z) * std::size_t(d.y) + std::size_t(y)) * std::size_t(d.x) + std::size_t(x);
+  };
+  for (int z = 0; z < dims.z; ++z)
+    for (int y = 0; y < dims.y; ++y)
+      for (int x = 0; x < dims.x; ++x)
+        crop.as<std::uint8_t>()[index(x, y, z, dims)] =
+            sl.as<std::uint8_t>()[index(x + at.x, y + at.y, z + at.z, glm::ivec3(side))];
+  crop.computeRange();
+  return crop;
+}
+
 // Every page of `volume`'s paged level, decoded a brick at a time and voxel by voxel, in every
 // page format: the number of pages compared (0: no paged level), and any voxel that differs fails.
 int expectPagesDecodeAlike(const RenderVolume& volume, const std::string& name) {
@@ -149,15 +165,7 @@ int expectPagesDecodeAlike(const RenderVolume& volume, const std::string& name) 
 TEST(PageDecode, EveryCodecsPagesByBrickEqualThePagesByVoxel) {
   voxwall::Progress quiet;
   // 70 x 40 x 35: three pages wide, two high, two deep; bricks of 4, 6, 8, 16 cross page borders.
-  const codec::Volume sl = codec::generateSheppLogan(70);
-  codec::Volume odd = codec::Volume::allocate({70, 40, 35}, codec::ScalarType::UInt8);
-  for (int z = 0; z < 35; ++z)
-    for (int y = 0; y < 40; ++y)
-      for (int x = 0; x < 70; ++x)
-        odd.as<std::uint8_t>()[(std::size_t(z) * 40 + std::size_t(y)) * 70 + std::size_t(x)] =
-            sl.as<std::uint8_t>()[(std::size_t(z + 17) * 70 + std::size_t(y + 15)) * 70 +
-                                  std::size_t(x)];
-  odd.computeRange();
+  const codec::Volume odd = sheppLoganCrop(70, {70, 40, 35}, {0, 15, 17});
   int bricked = 0;
   std::string report;
   for (const codec::Codec* c : codec::codecs()) {
@@ -215,15 +223,7 @@ namespace {
 // border).
 RenderVolume zfpCrop() {
   voxwall::Progress quiet;
-  const codec::Volume sl = codec::generateSheppLogan(80);
-  codec::Volume crop = codec::Volume::allocate({80, 70, 66}, codec::ScalarType::UInt8);
-  for (int z = 0; z < 66; ++z)
-    for (int y = 0; y < 70; ++y)
-      for (int x = 0; x < 80; ++x)
-        crop.as<std::uint8_t>()[(std::size_t(z) * 70 + std::size_t(y)) * 80 + std::size_t(x)] =
-            sl.as<std::uint8_t>()[(std::size_t(z + 7) * 80 + std::size_t(y + 5)) * 80 +
-                                  std::size_t(x)];
-  crop.computeRange();
+  const codec::Volume crop = sheppLoganCrop(80, {80, 70, 66}, {0, 5, 7});
   std::string report;
   return RenderVolume::fromCompressed(codec::codecNamed("zfp").encode(crop, {}, quiet, report));
 }
