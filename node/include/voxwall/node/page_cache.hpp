@@ -119,9 +119,9 @@ class PageCache {
   }
 
   // Pages for `level` (a PageableLevel) of a volume of scalar type `type`, in at most
-  // `budgetBytes` of decoded voxels, for up to `readers`
-  // threads at once. For levels of big bricks (pages::sharesBricks: zfp's) up to an eighth of the
-  // budget holds decoded bricks that neighbouring pages share (brick_memo.hpp).
+  // `budgetBytes` of decoded voxels, for up to `readers` threads at once. For levels of big bricks
+  // (pages::sharesBricks: zfp's) up to an eighth of the budget holds decoded bricks that
+  // neighbouring pages share (brick_memo.hpp).
   template <class Level>
   static std::unique_ptr<PageCache> make(const Level& level, codec::ScalarType type,
                                          std::uint64_t budgetBytes, int readers) {

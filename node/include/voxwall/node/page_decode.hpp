@@ -174,7 +174,8 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
 // 16^3 (zfp's), whose apron reaches into the 56 bricks around the page's 8, each of which the
 // pages beside it decode too. Smaller bricks decode in about what a lookup in the memo and a copy
 // cost: with pages in a shuffled order, ksvd's 8^3 bricks gave 138 Mvox/s of pages without it
-// and 132 with it, zfp's 16^3 25 and 98 (bench/page_decode_bench.py, the MRI template).
+// and 132 with it, zfp's 16^3 25 and 98 (voxwall_bench_pages on one core, the MRI template of
+// mricron-data as it is, compressed with --block 8 and zfp's defaults).
 template <class Level>
 constexpr bool sharesBricks() {
   if constexpr (codec::kernels::BrickView<Level>)
