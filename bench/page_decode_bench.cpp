@@ -53,12 +53,11 @@ std::vector<PageAt> pageOrder(const Level& level, bool shuffled) {
   return order;
 }
 
-// Passes over every page of `level` in `order`, in `Stored`, with `decodeOne` (after
+// Passes over the pages in `order`, in `Stored`, with `decodeOne` (after
 // `startPass()`) for at least `budget` seconds; the best pass's seconds.
-template <class Stored, class Level, class Start, class Decode>
-double bestPass(const Level& level, const std::vector<PageAt>& order, double budget,
-                Start startPass, Decode decodeOne) {
-  (void)level;
+template <class Stored, class Start, class Decode>
+double bestPass(const std::vector<PageAt>& order, double budget, Start startPass,
+                Decode decodeOne) {
   std::vector<Stored> page(node::pages::kVoxels);
   double best = 1e30, spent = 0;
   do {
@@ -91,7 +90,7 @@ bool measure(const node::RenderVolume& v, float bias, double budget, double& byV
           const auto inOrder = pageOrder(level, false), mixed = pageOrder(level, true);
           byVoxel = voxels / 1e6 /
                     bestPass<Stored>(
-                        level, inOrder, budget, [] {},
+                        inOrder, budget, [] {},
                         [&](int x, int y, int z, Stored* out) {
                           node::pages::decodePageByVoxel(level, x, y, z, bias, out);
                         });
@@ -104,8 +103,8 @@ bool measure(const node::RenderVolume& v, float bias, double budget, double& byV
           const auto renderers = [&](int x, int y, int z, Stored* out) {
             node::pages::decodePage(level, x, y, z, bias, out, memo.get());
           };
-          byPage = voxels / 1e6 / bestPass<Stored>(level, inOrder, budget, fresh, renderers);
-          shuffled = voxels / 1e6 / bestPass<Stored>(level, mixed, budget, fresh, renderers);
+          byPage = voxels / 1e6 / bestPass<Stored>(inOrder, budget, fresh, renderers);
+          shuffled = voxels / 1e6 / bestPass<Stored>(mixed, budget, fresh, renderers);
           alone = byPage, aloneShuffled = shuffled;
           if constexpr (node::pages::sharesBricks<Level>()) {
             const auto before = [&](int x, int y, int z, Stored* out) {
@@ -113,10 +112,10 @@ bool measure(const node::RenderVolume& v, float bias, double budget, double& byV
             };
             alone = voxels / 1e6 /
                     bestPass<Stored>(
-                        level, inOrder, budget, [] {}, before);
+                        inOrder, budget, [] {}, before);
             aloneShuffled = voxels / 1e6 /
                             bestPass<Stored>(
-                                level, mixed, budget, [] {}, before);
+                                mixed, budget, [] {}, before);
           }
         }
       },
