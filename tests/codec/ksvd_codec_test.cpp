@@ -14,6 +14,7 @@
 #include <voxwall/core/errors.hpp>
 
 #include "support/format_error_expect.hpp"
+#include "support/ksvd_layout1.hpp"
 #include "support/sections.hpp"
 #include "support/temp_dir.hpp"
 
@@ -414,17 +415,19 @@ TEST(KsvdPyramid, TheHostViewReadsThePairsInTheirSectionAndDecodesLikeTheJoinedB
   ASSERT_FALSE(counts.empty());
   const std::vector<std::byte> joined = layout.joinedBytes();
   EXPECT_GE(joined.size(), layout.renderBufferBytes() + pairs.size() + counts.size());
-  // Atoms as floats and a 24-byte record per brick, aligned: nothing that grows with the blocks.
+  // Atoms as floats and a 32-byte record per brick, aligned: nothing that grows with the blocks.
   EXPECT_LE(layout.renderBufferBytes(),
-            std::uint64_t(layout.atoms()) * 64 * 4 + layout.bricks() * 24 + 16);
+            std::uint64_t(layout.atoms()) * 64 * 4 + layout.bricks() * 32 + 16);
   const auto host = layout.view<4>();
   const auto device = layout.view<4>(joined.data());
   int blocks = 0;
   for (int l = 0; l < layout.levels(); ++l) {
     const auto& h = host.level[l].decoder;
     const auto& d = device.level[l].decoder;
-    EXPECT_EQ(static_cast<const void*>(h.pairs), static_cast<const void*>(pairs.data()));
-    EXPECT_EQ(static_cast<const void*>(h.counts), static_cast<const void*>(counts.data()));
+    EXPECT_EQ(static_cast<const void*>(h.pairs.data), static_cast<const void*>(pairs.data()));
+    EXPECT_EQ(static_cast<const void*>(h.counts.data), static_cast<const void*>(counts.data()));
+    EXPECT_EQ(static_cast<const void*>(h.dc.data),
+              static_cast<const void*>(sections.get(ksvd::kDc, "dc").data()));
     for (int bz = 0; bz < (layout.levelDims(l).z + 3) / 4; ++bz)
       for (int by = 0; by < (layout.levelDims(l).y + 3) / 4; ++by)
         for (int bx = 0; bx < (layout.levelDims(l).x + 3) / 4; ++bx, ++blocks) {
@@ -451,11 +454,11 @@ TEST(KsvdPyramid, FilesWithoutTheLevelsSectionReadAsOneLevel) {
 }
 
 // Files written before the coefficient's width was stored end their params at the PSNR and hold
-// 3-byte pairs: the same bits as a stored width of 24 less the index's.
+// 3-byte pairs (in layout 1): the same bits as a stored width of 24 less the index's.
 TEST(KsvdCodec, FilesWithoutTheCoefficientWidthReadAsThreeBytePairs) {
   const Volume v = generateSheppLogan(40);
   Progress quiet;
-  auto c = ksvd::encode(v, quick(4), quiet);
+  auto c = test::asKsvdLayout1(ksvd::encode(v, quick(4), quiet));
   const ksvd::Layout stored(c.info, c.view());
   const int indexBits = 5;  // quick(): 32 atoms
   ASSERT_EQ(stored.atoms(), 32);
@@ -500,9 +503,9 @@ TEST(KsvdCodec, NarrowCoefficientsPackThePairsTighter) {
 }
 
 // Through the registry, a size target without --block codes blocks of 4^3 and of 6^3 and keeps
-// the higher PSNR; where blocks of 4^3 cannot meet the target (their count table alone is a byte
-// per block: noise, no constant bricks), 6^3, and the report says why. A --block that cannot meet
-// the target is refused. The coefficient width follows the rate.
+// the higher PSNR; where blocks of 4^3 cannot meet the target (their means alone are 5 bits and
+// their counts a bit per block: noise, no constant bricks), 6^3, and the report says why. A --block
+// that cannot meet the target is refused. The coefficient width follows the rate.
 TEST(KsvdCodec, SizeTargetsKeepTheBetterBlockSide) {
   const Codec& codec = codecNamed("ksvd");
   auto encode = [&](const Volume& v, double bits, int block, std::string& report) {
@@ -519,16 +522,17 @@ TEST(KsvdCodec, SizeTargetsKeepTheBetterBlockSide) {
   for (float& x : noise.as<float>()) x = uniform(rng);
   noise.computeRange();
   std::string report;
-  const auto fellBack = encode(noise, 0.36, 0, report);
+  const auto fellBack = encode(noise, 0.15, 0, report);
   const ksvd::Layout six(fellBack.info, fellBack.view());
   EXPECT_EQ(six.blockSide(), 6);
-  EXPECT_EQ(six.coefficientBits(), 8);  // 0.35..0.75 bits per voxel
-  EXPECT_NE(report.find("blocks of 6^3, since --bits-per-voxel 0.36 is below the smallest ksvd "
+  EXPECT_EQ(six.coefficientBits(), 6);  // below 0.35 bits per voxel
+  EXPECT_EQ(six.meanBits(), 5);
+  EXPECT_NE(report.find("blocks of 6^3, since --bits-per-voxel 0.15 is below the smallest ksvd "
                         "file of this volume with "),
             std::string::npos)
       << report;
   EXPECT_NE(report.find("and blocks of 4^3"), std::string::npos) << report;
-  EXPECT_THROW(encode(noise, 0.36, 4, report), ksvd::SizeTargetTooSmall);
+  EXPECT_THROW(encode(noise, 0.15, 4, report), ksvd::SizeTargetTooSmall);
 
   const Volume phantom = generateSheppLogan(80);
   std::string r4, r6;
@@ -540,10 +544,10 @@ TEST(KsvdCodec, SizeTargetsKeepTheBetterBlockSide) {
   const ksvd::Layout kept(best.info, best.view());
   EXPECT_EQ(kept.blockSide(), psnr4 > psnr6 ? 4 : 6);
   EXPECT_EQ(kept.psnr(), std::max(psnr4, psnr6));
-  EXPECT_EQ(kept.coefficientBits(), 8);
+  EXPECT_EQ(kept.coefficientBits(), 7);  // 0.35..0.75 bits per voxel
   EXPECT_NE(report.find("both coded, --block codes one"), std::string::npos) << report;
   const auto low = encode(phantom, 0.3, 0, report);
-  EXPECT_EQ(ksvd::Layout(low.info, low.view()).coefficientBits(), 7);
+  EXPECT_EQ(ksvd::Layout(low.info, low.view()).coefficientBits(), 6);
 }
 
 // A size target leaving about one pair per block on average still trains with two: the DC atom
@@ -640,8 +644,18 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
   }
   {
     auto c = small();
-    section(c, ksvd::kParams).resize(72);
+    section(c, ksvd::kParams).resize(80);
     expectKsvdRefused(c, "4 bytes past the params");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 72, 0);
+    expectKsvdRefused(c, "mean bits 0 (1..24)");
+  }
+  {
+    auto c = small();
+    poke<std::uint32_t>(section(c, ksvd::kParams), 68, 3);
+    expectKsvdRefused(c, "layout 3 (1 or 2)");
   }
   {
     auto c = small();
@@ -671,7 +685,22 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
     expectKsvdRefused(c, "coded index 7");
   }
   {
+    auto c = small();  // a run of ones longer than S - 1 pairs
+    for (std::byte& b : section(c, ksvd::kCounts)) b = std::byte{0xFF};
+    expectKsvdRefused(c, "has 4 pairs besides its mean (0..3)");
+  }
+  {
     auto c = small();
+    section(c, ksvd::kCounts).push_back(std::byte{0});
+    expectKsvdRefused(c, "section 'counts'");
+  }
+  {
+    auto c = small();
+    section(c, ksvd::kDc).pop_back();
+    expectKsvdRefused(c, "section 'dc'");
+  }
+  {
+    auto c = test::asKsvdLayout1(small());
     section(c, ksvd::kCounts)[0] = std::byte{200};
     expectKsvdRefused(c, "has 200 pairs");
   }
@@ -734,7 +763,7 @@ TEST(KsvdCorrupt, OverflowingCoefficientsDecodeInsideTheBricksRange) {
   const auto view = layout.view<6>();
   // Every block of the (single) brick, some of them with pairs.
   int withPairs = 0;
-  for (std::byte count : section(c, ksvd::kCounts)) withPairs += count != std::byte{0};
+  for (std::byte bits : section(c, ksvd::kCounts)) withPairs += bits != std::byte{0};
   ASSERT_GT(withPairs, 0);
   for (std::uint64_t b = 0; b < 4 * 4 * 4; ++b) {
     float block[216];

@@ -35,8 +35,10 @@ struct BrickRecord {
   std::uint32_t coded = kConstant;
 };
 
-// The coded bricks' block codes at one tolerance.
+// The coded bricks' block codes at one tolerance (the file's layout 2): per coded brick and block
+// the quantized mean and the number of pairs, and the pairs.
 struct CodedBricks {
+  std::vector<std::vector<std::uint32_t>> means;
   std::vector<std::vector<std::uint8_t>> counts;
   std::vector<std::vector<std::uint32_t>> pairs;  // per coded brick, packPair's words
   std::vector<float> steps;                       // per coded brick, in value units
@@ -279,27 +281,29 @@ class Encoder {
 
   // Dictionary size, sparsity and training-set size.
   void chooseSizes() {
-    fixedBytes_ = nBricks_ * 16 + std::uint64_t(coded_.size()) * std::uint64_t(perBrick_) + 128 +
-                  4 + 8 * std::uint64_t(levels_);
+    fixedBytes_ = nBricks_ * 16 + 128 + 8 + 8 * std::uint64_t(levels_);
     atoms_ = params_.atoms;
     if (atoms_ == 0) {  // the default: 1024, at most one atom per 16 coded blocks, at least 16
       atoms_ = int(std::clamp<std::uint64_t>(trainable_ / 16, 16, 1024));
       if (params_.targetBitsPerVoxel > 0)  // and the dictionary at most a quarter of the file
         while (atoms_ > 16 && double(atoms_) * m_ * 2 > budgetBytes() / 4) atoms_ /= 2;
     }
-    if (params_.targetBitsPerVoxel > 0 &&
-        double(fixedBytes_) + double(atoms_) * m_ * 2 > budgetBytes())
-      throw tooSmall(double(fixedBytes_) + double(atoms_) * m_ * 2,
-                     ": the dictionary and the brick and count tables alone take");
+    const double tables = double(fixedBytes_) + double(atoms_) * m_ * 2 +
+                          double(blockTableBytes(meanBits(coefficientBits(indexBitsFor(atoms_)))));
+    if (params_.targetBitsPerVoxel > 0 && tables > budgetBytes())
+      throw tooSmall(tables, ": the dictionary and the brick and block tables alone take");
     sparsity_ = std::min(params_.sparsity, m_);
     // Training codes blocks with the sparsity the file will have on average: S, or with a size
     // target the pairs per block the budget leaves after the dictionary and the tables.
     trainSparsity_ = sparsity_;
     if (params_.targetBitsPerVoxel > 0 && !candidates_.empty()) {
-      const double perBlock = (budgetBytes() - double(fixedBytes_) - double(atoms_) * m_ * 2) /
-                              (pairBytes(indexBitsFor(atoms_)) * double(candidates_.size()));
-      // At least 2: the DC atom is every block's first pair, so training with 1 leaves the
-      // learned atoms unused (at 0.35 bits per voxel on the MRI, blocks of 4^3 lost 2.6 dB).
+      // The DC atom's, which every block has, and the learned-atom pairs the rest buys (a pair
+      // and its bit of unary count).
+      const double perBlock =
+          1 + (budgetBytes() - tables) /
+                  ((pairBytes(indexBitsFor(atoms_)) + 0.125) * double(candidates_.size()));
+      // At least 2: training with the DC atom alone leaves the learned atoms unused (at 0.35 bits
+      // per voxel on the MRI, blocks of 4^3 lost 2.6 dB).
       trainSparsity_ =
           int(std::clamp(std::lround(perBlock), std::min(2l, long(sparsity_)), long(sparsity_)));
     }
@@ -351,6 +355,7 @@ class Encoder {
     for (std::size_t i = 0; i < stored_.size(); ++i) dict_.values[i] = float(stored_[i]) / 32767.0f;
     indexBits_ = indexBitsFor(atoms_);
     coefBits_ = coefficientBits(indexBits_);
+    meanBits_ = meanBits(coefBits_);
     qmax_ = maxQuantized(coefBits_);
   }
 
@@ -380,26 +385,48 @@ class Encoder {
   double pairBytes(int indexBits) const {
     return double(indexBits + coefficientBits(indexBits)) / 8.0;
   }
+  // A block mean's width: --mean-bits, or one less than a coefficient's (a mean is never
+  // negative, and its step is the brick's range over 2^bits - 1, not its largest coefficient).
+  int meanBits(int coefBits) const {
+    return params_.meanBits > 0 ? params_.meanBits : std::max(2, coefBits - 1);
+  }
+  // What every block of the coded bricks costs whatever its pairs: its mean and the zero bit
+  // that ends its unary count.
+  std::uint64_t blockTableBytes(int meanBits) const {
+    const std::uint64_t blocks = std::uint64_t(coded_.size()) * std::uint64_t(perBrick_);
+    return (blocks * std::uint64_t(meanBits) + 7) / 8 + (blocks + 7) / 8;
+  }
+  // The dc, counts and pairs sections of these codes.
+  std::uint64_t codeBytes(const CodedBricks& c) const {
+    return blockTableBytes(meanBits_) + (c.pairCount + 7) / 8 +
+           pairStreamBytes(c.pairCount, indexBits_ + coefBits_);
+  }
 
-  // Coding: every block of every coded brick, brick by brick, at a per-block tolerance.
-  CodedBricks codeAt(const Coder& coder, double blockTolerance, const char* stage) {
-    const double maxResidual2 = blockTolerance * blockTolerance * double(m_);
+  // Coding: every block of every coded brick, brick by brick, at a per-block tolerance t: a
+  // block's code stops once its RMS error is at most t (x the value range), or, `byGain`, once
+  // the next pair would take less than t^2 M^3 off its squared error (the same price for a pair
+  // everywhere: the least squared error for the pairs, which a size target searches for).
+  CodedBricks codeAt(const Coder& coder, double blockTolerance, const char* stage,
+                     bool byGain = false) {
+    const double threshold2 = blockTolerance * blockTolerance * double(m_);
     CodedBricks out;
-    out.counts.resize(coded_.size()), out.pairs.resize(coded_.size());
+    out.means.resize(coded_.size()), out.counts.resize(coded_.size());
+    out.pairs.resize(coded_.size());
     out.steps.resize(coded_.size());
     progress_.begin(stage, candidates_.size());
     byStreamedRows(
         coded_.size(), [&](std::size_t c) { return coded_[c]; },
         [&](std::size_t first, std::size_t end) {
           parallelFor(end - first, params_.threads,
-                      [&](std::size_t i) { codeBrick(coder, maxResidual2, first + i, out); });
+                      [&](std::size_t i) { codeBrick(coder, threshold2, byGain, first + i, out); });
         });
     progress_.end();
     for (const auto& p : out.pairs) out.pairCount += p.size();
     return out;
   }
 
-  void codeBrick(const Coder& coder, double maxResidual2, std::size_t c, CodedBricks& out) {
+  void codeBrick(const Coder& coder, double threshold2, bool byGain, std::size_t c,
+                 CodedBricks& out) {
     const std::uint64_t b = coded_[c];
     const Where w = where(b);
     std::vector<float> y(std::size_t(perBrick_) * std::size_t(m_));
@@ -411,21 +438,39 @@ class Encoder {
         inGrid.push_back(j);
       }
     std::vector<SparseCode> codes;
-    codeAll(coder, y.data(), inGrid.size(), sparsity_, maxResidual2, 1, codes);
+    codeAll(coder, y.data(), inGrid.size(), sparsity_, byGain ? 0.0 : threshold2, 1, codes, {},
+            byGain ? threshold2 : 0.0);
+    // The pairs' step: their largest coefficient over the largest quantized value (the DC atom's
+    // coefficient, the block's mean, is stored apart).
     float maxAbs = 0;
     for (const SparseCode& code : codes)
-      for (float v : code.coefficients) maxAbs = std::max(maxAbs, std::abs(v));
+      for (std::size_t s = 1; s < code.coefficients.size(); ++s)
+        maxAbs = std::max(maxAbs, std::abs(code.coefficients[s]));
     const float step = maxAbs > 0 ? maxAbs / float(qmax_) : 1.0f / float(qmax_);
     out.steps[c] = step * scale_;
+    // A mean's step: the brick's range over the largest quantized mean.
+    const double range = double(bricks_[b].hi) - double(bricks_[b].lo);
+    const double meanLevels = double((1u << meanBits_) - 1u);
+    std::vector<std::uint32_t>& means = out.means[c];
     std::vector<std::uint8_t>& counts = out.counts[c];
     std::vector<std::uint32_t>& pairs = out.pairs[c];
+    means.assign(std::size_t(perBrick_), 0);
     counts.assign(std::size_t(perBrick_), 0);
     for (std::size_t i = 0; i < inGrid.size(); ++i) {
       const SparseCode& code = codes[i];
+      if (code.atoms.empty() || code.atoms[0] != 0)
+        throw std::logic_error("ksvd: a block's code does not start with the DC atom");
+      double mean = 0;
+      for (int v = 0; v < m_; ++v) mean += double(y[i * std::size_t(m_) + std::size_t(v)]);
+      mean = mean / m_ * double(scale_);
+      means[std::size_t(inGrid[i])] =
+          range > 0 ? std::uint32_t(
+                          std::clamp(std::lround(mean / range * meanLevels), 0l, long(meanLevels)))
+                    : 0;
       int count = 0;
-      for (std::size_t s = 0; s < code.atoms.size(); ++s) {
+      for (std::size_t s = 1; s < code.atoms.size(); ++s) {
         const int q = std::clamp(int(std::lround(code.coefficients[s] / step)), -qmax_, qmax_);
-        if (q == 0) continue;  // adds nothing: a block equal to its brick's minimum has none
+        if (q == 0) continue;  // adds nothing
         pairs.push_back(packPair(code.atoms[s], q, indexBits_, coefBits_));
         ++count;
       }
@@ -448,20 +493,17 @@ class Encoder {
   // S (bisection; the size falls as the tolerance grows).
   void codeForSize(const Coder& coder) {
     const double fixed = double(fixedBytes_) + double(atoms_) * m_ * 2;
-    auto fits = [&](const CodedBricks& c) {
-      return fixed + double(pairStreamBytes(c.pairCount, indexBits_ + coefBits_)) <= budgetBytes();
-    };
-    result_ = codeAt(coder, 0, "sparse coding (rate search)");
+    auto fits = [&](const CodedBricks& c) { return fixed + double(codeBytes(c)) <= budgetBytes(); };
+    result_ = codeAt(coder, 0, "sparse coding (rate search)", true);
     if (fits(result_)) return;
     double lo = 0, hi = 0.5;
-    CodedBricks loosest = codeAt(coder, hi, "sparse coding (rate search)");
+    CodedBricks loosest = codeAt(coder, hi, "sparse coding (rate search)", true);
     if (!fits(loosest))
-      throw tooSmall(fixed + double(pairStreamBytes(loosest.pairCount, indexBits_ + coefBits_)),
-                     ": its smallest file takes");
+      throw tooSmall(fixed + double(codeBytes(loosest)), ": its smallest file takes");
     result_ = std::move(loosest);
     for (int it = 0; it < 10; ++it) {
       const double mid = 0.5 * (lo + hi);
-      CodedBricks c = codeAt(coder, mid, "sparse coding (rate search)");
+      CodedBricks c = codeAt(coder, mid, "sparse coding (rate search)", true);
       if (fits(c))
         hi = mid, result_ = std::move(c);
       else
@@ -486,6 +528,8 @@ class Encoder {
     w.put<double>(blockTolerance_);
     w.put<double>(psnr);
     w.put<std::uint32_t>(std::uint32_t(coefBits_));
+    w.put<std::uint32_t>(std::uint32_t(kLayout));
+    w.put<std::uint32_t>(std::uint32_t(meanBits_));
     return bytes;
   }
   std::vector<std::byte> levelsSection(const std::vector<double>& psnrs) const {
@@ -517,17 +561,22 @@ class Encoder {
       out.sections.emplace_back(kBricks, std::move(bytes));
     }
     {
-      std::vector<std::byte> counts;
-      counts.reserve(coded_.size() * std::size_t(perBrick_));
+      std::vector<std::byte> counts, dc;
+      std::uint64_t countBits = 0, dcBits = 0;
       for (std::size_t c = 0; c < coded_.size(); ++c)
-        for (std::uint8_t v : result_.counts[c]) counts.push_back(std::byte(v));
-      std::vector<std::byte> pairs = packedPairs();
+        for (int j = 0; j < perBrick_; ++j) {
+          for (int p = 0; p < result_.counts[c][std::size_t(j)]; ++p)
+            appendBits(counts, countBits, 1, 1);
+          appendBits(counts, countBits, 0, 1);
+          appendBits(dc, dcBits, result_.means[c][std::size_t(j)], meanBits_);
+        }
       out.sections.emplace_back(kCounts, std::move(counts));
-      out.sections.emplace_back(kPairs, std::move(pairs));
+      out.sections.emplace_back(kPairs, packedPairs());
+      out.sections.emplace_back(
+          kLevels, levelsSection(std::vector<double>(std::size_t(levels_),
+                                                     std::numeric_limits<double>::infinity())));
+      out.sections.emplace_back(kDc, std::move(dc));
     }
-    out.sections.emplace_back(
-        kLevels, levelsSection(std::vector<double>(std::size_t(levels_),
-                                                   std::numeric_limits<double>::infinity())));
     stats_.bricks = nBricks_, stats_.constantBricks = nBricks_ - coded_.size();
     stats_.codedBlocks = candidates_.size();
     stats_.pairs = result_.pairCount, stats_.atoms = atoms_, stats_.sparsity = sparsity_;
@@ -540,7 +589,7 @@ class Encoder {
       if (coded_[c] >= grids_[0].brickCount()) stats_.levelPairs += result_.pairs[c].size();
     stats_.dictionaryBytes = out.sections[1].second.size();
     stats_.brickBytes = out.sections[2].second.size() + out.sections[5].second.size();
-    stats_.countBytes = out.sections[3].second.size();
+    stats_.countBytes = out.sections[3].second.size() + out.sections[6].second.size();
     stats_.pairBytes = out.sections[4].second.size();
     return out;
   }
@@ -603,6 +652,7 @@ class Encoder {
   std::vector<std::uint64_t> candidates_;  // coded-brick index * perBrick + j
   std::uint64_t trainable_ = 0;
   std::uint64_t fixedBytes_ = 0;
+  int meanBits_ = 8;
   int atoms_ = 0, sparsity_ = 1, trainSparsity_ = 1;
   int coefBits_ = 0;
   std::uint64_t coresetSize_ = 0;
@@ -649,18 +699,20 @@ void checkParams(const Params& params) {
     throw std::invalid_argument("--coefficient-bits must be in " +
                                 std::to_string(kMinCoefficientBits) + ".." +
                                 std::to_string(kMaxPairBits - 1));
+  if (params.meanBits < 0 || params.meanBits > 24)
+    throw std::invalid_argument("--mean-bits must be in 1..24");
 }
 
 }  // namespace
 
-// Measured on the MRI (ch2better, docs/ksvd.md): at a size target, fewer coefficient bits buy
-// more pairs, which pays until the coefficients' rounding dominates the error: 7 bits were best
-// at 0.25 bits per voxel, 8 at 0.5 and 10 at 1, against 14 (3-byte pairs) by 1.9, 3.1 and 1.0 dB.
+// Measured on the MRIs (ch2 and ch2better, docs/ksvd.md): at a size target, fewer coefficient
+// bits buy more pairs, which pays until the coefficients' rounding dominates the error: 6 bits
+// were best at 0.25 bits per voxel, 7 at 0.5 (8 within 0.1 dB on ch2better) and 8 at 1.
 int coefficientBitsFor(double bitsPerVoxel, int indexBits) {
   const int room = kMaxPairBits - indexBits;
-  const int bits = bitsPerVoxel < 0.35   ? 7
-                   : bitsPerVoxel < 0.75 ? 8
-                   : bitsPerVoxel < 1.5  ? 10
+  const int bits = bitsPerVoxel < 0.35   ? 6
+                   : bitsPerVoxel < 0.75 ? 7
+                   : bitsPerVoxel < 1.5  ? 8
                                          : room;
   return std::clamp(bits, std::min(kMinCoefficientBits, room), room);
 }

@@ -15,17 +15,21 @@ namespace voxwall::codec::ksvd {
 
 namespace {
 
-// What reading the brick records into the render buffer, and checking the block counts and
-// pairs, needs and counts.
+// What reading the brick records into the render buffer, and checking the blocks' codes, needs
+// and counts. Files of layout 2 are read where they lie; in files of layout 1 (a count byte per
+// block, the DC atom's pair among the pairs) the counts are rewritten in unary as they are
+// checked (`unary`), and the pairs are read where they lie.
 struct BrickTables {
   ByteReader &bricks, &counts, &pairs;
-  const std::uint8_t* countBytes;
-  const std::uint8_t* pairBytes;
+  kernels::KsvdBits countBits, pairBits, dcBits;  // the file's sections
   kernels::KsvdBrick* brickOut;
   std::uint64_t perBrick;
-  int atoms, sparsity, indexBits, coefBits;
+  int layout, atoms, sparsity, indexBits, coefBits, meanBits;
   std::uint64_t codedBricks, pairCount;
-  std::uint64_t codedSeen = 0, pairSeen = 0;
+  std::vector<std::byte>* unary;  // layout 1's counts, rewritten
+  std::uint64_t codedSeen = 0;
+  std::uint64_t pairSeen = 0;  // pairs read so far
+  std::uint64_t countBit = 0;  // where the next block's unary count starts
 };
 
 std::string brickName(std::uint64_t b, std::size_t level) {
@@ -34,25 +38,50 @@ std::string brickName(std::uint64_t b, std::size_t level) {
   return name;
 }
 
-// Block j's pairs: at most S, within the header's count, each naming an atom there is.
-void checkPairs(BrickTables& t, const std::string& which, int j, int count) {
-  if (count > t.sparsity)
+// Block j's pairs: at most `most`, within the header's count, each naming an atom there is.
+void checkPairs(BrickTables& t, const std::string& which, int j, std::uint64_t count, int most,
+                const char* what) {
+  if (count > std::uint64_t(most))
     t.counts.fail(which + ": block " + std::to_string(j) + " has " + std::to_string(count) +
-                  " pairs (0.." + std::to_string(t.sparsity) + ")");
-  if (t.pairSeen + std::uint64_t(count) > t.pairCount)
+                  " pairs" + what + " (0.." + std::to_string(most) + ")");
+  if (t.pairSeen + count > t.pairCount)
     t.pairs.fail("the blocks need more than the header's " + std::to_string(t.pairCount) +
                  " pairs");
-  for (int p = 0; p < count; ++p) {
+  const int width = t.indexBits + t.coefBits;
+  for (std::uint64_t p = t.pairSeen; p < t.pairSeen + count; ++p) {
     int atom = 0, q = 0;
-    kernels::ksvdUnpack(t.pairBytes, t.pairSeen + std::uint64_t(p), t.indexBits, t.coefBits, atom,
-                        q);
+    kernels::ksvdUnpackAt(t.pairBits, p * std::uint64_t(width), t.indexBits, t.coefBits, atom, q);
     if (atom >= t.atoms)
-      t.pairs.fail("pair " + std::to_string(t.pairSeen + std::uint64_t(p)) + " names atom " +
-                   std::to_string(atom) + " of " + std::to_string(t.atoms));
+      t.pairs.fail("pair " + std::to_string(p) + " names atom " + std::to_string(atom) + " of " +
+                   std::to_string(t.atoms));
   }
+  t.pairSeen += count;
 }
 
-// Brick b of a level (grid g): its record, and, coded, its blocks' counts and pairs checked.
+// Block j of a coded brick in a layout-2 file: its mean and unary count (both zero outside the
+// volume) and its pairs (at most S - 1: S counts the mean).
+void readBlock2(BrickTables& t, const std::string& which, int j, bool inGrid) {
+  const std::uint32_t mean = t.dcBits.field(
+      (t.codedSeen * t.perBrick + std::uint64_t(j)) * std::uint64_t(t.meanBits), t.meanBits);
+  // Read as far as S ones: a longer run is an error, wherever it ends.
+  std::uint64_t count = 0;
+  while (count < std::uint64_t(t.sparsity) && t.countBits.field(t.countBit + count, 1)) ++count;
+  if (!inGrid && (count != 0 || mean != 0))
+    t.counts.fail(which + ": a block outside the volume has pairs");
+  checkPairs(t, which, j, count, t.sparsity - 1, " besides its mean");
+  t.countBit += count + 1;
+}
+
+// Block j of a coded brick in a layout-1 file: its count byte, rewritten in unary, and pairs.
+void readBlock1(BrickTables& t, const std::string& which, int j, bool inGrid) {
+  const int count = int(t.countBits.data[t.codedSeen * t.perBrick + std::uint64_t(j)]);
+  if (!inGrid && count != 0) t.counts.fail(which + ": a block outside the volume has pairs");
+  checkPairs(t, which, j, std::uint64_t(count), t.sparsity, "");
+  for (int p = 0; p < count; ++p) appendBits(*t.unary, t.countBit, 1, 1);
+  appendBits(*t.unary, t.countBit, 0, 1);
+}
+
+// Brick b of a level (grid g): its record, and, coded, its blocks' codes checked.
 void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t firstBrick,
                std::uint64_t b) {
   kernels::KsvdBrick& out = t.brickOut[firstBrick + b];
@@ -74,16 +103,14 @@ void readBrick(BrickTables& t, const Grid& g, std::size_t level, std::uint64_t f
     t.bricks.fail("more coded bricks than the header's " + std::to_string(t.codedBricks));
   out.coded = index;
   out.firstPair = t.pairSeen;
+  out.countBit = t.countBit;
   const glm::ivec3 bc = g.brickCoords(b);
   for (int j = 0; j < int(t.perBrick); ++j) {
-    const int count = t.countBytes[t.codedSeen * t.perBrick + std::uint64_t(j)];
-    const glm::ivec3 block = g.blockOf(bc, j);
-    if (!g.inGrid(block)) {
-      if (count != 0) t.counts.fail(which + ": a block outside the volume has pairs");
-      continue;
-    }
-    checkPairs(t, which, j, count);
-    t.pairSeen += std::uint64_t(count);
+    const bool inGrid = g.inGrid(g.blockOf(bc, j));
+    if (t.layout == 1)
+      readBlock1(t, which, j, inGrid);
+    else
+      readBlock2(t, which, j, inGrid);
   }
   ++t.codedSeen;
 }
@@ -113,6 +140,9 @@ void Layout::readParams(const SectionSet& sections) {
   // The coefficient's width: absent in files written before it was stored (3-byte pairs).
   coefBits_ = r.remaining() >= 4 ? int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64))
                                  : 24 - indexBits_;
+  // The layout of the blocks' codes: absent in files written before layout 2.
+  layout_ = r.remaining() >= 4 ? int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64)) : 1;
+  if (layout_ != 1) meanBits_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64));
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes past the params");
   auto fail = [&](const std::string& what) { r.fail(what); };
   if (m_ != 4 && m_ != 6 && m_ != 8) fail("block side " + std::to_string(m_) + " (4, 6 or 8)");
@@ -127,6 +157,10 @@ void Layout::readParams(const SectionSet& sections) {
     fail("coefficient bits " + std::to_string(coefBits_) + " with " + std::to_string(indexBits_) +
          " index bits (" + std::to_string(kMinCoefficientBits) + ".." +
          std::to_string(kMaxPairBits) + " - index bits)");
+  if (layout_ != 1 && layout_ != kLayout)
+    fail("layout " + std::to_string(layout_) + " (1 or " + std::to_string(kLayout) + ")");
+  if (layout_ != 1 && (meanBits_ < 1 || meanBits_ > 24))
+    fail("mean bits " + std::to_string(meanBits_) + " (1..24)");
   if (!(tolerance_ >= 0 && tolerance_ < 1)) fail("tolerance out of range");
   if (std::isnan(psnr_)) fail("PSNR is not a number");
 }
@@ -164,7 +198,8 @@ void Layout::readLevels(const SectionSet& sections) {
 }
 
 // The render buffer: float atoms and brick records (levels one after the other), each section's
-// size checked first; the counts and pairs stay in their sections.
+// size checked first; the blocks' codes stay in their sections (layout 1's counts are rewritten
+// in unary).
 void Layout::buildRenderBuffer(const SectionSet& sections) {
   const std::string& src = sections.source;
   const int m = m_ * m_ * m_;
@@ -181,46 +216,61 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
   if (brickBytes.size() != nBricks * 16)
     br.fail(std::to_string(brickBytes.size()) + " bytes for " + std::to_string(nBricks) +
             " bricks of 16 bytes");
+  const std::uint64_t codedBlocks = codedBricks_ * perBrick;
   const auto countBytes = sections.get(kCounts, "counts");
   ByteReader cr(countBytes, src, "section 'counts'");
-  if (countBytes.size() != codedBricks_ * perBrick)
+  const std::uint64_t countsExpected =
+      layout_ == 1 ? codedBlocks : (codedBlocks + pairs_ + 7) / 8;  // unary: a bit a pair and block
+  if (pairs_ > (std::uint64_t(1) << 56) || countBytes.size() != countsExpected)
     cr.fail(std::to_string(countBytes.size()) + " bytes for " + std::to_string(codedBricks_) +
-            " coded bricks of " + std::to_string(perBrick) + " blocks");
+            " coded bricks of " + std::to_string(perBrick) + " blocks" +
+            (layout_ == 1 ? "" : " and " + std::to_string(pairs_) + " pairs"));
   const auto pairBytes = sections.get(kPairs, "pairs");
   ByteReader pr(pairBytes, src, "section 'pairs'");
   const int pairBits = indexBits_ + coefBits_;
-  if (pairs_ > pairBytes.size() * 8 / std::uint64_t(pairBits) ||
-      pairBytes.size() != pairStreamBytes(pairs_, pairBits))
+  if (pairBytes.size() != pairStreamBytes(pairs_, pairBits))
     pr.fail(std::to_string(pairBytes.size()) + " bytes for " + std::to_string(pairs_) +
             " pairs of " + std::to_string(pairBits) + " bits");
+  std::span<const std::byte> dcBytes;
+  if (layout_ != 1) {
+    dcBytes = sections.get(kDc, "dc");
+    if (dcBytes.size() != (codedBlocks * std::uint64_t(meanBits_) + 7) / 8)
+      ByteReader(dcBytes, src, "section 'dc'")
+          .fail(std::to_string(dcBytes.size()) + " bytes for " + std::to_string(codedBlocks) +
+                " means of " + std::to_string(meanBits_) + " bits");
+  }
 
   auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
   atomsAt_ = 0;
   bricksAt_ = align8(std::uint64_t(k_) * std::uint64_t(m) * 4);
-  pairsAt_ = align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick));
-  // Past the pairs: 8 bytes that ksvdUnpack may read beyond the last pair.
-  countsAt_ = align8(pairsAt_ + pairBytes.size() + 8);
-  render_.assign(pairsAt_, std::byte{0});
-  pairBytes_ = pairBytes, countBytes_ = countBytes;
+  render_.assign(align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick)), std::byte{0});
   auto* atoms = reinterpret_cast<float*>(render_.data() + atomsAt_);
   for (std::size_t i = 0; i < std::size_t(k_) * std::size_t(m); ++i) {
     std::int16_t v;
     std::memcpy(&v, dictBytes.data() + 2 * i, 2);
     atoms[i] = float(v) / 32767.0f;
   }
+  auto bits = [](std::span<const std::byte> b) {
+    return kernels::KsvdBits{reinterpret_cast<const std::uint8_t*>(b.data()), b.size()};
+  };
+  auto unary = layout_ == 1 ? std::make_shared<std::vector<std::byte>>() : nullptr;
   BrickTables t{br,
                 cr,
                 pr,
-                reinterpret_cast<const std::uint8_t*>(countBytes.data()),
-                reinterpret_cast<const std::uint8_t*>(pairBytes.data()),
+                bits(countBytes),
+                bits(pairBytes),
+                bits(dcBytes),
                 reinterpret_cast<kernels::KsvdBrick*>(render_.data() + bricksAt_),
                 perBrick,
+                layout_,
                 k_,
                 s_,
                 indexBits_,
                 coefBits_,
+                meanBits_,
                 codedBricks_,
-                pairs_};
+                pairs_,
+                unary.get()};
   for (std::size_t l = 0; l < levels_.size(); ++l) {
     const Grid g(levels_[l].dims, m_);
     for (std::uint64_t b = 0; b < g.brickCount(); ++b) readBrick(t, g, l, levels_[l].firstBrick, b);
@@ -230,14 +280,22 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
             std::to_string(codedBricks_));
   if (t.pairSeen != pairs_)
     pr.fail(std::to_string(t.pairSeen) + " pairs used, the header says " + std::to_string(pairs_));
+  pairBytes_ = pairBytes, countBytes_ = countBytes, dcBytes_ = dcBytes;
+  if (unary) unary_ = unary, countBytes_ = *unary;
+  // Where joinedBytes() puts the streams, each followed by 8 bytes of slack.
+  pairsAt_ = render_.size();
+  countsAt_ = align8(pairsAt_ + pairBytes_.size() + 8);
+  dcAt_ = align8(countsAt_ + countBytes_.size() + 8);
+  joinedSize_ = align8(dcAt_ + dcBytes_.size() + 8);
 }
 
 std::vector<std::byte> Layout::joinedBytes() const {
-  std::vector<std::byte> out(countsAt_ + countBytes_.size(), std::byte{0});
+  std::vector<std::byte> out(joinedSize_, std::byte{0});
   std::memcpy(out.data(), render_.data(), render_.size());
-  if (!pairBytes_.empty()) std::memcpy(out.data() + pairsAt_, pairBytes_.data(), pairBytes_.size());
-  if (!countBytes_.empty())
-    std::memcpy(out.data() + countsAt_, countBytes_.data(), countBytes_.size());
+  const std::pair<std::uint64_t, std::span<const std::byte>> streams[] = {
+      {pairsAt_, pairBytes_}, {countsAt_, countBytes_}, {dcAt_, dcBytes_}};
+  for (const auto& [at, bytes] : streams)
+    if (!bytes.empty()) std::memcpy(out.data() + at, bytes.data(), bytes.size());
   return out;
 }
 
@@ -261,9 +319,15 @@ kernels::KsvdView<Side> Layout::view(const std::byte* base) const {
     lv.cacheId = cacheId_;
     auto& d = lv.decoder;
     d.data = reinterpret_cast<const std::uint8_t*>(base ? base : render_.data());
-    d.pairs = base ? d.data + pairsAt_ : reinterpret_cast<const std::uint8_t*>(pairBytes_.data());
-    d.counts =
-        base ? d.data + countsAt_ : reinterpret_cast<const std::uint8_t*>(countBytes_.data());
+    auto stream = [&](std::uint64_t at, std::span<const std::byte> bytes) {
+      return kernels::KsvdBits{
+          base ? d.data + at : reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()};
+    };
+    d.pairs = stream(pairsAt_, pairBytes_);
+    d.counts = stream(countsAt_, countBytes_);
+    d.dc = stream(dcAt_, dcBytes_);
+    d.dcBits = meanBits_;
+    d.dcLevels = meanBits_ > 0 ? float((1u << meanBits_) - 1u) : 1.0f;
     d.atomsAt = atomsAt_;
     d.bricksAt = bricksAt_ + level.firstBrick * sizeof(kernels::KsvdBrick);
     d.keyBase = level.firstBlock;

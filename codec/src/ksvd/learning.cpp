@@ -27,7 +27,7 @@ void Coder::correlate(const float* blocks, std::size_t count, Eigen::MatrixXf& a
 }
 
 void Coder::code(const float* alpha0, double energy, int sparsity, double maxResidual2,
-                 SparseCode& out, Work& w) const {
+                 SparseCode& out, Work& w, double minGain2) const {
   const int s = std::max(1, std::min(sparsity, k_));
   out.atoms.clear(), out.coefficients.clear();
   w.lower.assign(std::size_t(s) * std::size_t(s), 0.0);
@@ -83,7 +83,10 @@ void Coder::code(const float* alpha0, double energy, int sparsity, double maxRes
       norm2 += L(k, i) * L(k, i);
     }
     const double diag2 = double(gram_(best, best)) - norm2;
-    if (diag2 <= 1e-6) {  // nearly a combination of the chosen atoms: nothing more to gain
+    // Adding `best` takes alpha_best^2 / diag2 off the squared residual (its correlation with
+    // the residual over the norm of its part orthogonal to the chosen atoms, squared).
+    if (diag2 <= 1e-6 || double(bestValue) * double(bestValue) < minGain2 * diag2) {
+      // nearly a combination of the chosen atoms, or worth less than a pair costs
       for (int i = 0; i < k; ++i) L(k, i) = 0;
       break;
     }
@@ -112,7 +115,7 @@ SparseCode ompCode(const Dictionary& dictionary, std::span<const float> y, int s
 
 void codeAll(const Coder& coder, const float* blocks, std::size_t count, int sparsity,
              double maxResidual2, int threads, std::vector<SparseCode>& codes,
-             const std::function<void(std::size_t)>& advance) {
+             const std::function<void(std::size_t)>& advance, double minGain2) {
   constexpr std::size_t kChunk = 128;
   codes.resize(count);
   const int m = coder.m();
@@ -126,7 +129,7 @@ void codeAll(const Coder& coder, const float* blocks, std::size_t count, int spa
       double energy = 0;
       for (int v = 0; v < m; ++v) energy += double(y[i * m + v]) * double(y[i * m + v]);
       coder.code(alpha.data() + i * std::size_t(coder.atoms()), energy, sparsity, maxResidual2,
-                 codes[first + i], work);
+                 codes[first + i], work, minGain2);
     }
     if (advance) advance(n);
   });
@@ -386,13 +389,22 @@ std::uint32_t packPair(int atom, int q, int indexBits, int coefBits) {
   return std::uint32_t(atom) | (raw << indexBits);
 }
 
+void appendBits(std::vector<std::byte>& stream, std::uint64_t& bits, std::uint32_t value,
+                int width) {
+  if (width <= 0) return;
+  const std::uint64_t bit = bits;
+  bits += std::uint64_t(width);
+  stream.resize((bits + 7) / 8, std::byte{0});
+  const std::uint64_t mask = width >= 32 ? 0xFFFFFFFFull : (1ull << width) - 1ull;
+  const std::uint64_t shifted = (std::uint64_t(value) & mask) << (bit % 8);
+  for (int b = 0; b * 8 < int(bit % 8) + width; ++b)
+    stream[bit / 8 + std::uint64_t(b)] |= std::byte(std::uint8_t(shifted >> (8 * b)));
+}
+
 void appendPair(std::vector<std::byte>& stream, std::uint64_t pairs, std::uint32_t word,
                 int pairBits) {
-  const std::uint64_t bit = pairs * std::uint64_t(pairBits);
-  stream.resize(pairStreamBytes(pairs + 1, pairBits), std::byte{0});
-  const std::uint64_t shifted = std::uint64_t(word & ((1u << pairBits) - 1u)) << (bit % 8);
-  for (int b = 0; b * 8 < int(bit % 8) + pairBits; ++b)
-    stream[bit / 8 + std::uint64_t(b)] |= std::byte(std::uint8_t(shifted >> (8 * b)));
+  std::uint64_t bits = pairs * std::uint64_t(pairBits);
+  appendBits(stream, bits, word, pairBits);
 }
 
 }  // namespace voxwall::codec::ksvd

@@ -22,9 +22,11 @@ class Coder {
     std::vector<float> alpha;
     std::vector<unsigned char> chosen;
   };
-  // One block from its correlations alpha0 (K values) and its energy ||y||^2.
+  // One block from its correlations alpha0 (K values) and its energy ||y||^2: atoms are added
+  // while fewer than `sparsity`, the squared residual is above maxResidual2 and the next atom
+  // takes at least minGain2 off it.
   void code(const float* alpha0, double energy, int sparsity, double maxResidual2, SparseCode& out,
-            Work& work) const;
+            Work& work, double minGain2 = 0) const;
 
  private:
   int m_ = 0, k_ = 0;
@@ -36,6 +38,6 @@ class Coder {
 // called with the number of blocks each finished chunk held.
 void codeAll(const Coder& coder, const float* blocks, std::size_t count, int sparsity,
              double maxResidual2, int threads, std::vector<SparseCode>& codes,
-             const std::function<void(std::size_t)>& advance = {});
+             const std::function<void(std::size_t)>& advance = {}, double minGain2 = 0);
 
 }  // namespace voxwall::codec::ksvd

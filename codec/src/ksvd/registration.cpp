@@ -36,14 +36,14 @@ class Payload final : public RenderPayload {
 
 std::string encodeReport(const EncodeStats& s, const Volume& v, bool sizeTarget) {
   std::string report = formatLine(
-      "\n  %llu bricks (%llu constant), %llu blocks coded with %llu pairs (%.2f per block, at "
-      "most %d)",
+      "\n  %llu bricks (%llu constant), %llu blocks coded with the DC atom and %llu pairs of "
+      "learned atoms (%.2f per block, at most %d in all)",
       (unsigned long long)s.bricks, (unsigned long long)s.constantBricks,
       (unsigned long long)s.codedBlocks, (unsigned long long)s.pairs,
       s.codedBlocks ? double(s.pairs) / double(s.codedBlocks) : 0.0, s.sparsity);
   report += formatLine(
       "\n  dictionary %d atoms (%s), pairs %s (%d bits: %d for the atom, %d for the "
-      "coefficient), brick table and counts %s: %.3f bits per voxel",
+      "coefficient), brick table, DC coefficients and counts %s: %.3f bits per voxel",
       s.atoms, humanBytes(double(s.dictionaryBytes)).c_str(),
       humanBytes(double(s.pairBytes)).c_str(), s.indexBits + s.coefficientBits, s.indexBits,
       s.coefficientBits, humanBytes(double(s.brickBytes + s.countBytes)).c_str(),
@@ -94,6 +94,10 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
          "index's; default: 24 less the index's, or with --bits-per-voxel 7 below 0.35 bits per "
          "voxel, 8 below 0.75, 10 below 1.5)",
          ""},
+        {"--mean-bits",
+         "ksvd codec: bits of a block's mean, stored apart from its pairs in steps of its brick's "
+         "range (1..24; default: one less than --coefficient-bits)",
+         ""},
         {"--tolerance",
          "ksvd codec: stop a block's code at this RMS error, as a fraction of the value range "
          "(the paper uses 0.015); also the spread below which a brick is stored as constant",
@@ -121,6 +125,7 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
     p.atoms = options.integer("--atoms", 0, 2, 1 << 16);
     p.sparsity = options.integer("--sparsity", 8, 1, 255);
     p.coefficientBits = options.integer("--coefficient-bits", 0, 2, 23);
+    p.meanBits = options.integer("--mean-bits", 0, 1, 24);
     p.tolerance = options.number("--tolerance", 0, 0, 0.999);
     p.coreset = options.number("--coreset", 0, 1e-9, 1e15);
     p.iterations = options.integer("--iterations", 25, 0, 10000);
@@ -247,13 +252,14 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
                                               layout.atoms(), m * m * m, layout.iterations(),
                                               (unsigned long long)layout.coreset())});
     lines.push_back(
-        {"pairs", formatLine("%llu of %d bits (a %d-bit coefficient), at most %d per block%s",
-                             (unsigned long long)layout.pairs(),
-                             layout.indexBits() + layout.coefficientBits(),
-                             layout.coefficientBits(), layout.sparsity(),
-                             layout.tolerance() > 0
-                                 ? formatLine(", tolerance %g", layout.tolerance()).c_str()
-                                 : "")});
+        {"pairs",
+         formatLine(
+             "%llu of %d bits (a %d-bit coefficient), at most %d per block with the "
+             "DC atom's%s",
+             (unsigned long long)layout.pairs(), layout.indexBits() + layout.coefficientBits(),
+             layout.coefficientBits(), layout.sparsity(),
+             layout.tolerance() > 0 ? formatLine(", tolerance %g", layout.tolerance()).c_str()
+                                    : "")});
     std::string levels = formatLine("%d", layout.levels());
     if (layout.levels() > 1) {
       levels += " (render --lod), PSNR";

@@ -16,7 +16,7 @@
 // above; sections 3-5 hold level 0's bricks, blocks and pairs, then level 1's, and so on.
 // `render --lod` samples the coarsest level whose voxels are no wider than a pixel's footprint.
 //
-// Values are decoded as floats: brickMin + sum(q_i * step * d[a_i]), clamped to the brick's
+// Values are decoded as floats: brickMin + mean + sum(q_i * step * d[a_i]), clamped to the brick's
 // [min, max]; integer types round to the nearest integer of the type. Any scalar type is
 // accepted (uint8, uint16, int16, float32).
 //
@@ -26,22 +26,33 @@
 //       u32 K (atoms, 2..2^16) u32 S (pairs per block at most, 1..min(M^3, 255))
 //       u32 indexBits (bits of the atom index in a pair: ceil(log2 K), 1..16)
 //       u32 iterations (K-SVD iterations run)
-//       u64 codedBricks        u64 pairs          u64 coreset (training blocks)
+//       u64 codedBricks        u64 pairs (in section 5)   u64 coreset (training blocks)
 //       f64 tolerance (per-block RMS error target, relative to the value range; 0: none;
 //           with a size target, the tolerance that met it)
 //       f64 psnr of the decoded volume against the input in dB (+inf when exact)
 //       u32 coefBits (bits of a pair's quantized coefficient: 2..24 - indexBits; absent in files
 //           written before it was stored, whose pairs are 3 bytes: 24 - indexBits)
+//       u32 layout of the blocks' codes, 1 or 2 (absent in files of layout 1)
+//       u32 meanBits (layout 2 only: bits of a block's mean, 1..24)
 //   2 dictionary: K atoms of M^3 i16 (x fastest), each entry atom value x 32767, rounded
 //   3 bricks: per brick (x fastest), 16 bytes: f32 min, f32 max, f32 step (the coefficient
 //       quantum; 0 for a constant brick, whose every voxel is min == max), u32 coded index (the
 //       number of coded bricks before it; 0xFFFFFFFF for a constant brick)
-//   4 counts: per coded brick, its N^3 blocks' pair counts (u8, 0..S; 0 past the volume's edge
-//       and for a block equal to its brick's minimum), blocks x fastest
+//   Layout 2 (what the encoder writes): a block's code is its mean, always there, and its pairs
+//   of learned atoms (at most S - 1).
+//   7 dc: per coded brick and block (blocks x fastest), the block's mean above its brick's
+//       minimum, quantized to meanBits bits (unsigned) in steps of (max - min) / (2^meanBits - 1),
+//       packed LSB-first; 0 past the volume's edge
+//   4 counts: per coded brick and block, its number of pairs in unary (that many one bits, then
+//       a zero bit), LSB-first, bricks one after the other; 0 past the edge
 //   5 pairs: per coded brick, block and pair, indexBits + coefBits bits packed LSB-first (pair p
 //       from bit p x (indexBits + coefBits); the last byte padded with zero bits): the atom index
 //       in the low indexBits bits, the quantized coefficient (two's complement) in the coefBits
 //       above
+//   Layout 1 (read, not written): no section 7; 4 counts: per coded brick, its N^3 blocks' pair
+//       counts (u8, 0..S); 5 pairs: every pair of every block, the DC atom's first (its
+//       coefficient x the DC atom is the block's mean). A pair whose coefficient quantizes to 0
+//       is left out.
 //   6 levels (absent in files from before the pyramid, which hold level 0 only):
 //       u32 levels (1..8), then per level f64 PSNR of the decoded level against that level of
 //       the input's pyramid, in dB (peak = the level's value range; +inf when exact)
@@ -70,8 +81,13 @@ enum SectionId : std::uint32_t {
   kBricks = 3,
   kCounts = 4,
   kPairs = 5,
-  kLevels = 6
+  kLevels = 6,
+  kDc = 7
 };
+
+// The layout of the blocks' codes the encoder writes (a params field): 2, each block's mean apart
+// from its pairs and unary counts; files of layout 1 are read too.
+inline constexpr int kLayout = 2;
 
 struct Params {
   int blockSide = 6;              // M
@@ -83,6 +99,7 @@ struct Params {
   // Bits of a pair's quantized coefficient (2..24 - index bits); 0: 24 - index bits, or with a
   // size target the width that measured best at that rate (coefficientBitsFor).
   int coefficientBits = 0;
+  int meanBits = 0;     // bits of a block's mean (1..24); 0: coefficientBits - 1
   int iterations = 25;  // K-SVD iterations
   int levels = 0;   // pyramid levels (1: level 0 only); 0: until a level fits in one brick, <= 8
   int threads = 0;  // 0: every usable core
@@ -196,6 +213,10 @@ std::uint32_t packPair(int atom, int q, int indexBits, int coefBits);
 // holds `pairs` pairs so far; the stream's size stays a whole number of bytes.
 void appendPair(std::vector<std::byte>& stream, std::uint64_t pairs, std::uint32_t word,
                 int pairBits);
+// Appends the low `width` (<= 32) bits of `value` to a bit stream (LSB-first) that holds `bits`
+// bits so far, and advances `bits`; the stream's size stays a whole number of bytes.
+void appendBits(std::vector<std::byte>& stream, std::uint64_t& bits, std::uint32_t value,
+                int width);
 // The largest |q| a coefficient of coefBits bits holds.
 inline int maxQuantized(int coefBits) { return (1 << (coefBits - 1)) - 1; }
 // The coefficient width a size target of `bitsPerVoxel` codes with when none is given.
@@ -211,8 +232,10 @@ class Layout {
   int iterations() const { return iterations_; }
   int indexBits() const { return indexBits_; }
   int coefficientBits() const { return coefBits_; }
+  int layout() const { return layout_; }
+  int meanBits() const { return meanBits_; }  // 0 in layout 1
   std::uint64_t codedBricks() const { return codedBricks_; }
-  std::uint64_t pairs() const { return pairs_; }
+  std::uint64_t pairs() const { return pairs_; }  // in the pairs section
   std::uint64_t coreset() const { return coreset_; }
   double tolerance() const { return tolerance_; }
   double psnr() const { return psnr_; }
@@ -221,11 +244,11 @@ class Layout {
   glm::ivec3 levelDims(int level) const { return levels_.at(std::size_t(level)).dims; }
   glm::ivec3 levelBricks(int level) const { return levels_.at(std::size_t(level)).bricks; }
   double levelPsnr(int level) const { return levels_.at(std::size_t(level)).psnr; }
-  // The render buffer (atoms, bricks), the pairs and the counts joined, for a device; a host view
-  // reads the pairs and counts where their sections lie.
+  // The render buffer (atoms, bricks) and the blocks' three code streams (pairs, counts, dc)
+  // joined, for a device; a host view reads the streams where their sections lie.
   std::vector<std::byte> joinedBytes() const;
   // The bytes a host view holds beside the file's sections (the render buffer).
-  std::uint64_t renderBufferBytes() const { return render_.size(); }
+  std::uint64_t renderBufferBytes() const { return render_.size() + (unary_ ? unary_->size() : 0); }
   // The view for this block side, over joinedBytes() at `base` (the host view when null).
   template <int Side>
   kernels::KsvdView<Side> view(const std::byte* base = nullptr) const;
@@ -256,14 +279,19 @@ class Layout {
   void readLevels(const SectionSet& sections);
   void buildRenderBuffer(const SectionSet& sections);
   VolumeInfo info_;
-  int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, coefBits_ = 0, iterations_ = 0;
+  int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, coefBits_ = 0, iterations_ = 0, layout_ = 1;
+  int meanBits_ = 0;
   std::uint64_t codedBricks_ = 0, pairs_ = 0, coreset_ = 0;
   double tolerance_ = 0, psnr_ = 0;
   std::vector<LevelInfo> levels_;
   std::vector<std::byte> render_;
-  std::span<const std::byte> pairBytes_, countBytes_;  // sections 'pairs' and 'counts'
-  // Offsets in the render buffer, and where joinedBytes() puts the pairs and counts.
-  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, pairsAt_ = 0, countsAt_ = 0;
+  // The code streams: sections 'pairs', 'counts' and 'dc' (layout 1: no 'dc', and its counts
+  // rewritten in unary, held by unary_ and shared by copies).
+  std::span<const std::byte> pairBytes_, countBytes_, dcBytes_;
+  std::shared_ptr<const std::vector<std::byte>> unary_;
+  // Offsets in the render buffer, and where joinedBytes() puts the streams.
+  std::uint64_t atomsAt_ = 0, bricksAt_ = 0, pairsAt_ = 0, countsAt_ = 0, dcAt_ = 0;
+  std::uint64_t joinedSize_ = 0;
   std::uint64_t cacheId_ = 0;
 };
 

@@ -10,53 +10,98 @@
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
+#include <voxwall/codec/kernels/bits.hpp>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
 #include <voxwall/codec/kernels/view_concept.hpp>
 
 namespace voxwall::codec::kernels {
 
 // One brick of the render buffer: its value range, the coefficient step (0: a constant brick,
-// every voxel `lo`), its index among the coded bricks (its blocks' pair counts are row `coded`
-// of the counts section) and the index of its first pair.
+// every voxel `lo`), its index among the coded bricks (its blocks' means are row `coded` of the
+// dc stream), the index of its first pair and the bit where its blocks' unary pair counts start.
 struct KsvdBrick {
   float lo = 0, hi = 0, step = 0;
   std::uint32_t coded = 0;
   std::uint64_t firstPair = 0;
+  std::uint64_t countBit = 0;
 };
-static_assert(sizeof(KsvdBrick) == 24);
+static_assert(sizeof(KsvdBrick) == 32);
 
-// The sum of `n` bytes: eight at a time, as four 16-bit lanes (each at most 8 x 255).
-VOXWALL_HD_INLINE std::uint32_t ksvdSumBytes(const std::uint8_t* p, int n) {
-  std::uint32_t sum = 0;
-  int i = 0;
-  for (; i + 8 <= n; i += 8) {
-    std::uint64_t w = 0;
-    for (int b = 0; b < 8; ++b) w |= std::uint64_t(p[i + b]) << (8 * b);
-    w = (w & 0x00FF00FF00FF00FFull) + ((w >> 8) & 0x00FF00FF00FF00FFull);
-    sum += std::uint32_t((w * 0x0001000100010001ull) >> 48);
+// A packed bit stream of `bytes` bytes, LSB-first; reads past its end give zero bits.
+struct KsvdBits {
+  const std::uint8_t* data = nullptr;
+  std::uint64_t bytes = 0;
+
+  // `width` (<= 25) bits from bit `bit`; reads only the bytes they lie in.
+  VOXWALL_HD_INLINE std::uint32_t field(std::uint64_t bit, int width) const {
+    const std::uint64_t at = bit / 8;
+    const int shift = int(bit % 8), n = (shift + width + 7) / 8;  // <= 4
+    std::uint32_t word = 0;
+    for (int b = 0; b < n; ++b)
+      if (at + std::uint64_t(b) < bytes)
+        word |= std::uint32_t(data[at + std::uint64_t(b)]) << (8 * b);
+    return (word >> shift) & ((1u << width) - 1u);
   }
-  for (; i < n; ++i) sum += p[i];
-  return sum;
+  // The 64 bits from bit `bit`.
+  VOXWALL_HD_INLINE std::uint64_t word64(std::uint64_t bit) const {
+    const std::uint64_t at = bit / 8;
+    const int shift = int(bit % 8);
+    std::uint64_t lo = 0, hi = 0;
+    if (at + 9 <= bytes) {
+      for (int b = 0; b < 8; ++b) lo |= std::uint64_t(data[at + std::uint64_t(b)]) << (8 * b);
+      hi = data[at + 8];
+    } else {
+      for (int b = 0; b < 8; ++b)
+        if (at + std::uint64_t(b) < bytes)
+          lo |= std::uint64_t(data[at + std::uint64_t(b)]) << (8 * b);
+      if (at + 8 < bytes) hi = data[at + 8];
+    }
+    return shift ? (lo >> shift) | (hi << (64 - shift)) : lo;
+  }
+  // Unary codes from bit `first`: each a run of ones (its value) ended by a zero. Sets `start`
+  // to where code j begins (past j zeros) and returns its value.
+  VOXWALL_HD_INLINE int unary(std::uint64_t first, int j, std::uint64_t& start) const {
+    std::uint64_t at = first;
+    for (int skip = j; skip > 0;) {
+      const std::uint64_t ends = ~word64(at);  // a one where a code ends
+      const int n = popcount64(ends);
+      if (n < skip) {
+        skip -= n, at += 64;
+        continue;
+      }
+      std::uint64_t m = ends;
+      for (int k = 1; k < skip; ++k) m &= m - 1;
+      at += std::uint64_t(trailingZeros64(m) + 1);
+      break;
+    }
+    start = at;
+    int value = 0;
+    for (;;) {
+      const int ones = trailingZeros64(~word64(at));
+      value += ones;
+      if (ones < 64) return value;
+      at += 64;
+    }
+  }
+};
+
+// The pair of width indexBits + coefBits (<= 24) at bit `bit` of a pair stream: the atom index in
+// its low indexBits bits, the quantized coefficient (two's complement) in the coefBits above.
+VOXWALL_HD_INLINE void ksvdUnpackAt(const KsvdBits& stream, std::uint64_t bit, int indexBits,
+                                    int coefBits, int& atom, int& q) {
+  const std::uint32_t word = stream.field(bit, indexBits + coefBits);
+  atom = int(word & ((1u << indexBits) - 1u));
+  const std::uint32_t sign = 1u << (coefBits - 1);
+  q = int((word >> indexBits) ^ sign) - int(sign);  // sign-extends coefBits bits
 }
 
-// Pair `index` of a pair stream: pairs of indexBits + coefBits (<= 24) bits each, packed
-// LSB-first from bit index x (indexBits + coefBits) of `stream`; a pair is the atom index in its
-// low indexBits bits and the quantized coefficient (two's complement) in the coefBits above.
-// Reads only the bytes the pair lies in. Files from before the width was stored hold 3-byte
-// pairs: coefBits = 24 - indexBits, the same layout.
+// Pair `index` of a pair stream of indexBits + coefBits bits a pair, LSB-first (the file's pairs
+// section; files from before the width was stored hold 3-byte pairs: coefBits = 24 - indexBits).
+// Reads only the bytes the pair lies in.
 VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* stream, std::uint64_t index, int indexBits,
                                   int coefBits, int& atom, int& q) {
-  const int pairBits = indexBits + coefBits;
-  const std::uint64_t bit = index * std::uint64_t(pairBits);
-  const std::uint8_t* p = stream + bit / 8;
-  const int shift = int(bit % 8), bytes = (shift + pairBits + 7) / 8;  // <= 4
-  std::uint32_t word = 0;
-  for (int b = 0; b < bytes; ++b) word |= std::uint32_t(p[b]) << (8 * b);
-  word = (word >> shift) & ((1u << pairBits) - 1u);
-  atom = int(word & ((1u << indexBits) - 1u));
-  const std::uint32_t raw = word >> indexBits;
-  const std::uint32_t sign = 1u << (coefBits - 1);
-  q = int(raw ^ sign) - int(sign);  // sign-extends coefBits bits
+  const KsvdBits bits{stream, ~std::uint64_t(0)};
+  ksvdUnpackAt(bits, index * std::uint64_t(indexBits + coefBits), indexBits, coefBits, atom, q);
 }
 
 // The codec's half of the view of one level, for blocks of Side^3 voxels. `data` is the render
@@ -64,11 +109,15 @@ VOXWALL_HD_INLINE void ksvdUnpack(const std::uint8_t* stream, std::uint64_t inde
 //   atoms (K x Side^3 float, atom-major) at atomsAt,
 //   the level's bricks (KsvdBrick per brick, x fastest) at bricksAt.
 // Offsets are multiples of 8 bytes; the buffer points into host or device memory, not owned.
-// The pairs (every level's, indexBits + coefBits bits each, as ksvdUnpack reads them) are at
-// `pairs` and the pair counts (a byte per block, N^3 a coded brick, its blocks x fastest) at
-// `counts`: on the host the file's sections where they lie (their pages come in where rays go),
-// on a device after the buffer. A block's first pair is its brick's firstPair plus the counts of
-// the brick's blocks before it, summed when the block is decoded (no table per block).
+// Three bit streams (every level's; on the host the file's sections where they lie, their pages
+// come in where rays go; on a device after the buffer):
+//   `dc`: per coded brick and block, its mean above the brick's minimum in dcBits bits, in steps
+//       of (max - min) / (2^dcBits - 1) (dcBits 0: no stream, the mean is 0: files of layout 1,
+//       whose means are pairs of the DC atom);
+//   `counts`: per coded brick and block, its number of pairs in unary;
+//   `pairs`: the pairs, indexBits + coefBits bits each (ksvdUnpackAt).
+// A block's pairs start at its brick's firstPair plus the counts of the brick's blocks before
+// it, which the unary codes give by counting bits (no table per block).
 // Keys are block indices plus keyBase (the blocks of the levels before), so the blocks of
 // different levels never share a key in the block cache.
 template <int Side>
@@ -78,13 +127,14 @@ struct KsvdDecoder {
   using Value = float;
 
   const std::uint8_t* data = nullptr;
-  const std::uint8_t* pairs = nullptr;
-  const std::uint8_t* counts = nullptr;
+  KsvdBits pairs, counts, dc;
   std::uint64_t atomsAt = 0, bricksAt = 0;
   int blocksX = 0, blocksY = 0;
   int bricksX = 0, bricksY = 0;
   int blocksPerBrick = 1;  // N: bricks are N^3 blocks
   int indexBits = 10, coefBits = 14;
+  int dcBits = 0;
+  float dcLevels = 1.0f;  // 2^dcBits - 1
   std::uint64_t keyBase = 0;
   bool integral = false;  // integer data: decoded voxels round to integers
 
@@ -95,11 +145,12 @@ struct KsvdDecoder {
            std::uint64_t(bx);
   }
 
-  // Where block `key`'s code is: its brick's record, its first pair and its pair count (0 for
-  // a constant brick, every voxel `brick.lo`).
+  // Where block `key`'s code is: its brick's record, its mean above the brick's minimum, its
+  // first pair and its pair count (0 for a constant brick, every voxel `brick.lo`).
   struct BlockCode {
     KsvdBrick brick;
     std::uint64_t firstPair;  // in the pair stream
+    float dc;
     int count;
   };
   VOXWALL_HD_INLINE BlockCode locate(std::uint64_t key) const {
@@ -114,14 +165,19 @@ struct KsvdDecoder {
         std::uint64_t(bx / n);
     BlockCode code;
     code.brick = reinterpret_cast<const KsvdBrick*>(data + bricksAt)[brickIndex];
-    if (code.brick.step == 0.0f) {
-      code.firstPair = 0, code.count = 0;
-      return code;
-    }
+    code.firstPair = 0, code.dc = 0.0f, code.count = 0;
+    if (code.brick.step == 0.0f) return code;
     const int j = ((bz % n) * n + by % n) * n + bx % n;
-    const std::uint8_t* row = counts + std::uint64_t(code.brick.coded) * std::uint64_t(n * n * n);
-    code.firstPair = code.brick.firstPair + ksvdSumBytes(row, j);
-    code.count = row[j];
+    const std::uint64_t perBrick = std::uint64_t(n * n * n);
+    if (dcBits > 0) {
+      const std::uint32_t q = dc.field(
+          (std::uint64_t(code.brick.coded) * perBrick + std::uint64_t(j)) * std::uint64_t(dcBits),
+          dcBits);
+      code.dc = float(q) * ((code.brick.hi - code.brick.lo) / dcLevels);
+    }
+    std::uint64_t start = 0;
+    code.count = counts.unary(code.brick.countBit, j, start);
+    code.firstPair = code.brick.firstPair + (start - code.brick.countBit - std::uint64_t(j));
     return code;
   }
   // A decoded voxel: the brick's minimum plus the sum of the pairs' contributions, clamped to
@@ -135,18 +191,19 @@ struct KsvdDecoder {
 
   // COVRA's two-phase decode of one block (section 5.2), as the device decompressor runs it
   // with a thread per pair and then a thread per voxel, a barrier between the phases:
-  // phase 1, pair t (< code.count) of the block, unpacked and dequantized;
+  // phase 1, pair t (< code.count) of the block, dequantized;
   VOXWALL_HD_INLINE void pairOf(const BlockCode& code, int t, int& atom, float& coefficient) const {
     int q = 0;
-    ksvdUnpack(pairs, code.firstPair + std::uint64_t(t), indexBits, coefBits, atom, q);
+    ksvdUnpackAt(pairs, (code.firstPair + std::uint64_t(t)) * std::uint64_t(indexBits + coefBits),
+                 indexBits, coefBits, atom, q);
     coefficient = float(q) * code.brick.step;
   }
-  // phase 2, voxel v (< Side^3) from the block's pairs (as pairOf gave them), summed in pair
-  // order like decode().
+  // phase 2, voxel v (< Side^3): the block's mean plus its pairs (as pairOf gave them), summed in
+  // pair order like decode().
   VOXWALL_HD_INLINE float voxelOf(const BlockCode& code, const int* atom, const float* coefficient,
                                   int v) const {
     const float* atomValues = reinterpret_cast<const float*>(data + atomsAt);
-    float sum = 0.0f;
+    float sum = code.dc;
     for (int k = 0; k < code.count; ++k)
       sum += coefficient[k] * atomValues[std::size_t(atom[k]) * kVoxels + std::size_t(v)];
     return finish(code.brick, sum);
@@ -155,7 +212,7 @@ struct KsvdDecoder {
   VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
     const BlockCode code = locate(key);
     const float* atomValues = reinterpret_cast<const float*>(data + atomsAt);
-    for (int i = 0; i < kVoxels; ++i) out[i] = 0.0f;
+    for (int i = 0; i < kVoxels; ++i) out[i] = code.dc;
     for (int k = 0; k < code.count; ++k) {
       int atom = 0;
       float c = 0.0f;

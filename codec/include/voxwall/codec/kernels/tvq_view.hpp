@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
+#include <voxwall/codec/kernels/bits.hpp>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
 #include <voxwall/codec/kernels/vq_view.hpp>
 
@@ -147,14 +148,6 @@ struct TvqDecoder {
   }
 
   VOXWALL_HD_INLINE float scalar(float v) const { return v; }
-
-  static VOXWALL_HD_INLINE int popcount64(std::uint64_t v) {
-#if defined(__CUDA_ARCH__)
-    return __popcll(v);
-#else
-    return __builtin_popcountll(v);
-#endif
-  }
 };
 
 using TvqView = CachedBrickView<TvqDecoder>;
