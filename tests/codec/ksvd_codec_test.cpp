@@ -615,25 +615,21 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
     section(c, ksvd::kParams).resize(20);
     expectKsvdRefused(c, "section 'params': truncated");
   }
-  {
+  // A u32 of the params at its offset, and what the refusal says.
+  const struct {
+    std::size_t at;
+    std::uint32_t value;
+    const char* says;
+  } params[] = {{0, 5, "block side 5"},
+                {8, 1, "atoms 1"},
+                {12, 0, "sparsity 0"},
+                {16, 9, "index bits 9 for 12 atoms"},
+                {68, 3, "layout 3 (1 or 2)"},
+                {72, 0, "mean bits 0 (1..24)"}};
+  for (const auto& p : params) {
     auto c = small();
-    poke<std::uint32_t>(section(c, ksvd::kParams), 0, 5);
-    expectKsvdRefused(c, "block side 5");
-  }
-  {
-    auto c = small();
-    poke<std::uint32_t>(section(c, ksvd::kParams), 8, 1);
-    expectKsvdRefused(c, "atoms 1");
-  }
-  {
-    auto c = small();
-    poke<std::uint32_t>(section(c, ksvd::kParams), 12, 0);
-    expectKsvdRefused(c, "sparsity 0");
-  }
-  {
-    auto c = small();
-    poke<std::uint32_t>(section(c, ksvd::kParams), 16, 9);
-    expectKsvdRefused(c, "index bits 9 for 12 atoms");
+    poke<std::uint32_t>(section(c, ksvd::kParams), p.at, p.value);
+    expectKsvdRefused(c, p.says);
   }
   {
     auto c = small();
@@ -646,16 +642,6 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
     auto c = small();
     section(c, ksvd::kParams).resize(80);
     expectKsvdRefused(c, "4 bytes past the params");
-  }
-  {
-    auto c = small();
-    poke<std::uint32_t>(section(c, ksvd::kParams), 72, 0);
-    expectKsvdRefused(c, "mean bits 0 (1..24)");
-  }
-  {
-    auto c = small();
-    poke<std::uint32_t>(section(c, ksvd::kParams), 68, 3);
-    expectKsvdRefused(c, "layout 3 (1 or 2)");
   }
   {
     auto c = small();
