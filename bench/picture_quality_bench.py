@@ -8,7 +8,8 @@ target (vq, ksvd with one level, tvq, zfp; vq refuses float32) is asked for that
 zfp command line runs at the same rate (fixed rate on the whole volume; its output rounded and
 clamped to the input's range as the codec does, then stored raw). Each file is decoded and
 compared with the input (volume PSNR, peak = the input's value range, as voxwall's psnr), and
-rendered at 960x540 with `--exact` and the default transfer function from three fixed cameras,
+rendered at 960x540 with `--exact` and the default transfer function (stretched over the input's
+value range for every file) from three fixed cameras,
 unshaded and shaded; each picture is compared with the raw volume's picture of the same camera
 by the PSNR of its RGB channels (peak 255). With --compare, a second voxwall (an earlier build)
 makes and renders its own files of the same codecs in the same run, for a before/after table.
@@ -76,15 +77,18 @@ def inputs(voxwall, work, which):
     return out
 
 
-def render(voxwall, vwz, folder):
-    """The six pictures of a file (three cameras, unshaded and shaded): {key: RGB array}."""
+def render(voxwall, vwz, folder, value_range):
+    """The six pictures of a file (three cameras, unshaded and shaded): {key: RGB array}. The
+    transfer function is stretched over the input's value range, whatever the file's (the zfp
+    command line's output has a range of its own)."""
     pictures = {}
     for cam in CAMERAS:
         for shaded in (False, True):
             d = os.path.join(folder, "%s%s" % (cam.replace(",", "_"), "-shaded" if shaded else ""))
             shutil.rmtree(d, ignore_errors=True)
             run([voxwall, "render", vwz, "--size", SIZE, "--frames", "1", "--camera", cam,
-                 "--exact", "--out", d, "-q"] + (["--shading"] if shaded else []))
+                 "--exact", "--tf-range", "%r,%r" % value_range, "--out", d, "-q"] +
+                (["--shading"] if shaded else []))
             frame = os.path.join(d, "frame_00000.png")
             if not os.path.exists(frame):
                 sys.exit("picture_quality_bench: %s rendered no %s" % (vwz, frame))
@@ -164,14 +168,14 @@ def table(name, rows, rates):
                 np.mean(r["shaded"]), min(r["shaded"])))
 
 
-def difference(out, name, reference, rows, voxwall, work):
+def difference(out, name, reference, rows, voxwall, work, value_range):
     """The best row at 0.5 bits per voxel: its shaded picture and |raw - it| x 8, first camera."""
     from PIL import Image
     half = [r for r in rows if r["target"] == 0.5 and "file" in r]
     if not half:
         return
     best = max(half, key=lambda r: np.mean(r["shaded"]))
-    pics = render(voxwall, best["file"], os.path.join(work, "best"))
+    pics = render(voxwall, best["file"], os.path.join(work, "best"), value_range)
     key = (CAMERAS[0], True)
     diff = np.clip(np.abs(reference[key] - pics[key]) * 8, 0, 255).astype(np.uint8)
     Image.fromarray(pics[key].astype(np.uint8)).save(os.path.join(out, "%s-best.png" % name))
@@ -203,7 +207,8 @@ def main():
             src, fmt = save_raw(work, name, a)
             raw_vwz = os.path.join(work, name + "-raw.vwz")
             run([args.voxwall, "compress", src] + fmt + ["-o", raw_vwz, "-q"])
-            reference = render(args.voxwall, raw_vwz, os.path.join(work, "raw"))
+            value_range = (float(a.min()), float(a.max()))
+            reference = render(args.voxwall, raw_vwz, os.path.join(work, "raw"), value_range)
             rows = []
             builds = [(args.voxwall, "", codecs)]
             if args.compare:
@@ -221,14 +226,15 @@ def main():
                             vwz, b = made
                             bpv = 8.0 * os.path.getsize(vwz) / a.size
                             method = codec + (" (%s)" % tag if tag else "")
-                        pictures = render(voxwall, vwz, os.path.join(work, "pictures"))
+                        pictures = render(voxwall, vwz, os.path.join(work, "pictures"),
+                                          value_range)
                         row = row_of(method, bpv, a, b, pictures, reference)
                         row["target"] = rate
                         if not tag and codec != "zfp-cli":
                             row["file"] = vwz
                         rows.append(row)
             table(name, rows, rates)
-            difference(args.out, name, reference, rows, args.voxwall, work)
+            difference(args.out, name, reference, rows, args.voxwall, work, value_range)
             for r in rows:
                 r.pop("file", None)
             for f in os.listdir(work):  # this volume's files

@@ -39,7 +39,7 @@ test=(
 )
 bench=(
   libjpeg-turbo-progs time
-  python3-numpy python3-matplotlib python3-vtk9 xvfb xauth zfp astcenc
+  python3-numpy python3-matplotlib python3-pil python3-vtk9 xvfb xauth zfp astcenc
 )
 case $purpose in
   main) packages=("${main[@]}") ;;
