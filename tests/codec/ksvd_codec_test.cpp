@@ -620,12 +620,9 @@ TEST(KsvdCorrupt, BadSectionsAreRefusedWithTheirName) {
     std::size_t at;
     std::uint32_t value;
     const char* says;
-  } params[] = {{0, 5, "block side 5"},
-                {8, 1, "atoms 1"},
-                {12, 0, "sparsity 0"},
-                {16, 9, "index bits 9 for 12 atoms"},
-                {68, 3, "layout 3 (1 or 2)"},
-                {72, 0, "mean bits 0 (1..24)"}};
+  } params[] = {{0, 5, "block side 5"},       {8, 1, "atoms 1"},
+                {12, 0, "sparsity 0"},        {16, 9, "index bits 9 for 12 atoms"},
+                {68, 3, "layout 3 (1 or 2)"}, {72, 0, "mean bits 0 (1..24)"}};
   for (const auto& p : params) {
     auto c = small();
     poke<std::uint32_t>(section(c, ksvd::kParams), p.at, p.value);
