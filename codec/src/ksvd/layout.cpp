@@ -197,6 +197,39 @@ void Layout::readLevels(const SectionSet& sections) {
         .fail(std::to_string(codedBricks_) + " coded bricks of " + std::to_string(nBricks));
 }
 
+namespace {
+
+// The sizes of the sections of the blocks' codes (counts, pairs and, in layout 2, means) of
+// `codedBlocks` blocks and `pairs_` pairs.
+struct CodeSizes {
+  int layout_, pairBits, meanBits_;
+  std::uint64_t codedBricks_, perBrick, pairs_;
+  void check(const SectionSet& sections, ByteReader& cr, ByteReader& pr) const;
+};
+
+void CodeSizes::check(const SectionSet& sections, ByteReader& cr, ByteReader& pr) const {
+  const std::uint64_t codedBlocks = codedBricks_ * perBrick;
+  const auto countBytes = sections.get(kCounts, "counts");
+  const std::uint64_t countsExpected =
+      layout_ == 1 ? codedBlocks : (codedBlocks + pairs_ + 7) / 8;  // unary: a bit a pair and block
+  if (pairs_ > (std::uint64_t(1) << 56) || countBytes.size() != countsExpected)
+    cr.fail(std::to_string(countBytes.size()) + " bytes for " + std::to_string(codedBricks_) +
+            " coded bricks of " + std::to_string(perBrick) + " blocks" +
+            (layout_ == 1 ? "" : " and " + std::to_string(pairs_) + " pairs"));
+  const auto pairBytes = sections.get(kPairs, "pairs");
+  if (pairBytes.size() != pairStreamBytes(pairs_, pairBits))
+    pr.fail(std::to_string(pairBytes.size()) + " bytes for " + std::to_string(pairs_) +
+            " pairs of " + std::to_string(pairBits) + " bits");
+  if (layout_ == 1) return;
+  const auto dcBytes = sections.get(kDc, "dc");
+  if (dcBytes.size() != (codedBlocks * std::uint64_t(meanBits_) + 7) / 8)
+    ByteReader(dcBytes, sections.source, "section 'dc'")
+        .fail(std::to_string(dcBytes.size()) + " bytes for " + std::to_string(codedBlocks) +
+              " means of " + std::to_string(meanBits_) + " bits");
+}
+
+}  // namespace
+
 // The render buffer: float atoms and brick records (levels one after the other), each section's
 // size checked first; the blocks' codes stay in their sections (layout 1's counts are rewritten
 // in unary).
@@ -216,29 +249,13 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
   if (brickBytes.size() != nBricks * 16)
     br.fail(std::to_string(brickBytes.size()) + " bytes for " + std::to_string(nBricks) +
             " bricks of 16 bytes");
-  const std::uint64_t codedBlocks = codedBricks_ * perBrick;
   const auto countBytes = sections.get(kCounts, "counts");
   ByteReader cr(countBytes, src, "section 'counts'");
-  const std::uint64_t countsExpected =
-      layout_ == 1 ? codedBlocks : (codedBlocks + pairs_ + 7) / 8;  // unary: a bit a pair and block
-  if (pairs_ > (std::uint64_t(1) << 56) || countBytes.size() != countsExpected)
-    cr.fail(std::to_string(countBytes.size()) + " bytes for " + std::to_string(codedBricks_) +
-            " coded bricks of " + std::to_string(perBrick) + " blocks" +
-            (layout_ == 1 ? "" : " and " + std::to_string(pairs_) + " pairs"));
   const auto pairBytes = sections.get(kPairs, "pairs");
   ByteReader pr(pairBytes, src, "section 'pairs'");
-  const int pairBits = indexBits_ + coefBits_;
-  if (pairBytes.size() != pairStreamBytes(pairs_, pairBits))
-    pr.fail(std::to_string(pairBytes.size()) + " bytes for " + std::to_string(pairs_) +
-            " pairs of " + std::to_string(pairBits) + " bits");
-  std::span<const std::byte> dcBytes;
-  if (layout_ != 1) {
-    dcBytes = sections.get(kDc, "dc");
-    if (dcBytes.size() != (codedBlocks * std::uint64_t(meanBits_) + 7) / 8)
-      ByteReader(dcBytes, src, "section 'dc'")
-          .fail(std::to_string(dcBytes.size()) + " bytes for " + std::to_string(codedBlocks) +
-                " means of " + std::to_string(meanBits_) + " bits");
-  }
+  const auto dcBytes = layout_ == 1 ? std::span<const std::byte>{} : sections.get(kDc, "dc");
+  CodeSizes{layout_, indexBits_ + coefBits_, meanBits_, codedBricks_, perBrick, pairs_}.check(
+      sections, cr, pr);
 
   auto align8 = [](std::uint64_t v) { return (v + 7) / 8 * 8; };
   atomsAt_ = 0;

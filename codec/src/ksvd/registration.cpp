@@ -91,8 +91,8 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
         {"--sparsity", "ksvd codec: pairs (atom, coefficient) per block at most, S", "8"},
         {"--coefficient-bits",
          "ksvd codec: bits of a pair's quantized coefficient (2..23, at most 24 less the atom "
-         "index's; default: 24 less the index's, or with --bits-per-voxel 7 below 0.35 bits per "
-         "voxel, 8 below 0.75, 10 below 1.5)",
+         "index's; default: 24 less the index's, or with --bits-per-voxel 6 below 0.35 bits per "
+         "voxel, 7 below 0.75, 8 below 1.5)",
          ""},
         {"--mean-bits",
          "ksvd codec: bits of a block's mean, stored apart from its pairs in steps of its brick's "
@@ -111,7 +111,8 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
          "before (1: none; default: until a level fits in one brick, at most 8)",
          ""},
         {"--bits-per-voxel",
-         "ksvd codec: the smallest per-block tolerance whose file fits this size (and the "
+         "ksvd codec: the lowest price per pair (the squared error a pair must take off its "
+         "block) whose file fits this size (and the "
          "default dictionary at most a quarter of it); --sparsity caps the pairs per block, 16 "
          "by default; --coefficient-bits defaults to a width for the rate, --block to the better "
          "of 4 and 6",
@@ -152,7 +153,8 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
 
   // A size target without --block: blocks of 4^3 and of 6^3 both coded, the higher PSNR kept.
   // Which wins depends on the data and the rate (docs/ksvd.md): small blocks carry more detail
-  // per pair but a count byte per 64 voxels, which noise (no constant bricks) pays everywhere.
+  // per pair but a mean and a count bit per 64 voxels, which noise (no constant bricks) pays
+  // everywhere.
   static CompressedVolume encodeBest(const VolumeSource& source, Params p, Progress& progress,
                                      std::string& report) {
     struct Try {
