@@ -580,6 +580,7 @@ TEST(KsvdCodec, RefusesBadParameters) {
   refused([](ksvd::Params& p) { p.levels = 9; });
   refused([](ksvd::Params& p) { p.coefficientBits = 1; });
   refused([](ksvd::Params& p) { p.coefficientBits = 24; });
+  refused([](ksvd::Params& p) { p.meanBits = 25; });
   Volume nan = Volume::allocate({8, 8, 8}, ScalarType::Float32);
   nan.as<float>()[3] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(ksvd::encode(nan, quick(), quiet), std::invalid_argument);

@@ -200,3 +200,23 @@ TEST(KsvdLayout, HalfABitPerVoxelBuysMorePairs) {
   EXPECT_GT(double(fileBytes(test::asKsvdLayout1(c))), 1.2 * double(fileBytes(c)));
   EXPECT_GT(stats.psnr, 25.0);
 }
+
+// --mean-bits sets the width of a block's mean: stored in the params, the dc section that many
+// bits a block, and a wider mean gives a file at least as close to the input.
+TEST(KsvdLayout, MeanBitsSetTheWidthOfEveryBlocksMean) {
+  const Volume v = generateMarschnerLobb(40);
+  Progress quiet;
+  ksvd::Params p = params(4);
+  p.levels = 1;
+  ksvd::EncodeStats narrow, wide;
+  p.meanBits = 3;
+  const CompressedVolume c3 = ksvd::encode(v, p, quiet, &narrow);
+  p.meanBits = 12;
+  const CompressedVolume c12 = ksvd::encode(v, p, quiet, &wide);
+  const ksvd::Layout l3(c3.info, c3.view()), l12(c12.info, c12.view());
+  EXPECT_EQ(l3.meanBits(), 3);
+  EXPECT_EQ(l12.meanBits(), 12);
+  const std::uint64_t blocks = l3.codedBricks() * 8 * 8 * 8;
+  EXPECT_EQ(c3.view().get(ksvd::kDc, "dc").size(), (blocks * 3 + 7) / 8);
+  EXPECT_GT(wide.psnr, narrow.psnr);
+}

@@ -17,6 +17,7 @@
 #include <voxwall/core/parallel.hpp>
 #include <voxwall/core/text.hpp>
 
+#include "block_codes.hpp"
 #include "format.hpp"
 #include "learning.hpp"
 #include "pyramid.hpp"
@@ -33,16 +34,6 @@ double seconds(std::chrono::steady_clock::time_point since) {
 struct BrickRecord {
   float lo = 0, hi = 0, step = 0;
   std::uint32_t coded = kConstant;
-};
-
-// The coded bricks' block codes at one tolerance (the file's layout 2): per coded brick and block
-// the quantized mean and the number of pairs, and the pairs.
-struct CodedBricks {
-  std::vector<std::vector<std::uint32_t>> means;
-  std::vector<std::vector<std::uint8_t>> counts;
-  std::vector<std::vector<std::uint32_t>> pairs;  // per coded brick, packPair's words
-  std::vector<float> steps;                       // per coded brick, in value units
-  std::uint64_t pairCount = 0;
 };
 
 // The encoder of a volume of scalar type T, stage by stage (run): the pyramid and its bricks, the
@@ -288,8 +279,9 @@ class Encoder {
       if (params_.targetBitsPerVoxel > 0)  // and the dictionary at most a quarter of the file
         while (atoms_ > 16 && double(atoms_) * m_ * 2 > budgetBytes() / 4) atoms_ /= 2;
     }
-    const double tables = double(fixedBytes_) + double(atoms_) * m_ * 2 +
-                          double(blockTableBytes(meanBits(coefficientBits(indexBitsFor(atoms_)))));
+    const double tables =
+        double(fixedBytes_) + double(atoms_) * m_ * 2 +
+        double(blockTableBytes(codedBlocks(), meanBits(coefficientBits(indexBitsFor(atoms_)))));
     if (params_.targetBitsPerVoxel > 0 && tables > budgetBytes())
       throw tooSmall(tables, ": the dictionary and the brick and block tables alone take");
     sparsity_ = std::min(params_.sparsity, m_);
@@ -353,10 +345,9 @@ class Encoder {
         stored_[i] = std::int16_t(std::lround(std::clamp(dict_.values[i], -1.0f, 1.0f) * 32767.0f));
     }
     for (std::size_t i = 0; i < stored_.size(); ++i) dict_.values[i] = float(stored_[i]) / 32767.0f;
-    indexBits_ = indexBitsFor(atoms_);
-    coefBits_ = coefficientBits(indexBits_);
-    meanBits_ = meanBits(coefBits_);
-    qmax_ = maxQuantized(coefBits_);
+    widths_.indexBits = indexBitsFor(atoms_);
+    widths_.coefBits = coefficientBits(widths_.indexBits);
+    widths_.meanBits = meanBits(widths_.coefBits);
   }
 
   // The refusal of a size target below the smallest file of these settings (`bytes`).
@@ -390,16 +381,9 @@ class Encoder {
   int meanBits(int coefBits) const {
     return params_.meanBits > 0 ? params_.meanBits : std::max(2, coefBits - 1);
   }
-  // What every block of the coded bricks costs whatever its pairs: its mean and the zero bit
-  // that ends its unary count.
-  std::uint64_t blockTableBytes(int meanBits) const {
-    const std::uint64_t blocks = std::uint64_t(coded_.size()) * std::uint64_t(perBrick_);
-    return (blocks * std::uint64_t(meanBits) + 7) / 8 + (blocks + 7) / 8;
-  }
-  // The dc, counts and pairs sections of these codes.
-  std::uint64_t codeBytes(const CodedBricks& c) const {
-    return blockTableBytes(meanBits_) + (c.pairCount + 7) / 8 +
-           pairStreamBytes(c.pairCount, indexBits_ + coefBits_);
+  // The blocks of the coded bricks (past the volume's edge too: each has a mean and a count).
+  std::uint64_t codedBlocks() const {
+    return std::uint64_t(coded_.size()) * std::uint64_t(perBrick_);
   }
 
   // Coding: every block of every coded brick, brick by brick, at a per-block tolerance t: a
@@ -409,10 +393,7 @@ class Encoder {
   CodedBricks codeAt(const Coder& coder, double blockTolerance, const char* stage,
                      bool byGain = false) {
     const double threshold2 = blockTolerance * blockTolerance * double(m_);
-    CodedBricks out;
-    out.means.resize(coded_.size()), out.counts.resize(coded_.size());
-    out.pairs.resize(coded_.size());
-    out.steps.resize(coded_.size());
+    CodedBricks out(coded_.size());
     progress_.begin(stage, candidates_.size());
     byStreamedRows(
         coded_.size(), [&](std::size_t c) { return coded_[c]; },
@@ -440,42 +421,8 @@ class Encoder {
     std::vector<SparseCode> codes;
     codeAll(coder, y.data(), inGrid.size(), sparsity_, byGain ? 0.0 : threshold2, 1, codes, {},
             byGain ? threshold2 : 0.0);
-    // The pairs' step: their largest coefficient over the largest quantized value (the DC atom's
-    // coefficient, the block's mean, is stored apart).
-    float maxAbs = 0;
-    for (const SparseCode& code : codes)
-      for (std::size_t s = 1; s < code.coefficients.size(); ++s)
-        maxAbs = std::max(maxAbs, std::abs(code.coefficients[s]));
-    const float step = maxAbs > 0 ? maxAbs / float(qmax_) : 1.0f / float(qmax_);
-    out.steps[c] = step * scale_;
-    // A mean's step: the brick's range over the largest quantized mean.
-    const double range = double(bricks_[b].hi) - double(bricks_[b].lo);
-    const double meanLevels = double((1u << meanBits_) - 1u);
-    std::vector<std::uint32_t>& means = out.means[c];
-    std::vector<std::uint8_t>& counts = out.counts[c];
-    std::vector<std::uint32_t>& pairs = out.pairs[c];
-    means.assign(std::size_t(perBrick_), 0);
-    counts.assign(std::size_t(perBrick_), 0);
-    for (std::size_t i = 0; i < inGrid.size(); ++i) {
-      const SparseCode& code = codes[i];
-      if (code.atoms.empty() || code.atoms[0] != 0)
-        throw std::logic_error("ksvd: a block's code does not start with the DC atom");
-      double mean = 0;
-      for (int v = 0; v < m_; ++v) mean += double(y[i * std::size_t(m_) + std::size_t(v)]);
-      mean = mean / m_ * double(scale_);
-      means[std::size_t(inGrid[i])] =
-          range > 0 ? std::uint32_t(
-                          std::clamp(std::lround(mean / range * meanLevels), 0l, long(meanLevels)))
-                    : 0;
-      int count = 0;
-      for (std::size_t s = 1; s < code.atoms.size(); ++s) {
-        const int q = std::clamp(int(std::lround(code.coefficients[s] / step)), -qmax_, qmax_);
-        if (q == 0) continue;  // adds nothing
-        pairs.push_back(packPair(code.atoms[s], q, indexBits_, coefBits_));
-        ++count;
-      }
-      counts[std::size_t(inGrid[i])] = std::uint8_t(count);
-    }
+    quantizeBrick(codes, y.data(), inGrid, m_, perBrick_, scale_,
+                  double(bricks_[b].hi) - double(bricks_[b].lo), widths_, c, out);
     progress_.advance(inGrid.size());
   }
 
@@ -493,13 +440,15 @@ class Encoder {
   // S (bisection; the size falls as the tolerance grows).
   void codeForSize(const Coder& coder) {
     const double fixed = double(fixedBytes_) + double(atoms_) * m_ * 2;
-    auto fits = [&](const CodedBricks& c) { return fixed + double(codeBytes(c)) <= budgetBytes(); };
+    auto bytes = [&](const CodedBricks& c) {
+      return fixed + double(codeBytes(c, codedBlocks(), widths_));
+    };
+    auto fits = [&](const CodedBricks& c) { return bytes(c) <= budgetBytes(); };
     result_ = codeAt(coder, 0, "sparse coding (rate search)", true);
     if (fits(result_)) return;
     double lo = 0, hi = 0.5;
     CodedBricks loosest = codeAt(coder, hi, "sparse coding (rate search)", true);
-    if (!fits(loosest))
-      throw tooSmall(fixed + double(codeBytes(loosest)), ": its smallest file takes");
+    if (!fits(loosest)) throw tooSmall(bytes(loosest), ": its smallest file takes");
     result_ = std::move(loosest);
     for (int it = 0; it < 10; ++it) {
       const double mid = 0.5 * (lo + hi);
@@ -520,16 +469,16 @@ class Encoder {
     w.put<std::uint32_t>(std::uint32_t(grids_[0].n));
     w.put<std::uint32_t>(std::uint32_t(atoms_));
     w.put<std::uint32_t>(std::uint32_t(sparsity_));
-    w.put<std::uint32_t>(std::uint32_t(indexBits_));
+    w.put<std::uint32_t>(std::uint32_t(widths_.indexBits));
     w.put<std::uint32_t>(std::uint32_t(params_.iterations));
     w.put<std::uint64_t>(coded_.size());
     w.put<std::uint64_t>(result_.pairCount);
     w.put<std::uint64_t>(stats_.coreset);
     w.put<double>(blockTolerance_);
     w.put<double>(psnr);
-    w.put<std::uint32_t>(std::uint32_t(coefBits_));
+    w.put<std::uint32_t>(std::uint32_t(widths_.coefBits));
     w.put<std::uint32_t>(std::uint32_t(kLayout));
-    w.put<std::uint32_t>(std::uint32_t(meanBits_));
+    w.put<std::uint32_t>(std::uint32_t(widths_.meanBits));
     return bytes;
   }
   std::vector<std::byte> levelsSection(const std::vector<double>& psnrs) const {
@@ -561,27 +510,19 @@ class Encoder {
       out.sections.emplace_back(kBricks, std::move(bytes));
     }
     {
-      std::vector<std::byte> counts, dc;
-      std::uint64_t countBits = 0, dcBits = 0;
-      for (std::size_t c = 0; c < coded_.size(); ++c)
-        for (int j = 0; j < perBrick_; ++j) {
-          for (int p = 0; p < result_.counts[c][std::size_t(j)]; ++p)
-            appendBits(counts, countBits, 1, 1);
-          appendBits(counts, countBits, 0, 1);
-          appendBits(dc, dcBits, result_.means[c][std::size_t(j)], meanBits_);
-        }
-      out.sections.emplace_back(kCounts, std::move(counts));
-      out.sections.emplace_back(kPairs, packedPairs());
+      CodeSections codes = codeSections(result_, perBrick_, widths_);
+      out.sections.emplace_back(kCounts, std::move(codes.counts));
+      out.sections.emplace_back(kPairs, std::move(codes.pairs));
       out.sections.emplace_back(
           kLevels, levelsSection(std::vector<double>(std::size_t(levels_),
                                                      std::numeric_limits<double>::infinity())));
-      out.sections.emplace_back(kDc, std::move(dc));
+      out.sections.emplace_back(kDc, std::move(codes.dc));
     }
     stats_.bricks = nBricks_, stats_.constantBricks = nBricks_ - coded_.size();
     stats_.codedBlocks = candidates_.size();
     stats_.pairs = result_.pairCount, stats_.atoms = atoms_, stats_.sparsity = sparsity_;
     stats_.trainSparsity = trainSparsity_;
-    stats_.indexBits = indexBits_, stats_.coefficientBits = coefBits_;
+    stats_.indexBits = widths_.indexBits, stats_.coefficientBits = widths_.coefBits;
     stats_.iterations = params_.iterations;
     stats_.levels = levels_;
     stats_.levelPairs = 0;
@@ -591,17 +532,6 @@ class Encoder {
     stats_.brickBytes = out.sections[2].second.size() + out.sections[5].second.size();
     stats_.countBytes = out.sections[3].second.size() + out.sections[6].second.size();
     stats_.pairBytes = out.sections[4].second.size();
-    return out;
-  }
-
-  // The pair stream: every coded brick's pairs, indexBits + coefBits bits each, LSB-first.
-  std::vector<std::byte> packedPairs() const {
-    const int bits = indexBits_ + coefBits_;
-    std::vector<std::byte> out;
-    out.reserve(pairStreamBytes(result_.pairCount, bits));
-    std::uint64_t n = 0;
-    for (const auto& brick : result_.pairs)
-      for (const std::uint32_t word : brick) appendPair(out, n++, word, bits);
     return out;
   }
 
@@ -652,13 +582,11 @@ class Encoder {
   std::vector<std::uint64_t> candidates_;  // coded-brick index * perBrick + j
   std::uint64_t trainable_ = 0;
   std::uint64_t fixedBytes_ = 0;
-  int meanBits_ = 8;
   int atoms_ = 0, sparsity_ = 1, trainSparsity_ = 1;
-  int coefBits_ = 0;
+  CodeWidths widths_;  // a pair's fields and a block's mean
   std::uint64_t coresetSize_ = 0;
   Dictionary dict_;
   std::vector<std::int16_t> stored_;
-  int indexBits_ = 1, qmax_ = 1;
   CodedBricks result_;
   double blockTolerance_ = 0;
 };
