@@ -194,6 +194,7 @@ TEST(KsvdLayout, HalfABitPerVoxelBuysMorePairs) {
   Progress quiet;
   ksvd::Params p = params(4, 0.5);
   p.levels = 1;
+  p.atomBits = ksvd::kWideAtomBits;  // the atoms as layout 1 stores them: the codes' layout alone
   ksvd::EncodeStats stats;
   const CompressedVolume c = ksvd::encode(v, p, quiet, &stats);
   EXPECT_LE(double(fileBytes(c)) * 8 / double(v.voxelCount()), 0.51);
@@ -219,4 +220,60 @@ TEST(KsvdLayout, MeanBitsSetTheWidthOfEveryBlocksMean) {
   const std::uint64_t blocks = l3.codedBricks() * 8 * 8 * 8;
   EXPECT_EQ(c3.view().get(ksvd::kDc, "dc").size(), (blocks * 3 + 7) / 8);
   EXPECT_GT(wide.psnr, narrow.psnr);
+}
+
+// Atoms stored in 8 bits with a scale each: the dictionary section takes about half the bytes,
+// the atoms the decoder reads are the ones the encoder coded with (within half a step of the
+// 16-bit ones), and at a size target the bytes saved buy pairs: on Marschner-Lobb 64 at half a
+// bit per voxel, where 64 atoms of 16 bits are a quarter of the file, the PSNR rises by > 3 dB
+// (27.1 to 34.8 dB measured: nearly twice the pairs).
+TEST(KsvdLayout, NarrowAtomsBuyMorePairs) {
+  const Volume v = generateMarschnerLobb(64);
+  Progress quiet;
+  ksvd::Params p = params(4, 0.5);
+  p.levels = 1;
+  ksvd::EncodeStats wide, narrow;
+  p.atomBits = 16;
+  const CompressedVolume c16 = ksvd::encode(v, p, quiet, &wide);
+  p.atomBits = 8;
+  const CompressedVolume c8 = ksvd::encode(v, p, quiet, &narrow);
+  const ksvd::Layout l16(c16.info, c16.view()), l8(c8.info, c8.view());
+  EXPECT_EQ(l16.atomBits(), 16);
+  EXPECT_EQ(l8.atomBits(), 8);
+  EXPECT_EQ(narrow.atoms, wide.atoms);
+  const auto d8 = c8.view().get(ksvd::kDictionary, "dictionary");
+  EXPECT_EQ(d8.size(), std::size_t(narrow.atoms) * (4 + 64));
+  EXPECT_EQ(c16.view().get(ksvd::kDictionary, "dictionary").size(),
+            std::size_t(wide.atoms) * 64 * 2);
+  EXPECT_LE(double(fileBytes(c8)) * 8 / double(v.voxelCount()), 0.51);
+  EXPECT_GT(narrow.pairs, wide.pairs);
+  EXPECT_GT(narrow.psnr, wide.psnr + 3.0);
+  // Narrowing a section's atoms keeps each value within half its atom's step.
+  const auto atoms16 = ksvd::dictionaryValues(c16.view().get(ksvd::kDictionary, "dictionary"),
+                                              std::uint64_t(wide.atoms), 64, 16);
+  const auto again = ksvd::dictionaryValues(ksvd::dictionarySection(atoms16, 64, 8),
+                                            std::uint64_t(wide.atoms), 64, 8);
+  for (int a = 0; a < wide.atoms; ++a) {
+    float peak = 0;
+    for (int i = 0; i < 64; ++i) peak = std::max(peak, std::abs(atoms16[std::size_t(a * 64 + i)]));
+    for (int i = 0; i < 64; ++i)
+      ASSERT_NEAR(again[std::size_t(a * 64 + i)], atoms16[std::size_t(a * 64 + i)],
+                  0.5f * peak / 127.0f + 1e-7f)
+          << "atom " << a << " value " << i;
+  }
+}
+
+// A file of layout 2 from before the atoms' width was stored (params without it: 16-bit atoms)
+// decodes as it did.
+TEST(KsvdLayout, FilesWithoutAtomBitsReadTheirAtomsAsSixteenBits) {
+  const Volume v = generateMarschnerLobb(33);
+  Progress quiet;
+  ksvd::Params p = params(4);
+  p.atomBits = 16;
+  const CompressedVolume c = ksvd::encode(v, p, quiet);
+  CompressedVolume old = c;
+  test::section(old, ksvd::kParams).resize(76);
+  const ksvd::Layout a(c.info, c.view()), b(old.info, old.view());
+  EXPECT_EQ(b.atomBits(), 16);
+  EXPECT_EQ(viewBlocks(a.view<4>(), v.dims), viewBlocks(b.view<4>(), v.dims));
 }

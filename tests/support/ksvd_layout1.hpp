@@ -24,15 +24,21 @@ inline codec::kernels::KsvdBits bitsOf(const std::vector<std::byte>& b) {
 }  // namespace ksvd_layout1
 
 // The bricks' steps and the pairs are kept; each block's mean becomes the DC atom's pair (its
-// coefficient rounded to the brick's step, clamped to the pair's width).
+// coefficient rounded to the brick's step, clamped to the pair's width); the atoms are stored at
+// 16 bits, as every file of layout 1 stores them.
 inline codec::CompressedVolume asKsvdLayout1(codec::CompressedVolume c) {
   namespace ksvd = codec::ksvd;
   using ksvd_layout1::get32;
   auto& params = section(c, ksvd::kParams);
-  const int n = int(get32(params, 4));
+  const int side = int(get32(params, 0)), n = int(get32(params, 4));
   const int indexBits = int(get32(params, 16)), coefBits = int(get32(params, 64));
   const int meanBits = int(get32(params, 72));
+  const int atomBits = params.size() >= 80 ? int(get32(params, 76)) : ksvd::kWideAtomBits;
   if (get32(params, 68) != 2) throw std::logic_error("not a ksvd file of layout 2");
+  auto& dictionary = section(c, ksvd::kDictionary);
+  dictionary = ksvd::dictionarySection(
+      ksvd::dictionaryValues(dictionary, get32(params, 8), side * side * side, atomBits),
+      side * side * side, ksvd::kWideAtomBits);
   std::int16_t dcAtom;
   std::memcpy(&dcAtom, section(c, ksvd::kDictionary).data(), 2);
   const double a0 = double(dcAtom) / 32767.0;
@@ -66,7 +72,7 @@ inline codec::CompressedVolume asKsvdLayout1(codec::CompressedVolume c) {
       counts.push_back(std::byte(std::uint8_t(learned + (q != 0))));
     }
   }
-  params.resize(68);  // no layout or mean fields
+  params.resize(68);  // no layout, mean or atom fields
   std::memcpy(params.data() + 32, &pairOut, 8);
   section(c, ksvd::kCounts) = std::move(counts);
   section(c, ksvd::kPairs) = std::move(out);

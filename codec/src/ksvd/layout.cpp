@@ -143,6 +143,9 @@ void Layout::readParams(const SectionSet& sections) {
   // The layout of the blocks' codes: absent in files written before layout 2.
   layout_ = r.remaining() >= 4 ? int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64)) : 1;
   if (layout_ != 1) meanBits_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64));
+  // The atoms' width: absent in files written before it was stored (16 bits).
+  if (layout_ != 1 && r.remaining() >= 4)
+    atomBits_ = int(std::min<std::uint32_t>(r.get<std::uint32_t>(), 64));
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes past the params");
   auto fail = [&](const std::string& what) { r.fail(what); };
   if (m_ != 4 && m_ != 6 && m_ != 8) fail("block side " + std::to_string(m_) + " (4, 6 or 8)");
@@ -161,6 +164,9 @@ void Layout::readParams(const SectionSet& sections) {
     fail("layout " + std::to_string(layout_) + " (1 or " + std::to_string(kLayout) + ")");
   if (layout_ != 1 && (meanBits_ < 1 || meanBits_ > 24))
     fail("mean bits " + std::to_string(meanBits_) + " (1..24)");
+  if (atomBits_ < kMinAtomBits || atomBits_ > kWideAtomBits)
+    fail("atom bits " + std::to_string(atomBits_) + " (" + std::to_string(kMinAtomBits) + ".." +
+         std::to_string(kWideAtomBits) + ")");
   if (!(tolerance_ >= 0 && tolerance_ < 1)) fail("tolerance out of range");
   if (std::isnan(psnr_)) fail("PSNR is not a number");
 }
@@ -240,10 +246,12 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
   const std::uint64_t nBricks = levels_.back().firstBrick + last.brickCount();
   const std::uint64_t perBrick = std::uint64_t(last.blocksPerBrick());
   const auto dictBytes = sections.get(kDictionary, "dictionary");
-  if (dictBytes.size() != std::uint64_t(k_) * std::uint64_t(m) * 2)
-    ByteReader(dictBytes, src, "section 'dictionary'")
-        .fail(std::to_string(dictBytes.size()) + " bytes for " + std::to_string(k_) + " atoms of " +
-              std::to_string(m) + " 16-bit values");
+  std::vector<float> dictionary;
+  try {
+    dictionary = dictionaryValues(dictBytes, std::uint64_t(k_), m, atomBits_);
+  } catch (const std::invalid_argument& e) {
+    ByteReader(dictBytes, src, "section 'dictionary'").fail(e.what());
+  }
   const auto brickBytes = sections.get(kBricks, "bricks");
   ByteReader br(brickBytes, src, "section 'bricks'");
   if (brickBytes.size() != nBricks * 16)
@@ -261,12 +269,7 @@ void Layout::buildRenderBuffer(const SectionSet& sections) {
   atomsAt_ = 0;
   bricksAt_ = align8(std::uint64_t(k_) * std::uint64_t(m) * 4);
   render_.assign(align8(bricksAt_ + nBricks * sizeof(kernels::KsvdBrick)), std::byte{0});
-  auto* atoms = reinterpret_cast<float*>(render_.data() + atomsAt_);
-  for (std::size_t i = 0; i < std::size_t(k_) * std::size_t(m); ++i) {
-    std::int16_t v;
-    std::memcpy(&v, dictBytes.data() + 2 * i, 2);
-    atoms[i] = float(v) / 32767.0f;
-  }
+  std::memcpy(render_.data() + atomsAt_, dictionary.data(), dictionary.size() * sizeof(float));
   auto bits = [](std::span<const std::byte> b) {
     return kernels::KsvdBits{reinterpret_cast<const std::uint8_t*>(b.data()), b.size()};
   };

@@ -42,9 +42,10 @@ std::string encodeReport(const EncodeStats& s, const Volume& v, bool sizeTarget)
       (unsigned long long)s.codedBlocks, (unsigned long long)s.pairs,
       s.codedBlocks ? double(s.pairs) / double(s.codedBlocks) : 0.0, s.sparsity);
   report += formatLine(
-      "\n  dictionary %d atoms (%s), pairs %s (%d bits: %d for the atom, %d for the "
+      "\n  dictionary %d atoms of %d-bit values (%s), pairs %s (%d bits: %d for the atom, %d for "
+      "the "
       "coefficient), brick table, DC coefficients and counts %s: %.3f bits per voxel",
-      s.atoms, humanBytes(double(s.dictionaryBytes)).c_str(),
+      s.atoms, s.atomBits, humanBytes(double(s.dictionaryBytes)).c_str(),
       humanBytes(double(s.pairBytes)).c_str(), s.indexBits + s.coefficientBits, s.indexBits,
       s.coefficientBits, humanBytes(double(s.brickBytes + s.countBytes)).c_str(),
       bitsPerVoxel(s.dictionaryBytes + s.pairBytes + s.brickBytes + s.countBytes, v));
@@ -86,7 +87,8 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
          ""},
         {"--atoms",
          "ksvd codec: dictionary atoms K (2..65536; default 1024, at most one per 16 coded blocks "
-         "and, with --bits-per-voxel, a quarter of the file)",
+         "and, with --bits-per-voxel, as many as fit in a quarter of the file at 16 bits a "
+         "value)",
          ""},
         {"--sparsity", "ksvd codec: pairs (atom, coefficient) per block at most, S", "8"},
         {"--coefficient-bits",
@@ -97,6 +99,11 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
         {"--mean-bits",
          "ksvd codec: bits of a block's mean, stored apart from its pairs in steps of its brick's "
          "range (1..24; default: one less than --coefficient-bits)",
+         ""},
+        {"--atom-bits",
+         "ksvd codec: bits of a dictionary atom's stored value, with a scale per atom (4..16; "
+         "default 8, or with --bits-per-voxel below 0.75 6; 16 stores them as files before this "
+         "option did)",
          ""},
         {"--tolerance",
          "ksvd codec: stop a block's code at this RMS error, as a fraction of the value range "
@@ -113,7 +120,8 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
         {"--bits-per-voxel",
          "ksvd codec: the lowest price per pair (the squared error a pair must take off its "
          "block) whose file fits this size (and the "
-         "default dictionary at most a quarter of it); --sparsity caps the pairs per block, 16 "
+         "default dictionary's atoms as many as a quarter of it holds at 16 bits); --sparsity caps "
+         "the pairs per block, 16 "
          "by default; --coefficient-bits defaults to a width for the rate, --block to the better "
          "of 4 and 6",
          ""}};
@@ -127,6 +135,7 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
     p.sparsity = options.integer("--sparsity", 8, 1, 255);
     p.coefficientBits = options.integer("--coefficient-bits", 0, 2, 23);
     p.meanBits = options.integer("--mean-bits", 0, 1, 24);
+    p.atomBits = options.integer("--atom-bits", 0, kMinAtomBits, kWideAtomBits);
     p.tolerance = options.number("--tolerance", 0, 0, 0.999);
     p.coreset = options.number("--coreset", 0, 1e-9, 1e15);
     p.iterations = options.integer("--iterations", 25, 0, 10000);
@@ -249,10 +258,11 @@ class KsvdCodec final : public StreamingCodecOf<KsvdCodecEntry> {
     lines.push_back({"blocks", formatLine("%d^3 voxels, %d^3 per brick; %llu bricks, %llu coded", m,
                                           blocksPerBrick(m), (unsigned long long)layout.bricks(),
                                           (unsigned long long)layout.codedBricks())});
-    lines.push_back({"dictionary", formatLine("%d atoms of %d values (K-SVD, %d iterations on %llu "
-                                              "training blocks)",
-                                              layout.atoms(), m * m * m, layout.iterations(),
-                                              (unsigned long long)layout.coreset())});
+    lines.push_back(
+        {"dictionary", formatLine("%d atoms of %d %d-bit values (K-SVD, %d iterations on "
+                                  "%llu training blocks)",
+                                  layout.atoms(), m * m * m, layout.atomBits(), layout.iterations(),
+                                  (unsigned long long)layout.coreset())});
     lines.push_back(
         {"pairs",
          formatLine(

@@ -34,7 +34,12 @@
 //           written before it was stored, whose pairs are 3 bytes: 24 - indexBits)
 //       u32 layout of the blocks' codes, 1 or 2 (absent in files of layout 1)
 //       u32 meanBits (layout 2 only: bits of a block's mean, 1..24)
-//   2 dictionary: K atoms of M^3 i16 (x fastest), each entry atom value x 32767, rounded
+//       u32 atomBits (bits of an atom's value, 4..16; absent: 16)
+//   2 dictionary: K atoms of M^3 values (x fastest). 16 bits: i16, each value x 32767, rounded.
+//       Fewer: K f32 scales (an atom's largest magnitude over 2^(atomBits - 1) - 1), then every
+//       value of every atom in atomBits bits (two's complement, LSB-first, the last byte padded
+//       with zero bits), the value q x its atom's scale. The encoder codes with the atoms as
+//       stored.
 //   3 bricks: per brick (x fastest), 16 bytes: f32 min, f32 max, f32 step (the coefficient
 //       quantum; 0 for a constant brick, whose every voxel is min == max), u32 coded index (the
 //       number of coded bricks before it; 0xFFFFFFFF for a constant brick)
@@ -89,6 +94,10 @@ enum SectionId : std::uint32_t {
 // from its pairs and unary counts; files of layout 1 are read too.
 inline constexpr int kLayout = 2;
 
+// An atom's stored value: 16 bits in every file before the width was stored; fewer since, with a
+// scale per atom (atomBitsFor: a smaller dictionary, for more pairs in the same file).
+inline constexpr int kWideAtomBits = 16, kMinAtomBits = 4;
+
 struct Params {
   int blockSide = 6;              // M
   int atoms = 1024;               // K (fewer when the volume has few blocks: see encode)
@@ -100,12 +109,14 @@ struct Params {
   // size target the width that measured best at that rate (coefficientBitsFor).
   int coefficientBits = 0;
   int meanBits = 0;     // bits of a block's mean (1..24); 0: coefficientBits - 1
+  int atomBits = 0;     // bits of an atom's stored value (4..16); 0: atomBitsFor the target
   int iterations = 25;  // K-SVD iterations
   int levels = 0;   // pyramid levels (1: level 0 only); 0: until a level fits in one brick, <= 8
   int threads = 0;  // 0: every usable core
   std::uint64_t seed = 1;  // coreset and dictionary initialisation
-  // A dictionary to code with instead of learning one (the stored atoms, as section 2 holds
-  // them: a series' steps share one); its atom count replaces `atoms`.
+  // A dictionary to code with instead of learning one (its atoms at 16 bits, as section 2 of a
+  // file with 16-bit atoms holds them: a series' steps share one, each narrowing it to atomBits
+  // the same way); its atom count replaces `atoms`.
   std::shared_ptr<const std::vector<std::int16_t>> dictionary;
 };
 
@@ -116,7 +127,7 @@ struct EncodeStats {
   int levels = 1;
   std::uint64_t levelPairs = 0;   // pairs of the levels above 0
   std::vector<double> levelPsnr;  // per level, as section 6
-  int atoms = 0, sparsity = 0, iterations = 0;
+  int atoms = 0, sparsity = 0, iterations = 0, atomBits = 0;
   int indexBits = 0, coefficientBits = 0;  // a pair's two fields
   int trainSparsity = 0;                   // the sparsity K-SVD trained with
   double psnr = 0;
@@ -217,8 +228,18 @@ void appendPair(std::vector<std::byte>& stream, std::uint64_t pairs, std::uint32
 // bits so far, and advances `bits`; the stream's size stays a whole number of bytes.
 void appendBits(std::vector<std::byte>& stream, std::uint64_t& bits, std::uint32_t value,
                 int width);
+// Section 2's size, and its bytes, for K atoms of m values at atomBits bits (the atoms quantized
+// as the file stores them); and the values a section holds (std::invalid_argument when its size
+// or a scale is wrong).
+std::uint64_t dictionaryBytes(std::uint64_t atoms, int m, int atomBits);
+std::vector<std::byte> dictionarySection(std::span<const float> values, int m, int atomBits);
+std::vector<float> dictionaryValues(std::span<const std::byte> section, std::uint64_t atoms, int m,
+                                    int atomBits);
 // The largest |q| a coefficient of coefBits bits holds.
 inline int maxQuantized(int coefBits) { return (1 << (coefBits - 1)) - 1; }
+// The atoms' width a size target of `bitsPerVoxel` (0: none) stores when none is given: 6 bits
+// below 0.75 bits per voxel, else 8.
+int atomBitsFor(double bitsPerVoxel);
 // The coefficient width a size target of `bitsPerVoxel` codes with when none is given.
 int coefficientBitsFor(double bitsPerVoxel, int indexBits);
 
@@ -234,6 +255,7 @@ class Layout {
   int coefficientBits() const { return coefBits_; }
   int layout() const { return layout_; }
   int meanBits() const { return meanBits_; }  // 0 in layout 1
+  int atomBits() const { return atomBits_; }
   std::uint64_t codedBricks() const { return codedBricks_; }
   std::uint64_t pairs() const { return pairs_; }  // in the pairs section
   std::uint64_t coreset() const { return coreset_; }
@@ -280,7 +302,7 @@ class Layout {
   void buildRenderBuffer(const SectionSet& sections);
   VolumeInfo info_;
   int m_ = 6, n_ = 5, k_ = 0, s_ = 0, indexBits_ = 0, coefBits_ = 0, iterations_ = 0, layout_ = 1;
-  int meanBits_ = 0;
+  int meanBits_ = 0, atomBits_ = kWideAtomBits;
   std::uint64_t codedBricks_ = 0, pairs_ = 0, coreset_ = 0;
   double tolerance_ = 0, psnr_ = 0;
   std::vector<LevelInfo> levels_;
