@@ -108,6 +108,20 @@ void expectLayoutOneDecodesAsItDid(CompressedVolume& one, glm::ivec3 dims, bool 
   }
 }
 
+// A file of `v` coded with `p` after set(p, value), and what the encoder reports.
+struct Coded {
+  CompressedVolume file;
+  ksvd::EncodeStats stats;
+};
+template <class Set>
+Coded encodeWith(const Volume& v, ksvd::Params p, Set set, int value) {
+  Progress quiet;
+  set(p, value);
+  Coded out;
+  out.file = ksvd::encode(v, p, quiet, &out.stats);
+  return out;
+}
+
 std::size_t fileBytes(const CompressedVolume& c) {
   std::size_t n = 0;
   for (const auto& [id, s] : c.sections) n += s.size();
@@ -206,20 +220,16 @@ TEST(KsvdLayout, HalfABitPerVoxelBuysMorePairs) {
 // bits a block, and a wider mean gives a file at least as close to the input.
 TEST(KsvdLayout, MeanBitsSetTheWidthOfEveryBlocksMean) {
   const Volume v = generateMarschnerLobb(40);
-  Progress quiet;
   ksvd::Params p = params(4);
   p.levels = 1;
-  ksvd::EncodeStats narrow, wide;
-  p.meanBits = 3;
-  const CompressedVolume c3 = ksvd::encode(v, p, quiet, &narrow);
-  p.meanBits = 12;
-  const CompressedVolume c12 = ksvd::encode(v, p, quiet, &wide);
-  const ksvd::Layout l3(c3.info, c3.view()), l12(c12.info, c12.view());
+  auto meanBits = [](ksvd::Params& q, int bits) { q.meanBits = bits; };
+  const Coded narrow = encodeWith(v, p, meanBits, 3), wide = encodeWith(v, p, meanBits, 12);
+  const ksvd::Layout l3(narrow.file.info, narrow.file.view());
   EXPECT_EQ(l3.meanBits(), 3);
-  EXPECT_EQ(l12.meanBits(), 12);
+  EXPECT_EQ(ksvd::Layout(wide.file.info, wide.file.view()).meanBits(), 12);
   const std::uint64_t blocks = l3.codedBricks() * 8 * 8 * 8;
-  EXPECT_EQ(c3.view().get(ksvd::kDc, "dc").size(), (blocks * 3 + 7) / 8);
-  EXPECT_GT(wide.psnr, narrow.psnr);
+  EXPECT_EQ(narrow.file.view().get(ksvd::kDc, "dc").size(), (blocks * 3 + 7) / 8);
+  EXPECT_GT(wide.stats.psnr, narrow.stats.psnr);
 }
 
 // Atoms stored in 8 bits with a scale each: the dictionary section takes about half the bytes,
@@ -229,17 +239,14 @@ TEST(KsvdLayout, MeanBitsSetTheWidthOfEveryBlocksMean) {
 // (27.1 to 34.8 dB measured: nearly twice the pairs).
 TEST(KsvdLayout, NarrowAtomsBuyMorePairs) {
   const Volume v = generateMarschnerLobb(64);
-  Progress quiet;
   ksvd::Params p = params(4, 0.5);
   p.levels = 1;
-  ksvd::EncodeStats wide, narrow;
-  p.atomBits = 16;
-  const CompressedVolume c16 = ksvd::encode(v, p, quiet, &wide);
-  p.atomBits = 8;
-  const CompressedVolume c8 = ksvd::encode(v, p, quiet, &narrow);
-  const ksvd::Layout l16(c16.info, c16.view()), l8(c8.info, c8.view());
-  EXPECT_EQ(l16.atomBits(), 16);
-  EXPECT_EQ(l8.atomBits(), 8);
+  auto atomBits = [](ksvd::Params& q, int bits) { q.atomBits = bits; };
+  const Coded w = encodeWith(v, p, atomBits, 16), n = encodeWith(v, p, atomBits, 8);
+  const CompressedVolume &c16 = w.file, &c8 = n.file;
+  const ksvd::EncodeStats &wide = w.stats, &narrow = n.stats;
+  EXPECT_EQ(ksvd::Layout(c16.info, c16.view()).atomBits(), 16);
+  EXPECT_EQ(ksvd::Layout(c8.info, c8.view()).atomBits(), 8);
   EXPECT_EQ(narrow.atoms, wide.atoms);
   const auto d8 = c8.view().get(ksvd::kDictionary, "dictionary");
   EXPECT_EQ(d8.size(), std::size_t(narrow.atoms) * (4 + 64));
@@ -267,10 +274,10 @@ TEST(KsvdLayout, NarrowAtomsBuyMorePairs) {
 // decodes as it did.
 TEST(KsvdLayout, FilesWithoutAtomBitsReadTheirAtomsAsSixteenBits) {
   const Volume v = generateMarschnerLobb(33);
-  Progress quiet;
-  ksvd::Params p = params(4);
-  p.atomBits = 16;
-  const CompressedVolume c = ksvd::encode(v, p, quiet);
+  const CompressedVolume c =
+      encodeWith(
+          v, params(4), [](ksvd::Params& q, int bits) { q.atomBits = bits; }, 16)
+          .file;
   CompressedVolume old = c;
   test::section(old, ksvd::kParams).resize(76);
   const ksvd::Layout a(c.info, c.view()), b(old.info, old.view());
