@@ -293,7 +293,10 @@ TEST(TimeSeries, RenderRefusesStepsTheVolumeDoesNotHave) {
 }
 
 // ksvd codes a series with one dictionary learned on blocks of several steps: stored once, it
-// makes the file smaller than a dictionary a step (--steps-alone) at no loss of PSNR on any step.
+// makes the file smaller than a dictionary a step (--steps-alone) at no loss of PSNR over the
+// steps. A step alone may come out a little closer with its own dictionary (step 4 here: 37.97
+// against 38.74 dB in a release build, 37.67 with the sanitizers' floating point), so each step
+// is held to a floor, and their mean to the mean of a dictionary a step (40.4 against 38.9 dB).
 TEST(TimeSeries, KsvdSharesOneDictionaryAcrossTheSteps) {
   test::TempDir dir;
   ASSERT_EQ(runVoxwall("generate blobs --steps 6 --size 32 -o " + dir.path("b.nii")).status, 0);
@@ -311,15 +314,18 @@ TEST(TimeSeries, KsvdSharesOneDictionaryAcrossTheSteps) {
   EXPECT_EQ(aloneFile.sharedBytes(), 0u);
   EXPECT_LT(sharedFile.fileBytes(), aloneFile.fileBytes());
   const codec::Codec& ksvd = codec::codecOf(sharedFile.info(), shared);
+  double sharedSum = 0, ownSum = 0;
   for (int k = 0; k < 6; ++k) {
     const codec::Volume want = codec::generateOrbitingBlobs(32, k, 6);
     const double withShared =
         codec::psnr(want, ksvd.decode(sharedFile.stepInfo(k), sharedFile.stepSections(k)));
     const double withOwn =
         codec::psnr(want, ksvd.decode(aloneFile.stepInfo(k), aloneFile.stepSections(k)));
-    EXPECT_GT(withShared, withOwn - 1.0) << "step " << k;
+    EXPECT_GT(withShared, withOwn - 2.0) << "step " << k;
     EXPECT_GT(withShared, 35.0) << "step " << k;
+    sharedSum += withShared, ownSum += withOwn;
   }
+  EXPECT_GE(sharedSum, ownSum);
 }
 
 // vq codes a series with one codebook (the unique bricks of every step), stored once. Lossless,
