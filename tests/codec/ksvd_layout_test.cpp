@@ -284,3 +284,17 @@ TEST(KsvdLayout, FilesWithoutAtomBitsReadTheirAtomsAsSixteenBits) {
   EXPECT_EQ(b.atomBits(), 16);
   EXPECT_EQ(viewBlocks(a.view<4>(), v.dims), viewBlocks(b.view<4>(), v.dims));
 }
+
+// Without --atom-bits the width follows the rate: 6 bits under a size target below 0.75 bits per
+// voxel, 8 without a target; a width outside 4..16 is refused.
+TEST(KsvdLayout, DefaultAtomWidthFollowsTheRate) {
+  auto atomBits = [](ksvd::Params& q, int bits) { q.atomBits = bits; };
+  const Coded half = encodeWith(generateMarschnerLobb(64), params(4, 0.5), atomBits, 0);
+  EXPECT_EQ(ksvd::Layout(half.file.info, half.file.view()).atomBits(), 6);
+  EXPECT_EQ(half.stats.atomBits, 6);
+  const Volume v = generateMarschnerLobb(33);
+  const Coded free = encodeWith(v, params(4), atomBits, 0);
+  EXPECT_EQ(ksvd::Layout(free.file.info, free.file.view()).atomBits(), 8);
+  for (const int bad : {3, 17})
+    EXPECT_THROW(encodeWith(v, params(4), atomBits, bad), std::invalid_argument) << bad;
+}
