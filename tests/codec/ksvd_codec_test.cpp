@@ -13,6 +13,7 @@
 #include <voxwall/codec/volume_io.hpp>
 #include <voxwall/codec/volume_source.hpp>
 #include <voxwall/core/errors.hpp>
+#include <voxwall/core/text.hpp>
 
 #include "support/format_error_expect.hpp"
 #include "support/ksvd_layout1.hpp"
@@ -503,52 +504,87 @@ TEST(KsvdCodec, NarrowCoefficientsPackThePairsTighter) {
   }
 }
 
-// Through the registry, a size target without --block codes blocks of 4^3 and of 6^3 and keeps
-// the higher PSNR; where blocks of 4^3 cannot meet the target (their means alone are 5 bits and
-// their counts a bit per block: noise, no constant bricks), 6^3, and the report says why. A --block
-// that cannot meet the target is refused. The coefficient width follows the rate.
+// Through the registry, at a size target.
+CompressedVolume encodeAt(const Volume& v, double bits, int block, int coefficientBits,
+                          std::string& report) {
+  CodecOptionValues o;
+  o.set("--bits-per-voxel", std::to_string(bits));
+  o.set("--iterations", "2"), o.set("--levels", "1");
+  if (block) o.set("--block", std::to_string(block));
+  if (coefficientBits) o.set("--coefficient-bits", std::to_string(coefficientBits));
+  Progress quiet;
+  return codecNamed("ksvd").encode(v, o, quiet, report);
+}
+
+// A size target without --block codes blocks of 4^3 and of 6^3 and keeps the higher PSNR; where
+// blocks of 4^3 cannot meet the target (their means alone are 5 bits and their counts a bit per
+// block: noise, no constant bricks), 6^3, and the report says why. A --block that cannot meet
+// the target is refused. (--coefficient-bits pins the width, searched in the next test.)
 TEST(KsvdCodec, SizeTargetsKeepTheBetterBlockSide) {
-  const Codec& codec = codecNamed("ksvd");
-  auto encode = [&](const Volume& v, double bits, int block, std::string& report) {
-    CodecOptionValues o;
-    o.set("--bits-per-voxel", std::to_string(bits));
-    o.set("--iterations", "2"), o.set("--levels", "1");
-    if (block) o.set("--block", std::to_string(block));
-    Progress quiet;
-    return codec.encode(v, o, quiet, report);
-  };
   Volume noise = Volume::allocate({80, 80, 80}, ScalarType::Float32);
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
   for (float& x : noise.as<float>()) x = uniform(rng);
   noise.computeRange();
   std::string report;
-  const auto fellBack = encode(noise, 0.15, 0, report);
+  const auto fellBack = encodeAt(noise, 0.15, 0, 6, report);
   const ksvd::Layout six(fellBack.info, fellBack.view());
   EXPECT_EQ(six.blockSide(), 6);
-  EXPECT_EQ(six.coefficientBits(), 6);  // below 0.35 bits per voxel
+  EXPECT_EQ(six.coefficientBits(), 6);
   EXPECT_EQ(six.meanBits(), 5);
   EXPECT_NE(report.find("blocks of 6^3, since --bits-per-voxel 0.15 is below the smallest ksvd "
                         "file of this volume with "),
             std::string::npos)
       << report;
   EXPECT_NE(report.find("and blocks of 4^3"), std::string::npos) << report;
-  EXPECT_THROW(encode(noise, 0.15, 4, report), ksvd::SizeTargetTooSmall);
+  EXPECT_THROW(encodeAt(noise, 0.15, 4, 0, report), ksvd::SizeTargetTooSmall);
 
   const Volume phantom = generateSheppLogan(80);
   std::string r4, r6;
-  const auto four = encode(phantom, 0.5, 4, r4), sixOnly = encode(phantom, 0.5, 6, r6);
+  const auto four = encodeAt(phantom, 0.5, 4, 7, r4), sixOnly = encodeAt(phantom, 0.5, 6, 7, r6);
   const double psnr4 = ksvd::Layout(four.info, four.view()).psnr();
   const double psnr6 = ksvd::Layout(sixOnly.info, sixOnly.view()).psnr();
   ASSERT_NE(psnr4, psnr6);
-  const auto best = encode(phantom, 0.5, 0, report);
+  const auto best = encodeAt(phantom, 0.5, 0, 7, report);
   const ksvd::Layout kept(best.info, best.view());
   EXPECT_EQ(kept.blockSide(), psnr4 > psnr6 ? 4 : 6);
   EXPECT_EQ(kept.psnr(), std::max(psnr4, psnr6));
-  EXPECT_EQ(kept.coefficientBits(), 7);  // 0.35..0.75 bits per voxel
   EXPECT_NE(report.find("both coded, --block codes one"), std::string::npos) << report;
-  const auto low = encode(phantom, 0.3, 0, report);
-  EXPECT_EQ(ksvd::Layout(low.info, low.view()).coefficientBits(), 6);
+  EXPECT_EQ(report.find("--coefficient-bits codes one"), std::string::npos) << report;
+}
+
+// Without --coefficient-bits, a size target codes the kept block side again with coefficients one
+// bit wider than the rate's width (6 below 0.35 bits per voxel, 7 below 0.75) and keeps the
+// higher PSNR, in the target.
+TEST(KsvdCodec, SizeTargetsTryCoefficientsOneBitWider) {
+  const Volume phantom = generateSheppLogan(80);
+  for (const auto& [bits, width] : {std::pair{0.5, 7}, std::pair{0.3, 6}}) {
+    SCOPED_TRACE(bits);
+    std::string report;
+    const auto narrow = encodeAt(phantom, bits, 4, width, report);
+    const auto wide = encodeAt(phantom, bits, 4, width + 1, report);
+    const double psnrNarrow = ksvd::Layout(narrow.info, narrow.view()).psnr();
+    const double psnrWide = ksvd::Layout(wide.info, wide.view()).psnr();
+    ASSERT_NE(psnrNarrow, psnrWide);
+    const auto searched = encodeAt(phantom, bits, 4, 0, report);
+    const ksvd::Layout kept(searched.info, searched.view());
+    EXPECT_EQ(kept.coefficientBits(), psnrWide > psnrNarrow ? width + 1 : width);
+    EXPECT_EQ(kept.meanBits(), kept.coefficientBits() - 1);
+    EXPECT_EQ(kept.psnr(), std::max(psnrNarrow, psnrWide));
+    EXPECT_LE(bitsPerVoxel(searched.payloadBytes(), phantom), bits);
+    const bool wider = psnrWide > psnrNarrow;
+    const std::string line = formatLine(
+        "coefficients of %d bits (PSNR %.2f dB) over coefficients of %d bits (%.2f dB): both "
+        "coded, --coefficient-bits codes one",
+        wider ? width + 1 : width, std::max(psnrNarrow, psnrWide), wider ? width : width + 1,
+        std::min(psnrNarrow, psnrWide));
+    EXPECT_NE(report.find(line), std::string::npos) << report;
+    // Both searches: the side's line, then the width's.
+    encodeAt(phantom, bits, 0, 0, report);
+    const std::size_t side = report.find("--block codes one");
+    EXPECT_NE(side, std::string::npos) << report;
+    EXPECT_GT(report.find("--coefficient-bits codes one"), side) << report;
+  }
 }
 
 // A size target leaving about one pair per block on average still trains with two: the DC atom
