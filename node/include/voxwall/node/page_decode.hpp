@@ -8,8 +8,9 @@
 //   every brick under the page is decoded once, a row of bricks in z at a time, straight from the
 //   codec's decoder (no cache, no lookup per voxel; a brick whose key is the one before it in the
 //   row is copied, not decoded again: the empty bricks of a codebook share one; ksvd's 8^3 bricks
-//   the thread's last page decoded are copied from it), and the page's rows are read out of that
-//   row through per-axis offsets that do the faces' clamping.
+//   the thread's last page decoded are copied from it; tvq's codevectors are asked of the memory
+//   a few bricks ahead of their decode), and the page's rows are read out of that row through
+//   per-axis offsets that do the faces' clamping.
 // - the same through a memo of decoded bricks shared by the pages of the level (brick_memo.hpp),
 //   for zfp's 16^3 bricks: a brick another page decoded is copied from the memo.
 // - a base block at a time, for svmm's view (baseBlockSide(), baseBlock()): one walk down the
@@ -28,6 +29,7 @@
 #include <vector>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
 #include <voxwall/codec/kernels/trilinear.hpp>
+#include <voxwall/codec/kernels/tvq_view.hpp>
 #include <voxwall/node/brick_memo.hpp>
 
 namespace voxwall::node::pages {
@@ -116,6 +118,28 @@ void writePageRows(int side, const PageAxis& ax, const PageAxis& ay, const PageA
   }
 }
 
+// The cache lines a tvq brick's decode reads from its codevectors (host only), asked for ahead:
+// the associated codebooks are megabytes (22631 lowpass codevectors of 256 bytes in the MRI
+// template's file), and a page's bricks pick among them at random.
+inline void prefetchBrick(const codec::kernels::TvqDecoder& d, std::uint64_t key) {
+  const codec::kernels::TvqSubvolume& sv = d.subvolume(key >> 32);
+  const std::uint64_t r = key & 0xFFFFFFFFull;
+  if (r == d.kUncoded) return;
+  std::uint32_t dc = 0, k[codec::kernels::kTvqPartitions];
+  d.codes(sv, r, dc, k);
+  const std::uint8_t* base = d.books;
+  std::uint64_t first = 0;
+  if (d.lazyBooks) base = d.lazyBooks(d.lazyOwner, key >> 32), first = sv.codebookAt[0];
+  for (int p = 0; p < d.partitions; ++p) {
+    const std::uint8_t* v = base + (sv.codebookAt[p] - first) +
+                            std::size_t(k[p]) * std::size_t(d.kVoxels) * sizeof(float);
+    for (std::size_t line = 0; line < d.kVoxels * sizeof(float); line += 64)
+      __builtin_prefetch(v + line);
+  }
+}
+inline constexpr int kPrefetchAhead = 8;
+inline constexpr int kMaxRowBricks = (kRow / 4 + 2) * (kRow / 4 + 2);  // a row of bricks of >= 4^3
+
 // Page (px, py, pz) of a brick view, a brick at a time (see above). Equals decodePageByVoxel.
 template <codec::kernels::BrickView View, class Stored>
 void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Stored* out) {
@@ -147,22 +171,39 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
     }
     view.decoder.decode(key, at);
   };
+  constexpr bool kPrefetch = requires { prefetchBrick(view.decoder, std::uint64_t(0)); };
+  static_assert(!kPrefetch || S >= 4, "kMaxRowBricks counts bricks of at least 4 voxels a side");
   const auto row = [&](int bz, Value* at) {
     std::uint64_t last = ~std::uint64_t(0);
     const Value* lastBrick = nullptr;
-    for (int by = 0; by < ay.count; ++by)
-      for (int bx = 0; bx < ax.count; ++bx, at += kBrick) {
-        const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
-        if (key == last)
-          std::copy(lastBrick, lastBrick + kBrick, at);
-        else
-          decode(key, at);
-        last = key, lastBrick = at;
-        if constexpr (kKeep) {
-          kept[1].keys.push_back(key);
-          kept[1].voxels.insert(kept[1].voxels.end(), at, at + kBrick);
-        }
+    const auto brick = [&](std::uint64_t key) {
+      if (key == last)
+        std::copy(lastBrick, lastBrick + kBrick, at);
+      else
+        decode(key, at);
+      last = key, lastBrick = at;
+      if constexpr (kKeep) {
+        kept[1].keys.push_back(key);
+        kept[1].voxels.insert(kept[1].voxels.end(), at, at + kBrick);
       }
+      at += kBrick;
+    };
+    if constexpr (kPrefetch) {
+      std::uint64_t keys[kMaxRowBricks];
+      int n = 0;
+      for (int by = 0; by < ay.count; ++by)
+        for (int bx = 0; bx < ax.count; ++bx)
+          keys[n++] = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
+      for (int i = 0; i < std::min(n, kPrefetchAhead); ++i) prefetchBrick(view.decoder, keys[i]);
+      for (int i = 0; i < n; ++i) {
+        if (i + kPrefetchAhead < n) prefetchBrick(view.decoder, keys[i + kPrefetchAhead]);
+        brick(keys[i]);
+      }
+    } else {
+      for (int by = 0; by < ay.count; ++by)
+        for (int bx = 0; bx < ax.count; ++bx)
+          brick(view.decoder.key(ax.first + bx, ay.first + by, az.first + bz));
+    }
   };
   writePageRows<Value>(
       S, ax, ay, az, row, [&](Value v) { return store<Stored>(view.decoder.scalar(v), bias); },
