@@ -213,7 +213,8 @@ def main():
         print(f"display pages: 4 pages equal the sink's files with deflate tiles "
               f"({len(exact)} exact), {together} frames shown together on all four; three went "
               f"on without the fourth, which rejoined ({rejoined} frames together); JPEG tiles "
-              f"{min(jpeg):.1f}-{max(jpeg):.1f} dB against the sink's files")
+              f"{min(jpeg):.1f}-{max(jpeg):.1f} dB against the sink's files; a page left the "
+              f"swap barrier {sink_log().count('left the swap barrier')} time(s)")
         return 0
     except (Failure, subprocess.SubprocessError) as e:
         return procs.fail(e, ("sink.log", "render-deflate.log", "render-jpeg.log"))
