@@ -122,20 +122,11 @@ void writePageRows(int side, const PageAxis& ax, const PageAxis& ay, const PageA
 // the associated codebooks are megabytes (22631 lowpass codevectors of 256 bytes in the MRI
 // template's file), and a page's bricks pick among them at random.
 inline void prefetchBrick(const codec::kernels::TvqDecoder& d, std::uint64_t key) {
-  const codec::kernels::TvqSubvolume& sv = d.subvolume(key >> 32);
-  const std::uint64_t r = key & 0xFFFFFFFFull;
-  if (r == d.kUncoded) return;
-  std::uint32_t dc = 0, k[codec::kernels::kTvqPartitions];
-  d.codes(sv, r, dc, k);
-  const std::uint8_t* base = d.books;
-  std::uint64_t first = 0;
-  if (d.lazyBooks) base = d.lazyBooks(d.lazyOwner, key >> 32), first = sv.codebookAt[0];
-  for (int p = 0; p < d.partitions; ++p) {
-    const std::uint8_t* v = base + (sv.codebookAt[p] - first) +
-                            std::size_t(k[p]) * std::size_t(d.kVoxels) * sizeof(float);
-    for (std::size_t line = 0; line < d.kVoxels * sizeof(float); line += 64)
-      __builtin_prefetch(v + line);
-  }
+  std::uint32_t dc = 0;
+  const float* v[codec::kernels::kTvqPartitions];
+  if (!d.codevectors(key, dc, v)) return;
+  for (int p = 0; p < d.partitions; ++p)
+    for (int i = 0; i < d.kVoxels; i += 16) __builtin_prefetch(v[p] + i);  // 64-byte lines
 }
 inline constexpr int kPrefetchAhead = 8;
 inline constexpr int kMaxRowBricks = (kRow / 4 + 2) * (kRow / 4 + 2);  // a row of bricks of >= 4^3

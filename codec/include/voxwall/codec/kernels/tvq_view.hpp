@@ -116,29 +116,41 @@ struct TvqDecoder {
     }
   }
 
-  // Equation 6 of the paper: the mean plus the associated codevector of each partition the
-  // progressive level keeps, clamped to the volume's range.
-  VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
+  // Record `key`'s quantized mean and the associated codevector of each partition the
+  // progressive level keeps (v[0] .. v[partitions - 1], 64 floats each); false for an uncoded
+  // block. The page decoder asks for the codevectors of bricks ahead through this too.
+  VOXWALL_HD_INLINE bool codevectors(std::uint64_t key, std::uint32_t& dc,
+                                     const float* (&v)[kTvqPartitions]) const {
     const TvqSubvolume& sv = subvolume(key >> 32);
     const std::uint64_t r = key & 0xFFFFFFFFull;
-    if (r == kUncoded) {
-      for (int i = 0; i < kVoxels; ++i) out[i] = sv.background;
-      return;
-    }
-    std::uint32_t dc = 0, k[kTvqPartitions];
+    if (r == kUncoded) return false;
+    std::uint32_t k[kTvqPartitions];
     codes(sv, r, dc, k);
-    const float mean = dcLo + float(dc) * dcStep;
-    for (int i = 0; i < kVoxels; ++i) out[i] = mean;
     const std::uint8_t* base = books;
     std::uint64_t first = 0;
 #if !defined(__CUDA_ARCH__)
     if (lazyBooks) base = lazyBooks(lazyOwner, key >> 32), first = sv.codebookAt[0];
 #endif
-    for (int p = 0; p < partitions; ++p) {
-      const float* v = reinterpret_cast<const float*>(base + (sv.codebookAt[p] - first)) +
-                       std::size_t(k[p]) * std::size_t(kVoxels);
-      for (int i = 0; i < kVoxels; ++i) out[i] += v[i];
+    for (int p = 0; p < partitions; ++p)
+      v[p] = reinterpret_cast<const float*>(base + (sv.codebookAt[p] - first)) +
+             std::size_t(k[p]) * std::size_t(kVoxels);
+    return true;
+  }
+
+  // Equation 6 of the paper: the mean plus the associated codevector of each partition the
+  // progressive level keeps, clamped to the volume's range.
+  VOXWALL_HD_INLINE void decode(std::uint64_t key, float* out) const {
+    std::uint32_t dc = 0;
+    const float* v[kTvqPartitions];
+    if (!codevectors(key, dc, v)) {
+      const float background = subvolume(key >> 32).background;
+      for (int i = 0; i < kVoxels; ++i) out[i] = background;
+      return;
     }
+    const float mean = dcLo + float(dc) * dcStep;
+    for (int i = 0; i < kVoxels; ++i) out[i] = mean;
+    for (int p = 0; p < partitions; ++p)
+      for (int i = 0; i < kVoxels; ++i) out[i] += v[p][i];
     // Written so that a NaN (which a validated file cannot make) would become `lo` too. Integer
     // data is rounded here, so the view samples exactly the decoded volume's values.
     for (int i = 0; i < kVoxels; ++i) {
