@@ -83,9 +83,9 @@ void expectTrilinearEverywhere(glm::ivec3 dims, std::uint64_t id) {
     ASSERT_FLOAT_EQ(view.sample(x, y, z), want);
   }
   // The value ranges are those of their cell dilated by one voxel, exactly: what
-  // computeRangeGrid takes from the decoded volume. So too when each task's slab holds only one
-  // row of cells in y (the slab bound below one row's bytes): the tasks' y chunks meet without a
-  // gap or a missed neighbour.
+  // computeRangeGrid takes from the decoded volume. So too when each task's slices hold only one
+  // brick's rows of cells in y (the slab bound below one row's bytes): the tasks' y chunks meet
+  // without a gap or a missed neighbour, as do their segments in z (about four tasks a core).
   const RangeGrid g = brickRangeGrid(view, ScalarType::Float32);
   const RangeGrid chunked = brickRangeGrid(view, ScalarType::Float32, 1);
   // Cells of 4 voxels, or of 2 in bricks of 2.

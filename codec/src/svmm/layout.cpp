@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/svmm_codec.hpp>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
@@ -220,8 +221,31 @@ std::vector<std::uint8_t> Layout::poolBytes(int L) const {
 
 RangeGrid Layout::rangeGrid() const {
   constexpr int kCell = 4;  // as the raw codec's default
-  RangeGrid g(kCell, (info_.dims + kCell - 1) / kCell, info_.type);
   const kernels::SvmmView v = view();
+  // Where the base level is of blocks that the view reads whole, on every core a slab of them at
+  // a time (one walk down the mip-map a block): the walk over the leaves below widened up to 27
+  // cells a voxel on one core, 5 s on a 119 Mvox MRI before its first frame.
+  if (const int w = v.baseBlockSide(); w > 0) {
+    return slabRangeGrid(
+        info_.dims, info_.type, kCell, w, 4u << 20,
+        [&](int y0, int y1, int z0, int z1, auto&& slice) {
+          const int dx = info_.dims.x, blocksX = (dx + w - 1) / w, bz = z0 / w;
+          std::vector<std::uint32_t> block(std::size_t(w) * std::size_t(w) * std::size_t(w));
+          for (int by = y0 / w; by <= y1 / w; ++by)
+            for (int bx = 0; bx < blocksX; ++bx) {
+              v.baseBlock(bx, by, bz, block.data());  // only the voxels inside the volume
+              const int xn = std::min(w, dx - bx * w);
+              for (int z = z0; z <= z1; ++z)
+                for (int y = std::max(y0, by * w); y <= std::min(y1, by * w + w - 1); ++y) {
+                  const std::uint32_t* in = block.data() + ((z - bz * w) * w + (y - by * w)) * w;
+                  float* out =
+                      slice(z) + std::size_t(y - y0) * std::size_t(dx) + std::size_t(bx * w);
+                  for (int x = 0; x < xn; ++x) out[x] = v.scalar(in[x]);
+                }
+            }
+        });
+  }
+  RangeGrid g(kCell, (info_.dims + kCell - 1) / kCell, info_.type);
   const glm::ivec3 last = info_.dims - 1;
   // Each value goes to every cell within one voxel of where it is (the dilation the raycaster
   // relies on: a trilinear sample whose lower corner is in a cell reads up to one voxel past it).

@@ -3,9 +3,11 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <glm/vec2.hpp>
 #include <limits>
+#include <memory>
 #include <type_traits>
 #include <vector>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
@@ -17,70 +19,110 @@
 
 namespace voxwall::codec {
 
-// Value ranges per cell, dilated by exactly one voxel as RangeGrid promises (a looser range skips
-// less: dilating by a whole brick made the brick codecs take a third more samples than raw data
-// on the same volume), held in `type` (the volume's). Cells are 4 voxels wide, as raw data's (the
+// Value ranges per cell of `cell` voxels, dilated by exactly one voxel as RangeGrid promises (a
+// looser range skips less: dilating by a whole brick made the brick codecs take a third more
+// samples than raw data on the same volume), held in `type` (the volume's), from the volume's
+// voxels as floats that `fill(y0, y1, z0, z1, slice)` writes: every voxel x = 0 .. dims.x - 1,
+// y = y0 .. y1, z = z0 .. z1, slice(z) + (y - y0) * dims.x + x. A fill never crosses a multiple
+// of `align` in z (the codec's bricks: one row of them at a time), and chunks in y start at
+// multiples of it where they can.
+//
+// Each task takes a chunk of rows in y (as many as its slices of at most `slabBytes` hold) and a
+// segment of cell rows in z, which it walks upwards through a ring of align + 5 slices: a cell
+// row reads its 4 slices and the one either side, and a brick row is filled once, when the cell
+// row that first reaches it needs it. A brick is decoded once per task, and once more where the
+// chunks and segments meet (with a slab per cell row, each brick was decoded three times in z).
+// There are about four tasks a core. A worker takes its ring once and never zeroes it (every
+// slice is filled before it is read).
+template <class Fill>
+RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
+                        std::size_t slabBytes, Fill&& fill) {
+  RangeGrid g(cell, (dims + cell - 1) / cell, type);
+  const glm::ivec3 cells = g.cells();
+  align = std::max(1, align);
+  const int ring = align + 5;  // slices
+  // Chunks in y of a whole number of cells, and of bricks where a brick holds whole cells.
+  const int unit = align % cell == 0 ? align / cell : 1;                // cell rows
+  const std::size_t ringRow = std::size_t(dims.x) * std::size_t(ring);  // floats a voxel row in y
+  const int fits = int(std::clamp<std::size_t>(slabBytes / sizeof(float) / ringRow, 1,
+                                               std::size_t(dims.y) + 2));  // voxel rows in y
+  const int chunkRows = std::min(cells.y, std::max(unit, (fits - 2) / cell / unit * unit));
+  const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
+  const int workers = resolveThreads(0);
+  const int wanted = std::max(1, (4 * workers + chunksY - 1) / chunksY);  // segments in z
+  const int segmentRows =
+      std::max(unit, ((cells.z + wanted - 1) / wanted + unit - 1) / unit * unit);  // cell rows
+  const int segments = (cells.z + segmentRows - 1) / segmentRows;
+  const std::size_t tasks = std::size_t(chunksY) * std::size_t(segments);
+  std::atomic<std::size_t> nextTask{0};
+  const int threads = std::min<int>(workers, int(tasks));
+  parallelFor(std::size_t(threads), threads, [&](std::size_t) {
+    std::unique_ptr<float[]> slab;
+    std::size_t capacity = 0;
+    for (std::size_t task; (task = nextTask.fetch_add(1, std::memory_order_relaxed)) < tasks;) {
+      const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
+                cy1 = std::min(cells.y, cy0 + chunkRows);
+      const int cz0 = int(task / std::size_t(chunksY)) * segmentRows,
+                cz1 = std::min(cells.z, cz0 + segmentRows);
+      // The ring's rows: the chunk's cells and one voxel either side, clamped.
+      const int y0 = std::max(0, cy0 * cell - 1), y1 = std::min(dims.y - 1, cy1 * cell);
+      const std::size_t sliceVoxels = std::size_t(dims.x) * std::size_t(y1 - y0 + 1);
+      if (sliceVoxels * std::size_t(ring) > capacity)
+        capacity = sliceVoxels * std::size_t(ring), slab.reset(new float[capacity]);
+      const auto slice = [&](int z) { return slab.get() + std::size_t(z % ring) * sliceVoxels; };
+      int filled = std::max(0, cz0 * cell - 1) - 1;  // the last slice filled
+      for (int cz = cz0; cz < cz1; ++cz) {
+        const int za = std::max(0, cz * cell - 1), zb = std::min(dims.z - 1, cz * cell + cell);
+        while (filled < zb) {
+          const int from = filled + 1, to = std::min(dims.z - 1, (from / align + 1) * align - 1);
+          fill(y0, y1, from, to, slice);
+          filled = to;
+        }
+        for (int cy = cy0; cy < cy1; ++cy)
+          for (int cx = 0; cx < cells.x; ++cx) {
+            const int x0 = std::max(0, cx * cell - 1), x1 = std::min(dims.x - 1, cx * cell + cell);
+            const int ya = std::max(0, cy * cell - 1), yb = std::min(dims.y - 1, cy * cell + cell);
+            float l = std::numeric_limits<float>::infinity(), h = -l;
+            for (int z = za; z <= zb; ++z)
+              for (int y = ya; y <= yb; ++y) {
+                const float* row = slice(z) + std::size_t(y - y0) * std::size_t(dims.x);
+                for (int x = x0; x <= x1; ++x) l = std::min(l, row[x]), h = std::max(h, row[x]);
+              }
+            g.set(g.cellIndex(cx, cy, cz), l, h);
+          }
+      }
+    }
+  });
+  return g;
+}
+
+// slabRangeGrid over a brick view's decoder. Cells are 4 voxels wide, as raw data's (the
 // raycaster's skipping grid needs a power of two), or the bricks when they are 2 wide: zfp's 16^3
 // bricks with cells of 16 took 2x raw's frame time on a 0.95 Gvox MRI, ksvd's 6^3 blocks with
-// cells of 8 1.36x (coarse cells skip less). Each task takes one row of bricks' cells in z (one
-// row of cells for bricks narrower than a cell) and as many cell rows in y as a slab of at most
-// `slabBytes` of floats holds: it decodes the bricks under them plus the voxel around into the
-// slab and takes the ranges from it. Every brick is decoded up to three times in z and a few
-// percent more where the y chunks meet, on every core; the slabs, not the volume's size, bound
-// what the tasks hold (a whole slice's slab was 24 MB a core at 0.95 Gvox, 100 MB at 2048^2).
+// cells of 8 1.36x (coarse cells skip less).
 template <kernels::BrickView View>
 RangeGrid brickRangeGrid(const View& v, ScalarType type, std::size_t slabBytes = 4u << 20) {
   constexpr int kSide = View::kSide;
   constexpr int kCell = kSide == 2 ? 2 : 4;
-  constexpr int kRows = kSide % kCell == 0 ? kSide / kCell : 1;  // cell rows in z per task
-  RangeGrid g(kCell, (glm::ivec3{v.dimX, v.dimY, v.dimZ} + kCell - 1) / kCell, type);
-  const glm::ivec3 cells = g.cells();
-  const int bricksZ = (v.dimZ + kSide - 1) / kSide;
-  const std::size_t slabRow = std::size_t(v.dimX) * std::size_t(kRows * kCell + 2);  // floats
-  const int chunkRows = int(std::clamp<std::size_t>(slabBytes / sizeof(float) / (slabRow * kCell),
-                                                    1, std::size_t(cells.y)));  // cell rows in y
-  const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
-  const int tasksZ = (cells.z + kRows - 1) / kRows;
-  parallelFor(std::size_t(tasksZ) * std::size_t(chunksY), 0, [&](std::size_t task) {
-    const int cz0 = int(task / std::size_t(chunksY)) * kRows, cz1 = std::min(cells.z, cz0 + kRows);
-    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
-              cy1 = std::min(cells.y, cy0 + chunkRows);
-    // The slab: voxels y0 .. y1, z0 .. z1 (the cells and one voxel either side, clamped).
-    const int z0 = std::max(0, cz0 * kCell - 1), z1 = std::min(v.dimZ - 1, cz1 * kCell);
-    const int y0 = std::max(0, cy0 * kCell - 1), y1 = std::min(v.dimY - 1, cy1 * kCell);
-    const std::size_t sliceVoxels = std::size_t(v.dimX) * std::size_t(y1 - y0 + 1);
-    std::vector<float> slab(sliceVoxels * std::size_t(z1 - z0 + 1));
-    auto at = [&](int x, int y, int z) {
-      return std::size_t(z - z0) * sliceVoxels + std::size_t(y - y0) * std::size_t(v.dimX) +
-             std::size_t(x);
-    };
-    typename View::Value vox[View::kVoxels];
-    for (int bz = z0 / kSide; bz <= std::min(bricksZ - 1, z1 / kSide); ++bz)
-      for (int by = y0 / kSide; by <= y1 / kSide; ++by)
-        for (int bx = 0; bx < v.bricksX; ++bx) {
-          v.decoder.decode(v.decoder.key(bx, by, bz), vox);
-          for (int z = std::max(z0, bz * kSide); z <= std::min(z1, bz * kSide + kSide - 1); ++z)
-            for (int y = std::max(y0, by * kSide); y <= std::min(y1, by * kSide + kSide - 1); ++y)
-              for (int x = bx * kSide; x < std::min(v.dimX, bx * kSide + kSide); ++x)
-                slab[at(x, y, z)] = v.decoder.scalar(
-                    vox[(x - bx * kSide) + kSide * ((y - by * kSide) + kSide * (z - bz * kSide))]);
-        }
-    for (int cz = cz0; cz < cz1; ++cz)
-      for (int cy = cy0; cy < cy1; ++cy)
-        for (int cx = 0; cx < cells.x; ++cx) {
-          const int x0 = std::max(0, cx * kCell - 1), x1 = std::min(v.dimX - 1, cx * kCell + kCell);
-          const int ya = std::max(0, cy * kCell - 1), yb = std::min(v.dimY - 1, cy * kCell + kCell);
-          const int za = std::max(0, cz * kCell - 1), zb = std::min(v.dimZ - 1, cz * kCell + kCell);
-          float l = std::numeric_limits<float>::infinity(), h = -l;
-          for (int z = za; z <= zb; ++z)
-            for (int y = ya; y <= yb; ++y) {
-              const float* row = slab.data() + at(0, y, z);
-              for (int x = x0; x <= x1; ++x) l = std::min(l, row[x]), h = std::max(h, row[x]);
-            }
-          g.set(g.cellIndex(cx, cy, cz), l, h);
-        }
-  });
-  return g;
+  const glm::ivec3 dims{v.dimX, v.dimY, v.dimZ};
+  return slabRangeGrid(
+      dims, type, kCell, kSide, slabBytes, [&](int y0, int y1, int z0, int z1, auto&& slice) {
+        const int bz = z0 / kSide;  // z0 .. z1 lie in one row of bricks
+        typename View::Value vox[View::kVoxels];
+        for (int by = y0 / kSide; by <= y1 / kSide; ++by)
+          for (int bx = 0; bx < v.bricksX; ++bx) {
+            v.decoder.decode(v.decoder.key(bx, by, bz), vox);
+            const int xn = std::min(kSide, v.dimX - bx * kSide);
+            for (int z = z0; z <= z1; ++z)
+              for (int y = std::max(y0, by * kSide); y <= std::min(y1, by * kSide + kSide - 1);
+                   ++y) {
+                const auto* in = vox + kSide * ((y - by * kSide) + kSide * (z - bz * kSide));
+                float* out =
+                    slice(z) + std::size_t(y - y0) * std::size_t(v.dimX) + std::size_t(bx * kSide);
+                for (int x = 0; x < xn; ++x) out[x] = v.decoder.scalar(in[x]);
+              }
+          }
+      });
 }
 
 // Decodes the bricks of row `bz` into `slab`: slices bz*kSide .. (those inside the volume), x
