@@ -13,6 +13,9 @@ This bench renders, for every codec and raw, from the same volume in the same ru
 
 Every render is `render --exact --shading --no-write -v` at --size from camera 30,20,2.2; a frame's
 time is the whole frame's (`frame N/M: X ms`), and every codec's is given over raw's same frame.
+The first picture is the time from the job's start (the volume opened and its value ranges for
+skipping empty space made) to the end of its first frame: the 90-degree job's wall clock less
+its frames 2-4.
 The pages a rank decoded and the samples that waited for a page another thread was decoding come
 from `render -v`'s page lines (summed over the ranks).
 
@@ -33,6 +36,7 @@ import os
 import re
 import sys
 import tempfile
+import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from scale_bench import OPTIONS, generate, mib, run, size_bytes  # noqa: E402
@@ -49,8 +53,9 @@ MEMORY = re.compile(r"^rank (\d+) on \S+: resident %s, peak %s; private %s, mapp
 
 def render(args, path, frames, degrees, ranks=0, voxwall=None):
     """One job: ([frame ms], [(pages decoded on the rays, ahead) per frame], [waited per frame],
-    {rank: (private bytes, mapped bytes)}). ranks 0: one process with every core. With another `voxwall` (--compare):
-    the frame times only."""
+    {rank: (private bytes, mapped bytes)}, the job's wall-clock seconds). ranks 0: one process
+    with every core. With another `voxwall` (--compare): the frame times and the wall clock
+    only."""
     cmd = [voxwall or args.voxwall, "render", path, "--size", args.size, "--frames", str(frames),
            "--orbit-deg", str(degrees), "--camera", "30,20,2.2", "--shading", "--exact",
            "--no-write", "-v"]
@@ -59,13 +64,15 @@ def render(args, path, frames, degrees, ranks=0, voxwall=None):
         cmd = ["mpirun", "--allow-run-as-root", "--oversubscribe", "-np", str(ranks)] + cmd + [
             "--balance", "static", "--threads", "1"]
         env = dict(os.environ, OMPI_MCA_rmaps_base_oversubscribe="1")
+    began = time.monotonic()
     out = run(cmd, env)
+    wall = time.monotonic() - began
     times = {int(m.group(1)): float(m.group(3)) for m in FRAME.finditer(out)}
     if sorted(times) != list(range(1, frames + 1)):
         sys.exit("cannot find %d frame times in the output of %s:\n%s"
                  % (frames, " ".join(cmd), out[-4000:]))
     if voxwall:
-        return [times[f] for f in range(1, frames + 1)], [], [], {}
+        return [times[f] for f in range(1, frames + 1)], [], [], {}, wall
     # Each frame's block runs from its `frame N/M` line to the next.
     starts = [m.start() for m in FRAME.finditer(out)] + [len(out)]
     decoded, waited = [], []
@@ -81,7 +88,7 @@ def render(args, path, frames, degrees, ranks=0, voxwall=None):
     if len(memory) != max(ranks, 1):
         sys.exit("cannot find %d ranks' memory in the output of %s:\n%s"
                  % (max(ranks, 1), " ".join(cmd), out[-4000:]))
-    return [times[f] for f in range(1, frames + 1)], decoded, waited, memory
+    return [times[f] for f in range(1, frames + 1)], decoded, waited, memory, wall
 
 
 def main():
@@ -116,11 +123,13 @@ def main():
         print("One rank, every core: frame time over raw's same frame; pages decoded and samples "
               "that waited for another thread's page\n")
         before = " (before: %s)" % args.compare if args.compare else ""
-        print("| codec | first frame%s | 90 deg frames 2-4%s | 5 deg frames 2-6%s | pages decoded "
-              "on the rays / ahead (90 deg, frames 1-4) | waited (frame 1) | private | mapped "
-              "files |"
-              % (before, before, before))
-        print("|---|---|---|---|---|---|---|---|")
+        print("*first picture*: from the job's start (the volume opened, its value ranges made) "
+              "to the end of its first frame, over raw's\n")
+        print("| codec | first picture%s | first frame%s | 90 deg frames 2-4%s | 5 deg frames "
+              "2-6%s | pages decoded on the rays / ahead (90 deg, frames 1-4) | waited (frame 1) "
+              "| private | mapped files |"
+              % (before, before, before, before))
+        print("|---|---|---|---|---|---|---|---|---|")
         one, old = {}, {}
         for c in codecs:
             print("rendering %s" % c, file=sys.stderr)
@@ -129,20 +138,27 @@ def main():
                 old[c] = (render(args, files[c], 4, 90, voxwall=args.compare),
                           render(args, files[c], 6, 5, voxwall=args.compare))
 
+        def first_picture(run_):
+            """Seconds from the job's start to its first frame: the wall clock less frames 2-4."""
+            times, wall = run_[0], run_[4]
+            return wall - sum(times[1:]) / 1e3
+
         def ratios(runs, c):
-            (t90, _, _, _), (t5, _, _, _) = runs[c]
-            (r90, _, _, _), (r5, _, _, _) = runs["raw"]
-            return (t90[0] / r90[0], sum(t90[1:]) / sum(r90[1:]), sum(t5[1:]) / sum(r5[1:]))
+            (t90, _, _, _, _), (t5, _, _, _, _) = runs[c]
+            (r90, _, _, _, _), (r5, _, _, _, _) = runs["raw"]
+            return (first_picture(runs[c][0]) / first_picture(runs["raw"][0]), t90[0] / r90[0],
+                    sum(t90[1:]) / sum(r90[1:]), sum(t5[1:]) / sum(r5[1:]))
 
         for c in codecs:
-            (_, d90, w90, mem), _ = one[c]
+            (_, d90, w90, mem, _), _ = one[c]
             now = ratios(one, c)
             was = ratios(old, c) if args.compare else None
             cells = ["%.2f (%.2f)" % (now[i], was[i]) if was else "%.2f" % now[i]
-                     for i in range(3)]
-            print("| %s | %s | %s | %s | %s | %d | %s | %s |"
-                  % (c, cells[0], cells[1], cells[2], ", ".join("%d / %d" % d for d in d90), w90[0],
-                     mib(mem[0][0]), mib(mem[0][1])))
+                     for i in range(4)]
+            print("| %s | %s | %s | %s | %s | %s | %d | %s | %s |"
+                  % (c, cells[0], cells[1], cells[2], cells[3],
+                     ", ".join("%d / %d" % d for d in d90), w90[0], mib(mem[0][0]),
+                     mib(mem[0][1])))
         print()
         print("Ranks of one thread each (strip cut, --balance static), 90-degree orbit: frame "
               "time over raw's on as many ranks; private memory of the largest rank\n")
@@ -160,7 +176,7 @@ def main():
         for c in codecs:
             cells, mems = [], []
             for n in rank_counts:
-                t, _, _, mem = per[c][n]
+                t, _, _, mem, _ = per[c][n]
                 r = per["raw"][n][0]
                 cell = "%.2f, %.2f" % (t[0] / r[0], sum(t[1:]) / sum(r[1:]))
                 if args.compare:

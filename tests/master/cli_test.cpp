@@ -797,6 +797,8 @@ TEST(Cli, DecodeCacheIsCountedAndKeepsThePicture) {
         << v.out;
     EXPECT_NE(v.out.find("\n    private "), std::string::npos) << v.out;
     EXPECT_NE(v.out.find("rank 0 on "), std::string::npos) << v.out;
+    // And how long rank 0 took to open the volume.
+    EXPECT_NE(v.out.find("voxwall: rank 0 opened " + vq + " in "), std::string::npos) << v.out;
   }
   EXPECT_EQ(dryRun("off").find("decoded pages"), std::string::npos);
   EXPECT_EQ(dryRun("0").find("decoded pages"), std::string::npos);

@@ -72,6 +72,7 @@ struct Setup {
   std::string input;
   std::uint64_t needBytes = 0;
   std::uint64_t pageBytes = 0;       // of needBytes: this rank's decoded pages at most
+  double openSeconds = 0;            // the volume's open: its file mapped, its value ranges made
   std::vector<std::string> tfNotes;  // said by rank 0 once setup succeeded
 };
 
@@ -172,7 +173,9 @@ void setUpRank(const RenderOptions& o, master::Communicator& comm, bool quiet, S
     s.input = master::defaultVolumeSpec();
     if (!quiet) std::fprintf(stderr, "voxwall: no volume given, rendering %s\n", s.input.c_str());
   }
+  const auto opening = std::chrono::steady_clock::now();
   s.volume = loadRenderVolume(o, s.input);
+  s.openSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - opening).count();
   if ((s.render.nearest || s.render.levelOfDetail || s.render.lodUnderPressure) &&
       !s.volume->traversal())
     throw std::invalid_argument(
@@ -503,6 +506,11 @@ void runRender(const RenderOptions& o) {
                  std::string(codec::scalarName(info.type)).c_str(),
                  std::string(codec::codecName(info.codec)).c_str(), s.job.width, s.job.height,
                  s.job.frames, comm->size(), o.dryRun ? "dry run" : s.backend->name().c_str());
+  if (!quiet && o.verbose)
+    std::fprintf(stderr,
+                 "voxwall: rank 0 opened %s in %.2f s (read or mapped, value ranges for skipping "
+                 "empty space made)\n",
+                 s.input.c_str(), s.openSeconds);
   if (!quiet)
     for (const auto& note : s.tfNotes)
       std::fprintf(stderr, "voxwall: %s: %s\n", o.tf.c_str(), note.c_str());

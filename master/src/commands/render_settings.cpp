@@ -614,7 +614,8 @@ void addOutputOptions(CLI::App& cmd, RenderOptions& o, RenderOptionHandles& h) {
   cmd.add_flag("--no-write", o.noWrite, "Render without writing frames (for timing)");
   cmd.add_flag("-q,--quiet", o.quiet, "Print nothing but errors");
   cmd.add_flag("-v,--verbose", o.verbose,
-               "Print every frame's rectangles, samples and rays per rank, each rank's memory "
+               "Print how long rank 0 took to open the volume, every frame's rectangles, samples "
+               "and rays per rank, each rank's memory "
                "(private, mapped files) and, for a compressed volume, its decoded pages (hits, "
                "decoded on the rays and ahead of them, evicted, samples that waited)");
 }
