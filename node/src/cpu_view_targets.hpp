@@ -78,6 +78,7 @@ struct HwyLanes {
     M coarse;                      // set in every step before it is read
     std::uint64_t raisedBits = 0;  // lanes whose footprint was raised for the last step
     float footprint[kLanes] = {};
+    bool footprints = false;  // a footprint was given (setFootprint: --lod): else every lane's is 0
     // Level 1's pages, under pressure (views with levels): the same state as above for them.
     struct Lower {
       PageCache::Reader* reader = currentCoarseReader;
@@ -402,6 +403,7 @@ struct HwyLanes {
   static HWY_INLINE M pageLanes(const View& view, const Caches<View>& cache, M m) {
     if constexpr (requires { View::kTraversal; }) {
       if (cache.lane[0].nearest) return hn::FirstN(D(), 0);  // set alike in every lane
+      if (!cache.footprints) return m;  // every footprint 0: the full-resolution level
       HWY_ALIGN std::int32_t level0[kLanes];
       for (std::size_t i = 0; i < kLanes; ++i) {
         const float footprint = cache.lane[i].footprint;
@@ -563,18 +565,22 @@ struct HwyLanes {
     hn::Store(footprint, D(), v);
     forLanes(m, [&](std::size_t i) { cache.lane[i].footprint = v[i]; });
     cache.raisedBits &= ~bits(m);  // their own footprint is set anew
+    cache.footprints = true;
   }
   template <class View>
   static HWY_INLINE I regionEnd(const Caches<View>& cache, const glm::vec3& o,
                                 const kernels::Lanes3<F>& invD, const kernels::RayFrame& f,
                                 F tEnter, float invStep, I steps, I k, M m) {
+    // A lane sampled from pages knows no region: it takes the next sample.
+    if constexpr (kPaged<View>) {
+      m = butNot(m, either(cache.paged, cache.lower.paged));
+      if (!any(m)) return k + splatI(1);
+    }
     HWY_ALIGN float ix[kLanes], iy[kLanes], iz[kLanes], te[kLanes];
     HWY_ALIGN std::int32_t st[kLanes], kk[kLanes], out[kLanes];
     hn::Store(invD.x, D(), ix), hn::Store(invD.y, D(), iy), hn::Store(invD.z, D(), iz);
     hn::Store(tEnter, D(), te), hn::Store(steps, DI(), st), hn::Store(k, DI(), kk);
     hn::Store(k + splatI(1), DI(), out);
-    // A lane sampled from pages knows no region: it takes the next sample.
-    if constexpr (kPaged<View>) m = butNot(m, either(cache.paged, cache.lower.paged));
     forLanes(m, [&](std::size_t i) {
       out[i] = kernels::regionEnd(cache.lane[i], o, glm::vec3(ix[i], iy[i], iz[i]), f, te[i],
                                   invStep, st[i], kk[i]);
