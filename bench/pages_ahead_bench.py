@@ -21,7 +21,8 @@ from `render -v`'s page lines (summed over the ranks).
 
 The volume is scale_bench.py's: the MRI template (mricron-data) upsampled --scale times per axis
 with mild noise (1: 301x370x316; 3: 903x1110x948, 0.95 Gvox), generated into a temporary directory
-and never kept; each codec compresses it with scale_bench.py's options.
+and never kept (or into --work DIR, where the codecs' files are kept and used again by the next
+run); each codec compresses it with scale_bench.py's options.
 
 With --compare VOXWALL (an earlier build's program), each ratio is followed by that program's,
 in parentheses, from the same files in the same run.
@@ -98,6 +99,9 @@ def main():
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--codecs", default="raw,vq,svmm,ksvd,tvq,zfp")
     ap.add_argument("--ranks", default="2,4", help="rank counts of one thread each (besides 1)")
+    ap.add_argument("--work", help="a directory that keeps the volume's files between runs: "
+                    "those found there are used again (each codec's CODEC.vwz, whatever --scale "
+                    "made them)")
     ap.add_argument("--compare", help="another voxwall binary (an earlier build) whose frame "
                     "ratios the tables show beside this one's, from the same files in the same run")
     args = ap.parse_args()
@@ -108,16 +112,24 @@ def main():
         if c not in OPTIONS:
             sys.exit("unknown codec %s (expected one of %s)" % (c, ", ".join(OPTIONS)))
     rank_counts = [1] + [int(n) for n in args.ranks.split(",") if n]
-    with tempfile.TemporaryDirectory(prefix="voxwall-ahead-") as work:
-        print("generating the volume (MRI x%g)" % args.scale, file=sys.stderr)
-        source, dims = generate(args.voxwall, args.scale, work)
-        files = {}
-        for c in codecs:
-            print("compressing as %s" % c, file=sys.stderr)
-            files[c] = os.path.join(work, c + ".vwz")
-            run([args.voxwall, "compress", source, "--dims", ",".join(map(str, dims)), "--type",
-                 "uint8", "--codec", c, "-q", "-o", files[c]] + OPTIONS[c])
-        os.remove(source)
+    with tempfile.TemporaryDirectory(prefix="voxwall-ahead-") as temporary:
+        work = args.work or temporary
+        os.makedirs(work, exist_ok=True)
+        files = {c: os.path.join(work, c + ".vwz") for c in codecs}
+        missing = [c for c in codecs if not os.path.exists(files[c])]
+        if missing:
+            print("generating the volume (MRI x%g)" % args.scale, file=sys.stderr)
+            source, dims = generate(args.voxwall, args.scale, work)
+            for c in missing:
+                print("compressing as %s" % c, file=sys.stderr)
+                run([args.voxwall, "compress", source, "--dims", ",".join(map(str, dims)),
+                     "--type", "uint8", "--codec", c, "-q", "-o", files[c]] + OPTIONS[c])
+            os.remove(source)
+        info = run([args.voxwall, "info", files["raw"]])
+        m = re.search(r"^dims\s+(\d+) x (\d+) x (\d+) ", info, re.M)
+        if not m:
+            sys.exit("cannot find the volume's dims in:\n" + info)
+        dims = [int(m.group(i)) for i in (1, 2, 3)]
         print("%s uint8, %s, shaded, --exact, default --decode-cache (512M)\n"
               % ("x".join(map(str, dims)), args.size))
         print("One rank, every core: frame time over raw's same frame; pages decoded and samples "
