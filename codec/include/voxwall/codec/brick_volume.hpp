@@ -96,33 +96,44 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
   return g;
 }
 
-// slabRangeGrid over a brick view's decoder. Cells are 4 voxels wide, as raw data's (the
+// slabRangeGrid over blocks of side^3 voxels that `decodeBlock(bx, by, bz, out)` decodes whole
+// (side^3 values of type Value, x fastest; only those of voxels inside the volume are read), a
+// row of blocks at a time; `scalar(value)` is the float the raycaster samples. The brick codecs'
+// bricks and svmm's base blocks.
+template <class Value, class DecodeBlock, class Scalar>
+RangeGrid blockRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int side,
+                         std::size_t slabBytes, DecodeBlock&& decodeBlock, Scalar&& scalar) {
+  return slabRangeGrid(
+      dims, type, cell, side, slabBytes, [&](int y0, int y1, int z0, int z1, auto&& slice) {
+        const int bz = z0 / side, blocksX = (dims.x + side - 1) / side;  // z0 .. z1: one row
+        std::vector<Value> block(std::size_t(side) * std::size_t(side) * std::size_t(side));
+        for (int by = y0 / side; by <= y1 / side; ++by)
+          for (int bx = 0; bx < blocksX; ++bx) {
+            decodeBlock(bx, by, bz, block.data());
+            const int xn = std::min(side, dims.x - bx * side);
+            for (int z = z0; z <= z1; ++z)
+              for (int y = std::max(y0, by * side); y <= std::min(y1, by * side + side - 1); ++y) {
+                const Value* in = block.data() + ((z - bz * side) * side + (y - by * side)) * side;
+                float* out =
+                    slice(z) + std::size_t(y - y0) * std::size_t(dims.x) + std::size_t(bx * side);
+                for (int x = 0; x < xn; ++x) out[x] = scalar(in[x]);
+              }
+          }
+      });
+}
+
+// The value ranges of a brick view's decoder. Cells are 4 voxels wide, as raw data's (the
 // raycaster's skipping grid needs a power of two), or the bricks when they are 2 wide: zfp's 16^3
 // bricks with cells of 16 took 2x raw's frame time on a 0.95 Gvox MRI, ksvd's 6^3 blocks with
 // cells of 8 1.36x (coarse cells skip less).
 template <kernels::BrickView View>
 RangeGrid brickRangeGrid(const View& v, ScalarType type, std::size_t slabBytes = 4u << 20) {
+  using Value = typename View::Value;
   constexpr int kSide = View::kSide;
-  constexpr int kCell = kSide == 2 ? 2 : 4;
-  const glm::ivec3 dims{v.dimX, v.dimY, v.dimZ};
-  return slabRangeGrid(
-      dims, type, kCell, kSide, slabBytes, [&](int y0, int y1, int z0, int z1, auto&& slice) {
-        const int bz = z0 / kSide;  // z0 .. z1 lie in one row of bricks
-        typename View::Value vox[View::kVoxels];
-        for (int by = y0 / kSide; by <= y1 / kSide; ++by)
-          for (int bx = 0; bx < v.bricksX; ++bx) {
-            v.decoder.decode(v.decoder.key(bx, by, bz), vox);
-            const int xn = std::min(kSide, v.dimX - bx * kSide);
-            for (int z = z0; z <= z1; ++z)
-              for (int y = std::max(y0, by * kSide); y <= std::min(y1, by * kSide + kSide - 1);
-                   ++y) {
-                const auto* in = vox + kSide * ((y - by * kSide) + kSide * (z - bz * kSide));
-                float* out =
-                    slice(z) + std::size_t(y - y0) * std::size_t(v.dimX) + std::size_t(bx * kSide);
-                for (int x = 0; x < xn; ++x) out[x] = v.decoder.scalar(in[x]);
-              }
-          }
-      });
+  return blockRangeGrid<Value>(
+      glm::ivec3{v.dimX, v.dimY, v.dimZ}, type, kSide == 2 ? 2 : 4, kSide, slabBytes,
+      [&](int bx, int by, int bz, Value* out) { v.decoder.decode(v.decoder.key(bx, by, bz), out); },
+      [&](Value x) { return v.decoder.scalar(x); });
 }
 
 // Decodes the bricks of row `bz` into `slab`: slices bz*kSide .. (those inside the volume), x
