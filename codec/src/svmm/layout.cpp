@@ -228,7 +228,7 @@ RangeGrid Layout::rangeGrid() const {
   // 0.9 s without).
   if (const int w = v.baseBlockSide(); w > 0)
     return blockRangeGrid<std::uint32_t>(
-        info_.dims, info_.type, kCell, w, 4u << 20,
+        info_.dims, info_.type, kCell, w, 16u << 20,
         [&](int bx, int by, int bz, std::uint32_t* out) { v.baseBlock(bx, by, bz, out); },
         [&](std::uint32_t x) { return v.scalar(x); });
   RangeGrid g(kCell, (info_.dims + kCell - 1) / kCell, info_.type);

@@ -19,6 +19,17 @@
 
 namespace voxwall::codec {
 
+// lo[i] = min(lo[i], v[i]), hi[i] = max(hi[i], v[i]): a NaN in v never gets in, as in the
+// per-cell loop this replaced (the compiler vectorizes both loops).
+inline void minMaxInto(const float* v, std::size_t n, float* lo, float* hi) {
+  for (std::size_t i = 0; i < n; ++i) lo[i] = std::min(lo[i], v[i]);
+  for (std::size_t i = 0; i < n; ++i) hi[i] = std::max(hi[i], v[i]);
+}
+inline void minMaxInto(const float* vlo, const float* vhi, std::size_t n, float* lo, float* hi) {
+  for (std::size_t i = 0; i < n; ++i) lo[i] = std::min(lo[i], vlo[i]);
+  for (std::size_t i = 0; i < n; ++i) hi[i] = std::max(hi[i], vhi[i]);
+}
+
 // Value ranges per cell of `cell` voxels, dilated by exactly one voxel as RangeGrid promises (a
 // looser range skips less: dilating by a whole brick made the brick codecs take a third more
 // samples than raw data on the same volume), held in `type` (the volume's), from the volume's
@@ -27,13 +38,15 @@ namespace voxwall::codec {
 // of `align` in z (the codec's bricks: one row of them at a time), and chunks in y start at
 // multiples of it where they can.
 //
-// Each task takes a chunk of rows in y (as many as its slices of at most `slabBytes` hold) and a
+// Each task takes a chunk of rows in y (at most as many as its slices of `slabBytes` hold) and a
 // segment of cell rows in z, which it walks upwards through a ring of align + 5 slices: a cell
 // row reads its 4 slices and the one either side, and a brick row is filled once, when the cell
 // row that first reaches it needs it. A brick is decoded once per task, and once more where the
 // chunks and segments meet (with a slab per cell row, each brick was decoded three times in z).
-// There are about four tasks a core. A worker takes its ring once and never zeroes it (every
-// slice is filled before it is read).
+// There are at least two tasks a core. A worker takes its ring once and never zeroes it (every
+// slice is filled before it is read). A cell's range is taken separably: the cell row's slices
+// into one, then its rows in y, then its voxels in x (a loop over each cell's 6^3 voxels was a
+// quarter of a small frame's job on vq, opening included).
 template <class Fill>
 RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
                         std::size_t slabBytes, Fill&& fill) {
@@ -46,18 +59,34 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
   const std::size_t ringRow = std::size_t(dims.x) * std::size_t(ring);  // floats a voxel row in y
   const int fits = int(std::clamp<std::size_t>(slabBytes / sizeof(float) / ringRow, 1,
                                                std::size_t(dims.y) + 2));  // voxel rows in y
-  const int chunkRows = std::min(cells.y, std::max(unit, (fits - 2) / cell / unit * unit));
-  const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
+  // Where chunks or segments meet, the brick row either side is decoded by both tasks: the split
+  // (chunks of whole units, enough that a chunk's slices fit) decodes the fewest voxel rows among
+  // those of at least two tasks a core. Split without counting that (chunks as large as a 4 MB
+  // ring held, about four tasks a core), zfp's bricks of 16 in the bench's 452x555x474 MRI were
+  // decoded 1.36 times each on 2 cores; so, 1.13 times.
   const int workers = resolveThreads(0);
-  const int wanted = std::max(1, (4 * workers + chunksY - 1) / chunksY);  // segments in z
-  const int segmentRows =
-      std::max(unit, ((cells.z + wanted - 1) / wanted + unit - 1) / unit * unit);  // cell rows
+  const int unitsY = (cells.y + unit - 1) / unit, unitsZ = (cells.z + unit - 1) / unit;
+  const int maxChunkUnits = std::max(1, (fits - 2) / cell / unit);
+  int chunkRows = 0, segmentRows = 0;
+  double best = std::numeric_limits<double>::infinity();
+  for (int cy = (unitsY + maxChunkUnits - 1) / maxChunkUnits; cy <= unitsY; ++cy) {
+    const int chunkUnits = (unitsY + cy - 1) / cy, chunks = (unitsY + chunkUnits - 1) / chunkUnits;
+    const int cz = std::clamp((2 * workers + chunks - 1) / chunks, 1, unitsZ);
+    const int segmentUnits = (unitsZ + cz - 1) / cz,
+              segs = (unitsZ + segmentUnits - 1) / segmentUnits;
+    const double cost =
+        (double(dims.y) + 2.0 * align * (chunks - 1)) * (double(dims.z) + 2.0 * align * (segs - 1));
+    if (cost < best) best = cost, chunkRows = chunkUnits * unit, segmentRows = segmentUnits * unit;
+    if (chunks * segs >= 2 * workers && cz == 1) break;  // more chunks only cut more
+  }
+  chunkRows = std::min(chunkRows, cells.y), segmentRows = std::min(segmentRows, cells.z);
+  const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
   const int segments = (cells.z + segmentRows - 1) / segmentRows;
   const std::size_t tasks = std::size_t(chunksY) * std::size_t(segments);
   std::atomic<std::size_t> nextTask{0};
   const int threads = std::min<int>(workers, int(tasks));
   parallelFor(std::size_t(threads), threads, [&](std::size_t) {
-    std::unique_ptr<float[]> slab;
+    std::unique_ptr<float[]> slab, reduced;
     std::size_t capacity = 0;
     for (std::size_t task; (task = nextTask.fetch_add(1, std::memory_order_relaxed)) < tasks;) {
       const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
@@ -67,8 +96,10 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
       // The ring's rows: the chunk's cells and one voxel either side, clamped.
       const int y0 = std::max(0, cy0 * cell - 1), y1 = std::min(dims.y - 1, cy1 * cell);
       const std::size_t sliceVoxels = std::size_t(dims.x) * std::size_t(y1 - y0 + 1);
-      if (sliceVoxels * std::size_t(ring) > capacity)
+      if (sliceVoxels * std::size_t(ring) > capacity) {
         capacity = sliceVoxels * std::size_t(ring), slab.reset(new float[capacity]);
+        reduced.reset(new float[2 * sliceVoxels + 2 * std::size_t(dims.x)]);
+      }
       const auto slice = [&](int z) { return slab.get() + std::size_t(z % ring) * sliceVoxels; };
       int filled = std::max(0, cz0 * cell - 1) - 1;  // the last slice filled
       for (int cz = cz0; cz < cz1; ++cz) {
@@ -78,18 +109,27 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
           fill(y0, y1, from, to, slice);
           filled = to;
         }
-        for (int cy = cy0; cy < cy1; ++cy)
+        // Separably: the cell row's slices into one (per voxel of the chunk), its rows of each
+        // cell row in y into one, then each cell's voxels in x.
+        const float inf = std::numeric_limits<float>::infinity();
+        float *zlo = reduced.get(), *zhi = zlo + sliceVoxels, *ylo = zhi + sliceVoxels,
+              *yhi = ylo + dims.x;
+        std::fill(zlo, zlo + sliceVoxels, inf), std::fill(zhi, zhi + sliceVoxels, -inf);
+        for (int z = za; z <= zb; ++z) minMaxInto(slice(z), sliceVoxels, zlo, zhi);
+        for (int cy = cy0; cy < cy1; ++cy) {
+          const int ya = std::max(0, cy * cell - 1), yb = std::min(dims.y - 1, cy * cell + cell);
+          std::fill(ylo, ylo + dims.x, inf), std::fill(yhi, yhi + dims.x, -inf);
+          for (int y = ya; y <= yb; ++y) {
+            const std::size_t at = std::size_t(y - y0) * std::size_t(dims.x);
+            minMaxInto(zlo + at, zhi + at, std::size_t(dims.x), ylo, yhi);
+          }
           for (int cx = 0; cx < cells.x; ++cx) {
             const int x0 = std::max(0, cx * cell - 1), x1 = std::min(dims.x - 1, cx * cell + cell);
-            const int ya = std::max(0, cy * cell - 1), yb = std::min(dims.y - 1, cy * cell + cell);
-            float l = std::numeric_limits<float>::infinity(), h = -l;
-            for (int z = za; z <= zb; ++z)
-              for (int y = ya; y <= yb; ++y) {
-                const float* row = slice(z) + std::size_t(y - y0) * std::size_t(dims.x);
-                for (int x = x0; x <= x1; ++x) l = std::min(l, row[x]), h = std::max(h, row[x]);
-              }
+            float l = inf, h = -inf;
+            for (int x = x0; x <= x1; ++x) l = std::min(l, ylo[x]), h = std::max(h, yhi[x]);
             g.set(g.cellIndex(cx, cy, cz), l, h);
           }
+        }
       }
     }
   });
@@ -127,7 +167,7 @@ RangeGrid blockRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int side,
 // bricks with cells of 16 took 2x raw's frame time on a 0.95 Gvox MRI, ksvd's 6^3 blocks with
 // cells of 8 1.36x (coarse cells skip less).
 template <kernels::BrickView View>
-RangeGrid brickRangeGrid(const View& v, ScalarType type, std::size_t slabBytes = 4u << 20) {
+RangeGrid brickRangeGrid(const View& v, ScalarType type, std::size_t slabBytes = 16u << 20) {
   using Value = typename View::Value;
   constexpr int kSide = View::kSide;
   return blockRangeGrid<Value>(
