@@ -7,6 +7,7 @@ view, same content, same run).
 
   bench/time_series_bench.py [--voxwall build/master/voxwall] [--steps 16] [--size 96]
                              [--codecs raw,vq,ksvd,tvq] [--ranks 2] [--vq-rates 0.25,0.5]
+                             [--render-size 960x540] [--rounds 1]
 
 Prints three tables. Stops with an error when voxwall's output cannot be parsed."""
 import argparse
@@ -77,7 +78,13 @@ def main():
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--vq-rates", default="0.25,0.5", help="empty: no vq rate table")
     ap.add_argument("--render-size", default="960x540")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="playback runs of every codec in turn (the VM is noisy)")
     a = ap.parse_args()
+    if "raw" not in a.codecs.split(","):
+        sys.exit("--codecs must include raw: every playback ratio is over raw's")
+    if a.rounds < 1:
+        sys.exit("--rounds must be at least 1")
     voxwall = os.path.abspath(a.voxwall)
     with tempfile.TemporaryDirectory() as tmp:
         series = os.path.join(tmp, "blobs.nii")
@@ -138,27 +145,37 @@ def main():
         frames = 2 * a.steps
         print(f"\n## Playback on {a.ranks} rank(s), {a.render_size}, camera still, each step "
               f"shown for two frames ({frames} frames): frames that open a new step against "
-              "frames that repeat the step before\n")
+              f"frames that repeat the step before; {a.rounds} round(s) of every codec in turn, "
+              "each ratio over raw's of the same round, median (lowest-highest)\n")
         print("| codec | new step: mean frame ms | same step: mean frame ms | ratio | new step / "
               "raw's new step | all frames / raw's |")
         print("| --- | ---: | ---: | ---: | ---: | ---: |")
-        raw_new = raw_all = None
         mpirun = ["mpirun", "--oversubscribe", "--bind-to", "none", "-np", str(a.ranks)]
         if os.geteuid() == 0:
             mpirun.insert(1, "--allow-run-as-root")
-        for codec in a.codecs.split(","):
-            vwz = files[(codec, "shared")]
-            out = run(mpirun + [voxwall, "render", vwz, "--size", a.render_size, "--path", "still",
-                                "--shading", "--exact", "--no-write", "--frames", str(frames), "--time",
-                                f"0:{a.steps - 1}"])
-            new, same = step_frames(out)
-            if codec == "raw":
-                raw_new, raw_all = new, new + same
-            over_raw = f"{new / raw_new:.2f}" if raw_new else "-"
-            all_over_raw = f"{(new + same) / raw_all:.2f}" if raw_all else "-"
-            print(f"| {codec} | {new:.1f} | {same:.1f} | {new / same:.2f} | {over_raw} | "
-                  f"{all_over_raw} |")
+        codecs = a.codecs.split(",")
+        runs = {c: [] for c in codecs}  # per round: (new, same)
+        for _ in range(a.rounds):
+            for codec in codecs:
+                out = run(mpirun + [voxwall, "render", files[(codec, "shared")], "--size",
+                                    a.render_size, "--path", "still", "--shading", "--exact",
+                                    "--no-write", "--frames", str(frames), "--time",
+                                    f"0:{a.steps - 1}"])
+                runs[codec].append(step_frames(out))
 
+        def spread(values, fmt):
+            v = sorted(values)
+            mid = v[len(v) // 2] if len(v) % 2 else (v[len(v) // 2 - 1] + v[len(v) // 2]) / 2
+            return fmt.format(mid) + (f" ({fmt.format(v[0])}-{fmt.format(v[-1])})"
+                                      if len(v) > 1 else "")
+
+        for codec in codecs:
+            r, raw = runs[codec], runs["raw"]
+            print(f"| {codec} | {spread([n for n, _ in r], '{:.1f}')} | "
+                  f"{spread([s for _, s in r], '{:.1f}')} | "
+                  f"{spread([n / s for n, s in r], '{:.2f}')} | "
+                  f"{spread([n / rn for (n, _), (rn, _) in zip(r, raw)], '{:.2f}')} | "
+                  f"{spread([(n + s) / (rn + rs) for (n, s), (rn, rs) in zip(r, raw)], '{:.2f}')} |")
 
 if __name__ == "__main__":
     main()

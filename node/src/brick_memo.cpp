@@ -46,6 +46,13 @@ bool BrickMemo::find(std::uint64_t key, void* out) {
   return true;
 }
 
+bool BrickMemo::holds(std::uint64_t key) {
+  if (!perShard_) return false;
+  Shard& s = shards_[std::size_t(shardOf(key))];
+  std::lock_guard lock(s.mutex);
+  return s.slotOf.contains(key);
+}
+
 void BrickMemo::keep(std::uint64_t key, const void* brick) {
   if (!perShard_) return;
   const int h = shardOf(key);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <random>
 #include <thread>
 #include <vector>
@@ -229,6 +230,60 @@ RenderVolume zfpCrop() {
 }
 
 }  // namespace
+
+// A thread that finds a page being decoded decodes its bricks into the memo from the other end
+// (PageCache::Reader::fill): it stops as soon as the page is there, and the page then decoded
+// through the memo takes every brick from it and equals the reference.
+TEST(PageDecode, AThreadWaitingForAPageOfBigBricksDecodesItsBricksFromTheOtherEnd) {
+  const RenderVolume volume = zfpCrop();
+  std::visit(
+      [&](const auto& view) {
+        using Level = std::remove_cvref_t<decltype(pages::pagedLevel(view))>;
+        if constexpr (pages::sharesBricks<Level>()) {
+          const Level& level = pages::pagedLevel(view);
+          const auto memoOfRoom = [] {
+            return pages::BrickMemo(
+                Level::kVoxels, 125 * pages::BrickMemo::kShards * std::uint64_t(Level::kVoxels));
+          };
+          // The page in the middle of 3^3: its apron reaches 4^3 bricks of 16^3.
+          pages::BrickMemo stopped = memoOfRoom();
+          int asked = 0;
+          pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, stopped,
+                                                     [&] { return ++asked > 5; });
+          EXPECT_EQ(stopped.counts().kept, 5u);  // the page was there after five bricks
+          pages::BrickMemo memo = memoOfRoom();
+          pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, memo,
+                                                     [] { return false; });
+          EXPECT_EQ(memo.counts().kept, 64u);
+          std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
+          pages::decodePage(level, 1, 1, 1, 0.0f, fast.data(), &memo);
+          pages::decodePageByVoxel(level, 1, 1, 1, 0.0f, slow.data());
+          EXPECT_EQ(fast, slow);
+          EXPECT_EQ(memo.counts().kept, 64u);  // nothing decoded again
+          EXPECT_EQ(memo.counts().found, 64u);
+          // Helping and decoding at once, on two threads, over every page: the same pages.
+          pages::BrickMemo shared = memoOfRoom();
+          for (int p = 0; p < 27; ++p) {
+            const int px = p % 3, py = p / 3 % 3, pz = p / 9;
+            std::atomic<bool> there{false};
+            std::thread helper([&] {
+              pages::helpDecodePage<Level, std::uint8_t>(level, px, py, pz, 0.0f, shared,
+                                                         [&] { return there.load(); });
+            });
+            pages::decodePage(level, px, py, pz, 0.0f, fast.data(), &shared);
+            there = true;
+            helper.join();
+            pages::decodePageByVoxel(level, px, py, pz, 0.0f, slow.data());
+            EXPECT_EQ(fast, slow) << "page " << px << "," << py << "," << pz;
+          }
+          EXPECT_EQ(shared.counts().replaced, 0u);
+          EXPECT_EQ(shared.counts().kept, 125u);  // each brick kept once
+        } else {
+          ADD_FAILURE() << "zfp's paged level has no big bricks";
+        }
+      },
+      volume.view());
+}
 
 // Pages of big bricks decoded through a memo, in any order and from several threads at once, hold
 // the values of the reference decode; with room for every brick each is decoded once (zfp's 16^3

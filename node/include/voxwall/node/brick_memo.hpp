@@ -47,6 +47,8 @@ class BrickMemo {
 
   // Copies brick `key`'s bytes into `out` and returns true where it is held.
   bool find(std::uint64_t key, void* out);
+  // Whether brick `key` is held now (find() may still miss it: another thread may replace it).
+  bool holds(std::uint64_t key);
   // Keeps `brick` (brickBytes) as brick `key`'s, replacing its shard's oldest where full.
   void keep(std::uint64_t key, const void* brick);
 

@@ -304,6 +304,10 @@ class PageCache {
 
   template <class Level>
   void decode(std::int32_t page, const Level& level, std::int32_t slot) const;
+  // While another thread decodes `page` (kFilling): decodes the bricks of it that the memo lacks
+  // (pages::helpDecodePage), where the level's pages share bricks; else nothing.
+  template <class Level>
+  void help(std::int32_t page, const Level& level) const;
   // Decodes `page` into `slot` (taken for it, its entry kFilling) and publishes it; returns its
   // pool offset.
   template <class Level>
@@ -370,6 +374,26 @@ void PageCache::decode(std::int32_t page, const Level& level, std::int32_t slot)
 }
 
 template <class Level>
+void PageCache::help(std::int32_t page, const Level& level) const {
+  if constexpr (pages::sharesBricks<Level>()) {
+    if (!memo_ || !memo_->usable()) return;
+    const int px = page % pagesX, py = (page / pagesX) % pagesY, pz = page / pagesX / pagesY;
+    const auto& entry = entry_[std::size_t(page)];
+    const auto done = [&] { return entry.load(std::memory_order_acquire) != kFilling; };
+    switch (format_) {
+      case PageFormat::UInt8:
+        return pages::helpDecodePage<Level, std::uint8_t>(level, px, py, pz, bias_, *memo_, done);
+      case PageFormat::UInt16:
+        return pages::helpDecodePage<Level, std::uint16_t>(level, px, py, pz, bias_, *memo_, done);
+      case PageFormat::Float32:
+        return pages::helpDecodePage<Level, float>(level, px, py, pz, bias_, *memo_, done);
+    }
+  } else {
+    (void)page, (void)level;
+  }
+}
+
+template <class Level>
 std::int32_t PageCache::Reader::fill(std::int32_t page, const Level& level, int lane) {
   PageCache& c = cache_;
   auto& entry = c.entry_[std::size_t(page)];
@@ -378,7 +402,11 @@ std::int32_t PageCache::Reader::fill(std::int32_t page, const Level& level, int 
     std::int32_t state = entry.load(std::memory_order_acquire);
     if (state >= 0) return state;
     if (state == kFilling) {  // another thread decodes it: it never waits on anything
-      if (!waiting) ++counts_.waited, waiting = true;
+      if (!waiting) {
+        ++counts_.waited, waiting = true;
+        c.help(page, level);  // its bricks from the other end, where they are big
+        continue;
+      }
       std::this_thread::yield();
       continue;
     }
@@ -420,7 +448,11 @@ std::int32_t PageCache::Reader::fillIfRoom(std::int32_t page, const Level& level
     std::int32_t state = entry.load(std::memory_order_acquire);
     if (state >= 0) return state;
     if (state == kFilling) {  // another thread decodes it into a slot it had free: wait
-      if (!waiting) ++counts_.waited, waiting = true;
+      if (!waiting) {
+        ++counts_.waited, waiting = true;
+        c.help(page, level);
+        continue;
+      }
       std::this_thread::yield();
       continue;
     }

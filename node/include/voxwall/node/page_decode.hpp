@@ -246,6 +246,33 @@ void decodePageByMemo(const View& view, int px, int py, int pz, float bias, Bric
       S, ax, ay, az, row, [](Stored v) { return v; }, out);
 }
 
+// What a thread does while another decodes page (px, py, pz) of a view of big bricks through
+// `memo` (decodePageByMemo), instead of only waiting for it: decodes the page's bricks that the
+// memo does not hold into it, last brick first, until `done()` (the page is there) or every
+// brick is held. The decoding thread goes first brick first and copies what it finds in the
+// memo, so the two meet about halfway; at most the brick where they meet is decoded twice.
+template <codec::kernels::BrickView View, class Stored, class Done>
+void helpDecodePage(const View& view, int px, int py, int pz, float bias, BrickMemo& memo,
+                    Done&& done) {
+  constexpr int S = View::kSide, kBrick = View::kVoxels;
+  const PageAxis ax(px, view.dimX, S), ay(py, view.dimY, S), az(pz, view.dimZ, S);
+  thread_local std::vector<typename View::Value> decoded;
+  thread_local std::vector<Stored> stored;
+  decoded.resize(kBrick), stored.resize(kBrick);
+  for (int bz = az.count - 1; bz >= 0; --bz)
+    for (int by = ay.count - 1; by >= 0; --by)
+      for (int bx = ax.count - 1; bx >= 0; --bx) {
+        if (done()) return;
+        const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
+        if (memo.holds(key)) continue;
+        view.decoder.decode(key, decoded.data());
+        for (int i = 0; i < kBrick; ++i)
+          stored[std::size_t(i)] =
+              store<Stored>(view.decoder.scalar(decoded[std::size_t(i)]), bias);
+        memo.keep(key, stored.data());
+      }
+}
+
 // Page (px, py, pz) of a view that reads its base blocks whole (svmm: baseBlockSide() > 0).
 template <class View, class Stored>
 void decodePageByBaseBlock(const View& view, int px, int py, int pz, float bias, Stored* out) {
