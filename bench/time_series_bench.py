@@ -50,16 +50,18 @@ def steps_of(voxwall, vwz):
 
 
 def step_frames(out):
-    """(mean ms of the frames that show a new step, mean ms of those that repeat the step before),
-    the job's first frame left out (it opens the file and warms up)."""
+    """(mean ms of the frames that show a new step, mean ms of those that repeat the step before,
+    the job's first frame left out (it opens the file and warms up); the samples of every frame:
+    a lossy codec's ringing can make the rays take more than raw data's)."""
     new, repeat, before = [], [], None
     for f, step, ms in re.findall(r"^frame (\d+)/\d+, time step (\d+): ([\d.]+) ms", out, re.M):
         if int(f) > 1:
             (new if step != before else repeat).append(float(ms))
         before = step
-    if not new or not repeat:
+    samples = [int(n) for n in re.findall(r"^  (\d+) samples, ", out, re.M)]
+    if not new or not repeat or len(samples) != len(new) + len(repeat) + 1:
         sys.exit("cannot parse the render's frame lines:\n" + out)
-    return sum(new) / len(new), sum(repeat) / len(repeat)
+    return sum(new) / len(new), sum(repeat) / len(repeat), sum(samples)
 
 
 def coded(voxwall, series, vwz, args, voxels):
@@ -148,8 +150,8 @@ def main():
               f"frames that repeat the step before; {a.rounds} round(s) of every codec in turn, "
               "each ratio over raw's of the same round, median (lowest-highest)\n")
         print("| codec | new step: mean frame ms | same step: mean frame ms | ratio | new step / "
-              "raw's new step | all frames / raw's |")
-        print("| --- | ---: | ---: | ---: | ---: | ---: |")
+              "raw's new step | all frames / raw's | samples / raw's |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
         mpirun = ["mpirun", "--oversubscribe", "--bind-to", "none", "-np", str(a.ranks)]
         if os.geteuid() == 0:
             mpirun.insert(1, "--allow-run-as-root")
@@ -159,7 +161,7 @@ def main():
             for codec in codecs:
                 out = run(mpirun + [voxwall, "render", files[(codec, "shared")], "--size",
                                     a.render_size, "--path", "still", "--shading", "--exact",
-                                    "--no-write", "--frames", str(frames), "--time",
+                                    "--no-write", "-v", "--frames", str(frames), "--time",
                                     f"0:{a.steps - 1}"])
                 runs[codec].append(step_frames(out))
 
@@ -171,11 +173,12 @@ def main():
 
         for codec in codecs:
             r, raw = runs[codec], runs["raw"]
-            print(f"| {codec} | {spread([n for n, _ in r], '{:.1f}')} | "
-                  f"{spread([s for _, s in r], '{:.1f}')} | "
-                  f"{spread([n / s for n, s in r], '{:.2f}')} | "
-                  f"{spread([n / rn for (n, _), (rn, _) in zip(r, raw)], '{:.2f}')} | "
-                  f"{spread([(n + s) / (rn + rs) for (n, s), (rn, rs) in zip(r, raw)], '{:.2f}')} |")
+            print(f"| {codec} | {spread([n for n, _, _ in r], '{:.1f}')} | "
+                  f"{spread([s for _, s, _ in r], '{:.1f}')} | "
+                  f"{spread([n / s for n, s, _ in r], '{:.2f}')} | "
+                  f"{spread([n / rn for (n, _, _), (rn, _, _) in zip(r, raw)], '{:.2f}')} | "
+                  f"{spread([(n + s) / (rn + rs) for (n, s, _), (rn, rs, _) in zip(r, raw)], '{:.2f}')} | "
+                  f"{r[0][2] / raw[0][2]:.2f} |")
 
 if __name__ == "__main__":
     main()

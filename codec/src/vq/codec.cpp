@@ -566,36 +566,42 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const auto* base = reinterpret_cast<const std::uint8_t*>(data_.data());
   const auto* book = reinterpret_cast<const std::uint8_t*>(book_.data());
 
-  // Walk the codebook: every codeword well-formed, the count right. A codeword has its minimum
-  // and maximum at least, which bounds the count before anything is reserved for it.
-  std::vector<std::uint64_t> starts;
+  // Walk the codebook: every codeword well-formed, the count right, the index table (indirect)
+  // naming each one's start. A codeword has its minimum and maximum at least, which bounds the
+  // count. The starts are marked in a bitmap of the codebook's bytes, so that checking an offset
+  // entry (direct) is one bit (a binary search in a list of the starts, for every brick of the
+  // 452x555x474 MRI, was a tenth of a job of one small frame).
+  std::vector<std::uint64_t> startBits;
   if (compressed) {
     const std::uint64_t fewestBytes = std::uint64_t(2 * bits_ + 7) / 8;
     if (codewords_ > codebookBytes_ / fewestBytes)
       dfail("more codewords than the codebook's " + std::to_string(codebookBytes_) +
             " bytes can hold (the header says " + std::to_string(codewords_) + ")");
-    starts.reserve(codewords_);
-    std::uint64_t pos = 0;
+    if (!indirect) startBits.assign((codebookBytes_ + 63) / 64, 0);
+    std::uint64_t pos = 0, count = 0;
     while (pos < codebookBytes_) {
-      if (starts.size() == codewords_)
+      if (count == codewords_)
         dfail("more codewords than the header's " + std::to_string(codewords_));
-      starts.push_back(pos);
+      if (indirect) {
+        if (kernels::readBits(book + indexTableAt_, count * std::uint64_t(addressBits_),
+                              addressBits_) != pos)
+          dfail("index table entry " + std::to_string(count) + " is not codeword " +
+                std::to_string(count));
+      } else {
+        startBits[pos / 64] |= std::uint64_t(1) << (pos % 64);
+      }
+      ++count;
       pos += codewordLength(book + codebookAt_ + pos, codebookBytes_ - pos, bits_, src);
     }
-    if (starts.size() != codewords_)
-      dfail(std::to_string(starts.size()) + " codewords, the header says " +
-            std::to_string(codewords_));
-    if (indirect)
-      for (std::uint64_t i = 0; i < codewords_; ++i)
-        if (kernels::readBits(book + indexTableAt_, i * std::uint64_t(addressBits_),
-                              addressBits_) != starts[i])
-          dfail("index table entry " + std::to_string(i) + " is not codeword " + std::to_string(i));
+    if (count != codewords_)
+      dfail(std::to_string(count) + " codewords, the header says " + std::to_string(codewords_));
   }
   // Every offset-volume entry names a codeword.
   const bool direct = compressed && !indirect;
   for (std::uint64_t i = 0; i < n; ++i) {
     const std::uint64_t e = kernels::readBits(base, i * std::uint64_t(offsetBits_), offsetBits_);
-    const bool ok = direct ? std::binary_search(starts.begin(), starts.end(), e) : e < codewords_;
+    const bool ok = direct ? e < codebookBytes_ && (startBits[e / 64] >> (e % 64) & 1)
+                           : e < codewords_;
     if (!ok) dfail("offset volume entry " + std::to_string(i) + " names no codeword");
   }
 }
