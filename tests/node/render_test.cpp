@@ -210,23 +210,30 @@ TEST(Render, AReusedPlanRendersLikeAFreshOne) {
 }
 
 // An open volume keeps its value ranges packed, and the fine skip grid made from them on every
-// core, chunk by chunk, is the one the codec's unpacked ranges give cell by cell.
+// core, chunk by chunk, is the one the codec's unpacked ranges give cell by cell: for uint8 data,
+// whose cells read a table of every (low, high) pair's answer, and for uint16, asked per cell.
 TEST(Render, PackedRangesGiveTheFineSkipGridOfTheUnpackedOnes) {
-  const auto volume = RenderVolume::fromVolume(codec::generateSheppLogan(180));
-  ASSERT_TRUE(volume.ranges().packed());
-  const codec::RangeGrid unpacked = volume.payload().rangeGrid();
-  ASSERT_GT(unpacked.cellCount(), codec::RangeGrid::kChunkCells);  // more than one chunk
-  EXPECT_LT(volume.ranges().bytes(), unpacked.bytes());
-  const auto tf = TransferFunction::preset("mri").rescaled(0, 255);
-  const auto plan = planFrame(volume, orbitCamera(Orbit{}, boundingRadius(volume.info())), 48, 32,
-                              tf, RenderSettings{});
-  ASSERT_TRUE(plan.fineEmptyBits);
-  std::vector<std::uint32_t> want((unpacked.cellCount() + 31) / 32, 0u);
-  unpacked.forEach([&](std::size_t c, float lo, float hi) {
-    if (plan.lut.maxOpacity(lo, hi) <= 0.0f) want[c >> 5] |= 1u << (c & 31);
-  });
-  EXPECT_EQ(*plan.fineEmptyBits, want);
-  EXPECT_GT(plan.fineEmptyFraction, 0.0);
+  for (const codec::ScalarType type : {codec::ScalarType::UInt8, codec::ScalarType::UInt16}) {
+    SCOPED_TRACE(std::string(codec::scalarName(type)));
+    const auto volume = RenderVolume::fromVolume(codec::generateSheppLogan(180, type));
+    ASSERT_TRUE(volume.ranges().packed());
+    const codec::RangeGrid unpacked = volume.payload().rangeGrid();
+    ASSERT_EQ(unpacked.type(), type);
+    ASSERT_GT(unpacked.cellCount(), codec::RangeGrid::kChunkCells);  // more than one chunk
+    EXPECT_LT(volume.ranges().bytes(), unpacked.bytes());
+    const auto tf =
+        TransferFunction::preset("mri").rescaled(volume.info().valueMin, volume.info().valueMax);
+    const auto plan = planFrame(volume, orbitCamera(Orbit{}, boundingRadius(volume.info())), 48, 32,
+                                tf, RenderSettings{});
+    ASSERT_TRUE(plan.fineEmptyBits);
+    std::vector<std::uint32_t> want((unpacked.cellCount() + 31) / 32, 0u);
+    unpacked.forEach([&](std::size_t c, float a, float b) {
+      if (plan.lut.maxOpacity(a, b) <= 0.0f) want[c >> 5] |= 1u << (c & 31);
+    });
+    EXPECT_EQ(*plan.fineEmptyBits, want);
+    EXPECT_GT(plan.fineEmptyFraction, 0.0);
+    EXPECT_LT(plan.fineEmptyFraction, 1.0);
+  }
 }
 
 // What a CUDA backend samples with DeviceDecode::Whole: every codec's volume decoded by its codec
