@@ -37,7 +37,7 @@ echo "== Page decode per codec on one core, and frames that meet new pages (firs
 /usr/bin/python3 bench/pages_ahead_bench.py --voxwall "$build/master/voxwall" --scale 1.5
 echo "== Time series: playback of new steps against raw's"
 /usr/bin/python3 bench/time_series_bench.py --voxwall "$build/master/voxwall" --size 160 --steps 8 \
-  --vq-rates "" --render-size 1920x1080 --codecs raw,vq,svmm,ksvd,tvq,zfp
+  --vq-rates "" --render-size 1920x1080 --codecs raw,vq,svmm,ksvd,tvq,zfp --rounds 3
 if nvidia-smi -L > /dev/null 2>&1 && [ -x "$build/bench/voxwall_bench_cuda" ]; then
   echo "== CUDA against the CPU on the MRI template, raw and each codec's default file"
   work=$(mktemp -d)

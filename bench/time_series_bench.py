@@ -3,7 +3,9 @@
 (the default) against every step coded on its own (--steps-alone); vq reduced with one codebook
 against a codebook a step at equal PSNR; and playback: in one `render --time` run that shows each
 step for two frames, the frames that open a new step against the frames that repeat one (same
-view, same content, same run).
+view, same content, same run), with --rounds runs of every codec in turn (each ratio over raw's of
+the same round: median and range) and the samples the rays took over raw's (a lossy file's
+ringing can make them more).
 
   bench/time_series_bench.py [--voxwall build/master/voxwall] [--steps 16] [--size 96]
                              [--codecs raw,vq,ksvd,tvq] [--ranks 2] [--vq-rates 0.25,0.5]
