@@ -600,8 +600,8 @@ Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info)
   const bool direct = compressed && !indirect;
   for (std::uint64_t i = 0; i < n; ++i) {
     const std::uint64_t e = kernels::readBits(base, i * std::uint64_t(offsetBits_), offsetBits_);
-    const bool ok = direct ? e < codebookBytes_ && (startBits[e / 64] >> (e % 64) & 1)
-                           : e < codewords_;
+    const bool ok =
+        direct ? e < codebookBytes_ && (startBits[e / 64] >> (e % 64) & 1) : e < codewords_;
     if (!ok) dfail("offset volume entry " + std::to_string(i) + " names no codeword");
   }
 }
