@@ -229,60 +229,67 @@ RenderVolume zfpCrop() {
   return RenderVolume::fromCompressed(codec::codecNamed("zfp").encode(crop, {}, quiet, report));
 }
 
+// f(level) with the paged level of zfpCrop()'s view (5^3 bricks of 16^3, 3^3 pages), whose pages
+// share bricks.
+template <class F>
+void withZfpPagedLevel(F&& f) {
+  const RenderVolume volume = zfpCrop();
+  std::visit(
+      [&](const auto& view) {
+        using Level = std::remove_cvref_t<decltype(pages::pagedLevel(view))>;
+        if constexpr (pages::sharesBricks<Level>())
+          f(pages::pagedLevel(view));
+        else
+          ADD_FAILURE() << "zfp's paged level has no big bricks";
+      },
+      volume.view());
+}
+
 }  // namespace
 
 // A thread that finds a page being decoded decodes its bricks into the memo from the other end
 // (PageCache::Reader::fill): it stops as soon as the page is there, and the page then decoded
 // through the memo takes every brick from it and equals the reference.
 TEST(PageDecode, AThreadWaitingForAPageOfBigBricksDecodesItsBricksFromTheOtherEnd) {
-  const RenderVolume volume = zfpCrop();
-  std::visit(
-      [&](const auto& view) {
-        using Level = std::remove_cvref_t<decltype(pages::pagedLevel(view))>;
-        if constexpr (pages::sharesBricks<Level>()) {
-          const Level& level = pages::pagedLevel(view);
-          const auto memoOfRoom = [] {
-            return pages::BrickMemo(
-                Level::kVoxels, 125 * pages::BrickMemo::kShards * std::uint64_t(Level::kVoxels));
-          };
-          // The page in the middle of 3^3: its apron reaches 4^3 bricks of 16^3.
-          pages::BrickMemo stopped = memoOfRoom();
-          int asked = 0;
-          pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, stopped,
-                                                     [&] { return ++asked > 5; });
-          EXPECT_EQ(stopped.counts().kept, 5u);  // the page was there after five bricks
-          pages::BrickMemo memo = memoOfRoom();
-          pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, memo,
-                                                     [] { return false; });
-          EXPECT_EQ(memo.counts().kept, 64u);
-          std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
-          pages::decodePage(level, 1, 1, 1, 0.0f, fast.data(), &memo);
-          pages::decodePageByVoxel(level, 1, 1, 1, 0.0f, slow.data());
-          EXPECT_EQ(fast, slow);
-          EXPECT_EQ(memo.counts().kept, 64u);  // nothing decoded again
-          EXPECT_EQ(memo.counts().found, 64u);
-          // Helping and decoding at once, on two threads, over every page: the same pages.
-          pages::BrickMemo shared = memoOfRoom();
-          for (int p = 0; p < 27; ++p) {
-            const int px = p % 3, py = p / 3 % 3, pz = p / 9;
-            std::atomic<bool> there{false};
-            std::thread helper([&] {
-              pages::helpDecodePage<Level, std::uint8_t>(level, px, py, pz, 0.0f, shared,
-                                                         [&] { return there.load(); });
-            });
-            pages::decodePage(level, px, py, pz, 0.0f, fast.data(), &shared);
-            there = true;
-            helper.join();
-            pages::decodePageByVoxel(level, px, py, pz, 0.0f, slow.data());
-            EXPECT_EQ(fast, slow) << "page " << px << "," << py << "," << pz;
-          }
-          EXPECT_EQ(shared.counts().replaced, 0u);
-          EXPECT_EQ(shared.counts().kept, 125u);  // each brick kept once
-        } else {
-          ADD_FAILURE() << "zfp's paged level has no big bricks";
-        }
-      },
-      volume.view());
+  withZfpPagedLevel([&](const auto& level) {
+    using Level = std::remove_cvref_t<decltype(level)>;
+    const auto memoOfRoom = [] {
+      return pages::BrickMemo(Level::kVoxels,
+                              125 * pages::BrickMemo::kShards * std::uint64_t(Level::kVoxels));
+    };
+    // The page in the middle of 3^3: its apron reaches 4^3 bricks of 16^3.
+    pages::BrickMemo stopped = memoOfRoom();
+    int asked = 0;
+    pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, stopped,
+                                               [&] { return ++asked > 5; });
+    EXPECT_EQ(stopped.counts().kept, 5u);  // the page was there after five bricks
+    pages::BrickMemo memo = memoOfRoom();
+    pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, memo, [] { return false; });
+    EXPECT_EQ(memo.counts().kept, 64u);
+    std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
+    pages::decodePage(level, 1, 1, 1, 0.0f, fast.data(), &memo);
+    pages::decodePageByVoxel(level, 1, 1, 1, 0.0f, slow.data());
+    EXPECT_EQ(fast, slow);
+    EXPECT_EQ(memo.counts().kept, 64u);  // nothing decoded again
+    EXPECT_EQ(memo.counts().found, 64u);
+    // Helping and decoding at once, on two threads, over every page: the same pages.
+    pages::BrickMemo shared = memoOfRoom();
+    for (int p = 0; p < 27; ++p) {
+      const int px = p % 3, py = p / 3 % 3, pz = p / 9;
+      std::atomic<bool> there{false};
+      std::thread helper([&] {
+        pages::helpDecodePage<Level, std::uint8_t>(level, px, py, pz, 0.0f, shared,
+                                                   [&] { return there.load(); });
+      });
+      pages::decodePage(level, px, py, pz, 0.0f, fast.data(), &shared);
+      there = true;
+      helper.join();
+      pages::decodePageByVoxel(level, px, py, pz, 0.0f, slow.data());
+      EXPECT_EQ(fast, slow) << "page " << px << "," << py << "," << pz;
+    }
+    EXPECT_EQ(shared.counts().replaced, 0u);
+    EXPECT_EQ(shared.counts().kept, 125u);  // each brick kept once
+  });
 }
 
 // Pages of big bricks decoded through a memo, in any order and from several threads at once, hold
@@ -290,46 +297,37 @@ TEST(PageDecode, AThreadWaitingForAPageOfBigBricksDecodesItsBricksFromTheOtherEn
 // bricks: 64 under each page, 2^3 of them its own), and with room for one brick a shard, pages
 // still decode alike while bricks are replaced.
 TEST(PageDecode, PagesOfBigBricksDecodeEachBrickOnceThroughTheMemo) {
-  const RenderVolume volume = zfpCrop();
-  std::visit(
-      [&](const auto& view) {
-        using Level = std::remove_cvref_t<decltype(pages::pagedLevel(view))>;
-        if constexpr (pages::sharesBricks<Level>()) {
-          const Level& level = pages::pagedLevel(view);
-          const std::uint64_t bricks = 5 * 5 * 5;  // of 16^3
-          std::vector<int> order(27);
-          for (int i = 0; i < 27; ++i) order[std::size_t(i)] = i;
-          std::shuffle(order.begin(), order.end(), std::mt19937(5));
-          for (const std::uint64_t room : {bricks, std::uint64_t(1)}) {
-            // `room` a shard: with `bricks`, room for every brick however they fall in shards.
-            pages::BrickMemo memo(Level::kVoxels,
-                                  room * pages::BrickMemo::kShards * Level::kVoxels);
-            ASSERT_TRUE(memo.usable());
-            const auto work = [&](int first) {
-              std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
-              for (int i = first; i < 27; i += 3) {
-                const int p = order[std::size_t(i)], px = p % 3, py = p / 3 % 3, pz = p / 9;
-                pages::decodePage(level, px, py, pz, 0.0f, fast.data(), &memo);
-                pages::decodePageByVoxel(level, px, py, pz, 0.0f, slow.data());
-                EXPECT_EQ(fast, slow) << "page " << px << "," << py << "," << pz;
-              }
-            };
-            std::thread a(work, 0), b(work, 1);
-            work(2);
-            a.join(), b.join();
-            const auto c = memo.counts();
-            EXPECT_GT(c.found, 0u);
-            if (room == bricks) {
-              // Two threads may decode a brick at once; the memo keeps it once.
-              EXPECT_EQ(c.kept, bricks);
-              EXPECT_EQ(c.replaced, 0u);
-            } else {
-              EXPECT_GT(c.replaced, 0u);
-            }
-          }
-        } else {
-          ADD_FAILURE() << "zfp's paged level has no big bricks";
+  withZfpPagedLevel([&](const auto& level) {
+    using Level = std::remove_cvref_t<decltype(level)>;
+    const std::uint64_t bricks = 5 * 5 * 5;  // of 16^3
+    std::vector<int> order(27);
+    for (int i = 0; i < 27; ++i) order[std::size_t(i)] = i;
+    std::shuffle(order.begin(), order.end(), std::mt19937(5));
+    for (const std::uint64_t room : {bricks, std::uint64_t(1)}) {
+      // `room` a shard: with `bricks`, room for every brick however they fall in shards.
+      pages::BrickMemo memo(Level::kVoxels, room * pages::BrickMemo::kShards * Level::kVoxels);
+      ASSERT_TRUE(memo.usable());
+      const auto work = [&](int first) {
+        std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
+        for (int i = first; i < 27; i += 3) {
+          const int p = order[std::size_t(i)], px = p % 3, py = p / 3 % 3, pz = p / 9;
+          pages::decodePage(level, px, py, pz, 0.0f, fast.data(), &memo);
+          pages::decodePageByVoxel(level, px, py, pz, 0.0f, slow.data());
+          EXPECT_EQ(fast, slow) << "page " << px << "," << py << "," << pz;
         }
-      },
-      volume.view());
+      };
+      std::thread a(work, 0), b(work, 1);
+      work(2);
+      a.join(), b.join();
+      const auto c = memo.counts();
+      EXPECT_GT(c.found, 0u);
+      if (room == bricks) {
+        // Two threads may decode a brick at once; the memo keeps it once.
+        EXPECT_EQ(c.kept, bricks);
+        EXPECT_EQ(c.replaced, 0u);
+      } else {
+        EXPECT_GT(c.replaced, 0u);
+      }
+    }
+  });
 }
