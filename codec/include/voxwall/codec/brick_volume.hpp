@@ -61,9 +61,10 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
                                                std::size_t(dims.y) + 2));  // voxel rows in y
   // Where chunks or segments meet, the brick row either side is decoded by both tasks: the split
   // (chunks of whole units, enough that a chunk's slices fit) decodes the fewest voxel rows among
-  // those of at least two tasks a core. Split without counting that (chunks as large as a 4 MB
-  // ring held, about four tasks a core), zfp's bricks of 16 in the bench's 452x555x474 MRI were
-  // decoded 1.36 times each on 2 cores; so, 1.13 times.
+  // those of at least two tasks a core (fewer where the volume has too few units). On 2 cores,
+  // zfp's bricks of 16 in the bench's 452x555x474 MRI are decoded 1.13 times each; they were
+  // decoded 1.36 times when chunks were as large as a 4 MB ring held, about four tasks a core. A
+  // ring never holds more than its chunk's rows: with many cores, chunks are small.
   const int workers = resolveThreads(0);
   const int unitsY = (cells.y + unit - 1) / unit, unitsZ = (cells.z + unit - 1) / unit;
   const int maxChunkUnits = std::max(1, (fits - 2) / cell / unit);
