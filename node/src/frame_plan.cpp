@@ -93,11 +93,12 @@ FramePlan planFrame(const RenderVolume& volume, const Camera& camera, int screen
     // Chunk by chunk on every core (the ranges are packed: each task inflates its own chunk); a
     // chunk is whole 32-bit words of bits, so no two tasks write one word.
     static_assert(codec::RangeGrid::kChunkCells % 32 == 0);
-    // uint8 ranges take 256 x 256 values: whether each pair is empty is asked once, and a cell
-    // reads its pair's answer (the query per cell, about 50 ns, was 7% of a one-small-frame job
-    // on a 119 Mvox uint8 MRI, and most of a plan made anew when the transfer function changes).
+    // uint8 ranges take 256 x 256 values: where cells outnumber them, whether each pair is empty
+    // is asked once, and a cell reads its pair's answer (the query per cell, about 50 ns, was 7% of
+    // a one-small-frame job on a 119 Mvox uint8 MRI, and most of a plan made anew when the transfer
+    // function changes).
     std::vector<std::uint8_t> emptyPair;
-    if (ranges.type() == codec::ScalarType::UInt8) {
+    if (ranges.type() == codec::ScalarType::UInt8 && fineCount > 256 * 256) {
       emptyPair.resize(256 * 256);
       parallelFor(256, 0, [&](std::size_t lo) {
         for (std::size_t hi = 0; hi < 256; ++hi)

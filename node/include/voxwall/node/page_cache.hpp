@@ -302,6 +302,9 @@ class PageCache {
       return 0;
   }
 
+  // f(Stored{}) with the C++ type a page stores its voxels in (format_).
+  template <class F>
+  void withStored(F&& f) const;
   template <class Level>
   void decode(std::int32_t page, const Level& level, std::int32_t slot) const;
   // While another thread decodes `page` (kFilling): decodes the bricks of it that the memo lacks
@@ -355,22 +358,25 @@ class PageCache {
   bool evicting_ = true;
 };
 
+template <class F>
+void PageCache::withStored(F&& f) const {
+  switch (format_) {
+    case PageFormat::UInt8:
+      return f(std::uint8_t{});
+    case PageFormat::UInt16:
+      return f(std::uint16_t{});
+    case PageFormat::Float32:
+      return f(float{});
+  }
+}
+
 template <class Level>
 void PageCache::decode(std::int32_t page, const Level& level, std::int32_t slot) const {
   const int px = page % pagesX, py = (page / pagesX) % pagesY, pz = page / pagesX / pagesY;
   std::byte* at = pool_.get() + std::size_t(slot) * pageBytes();
-  switch (format_) {
-    case PageFormat::UInt8:
-      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint8_t*>(at), memo_.get());
-      break;
-    case PageFormat::UInt16:
-      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<std::uint16_t*>(at),
-                        memo_.get());
-      break;
-    case PageFormat::Float32:
-      pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<float*>(at), memo_.get());
-      break;
-  }
+  withStored([&]<class Stored>(Stored) {
+    pages::decodePage(level, px, py, pz, bias_, reinterpret_cast<Stored*>(at), memo_.get());
+  });
 }
 
 template <class Level>
@@ -380,14 +386,9 @@ void PageCache::help(std::int32_t page, const Level& level) const {
     const int px = page % pagesX, py = (page / pagesX) % pagesY, pz = page / pagesX / pagesY;
     const auto& entry = entry_[std::size_t(page)];
     const auto done = [&] { return entry.load(std::memory_order_acquire) != kFilling; };
-    switch (format_) {
-      case PageFormat::UInt8:
-        return pages::helpDecodePage<Level, std::uint8_t>(level, px, py, pz, bias_, *memo_, done);
-      case PageFormat::UInt16:
-        return pages::helpDecodePage<Level, std::uint16_t>(level, px, py, pz, bias_, *memo_, done);
-      case PageFormat::Float32:
-        return pages::helpDecodePage<Level, float>(level, px, py, pz, bias_, *memo_, done);
-    }
+    withStored([&]<class Stored>(Stored) {
+      pages::helpDecodePage<Level, Stored>(level, px, py, pz, bias_, *memo_, done);
+    });
   } else {
     (void)page, (void)level;
   }

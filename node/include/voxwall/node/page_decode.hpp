@@ -216,6 +216,16 @@ constexpr bool sharesBricks() {
     return false;
 }
 
+// Brick `key` decoded (into `decoded`), stored as a page stores it (into `out`) and kept in `memo`.
+template <codec::kernels::BrickView View, class Stored>
+void decodeBrickIntoMemo(const View& view, std::uint64_t key, float bias, BrickMemo& memo,
+                         typename View::Value* decoded, Stored* out) {
+  view.decoder.decode(key, decoded);
+  for (int i = 0; i < View::kVoxels; ++i)
+    out[i] = store<Stored>(view.decoder.scalar(decoded[i]), bias);
+  memo.keep(key, out);
+}
+
 // Page (px, py, pz) of a brick view of big bricks, each brick taken from `memo` where another
 // page kept it, else decoded, stored as the page stores it and kept. Equals decodePageByVoxel.
 template <codec::kernels::BrickView View, class Stored>
@@ -234,10 +244,7 @@ void decodePageByMemo(const View& view, int px, int py, int pz, float bias, Bric
         if (key == last) {
           std::copy(lastBrick, lastBrick + kBrick, at);
         } else if (!memo.find(key, at)) {
-          view.decoder.decode(key, decoded.data());
-          for (int i = 0; i < kBrick; ++i)
-            at[i] = store<Stored>(view.decoder.scalar(decoded[std::size_t(i)]), bias);
-          memo.keep(key, at);
+          decodeBrickIntoMemo(view, key, bias, memo, decoded.data(), at);
         }
         last = key, lastBrick = at;
       }
@@ -264,12 +271,8 @@ void helpDecodePage(const View& view, int px, int py, int pz, float bias, BrickM
       for (int bx = ax.count - 1; bx >= 0; --bx) {
         if (done()) return;
         const std::uint64_t key = view.decoder.key(ax.first + bx, ay.first + by, az.first + bz);
-        if (memo.holds(key)) continue;
-        view.decoder.decode(key, decoded.data());
-        for (int i = 0; i < kBrick; ++i)
-          stored[std::size_t(i)] =
-              store<Stored>(view.decoder.scalar(decoded[std::size_t(i)]), bias);
-        memo.keep(key, stored.data());
+        if (!memo.holds(key))
+          decodeBrickIntoMemo(view, key, bias, memo, decoded.data(), stored.data());
       }
 }
 
