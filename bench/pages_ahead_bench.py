@@ -8,8 +8,10 @@ This bench renders, for every codec and raw, from the same volume in the same ru
   sees the volume from another side), and an orbit of 5 degrees a frame (--frames 6: few pages
   are new), one rank with every core;
 - the first frame and the 90-degree orbit on --ranks ranks of one thread each (mpirun, strip
-  cut, --balance static), with each rank's private memory (decoded pages, frame buffers, the heap)
-  apart from its mapped files (the .vwz, which the ranks on one host share).
+  cut, --balance static), with each rank's own memory: its private memory (decoded pages, frame
+  buffers, the heap) plus its share of the memory the ranks on its host share (tables a codec
+  makes once for all of them: tvq's associated codebooks; the MPI library's buffers), apart from
+  its mapped files (the .vwz, which the ranks on one host share).
 
 Every render is `render --exact --shading --no-write -v` at --size from camera 30,20,2.2; a frame's
 time is the whole frame's (`frame N/M: X ms`), and every codec's is given over raw's same frame.
@@ -48,13 +50,14 @@ PAGES = re.compile(r"decoded pages: [0-9.]+% hits \(\d+ of \d+ samples\), (\d+) 
                    r"evicted, .*?, (\d+) samples waited for a page another thread decoded; "
                    r"(\d+) pages decoded ahead of the rays$", re.M)
 SIZE = r"([0-9.]+ [KMGT]?i?B|\d+ B)"
-MEMORY = re.compile(r"^rank (\d+) on \S+: resident %s, peak %s; private %s, mapped files %s "
-                    r"\(shared by the ranks on one host\)$" % (SIZE, SIZE, SIZE, SIZE), re.M)
+MEMORY = re.compile(r"^rank (\d+) on \S+: resident %s, peak %s; private %s, shared %s \(its share\), "
+                    r"mapped files %s \(shared by the ranks on one host\)$"
+                    % (SIZE, SIZE, SIZE, SIZE, SIZE), re.M)
 
 
 def render(args, path, frames, degrees, ranks=0, voxwall=None):
     """One job: ([frame ms], [(pages decoded on the rays, ahead) per frame], [waited per frame],
-    {rank: (private bytes, mapped bytes)}, the job's wall-clock seconds). ranks 0: one process
+    {rank: (private bytes, share of host-shared bytes, mapped bytes)}, the job's wall-clock seconds). ranks 0: one process
     with every core. With another `voxwall` (--compare): the frame times and the wall clock
     only."""
     cmd = [voxwall or args.voxwall, "render", path, "--size", args.size, "--frames", str(frames),
@@ -84,7 +87,8 @@ def render(args, path, frames, degrees, ranks=0, voxwall=None):
             sys.exit("no page line for frame %d of %s:\n%s" % (k + 1, " ".join(cmd), block))
         decoded.append((sum(int(d) for d, _, _ in lines), sum(int(a) for _, _, a in lines)))
         waited.append(sum(int(w) for _, w, _ in lines))
-    memory = {int(m.group(1)): (size_bytes(m.group(4)), size_bytes(m.group(5)))
+    memory = {int(m.group(1)): (size_bytes(m.group(4)), size_bytes(m.group(5)),
+                                size_bytes(m.group(6)))
               for m in MEMORY.finditer(out)}
     if len(memory) != max(ranks, 1):
         sys.exit("cannot find %d ranks' memory in the output of %s:\n%s"
@@ -139,9 +143,9 @@ def main():
               "to the end of its first frame, over raw's\n")
         print("| codec | first picture%s | first frame%s | 90 deg frames 2-4%s | 5 deg frames "
               "2-6%s | pages decoded on the rays / ahead (90 deg, frames 1-4) | waited (frame 1) "
-              "| private | mapped files |"
+              "| private | shared (its share) | mapped files |"
               % (before, before, before, before))
-        print("|---|---|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         one, old = {}, {}
         for c in codecs:
             print("rendering %s" % c, file=sys.stderr)
@@ -167,15 +171,16 @@ def main():
             was = ratios(old, c) if args.compare else None
             cells = ["%.2f (%.2f)" % (now[i], was[i]) if was else "%.2f" % now[i]
                      for i in range(4)]
-            print("| %s | %s | %s | %s | %s | %s | %d | %s | %s |"
+            print("| %s | %s | %s | %s | %s | %s | %d | %s | %s | %s |"
                   % (c, cells[0], cells[1], cells[2], cells[3],
                      ", ".join("%d / %d" % d for d in d90), w90[0], mib(mem[0][0]),
-                     mib(mem[0][1])))
+                     mib(mem[0][1]), mib(mem[0][2])))
         print()
         print("Ranks of one thread each (strip cut, --balance static), 90-degree orbit: frame "
-              "time over raw's on as many ranks; private memory of the largest rank\n")
+              "time over raw's on as many ranks; own memory (private plus its share of the host's shared "
+              "memory) of the largest rank\n")
         head = " | ".join("%d: first, 2-4" % n for n in rank_counts)
-        mem_head = " | ".join("private, %d" % n for n in rank_counts)
+        mem_head = " | ".join("own, %d" % n for n in rank_counts)
         print("| codec | %s | %s | %d ranks / 1 |" % (head, mem_head, rank_counts[-1]))
         print("|---|" + "---|" * (2 * len(rank_counts) + 1))
         per, perOld = {}, {}
@@ -195,7 +200,7 @@ def main():
                     t, r = perOld[c][n][0], perOld["raw"][n][0]
                     cell += " (%.2f, %.2f)" % (t[0] / r[0], sum(t[1:]) / sum(r[1:]))
                 cells.append(cell)
-                mems.append(max(m[0] for m in mem.values()))
+                mems.append(max(m[0] + m[1] for m in mem.values()))
             print("| %s | %s | %s | %.2f |" % (c, " | ".join(cells), " | ".join(map(mib, mems)),
                                                mems[-1] / mems[0]))
 

@@ -21,6 +21,9 @@ ProcessMemory processMemory() {
     value("RssAnon:", m.privateBytes);
     value("RssFile:", m.fileBytes);
   }
+  std::ifstream rollup("/proc/self/smaps_rollup");
+  while (std::getline(rollup, line))
+    if (line.rfind("Pss_Shmem:", 0) == 0) m.sharedBytes = std::stoull(line.substr(10)) * 1024;
   return m;
 }
 

@@ -141,6 +141,7 @@ std::vector<std::byte> encode(const RankReport& rep) {
   w.put(rep.renderSeconds), w.put<std::uint64_t>(rep.samples);
   w.put<std::uint64_t>(rep.residentBytes), w.put<std::uint64_t>(rep.peakResidentBytes);
   w.put<std::uint64_t>(rep.privateBytes), w.put<std::uint64_t>(rep.fileBytes);
+  w.put<std::uint64_t>(rep.sharedBytes);
   w.put<std::uint64_t>(rep.pages.hits), w.put<std::uint64_t>(rep.pages.missed);
   w.put<std::uint64_t>(rep.pages.decoded);
   w.put<std::uint64_t>(rep.pages.evictions), w.put<std::uint64_t>(rep.pages.residentBytes);
@@ -199,6 +200,7 @@ RankReport decodeRankReport(std::span<const std::byte> bytes, const FrameTask& t
   rep.samples = r.get<std::uint64_t>();
   rep.residentBytes = r.get<std::uint64_t>(), rep.peakResidentBytes = r.get<std::uint64_t>();
   rep.privateBytes = r.get<std::uint64_t>(), rep.fileBytes = r.get<std::uint64_t>();
+  rep.sharedBytes = r.get<std::uint64_t>();
   rep.pages.hits = r.get<std::uint64_t>(), rep.pages.missed = r.get<std::uint64_t>();
   rep.pages.decoded = r.get<std::uint64_t>();
   rep.pages.evictions = r.get<std::uint64_t>(), rep.pages.residentBytes = r.get<std::uint64_t>();

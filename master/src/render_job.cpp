@@ -63,6 +63,7 @@ using AbandonWatch = std::function<bool()>;
 void setMemory(master::RankReport& report, const ProcessMemory& memory) {
   report.residentBytes = memory.residentBytes, report.peakResidentBytes = memory.peakBytes;
   report.privateBytes = memory.privateBytes, report.fileBytes = memory.fileBytes;
+  report.sharedBytes = memory.sharedBytes;
 }
 
 master::RankMemory memoryOf(int rank, const master::RankReport& report) {
@@ -71,7 +72,8 @@ master::RankMemory memoryOf(int rank, const master::RankReport& report) {
           report.residentBytes,
           report.peakResidentBytes,
           report.privateBytes,
-          report.fileBytes};
+          report.fileBytes,
+          report.sharedBytes};
 }
 
 // Has this rank's renderer render `rects` of `task`, streams each finished part to the sink (if

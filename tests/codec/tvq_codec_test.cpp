@@ -7,6 +7,7 @@
 #include <random>
 #include <voxwall/codec/container.hpp>
 #include <voxwall/codec/generators.hpp>
+#include <voxwall/codec/host_tables.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/tvq_codec.hpp>
 #include <voxwall/core/errors.hpp>
@@ -251,6 +252,51 @@ TEST(TvqCodec, TheHostViewMakesASubvolumesCodebooksWhenItsBlocksAreFirstDecoded)
   host.decoder.decode(host.decoder.key(5, 5, 5), after);
   EXPECT_EQ(layout.associatedResidentBytes(), one);
   for (int i = 0; i < 64; ++i) ASSERT_EQ(before[i], after[i]) << "voxel " << i;
+}
+
+// With a file of tables shared on the host (as the ranks of a job on one host have), two views of
+// one file make each sub-volume's codebooks once: the second finds them made and decodes the same
+// voxels as a view of its own. Released, the first view attaches again and still finds them.
+TEST(TvqCodec, TwoViewsWithASharedTablesFileMakeEachSubvolumesCodebooksOnce) {
+  const Volume v = generateSheppLogan(40);
+  Params p = quickTvq();
+  p.subvolumeVoxels = 16;  // 3^3 sub-volumes
+  const CompressedVolume cv = encodeQuiet(v, p);
+  const Layout alone(cv.info, cv.view());  // attaches nothing: no shared file yet
+  hosttables::create();
+  const Layout first(cv.info, cv.view()), second(cv.info, cv.view());
+  const kernels::TvqView a = first.view(), b = second.view(), own = alone.view();
+  const auto decodeAll = [](const kernels::TvqView& view, std::vector<float>& out) {
+    out.resize(10 * 10 * 10 * 64);
+    for (int bz = 0, i = 0; bz < 10; ++bz)
+      for (int by = 0; by < 10; ++by)
+        for (int bx = 0; bx < 10; ++bx, ++i)
+          view.decoder.decode(view.decoder.key(bx, by, bz), out.data() + i * 64);
+  };
+  std::vector<float> fromFirst, fromSecond, fromOwn;
+  const auto start = hosttables::counts();
+  decodeAll(a, fromFirst);
+  const auto afterFirst = hosttables::counts();
+  decodeAll(b, fromSecond);
+  const auto afterSecond = hosttables::counts();
+  decodeAll(own, fromOwn);
+  EXPECT_EQ(hosttables::counts().made, afterSecond.made);  // the view of its own shares nothing
+  const std::uint64_t made = afterFirst.made - start.made;
+  EXPECT_GT(made, 0u);
+  EXPECT_LE(made, 27u);
+  EXPECT_EQ(afterFirst.found, start.found);
+  EXPECT_EQ(afterSecond.made, afterFirst.made);
+  EXPECT_EQ(afterSecond.found - afterFirst.found, made);
+  EXPECT_EQ(first.associatedResidentBytes(), second.associatedResidentBytes());
+  EXPECT_EQ(fromFirst, fromOwn);
+  EXPECT_EQ(fromSecond, fromOwn);
+
+  first.releaseAssociated();  // detaches; the second view still holds the slot
+  EXPECT_EQ(first.associatedResidentBytes(), 0u);
+  decodeAll(a, fromFirst);
+  EXPECT_EQ(hosttables::counts().made, afterSecond.made);
+  EXPECT_EQ(fromFirst, fromOwn);
+  hosttables::leave();
 }
 
 TEST(TvqCodec, ProgressiveLevelsImprovePsnrMonotonically) {

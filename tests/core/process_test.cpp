@@ -56,6 +56,26 @@ TEST(Process, AMappedFileReadIsNotPrivateMemory) {
   EXPECT_LT(after.privateBytes, before.privateBytes + kBytes / 4);
 }
 
+// Shared memory this process writes (what the ranks on a host share) is its share of shared
+// memory, all of it while no other process maps it, and not private memory.
+TEST(Process, SharedMemoryIsItsShareNotPrivate) {
+  const int fd = memfd_create("voxwall-process-test", MFD_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  constexpr std::size_t kBytes = std::size_t(32) << 20;
+  ASSERT_EQ(ftruncate(fd, off_t(kBytes)), 0);
+  const auto before = voxwall::processMemory();
+  void* m = mmap(nullptr, kBytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+  ASSERT_NE(m, MAP_FAILED);
+  std::memset(m, 5, kBytes);
+  const auto after = voxwall::processMemory();
+  munmap(m, kBytes);
+  close(fd);
+  if (before.sharedBytes == 0 && after.sharedBytes == 0)
+    GTEST_SKIP() << "/proc/self/smaps_rollup has no Pss_Shmem here";
+  EXPECT_GE(after.sharedBytes, before.sharedBytes + kBytes / 2);
+  EXPECT_LT(after.privateBytes, before.privateBytes + kBytes / 4);
+}
+
 // A block freed in a thread goes back to the system at once, even after a larger block freed
 // before it raised glibc's own threshold (without the setting, the second block stays resident
 // in the thread's heap: this test failed so).

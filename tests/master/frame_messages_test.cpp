@@ -32,7 +32,7 @@ master::RankReport sampleReport(const master::FrameTask& t) {
   r.samples = 12345;
   r.rays = 678, r.latticeStride = 4;
   r.residentBytes = 1 << 20, r.peakResidentBytes = 2 << 20;
-  r.privateBytes = 3 << 18, r.fileBytes = 1 << 18;
+  r.privateBytes = 3 << 18, r.fileBytes = 1 << 18, r.sharedBytes = 5 << 16;
   r.pages = {1000, 20, 3, 2, 5 << 20, 17, 9};
   for (const auto& rect : t.rects[1]) {
     master::RenderedTile tile{rect, voxwall::Image(rect.width, rect.height)};
@@ -181,6 +181,7 @@ TEST(RankReport, RoundTrips) {
   EXPECT_EQ(back.pages.waited, 9u);
   EXPECT_EQ(back.privateBytes, 3u << 18);
   EXPECT_EQ(back.fileBytes, 1u << 18);
+  EXPECT_EQ(back.sharedBytes, 5u << 16);
   ASSERT_EQ(back.tiles.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i) {
     EXPECT_EQ(back.tiles[i].rect, r.tiles[i].rect);
@@ -229,15 +230,15 @@ TEST(RankReport, RejectsTruncationWrongFrameAndMismatchedGrid) {
   auto extra = bytes;
   extra.push_back(std::byte{0});
   expectRejected(extra, &t);
-  // A stream error longer than the limit (its u16 length follows 160 bytes of fields).
+  // A stream error longer than the limit (its u16 length follows 168 bytes of fields).
   auto longError = bytes;
   const std::uint16_t huge = 60000;
-  std::memcpy(longError.data() + 160, &huge, 2);
+  std::memcpy(longError.data() + 168, &huge, 2);
   expectRejected(longError, &t);
-  // A ray lattice of negative stride (the i32 after 128 bytes of fields and the u64 of rays).
+  // A ray lattice of negative stride (the i32 after 136 bytes of fields and the u64 of rays).
   auto negative = bytes;
   const std::int32_t minusOne = -1;
-  std::memcpy(negative.data() + 136, &minusOne, 4);
+  std::memcpy(negative.data() + 144, &minusOne, 4);
   expectRejected(negative, &t);
 }
 

@@ -8,7 +8,8 @@
 #   bad-volume N      a missing or truncated volume on one rank ends the job with one message
 #   other-volume      a rank holding a different volume is refused
 #   stall N           a rank that stops answering is named by the watchdog; the job ends
-#   codecs N          for every codec of the build: N ranks give the same frames as 1 rank
+#   codecs N          for every codec of the build: N ranks give the same frames as 1 rank;
+#                     the ranks share one file of decode tables (tvq's codebooks)
 #   time N            a time series (vq and ksvd, per-step range too): N ranks render
 #                     --time 0:3 with the same frames as 1 rank, every frame another step
 #   dry-run N         prints the rank -> tile map, hosts and memory, renders nothing
@@ -424,6 +425,15 @@ case $scenario in
       fi
       echo "$name: $n ranks equal one process"
     done
+    # The ranks (all on this host) agreed on one file for the tables a codec makes to decode
+    # (tvq's codebooks, made by one rank and read by the others in the frames above), and each
+    # rank's memory line gives its share of it apart from its private memory.
+    run "$n" render tvq.vwz --size 97x61 --frames 1 --threads 1 --no-write -v > tables.out 2>&1 ||
+      { cat tables.out; fail "tvq -v: mpirun -np $n exited with $?"; }
+    grep -q "^voxwall: decode tables made once a host: $n rank(s) on 1 host(s) share them$" \
+      tables.out || { cat tables.out; fail "the ranks did not share one file of decode tables"; }
+    [ "$(grep -c '^rank [0-9]* on .*; private .*, shared .* (its share), mapped files ' \
+      tables.out)" -eq "$n" ] || { cat tables.out; fail "no memory line with a shared part"; }
     ;;
   time)
     # Each frame's step travels in the frame task: every rank opens that step, byte for byte

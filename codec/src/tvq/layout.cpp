@@ -9,7 +9,10 @@
 #include <cstring>
 #include <mutex>
 #include <new>
+#include <xxhash.h>
+
 #include <voxwall/codec/brick_volume.hpp>
+#include <voxwall/codec/host_tables.hpp>
 #include <voxwall/codec/tvq_codec.hpp>
 #include <voxwall/core/bytes.hpp>
 #include <voxwall/core/errors.hpp>
@@ -18,13 +21,26 @@
 
 namespace voxwall::codec::tvq {
 
+namespace {
+// What the associated codebooks are made from (the transform, the basis, the sub-volumes' scales
+// and chapters, the codebooks): two ranks with the same key make the same bytes. Never 0.
+std::uint64_t booksKey(const SectionSet& sections) {
+  std::uint64_t h = 0x766f7877616c6cull;
+  for (std::uint32_t id : {kParams, kBasis, kSubvolumes, kCodebooks}) {
+    const auto bytes = sections.get(id, "section");  // the constructor checked each is there
+    h = XXH64(bytes.data(), bytes.size(), h);
+  }
+  return h ? h : 1;
+}
+}  // namespace
+
 Layout::Layout(const VolumeInfo& info, const SectionSet& sections) : info_(info) {
   cacheId_ = mintCacheIds(kProgressiveLevels);  // one id per progressive level
   const std::uint64_t subCount = readParams(sections);
   readBasis(sections);
   const auto [words, recordBytes] = readSubvolumes(sections, subCount);
   buildTable(sections, words, recordBytes);
-  books_ = std::make_unique<Books>(*this);
+  books_ = std::make_unique<Books>(*this, booksKey(sections));
 }
 
 Layout::~Layout() = default;
@@ -157,16 +173,21 @@ std::pair<std::uint64_t, std::uint64_t> Layout::readSubvolumes(const SectionSet&
 
 // Sub-volumes' associated codebooks, each made the first time a block of it is decoded (any
 // render thread; the others wait for it) and kept until clear() or the object goes.
-// Every sub-volume's codebooks have their place (codebookAt) in one region of anonymous memory,
-// reserved untouched when the first is made: making them touches (and zero-fills) only their
-// pages, and clear() gives every page back to the system at once (MADV_DONTNEED), with no
-// allocator in between to keep freed memory resident.
+// Every sub-volume's codebooks have their place (codebookAt) in one region: a slot of the file
+// the ranks on this host share (host_tables.hpp) where this process has one, so that one rank
+// makes a sub-volume's codebooks and the others read them; otherwise anonymous memory of this
+// process, reserved untouched when the first is made. Either way making them touches only their
+// pages, and clear() gives every page back to the system at once (MADV_DONTNEED; the shared slot's
+// when the last process detaches), with no allocator in between to keep freed memory resident.
 class Layout::Books {
  public:
-  explicit Books(const Layout& layout)
+  // `key` names the codebooks for the ranks on the host (what they are made from); 0: never
+  // shared (a decode's scratch codebooks).
+  explicit Books(const Layout& layout, std::uint64_t key = 0)
       : layout_(layout),
         slots_(layout.table_.size()),
-        bytes_(std::max<std::uint64_t>(layout.booksBytes_, 1)) {}
+        bytes_(std::max<std::uint64_t>(layout.booksBytes_, 1)),
+        key_(key) {}
   ~Books() {
     if (region_) munmap(region_, bytes_);
   }
@@ -180,16 +201,22 @@ class Layout::Books {
     if (auto* p = slots_[s].load(std::memory_order_acquire)) return p;
     std::lock_guard lock(locks_[s % locks_.size()]);
     if (auto* p = slots_[s].load(std::memory_order_relaxed)) return p;
-    const std::uint64_t bytes = layout_.subBooksBytes(s);
-    std::call_once(mapOnce_, [this] {
-      void* r = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
-                     MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-      if (r == MAP_FAILED) throw std::bad_alloc();  // call_once tries again next time
-      region_ = static_cast<std::uint8_t*>(r);
-    });
-    auto* p = region_ + layout_.table_[s].codebookAt[0];  // zeros: never written, or cleared
-    layout_.associateCodebooks(s, reinterpret_cast<float*>(p));
-    resident_.fetch_add(bytes, std::memory_order_relaxed);
+    const std::uint64_t at = layout_.table_[s].codebookAt[0];
+    std::uint8_t* p = nullptr;
+    if (const hosttables::Region* shared = sharedRegion()) {
+      p = shared->data() + at;  // zeros until made, here or by another rank
+      shared->makeOnce(s, [&] { layout_.associateCodebooks(s, reinterpret_cast<float*>(p)); });
+    } else {
+      std::call_once(mapOnce_, [this] {
+        void* r = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
+                       MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+        if (r == MAP_FAILED) throw std::bad_alloc();  // call_once tries again next time
+        region_ = static_cast<std::uint8_t*>(r);
+      });
+      p = region_ + at;  // zeros: never written, or cleared
+      layout_.associateCodebooks(s, reinterpret_cast<float*>(p));
+    }
+    resident_.fetch_add(layout_.subBooksBytes(s), std::memory_order_relaxed);
     slots_[s].store(p, std::memory_order_release);
     return p;
   }
@@ -198,10 +225,22 @@ class Layout::Books {
   void clear() const {
     for (auto& slot : slots_) slot.store(nullptr, std::memory_order_relaxed);
     if (region_) madvise(region_, bytes_, MADV_DONTNEED);  // reads back as zeros
+    shared_.reset(), sharedTried_ = false;
     resident_.store(0, std::memory_order_relaxed);
   }
 
  private:
+  // The shared slot, attached at the first get() after construction or clear(), where this
+  // process has a shared file; a whole epoch is either shared or private.
+  const hosttables::Region* sharedRegion() const {
+    if (key_ == 0) return nullptr;
+    std::lock_guard lock(sharedLock_);
+    if (!sharedTried_) {
+      shared_ = hosttables::Region::attach(key_, layout_.table_.size(), bytes_);
+      sharedTried_ = true;
+    }
+    return shared_.get();
+  }
   const Layout& layout_;
   mutable std::vector<std::atomic<std::uint8_t*>> slots_;
   mutable std::array<std::mutex, 64> locks_;
@@ -209,6 +248,10 @@ class Layout::Books {
   std::uint64_t bytes_;
   mutable std::once_flag mapOnce_;
   mutable std::uint8_t* region_ = nullptr;
+  std::uint64_t key_;
+  mutable std::mutex sharedLock_;
+  mutable std::unique_ptr<hosttables::Region> shared_;
+  mutable bool sharedTried_ = false;
 };
 
 void Layout::buildTable(const SectionSet& sections, std::uint64_t words,

@@ -11,6 +11,7 @@
 #include <voxwall/core/process.hpp>
 #include <voxwall/core/text.hpp>
 #include <voxwall/master/default_data.hpp>
+#include <voxwall/master/host_tables.hpp>
 #include <voxwall/master/mpi_communicator.hpp>
 #include <voxwall/master/render_job.hpp>
 #include <voxwall/walls/wall.hpp>
@@ -358,9 +359,11 @@ unsigned long long framePixels(const master::FrameSummary& f) {
   return pixels;
 }
 
-// A rank's resident memory split into its own and its mapped files'.
+// A rank's resident memory split into its own, its share of what the ranks on its host share
+// (decode tables made once for all of them, the MPI library's buffers) and its mapped files'.
 std::string memoryText(const master::RankMemory& m) {
-  return "private " + humanBytes(double(m.privateBytes)) + ", mapped files " +
+  return "private " + humanBytes(double(m.privateBytes)) + ", shared " +
+         humanBytes(double(m.sharedBytes)) + " (its share), mapped files " +
          humanBytes(double(m.fileBytes)) + " (shared by the ranks on one host)";
 }
 
@@ -490,6 +493,13 @@ void runRender(const RenderOptions& o) {
                                                    ? master::makeMpiCommunicator(nullptr, nullptr)
                                                    : master::makeSingleRankCommunicator();
   const bool quiet = o.quiet || comm->rank() != 0;
+  if (comm->size() > 1) {
+    // Before any rank opens the volume: tables a codec makes to decode (tvq's associated
+    // codebooks) are then made by one rank a host and read by the others.
+    const std::string tables =
+        master::shareDecodeTablesOnHost(*comm, int(std::max(1.0, o.watchdogSeconds) * 1000));
+    if (!quiet && o.verbose) std::fprintf(stderr, "voxwall: %s\n", tables.c_str());
+  }
   Setup s;
   setUpTogether(o, *comm, quiet, s);
   const std::uint64_t fingerprint = s.volume->fingerprint();

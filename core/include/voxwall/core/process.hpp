@@ -13,9 +13,13 @@ struct ProcessMemory {
   // pages of mapped files (RssFile: a mapped .vwz, the libraries), which processes on one host
   // mapping the same file share and the system can drop and read again.
   std::uint64_t privateBytes = 0, fileBytes = 0;
+  // This process's share of the shared memory it maps (Pss_Shmem: a page that n processes map
+  // counts 1/n to each): the decode tables the ranks on one host make once for all of them
+  // (codec/host_tables.hpp), an MPI library's shared buffers.
+  std::uint64_t sharedBytes = 0;
 };
 
-// From /proc/self/status; zeros where the system has no such file.
+// From /proc/self/status and /proc/self/smaps_rollup; zeros where the system has no such file.
 ProcessMemory processMemory();
 
 // Hands the allocator's free memory back to the system (glibc's malloc_trim: free pages inside

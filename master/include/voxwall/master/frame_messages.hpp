@@ -20,7 +20,7 @@
 //               per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 privateBytes,
-//               u64 fileBytes, u64 pageHits, pageMissed, pageDecoded, pageEvictions,
+//               u64 fileBytes, u64 sharedBytes, u64 pageHits, pageMissed, pageDecoded, pageEvictions,
 //               pageResidentBytes, pageCoarse, pageWaited, pageAhead, u64 rays, i32 latticeStride,
 //               u32 flags (bit 0: pixels included, bit 1: streamed to the sink, bit 2: the sink
 //               refused this rank for good, bit 3: the rank abandoned the frame), f64
@@ -46,7 +46,7 @@ inline constexpr std::uint32_t kRankReportMagic = 0x52525756;  // "VWRR"
 // 2: FrameTask.jobId; 3: no tfVersion; 4: FrameTask.step; 5: FrameTask's phase,
 // RankReport.abandoned; 6: RankReport.pages; 7: RankReport.pages.coarse; 8: FrameTask.timeStep;
 // 9: RankReport.rays and latticeStride.
-inline constexpr std::uint32_t kFrameMessageVersion = 10;
+inline constexpr std::uint32_t kFrameMessageVersion = 11;
 // Limits a decoder enforces before it allocates anything.
 inline constexpr int kMaxRanks = 1 << 16;
 inline constexpr int kMaxRectsPerRank = 1 << 12;
@@ -92,8 +92,9 @@ struct RankReport {
   std::uint64_t rays = 0;  // rays cast (fewer than the pixels where the ray lattice interpolates)
   int latticeStride = 0;   // the frame's ray lattice (1: a ray a pixel; 0: nothing rendered)
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
-  // Of residentBytes: the rank's own memory and its mapped files' (ProcessMemory).
-  std::uint64_t privateBytes = 0, fileBytes = 0;
+  // Of residentBytes: the rank's own memory and its mapped files'; its share of the memory the
+  // ranks on its host share (ProcessMemory).
+  std::uint64_t privateBytes = 0, fileBytes = 0, sharedBytes = 0;
   PageStats pages;
   bool pixels = true;        // tiles carry their pixels (rank 0 writes frames)
   bool streamed = false;     // the tiles went to the wall sink

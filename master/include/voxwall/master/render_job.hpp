@@ -147,8 +147,9 @@ struct RankMemory {
   std::string host;
   std::uint64_t residentBytes = 0, peakResidentBytes = 0;
   // Of residentBytes: the rank's own (decoded pages, frame buffers, the heap) and its mapped
-  // files' (the .vwz, shared by the ranks on one host; the libraries).
-  std::uint64_t privateBytes = 0, fileBytes = 0;
+  // files' (the .vwz, shared by the ranks on one host; the libraries); and its share of the
+  // memory the ranks on its host share (decode tables made once for all of them).
+  std::uint64_t privateBytes = 0, fileBytes = 0, sharedBytes = 0;
 };
 
 struct FrameSummary {
