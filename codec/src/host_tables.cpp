@@ -145,8 +145,7 @@ std::unique_ptr<Region> Region::attach(std::uint64_t key, std::uint64_t parts,
   bool taken = false;  // by another set of tables now: this one is made privately
   {
     SlotLock lock(header);
-    if (header.users == 0)
-      header.key = key, header.parts = parts, header.bytes = bytes;
+    if (header.users == 0) header.key = key, header.parts = parts, header.bytes = bytes;
     taken = header.key != key || header.parts != parts || header.bytes != bytes;
     if (!taken) ++header.users;
   }

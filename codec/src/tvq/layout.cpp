@@ -1,6 +1,7 @@
 // The tvq codec's layout: every section checked against the header before anything reads it, the
 // view the raycaster samples, and the decoder. The byte layout is documented in tvq_codec.hpp.
 #include <sys/mman.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <atomic>
@@ -9,8 +10,6 @@
 #include <cstring>
 #include <mutex>
 #include <new>
-#include <xxhash.h>
-
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/host_tables.hpp>
 #include <voxwall/codec/tvq_codec.hpp>

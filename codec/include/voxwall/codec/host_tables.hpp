@@ -47,7 +47,8 @@ class Region {
  public:
   // Null where this process has no shared file, the tables are over a slot's size (64 GiB), or
   // another set of tables (another key) holds the key's slot now.
-  static std::unique_ptr<Region> attach(std::uint64_t key, std::uint64_t parts, std::uint64_t bytes);
+  static std::unique_ptr<Region> attach(std::uint64_t key, std::uint64_t parts,
+                                        std::uint64_t bytes);
   ~Region();  // the last process to detach gives the slot's pages back
   Region(const Region&) = delete;
   Region& operator=(const Region&) = delete;

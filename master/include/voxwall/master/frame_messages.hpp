@@ -20,10 +20,10 @@
 //               per rect.
 //   RankReport: u32 magic 'VWRR', u32 version, u32 frame, i32 rank, f64 renderSeconds,
 //               u64 samples, u64 residentBytes, u64 peakResidentBytes, u64 privateBytes,
-//               u64 fileBytes, u64 sharedBytes, u64 pageHits, pageMissed, pageDecoded, pageEvictions,
-//               pageResidentBytes, pageCoarse, pageWaited, pageAhead, u64 rays, i32 latticeStride,
-//               u32 flags (bit 0: pixels included, bit 1: streamed to the sink, bit 2: the sink
-//               refused this rank for good, bit 3: the rank abandoned the frame), f64
+//               u64 fileBytes, u64 sharedBytes, u64 pageHits, pageMissed, pageDecoded,
+//               pageEvictions, pageResidentBytes, pageCoarse, pageWaited, pageAhead, u64 rays, i32
+//               latticeStride, u32 flags (bit 0: pixels included, bit 1: streamed to the sink, bit
+//               2: the sink refused this rank for good, bit 3: the rank abandoned the frame), f64
 //               encodeSeconds, u64 streamedBytes, u16 length + bytes of streamError, u32 tileCount,
 //               per tile: i32 x, y, width, height, then (with pixels) width*height u32 RGBA8, then
 //               i32 cellsX, cellsY (0, 0: no grid), i32 cx0, cy0, cw, ch (the cells under this
