@@ -172,28 +172,44 @@ Region::~Region() {
   munmap(map_, mapBytes_);
 }
 
+bool Region::tryMake(std::uint64_t i, const std::function<void()>& make) const {
+  std::atomic_ref<std::uint32_t> state(states_[i]);
+  std::uint32_t v = kFree;
+  if (!state.compare_exchange_strong(v, kMaking, std::memory_order_acq_rel)) return false;
+  try {
+    make();
+  } catch (...) {
+    state.store(kFree, std::memory_order_release);
+    throw;
+  }
+  state.store(kMade, std::memory_order_release);
+  madeCount.fetch_add(1, std::memory_order_relaxed);
+  return true;
+}
+
 bool Region::makeOnce(std::uint64_t i, const std::function<void()>& make) const {
   std::atomic_ref<std::uint32_t> state(states_[i]);
-  int round = 0;
-  for (;;) {
-    std::uint32_t v = state.load(std::memory_order_acquire);
-    if (v == kMade) {
+  for (int round = 0;; pause(round)) {  // while another process (or thread) makes it
+    if (state.load(std::memory_order_acquire) == kMade) {
       foundCount.fetch_add(1, std::memory_order_relaxed);
       return false;
     }
-    if (v == kFree && state.compare_exchange_strong(v, kMaking, std::memory_order_acq_rel)) {
-      try {
-        make();
-      } catch (...) {
-        state.store(kFree, std::memory_order_release);
-        throw;
-      }
-      state.store(kMade, std::memory_order_release);
-      madeCount.fetch_add(1, std::memory_order_relaxed);
-      return true;
-    }
-    pause(round);  // another process (or thread) is making it
+    if (tryMake(i, make)) return true;
   }
+}
+
+namespace {
+thread_local std::uint64_t rangeKey = 0;
+}  // namespace
+
+RangeShare::RangeShare(std::uint64_t key) : previous_(rangeKey) { rangeKey = key; }
+RangeShare::~RangeShare() { rangeKey = previous_; }
+
+std::uint64_t rangeShareKey() { return rangeKey != 0 && active() ? rangeKey : 0; }
+
+int hostCores() {
+  const long n = sysconf(_SC_NPROCESSORS_ONLN);
+  return n > 0 ? int(n) : 1;
 }
 
 }  // namespace voxwall::codec::hosttables

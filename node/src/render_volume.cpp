@@ -6,6 +6,7 @@
 #include <mutex>
 #include <type_traits>
 #include <voxwall/codec/codec.hpp>
+#include <voxwall/codec/host_tables.hpp>
 #include <voxwall/codec/raw_bricks.hpp>
 #include <voxwall/core/errors.hpp>
 #include <voxwall/core/progress.hpp>
@@ -16,6 +17,35 @@ namespace {
 std::uint64_t nextPayloadId() {
   static std::atomic<std::uint64_t> payloads{0};
   return ++payloads;
+}
+
+// What a step's value ranges are of, for the ranks on a host that make them together
+// (hosttables::RangeShare): the codec, the step's description, the render flags and every
+// section's bytes. 0 where there is no shared file (nothing is hashed then).
+std::uint64_t rangeKey(const codec::Codec& c, const codec::VolumeInfo& own, int step,
+                       const codec::CodecOptionValues& renderOptions,
+                       const codec::SectionSet& sections) {
+  if (!codec::hosttables::active() || !c.compresses()) return 0;
+  XXH64_state_t* state = XXH64_createState();
+  XXH64_reset(state, 0x72616e676573ull);
+  const auto add = [&](const void* p, std::size_t n) { XXH64_update(state, p, n); };
+  const std::string name(c.name());
+  add(name.data(), name.size() + 1);
+  const std::int64_t head[] = {own.dims.x, own.dims.y, own.dims.z, std::int64_t(own.type), step};
+  add(head, sizeof head);
+  const double range[] = {own.valueMin, own.valueMax};
+  add(range, sizeof range);
+  for (const std::string& flag : renderOptions.flags()) {
+    const std::string value = renderOptions.text(flag, "");
+    add(flag.data(), flag.size() + 1), add(value.data(), value.size() + 1);
+  }
+  for (const auto& [id, bytes] : sections.sections) {
+    const std::uint64_t head2[] = {id, bytes.size()};
+    add(head2, sizeof head2), add(bytes.data(), bytes.size());
+  }
+  const std::uint64_t key = XXH64_digest(state);
+  XXH64_freeState(state);
+  return key ? key : 1;
 }
 }  // namespace
 
@@ -102,7 +132,11 @@ void RenderVolume::init(const codec::CodecOptionValues& renderOptions) {
   const codec::VolumeInfo own = file_ ? file_->stepInfo(step_) : info_;
   payload_ = c.openWith(own, sections_, renderOptions);
   payloadId_ = nextPayloadId();
-  ranges_ = payload_->rangeGrid();
+  {
+    // The ranks on this host that open the same step now make its ranges together.
+    const codec::hosttables::RangeShare share(rangeKey(c, own, step_, renderOptions, sections_));
+    ranges_ = payload_->rangeGrid();
+  }
   ranges_.pack();  // read again only when a transfer function changes
   // Raw bricks are what a decoded volume would be: only a codec that compresses gets one.
   if (c.compresses() && info_.steps == 1 && renderOptions.flags().empty())

@@ -10,6 +10,7 @@
 #include <memory>
 #include <type_traits>
 #include <vector>
+#include <voxwall/codec/host_tables.hpp>
 #include <voxwall/codec/kernels/cached_brick_view.hpp>
 #include <voxwall/codec/metrics.hpp>
 #include <voxwall/codec/range_grid.hpp>
@@ -47,6 +48,12 @@ inline void minMaxInto(const float* vlo, const float* vhi, std::size_t n, float*
 // slice is filled before it is read). A cell's range is taken separably: the cell row's slices
 // into one, then its rows in y, then its voxels in x (a loop over each cell's 6^3 voxels was a
 // quarter of a small frame's job on vq, opening included).
+//
+// Under a hosttables::RangeShare with a shared file (the ranks of a job on one host), the
+// processes making the same grid at once split its tasks: each takes the tasks none has taken
+// (the split is by the host's cores), then the others' cells from the file (low and high as
+// floats, set() here exactly as where they were made); a task a process gave up (it threw) is
+// made by another. The grid is the same byte for byte as one made alone.
 template <class Fill>
 RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
                         std::size_t slabBytes, Fill&& fill) {
@@ -65,7 +72,10 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
   // zfp's bricks of 16 in the bench's 452x555x474 MRI are decoded 1.13 times each; they were
   // decoded 1.36 times when chunks were as large as a 4 MB ring held, about four tasks a core. A
   // ring never holds more than its chunk's rows: with many cores, chunks are small.
-  const int workers = resolveThreads(0);
+  // Made with the host's other processes (hosttables::RangeShare): the split is by the host's
+  // cores, which every process sharing the grid counts alike.
+  const std::uint64_t shareKey = hosttables::rangeShareKey();
+  const int workers = shareKey ? hosttables::hostCores() : resolveThreads(0);
   const int unitsY = (cells.y + unit - 1) / unit, unitsZ = (cells.z + unit - 1) / unit;
   const int maxChunkUnits = std::max(1, (fits - 2) / cell / unit);
   int chunkRows = 0, segmentRows = 0;
@@ -84,55 +94,99 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
   const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
   const int segments = (cells.z + segmentRows - 1) / segmentRows;
   const std::size_t tasks = std::size_t(chunksY) * std::size_t(segments);
-  std::atomic<std::size_t> nextTask{0};
-  const int threads = std::min<int>(workers, int(tasks));
-  parallelFor(std::size_t(threads), threads, [&](std::size_t) {
+  // A task's cells into g, and into `pairs` (low, high as floats, two a cell) when given.
+  struct Buffers {
     std::unique_ptr<float[]> slab, reduced;
     std::size_t capacity = 0;
-    for (std::size_t task; (task = nextTask.fetch_add(1, std::memory_order_relaxed)) < tasks;) {
-      const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
-                cy1 = std::min(cells.y, cy0 + chunkRows);
-      const int cz0 = int(task / std::size_t(chunksY)) * segmentRows,
-                cz1 = std::min(cells.z, cz0 + segmentRows);
-      // The ring's rows: the chunk's cells and one voxel either side, clamped.
-      const int y0 = std::max(0, cy0 * cell - 1), y1 = std::min(dims.y - 1, cy1 * cell);
-      const std::size_t sliceVoxels = std::size_t(dims.x) * std::size_t(y1 - y0 + 1);
-      if (sliceVoxels * std::size_t(ring) > capacity) {
-        capacity = sliceVoxels * std::size_t(ring), slab.reset(new float[capacity]);
-        reduced.reset(new float[2 * sliceVoxels + 2 * std::size_t(dims.x)]);
+  };
+  const auto runTask = [&](std::size_t task, Buffers& b, float* pairs) {
+    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
+              cy1 = std::min(cells.y, cy0 + chunkRows);
+    const int cz0 = int(task / std::size_t(chunksY)) * segmentRows,
+              cz1 = std::min(cells.z, cz0 + segmentRows);
+    // The ring's rows: the chunk's cells and one voxel either side, clamped.
+    const int y0 = std::max(0, cy0 * cell - 1), y1 = std::min(dims.y - 1, cy1 * cell);
+    const std::size_t sliceVoxels = std::size_t(dims.x) * std::size_t(y1 - y0 + 1);
+    if (sliceVoxels * std::size_t(ring) > b.capacity) {
+      b.capacity = sliceVoxels * std::size_t(ring), b.slab.reset(new float[b.capacity]);
+      b.reduced.reset(new float[2 * sliceVoxels + 2 * std::size_t(dims.x)]);
+    }
+    const auto slice = [&](int z) { return b.slab.get() + std::size_t(z % ring) * sliceVoxels; };
+    int filled = std::max(0, cz0 * cell - 1) - 1;  // the last slice filled
+    for (int cz = cz0; cz < cz1; ++cz) {
+      const int za = std::max(0, cz * cell - 1), zb = std::min(dims.z - 1, cz * cell + cell);
+      while (filled < zb) {
+        const int from = filled + 1, to = std::min(dims.z - 1, (from / align + 1) * align - 1);
+        fill(y0, y1, from, to, slice);
+        filled = to;
       }
-      const auto slice = [&](int z) { return slab.get() + std::size_t(z % ring) * sliceVoxels; };
-      int filled = std::max(0, cz0 * cell - 1) - 1;  // the last slice filled
-      for (int cz = cz0; cz < cz1; ++cz) {
-        const int za = std::max(0, cz * cell - 1), zb = std::min(dims.z - 1, cz * cell + cell);
-        while (filled < zb) {
-          const int from = filled + 1, to = std::min(dims.z - 1, (from / align + 1) * align - 1);
-          fill(y0, y1, from, to, slice);
-          filled = to;
+      // Separably: the cell row's slices into one (per voxel of the chunk), its rows of each
+      // cell row in y into one, then each cell's voxels in x.
+      const float inf = std::numeric_limits<float>::infinity();
+      float *zlo = b.reduced.get(), *zhi = zlo + sliceVoxels, *ylo = zhi + sliceVoxels,
+            *yhi = ylo + dims.x;
+      std::fill(zlo, zlo + sliceVoxels, inf), std::fill(zhi, zhi + sliceVoxels, -inf);
+      for (int z = za; z <= zb; ++z) minMaxInto(slice(z), sliceVoxels, zlo, zhi);
+      for (int cy = cy0; cy < cy1; ++cy) {
+        const int ya = std::max(0, cy * cell - 1), yb = std::min(dims.y - 1, cy * cell + cell);
+        std::fill(ylo, ylo + dims.x, inf), std::fill(yhi, yhi + dims.x, -inf);
+        for (int y = ya; y <= yb; ++y) {
+          const std::size_t at = std::size_t(y - y0) * std::size_t(dims.x);
+          minMaxInto(zlo + at, zhi + at, std::size_t(dims.x), ylo, yhi);
         }
-        // Separably: the cell row's slices into one (per voxel of the chunk), its rows of each
-        // cell row in y into one, then each cell's voxels in x.
-        const float inf = std::numeric_limits<float>::infinity();
-        float *zlo = reduced.get(), *zhi = zlo + sliceVoxels, *ylo = zhi + sliceVoxels,
-              *yhi = ylo + dims.x;
-        std::fill(zlo, zlo + sliceVoxels, inf), std::fill(zhi, zhi + sliceVoxels, -inf);
-        for (int z = za; z <= zb; ++z) minMaxInto(slice(z), sliceVoxels, zlo, zhi);
-        for (int cy = cy0; cy < cy1; ++cy) {
-          const int ya = std::max(0, cy * cell - 1), yb = std::min(dims.y - 1, cy * cell + cell);
-          std::fill(ylo, ylo + dims.x, inf), std::fill(yhi, yhi + dims.x, -inf);
-          for (int y = ya; y <= yb; ++y) {
-            const std::size_t at = std::size_t(y - y0) * std::size_t(dims.x);
-            minMaxInto(zlo + at, zhi + at, std::size_t(dims.x), ylo, yhi);
-          }
-          for (int cx = 0; cx < cells.x; ++cx) {
-            const int x0 = std::max(0, cx * cell - 1), x1 = std::min(dims.x - 1, cx * cell + cell);
-            float l = inf, h = -inf;
-            for (int x = x0; x <= x1; ++x) l = std::min(l, ylo[x]), h = std::max(h, yhi[x]);
-            g.set(g.cellIndex(cx, cy, cz), l, h);
-          }
+        for (int cx = 0; cx < cells.x; ++cx) {
+          const int x0 = std::max(0, cx * cell - 1), x1 = std::min(dims.x - 1, cx * cell + cell);
+          float l = inf, h = -inf;
+          for (int x = x0; x <= x1; ++x) l = std::min(l, ylo[x]), h = std::max(h, yhi[x]);
+          const std::size_t c = g.cellIndex(cx, cy, cz);
+          g.set(c, l, h);
+          if (pairs) pairs[2 * c] = l, pairs[2 * c + 1] = h;
         }
       }
     }
+  };
+  // The cells of a task another process made, from the shared file into g.
+  const auto takeTask = [&](std::size_t task, const float* pairs) {
+    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
+              cy1 = std::min(cells.y, cy0 + chunkRows);
+    const int cz0 = int(task / std::size_t(chunksY)) * segmentRows,
+              cz1 = std::min(cells.z, cz0 + segmentRows);
+    for (int cz = cz0; cz < cz1; ++cz)
+      for (int cy = cy0; cy < cy1; ++cy)
+        for (std::size_t c = g.cellIndex(0, cy, cz), e = c + std::size_t(cells.x); c < e; ++c)
+          g.set(c, pairs[2 * c], pairs[2 * c + 1]);
+  };
+  // The shared grid: its key also names the split (processes that split otherwise share none).
+  std::unique_ptr<hosttables::Region> shared;
+  if (shareKey) {
+    std::uint64_t key = shareKey;
+    for (const std::int64_t v : {std::int64_t(dims.x), std::int64_t(dims.y), std::int64_t(dims.z),
+                                 std::int64_t(type), std::int64_t(cell), std::int64_t(align),
+                                 std::int64_t(chunkRows), std::int64_t(segmentRows)})
+      key = hosttables::mixKey(key, std::uint64_t(v));
+    shared = hosttables::Region::attach(key, tasks, g.cellCount() * 2 * sizeof(float));
+  }
+  float* pairs = shared ? reinterpret_cast<float*>(shared->data()) : nullptr;
+  std::vector<std::uint8_t> mine(shared ? tasks : 0);  // the tasks this process made
+  const int threads = std::min<int>(resolveThreads(0), int(tasks));
+  std::atomic<std::size_t> nextTask{0};
+  parallelFor(std::size_t(threads), threads, [&](std::size_t) {
+    Buffers b;
+    for (std::size_t task; (task = nextTask.fetch_add(1, std::memory_order_relaxed)) < tasks;) {
+      if (!shared)
+        runTask(task, b, nullptr);
+      else if (shared->tryMake(task, [&] { runTask(task, b, pairs); }))
+        mine[task] = 1;
+    }
+  });
+  if (!shared) return g;
+  // The other processes' tasks: their cells once made (a task a process gave up is made here).
+  std::atomic<std::size_t> nextOther{0};
+  parallelFor(std::size_t(threads), threads, [&](std::size_t) {
+    Buffers b;
+    for (std::size_t task; (task = nextOther.fetch_add(1, std::memory_order_relaxed)) < tasks;)
+      if (!mine[task] && !shared->makeOnce(task, [&] { runTask(task, b, pairs); }))
+        takeTask(task, pairs);
   });
   return g;
 }

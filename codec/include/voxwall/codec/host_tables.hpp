@@ -57,6 +57,9 @@ class Region {
   // it waits until part i is made. Returns whether this call made it. If `make` throws, the part
   // stays to be made and the exception goes on.
   bool makeOnce(std::uint64_t i, const std::function<void()>& make) const;
+  // Runs `make` if no process has taken part i yet; returns whether it did (false: another
+  // process made it, is making it, or gave it up while this call looked). No wait.
+  bool tryMake(std::uint64_t i, const std::function<void()>& make) const;
 
  private:
   Region() = default;
@@ -66,5 +69,36 @@ class Region {
   std::uint32_t* states_ = nullptr;  // read and written as std::atomic_ref
   std::uint8_t* data_ = nullptr;
 };
+
+// Value ranges made together (codec/brick_volume.hpp's slabRangeGrid): while a RangeShare lives
+// on a thread, a range grid that thread makes is made with the other processes on the host that
+// make the grid of the same key at the same time. Each takes the tasks no process has taken, then
+// the others' cells from the shared file: two ranks of one core each open a volume about twice
+// as fast. The key names what the ranges are of (the sections' bytes, the step, the render
+// flags); 0, or no shared file: alone.
+class RangeShare {
+ public:
+  explicit RangeShare(std::uint64_t key);
+  ~RangeShare();
+  RangeShare(const RangeShare&) = delete;
+  RangeShare& operator=(const RangeShare&) = delete;
+
+ private:
+  std::uint64_t previous_;
+};
+// This thread's RangeShare key (0: none, or no shared file).
+std::uint64_t rangeShareKey();
+// `key` with `v` mixed in (splitmix64's finalizer over their sum): a key that also names how
+// the tables are laid out.
+inline std::uint64_t mixKey(std::uint64_t key, std::uint64_t v) {
+  std::uint64_t z = key + 0x9e3779b97f4a7c15ull + v;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  z ^= z >> 31;
+  return z ? z : 1;
+}
+// The cores of this host (not only those this process may use): what the processes sharing a
+// grid split its work by, so that they split it alike.
+int hostCores();
 
 }  // namespace voxwall::codec::hosttables
