@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -80,6 +81,13 @@ std::shared_ptr<SharedFile> current;
 }  // namespace
 
 Peer create() {
+  // Sizing a file past the process's file-size limit (ulimit -f) would send it SIGXFSZ, which
+  // ends it: such a process makes its tables alone.
+  rlimit limit{};
+  if (getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY &&
+      limit.rlim_cur < (kSlots << kSlotShift))
+    throw std::system_error(EFBIG, std::generic_category(),
+                            "the file-size limit (ulimit -f) is below the shared tables' file's");
   const int fd = memfd_create(kName, MFD_CLOEXEC);
   if (fd < 0) throw std::system_error(errno, std::generic_category(), "memfd_create");
   struct stat st {};

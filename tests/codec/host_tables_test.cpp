@@ -4,12 +4,14 @@
 // one range grid together, each a share of its tasks, and both get the grid made alone.
 #include <gtest/gtest.h>
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
+#include <system_error>
 #include <voxwall/codec/brick_volume.hpp>
 #include <voxwall/codec/host_tables.hpp>
 
@@ -99,6 +101,27 @@ TEST_F(HostTables, AnotherProcessJoinsTheFileAndMakesAPartThisOneReads) {
   EXPECT_FALSE(mine->makeOnce(1, [&] { ++made; }));
   EXPECT_EQ(made, 0);
   EXPECT_EQ(mine->data()[4096 + 100], 0xab);
+}
+
+// Under a file-size limit (ulimit -f) the file is not made (sizing it would end the process with
+// SIGXFSZ): create() says why, and the process goes on.
+TEST(HostTablesLimits, AFileSizeLimitIsSaidNotFatal) {
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    rlimit limit{1 << 20, 1 << 20};
+    if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(2);
+    try {
+      hosttables::create();
+    } catch (const std::system_error& e) {
+      _exit(std::string(e.what()).find("ulimit -f") != std::string::npos ? 0 : 3);
+    }
+    _exit(4);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by signal " << WTERMSIG(status);
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "3: another error, 4: no error";
 }
 
 TEST_F(HostTables, AFileThatIsNotTheOneNamedIsRefused) {
