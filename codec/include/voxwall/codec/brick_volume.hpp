@@ -94,16 +94,22 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
   const int chunksY = (cells.y + chunkRows - 1) / chunkRows;
   const int segments = (cells.z + segmentRows - 1) / segmentRows;
   const std::size_t tasks = std::size_t(chunksY) * std::size_t(segments);
+  // A task's cell rows: [cy0, cy1) in y, [cz0, cz1) in z.
+  struct Rows {
+    int cy0, cy1, cz0, cz1;
+  };
+  const auto rowsOf = [&](std::size_t task) {
+    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows;
+    const int cz0 = int(task / std::size_t(chunksY)) * segmentRows;
+    return Rows{cy0, std::min(cells.y, cy0 + chunkRows), cz0, std::min(cells.z, cz0 + segmentRows)};
+  };
   // A task's cells into g, and into `pairs` (low, high as floats, two a cell) when given.
   struct Buffers {
     std::unique_ptr<float[]> slab, reduced;
     std::size_t capacity = 0;
   };
   const auto runTask = [&](std::size_t task, Buffers& b, float* pairs) {
-    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
-              cy1 = std::min(cells.y, cy0 + chunkRows);
-    const int cz0 = int(task / std::size_t(chunksY)) * segmentRows,
-              cz1 = std::min(cells.z, cz0 + segmentRows);
+    const auto [cy0, cy1, cz0, cz1] = rowsOf(task);
     // The ring's rows: the chunk's cells and one voxel either side, clamped.
     const int y0 = std::max(0, cy0 * cell - 1), y1 = std::min(dims.y - 1, cy1 * cell);
     const std::size_t sliceVoxels = std::size_t(dims.x) * std::size_t(y1 - y0 + 1);
@@ -147,10 +153,7 @@ RangeGrid slabRangeGrid(glm::ivec3 dims, ScalarType type, int cell, int align,
   };
   // The cells of a task another process made, from the shared file into g.
   const auto takeTask = [&](std::size_t task, const float* pairs) {
-    const int cy0 = int(task % std::size_t(chunksY)) * chunkRows,
-              cy1 = std::min(cells.y, cy0 + chunkRows);
-    const int cz0 = int(task / std::size_t(chunksY)) * segmentRows,
-              cz1 = std::min(cells.z, cz0 + segmentRows);
+    const auto [cy0, cy1, cz0, cz1] = rowsOf(task);
     for (int cz = cz0; cz < cz1; ++cz)
       for (int cy = cy0; cy < cy1; ++cy)
         for (std::size_t c = g.cellIndex(0, cy, cz), e = c + std::size_t(cells.x); c < e; ++c)

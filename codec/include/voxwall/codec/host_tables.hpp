@@ -73,8 +73,8 @@ class Region {
 // Value ranges made together (codec/brick_volume.hpp's slabRangeGrid): while a RangeShare lives
 // on a thread, a range grid that thread makes is made with the other processes on the host that
 // make the grid of the same key at the same time. Each takes the tasks no process has taken, then
-// the others' cells from the shared file: two ranks of one core each open a volume about twice
-// as fast. The key names what the ranges are of (the sections' bytes, the step, the render
+// the others' cells from the shared file: each rank makes its share of the ranges instead of all
+// of them. The key names what the ranges are of (the sections' bytes, the step, the render
 // flags); 0, or no shared file: alone.
 class RangeShare {
  public:
