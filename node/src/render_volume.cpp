@@ -27,6 +27,7 @@ std::uint64_t rangeKey(const codec::Codec& c, const codec::VolumeInfo& own, int 
                        const codec::SectionSet& sections) {
   if (!codec::hosttables::active() || !c.compresses()) return 0;
   XXH64_state_t* state = XXH64_createState();
+  if (!state) return 0;  // no memory for the hash's state: the ranges are made alone
   XXH64_reset(state, 0x72616e676573ull);
   const auto add = [&](const void* p, std::size_t n) { XXH64_update(state, p, n); };
   const std::string name(c.name());
