@@ -76,8 +76,8 @@ std::string shareDecodeTablesOnHost(Communicator& comm, int timeoutMs) {
   }
   int sharing = 0;
   for (const auto& [host, n] : perHost) sharing += n;
-  return "decode tables made once a host: " + std::to_string(sharing) + " rank(s) on " +
-         std::to_string(perHost.size()) + " host(s) share them" + failures;
+  return "value ranges and decode tables made once a host: " + std::to_string(sharing) +
+         " rank(s) on " + std::to_string(perHost.size()) + " host(s) share them" + failures;
 }
 
 }  // namespace voxwall::master

@@ -430,7 +430,7 @@ case $scenario in
     # rank's memory line gives its share of it apart from its private memory.
     run "$n" render tvq.vwz --size 97x61 --frames 1 --threads 1 --no-write -v > tables.out 2>&1 ||
       { cat tables.out; fail "tvq -v: mpirun -np $n exited with $?"; }
-    grep -q "^voxwall: decode tables made once a host: $n rank(s) on 1 host(s) share them$" \
+    grep -q "^voxwall: value ranges and decode tables made once a host: $n rank(s) on 1 host(s) share them$" \
       tables.out || { cat tables.out; fail "the ranks did not share one file of decode tables"; }
     [ "$(grep -c '^rank [0-9]* on .*; private .*, shared .* (its share), mapped files ' \
       tables.out)" -eq "$n" ] || { cat tables.out; fail "no memory line with a shared part"; }
