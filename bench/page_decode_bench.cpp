@@ -46,9 +46,10 @@ struct PageAt {
 template <class Level>
 std::vector<PageAt> pageOrder(const Level& level, bool shuffled) {
   std::vector<PageAt> order;
-  for (int pz = 0; pz * node::pages::kSide < level.dimZ; ++pz)
-    for (int py = 0; py * node::pages::kSide < level.dimY; ++py)
-      for (int px = 0; px * node::pages::kSide < level.dimX; ++px) order.push_back({px, py, pz});
+  for (int pz = 0; pz < node::pages::pagesAlong(level.dimZ); ++pz)
+    for (int py = 0; py < node::pages::pagesAlong(level.dimY); ++py)
+      for (int px = 0; px < node::pages::pagesAlong(level.dimX); ++px)
+        order.push_back({px, py, pz});
   if (shuffled) std::shuffle(order.begin(), order.end(), std::mt19937(1));
   return order;
 }

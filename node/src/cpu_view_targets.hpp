@@ -305,10 +305,13 @@ struct HwyLanes {
     reader.quiesce();  // the last step's page offsets are no longer used
     const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
     const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
+    // Offset by kLead: pages are cut so that their stored voxels start on a multiple of 32.
+    const I lead = splatI(P::kLead);
+    const I jx = ix + lead, jy = iy + lead, jz = iz + lead;
     const I page =
-        (hn::ShiftRight<P::kShift>(iz) * splatI(pages.pagesY) + hn::ShiftRight<P::kShift>(iy)) *
+        (hn::ShiftRight<P::kShift>(jz) * splatI(pages.pagesY) + hn::ShiftRight<P::kShift>(jy)) *
             splatI(pages.pagesX) +
-        hn::ShiftRight<P::kShift>(ix);
+        hn::ShiftRight<P::kShift>(jx);
     I slot = hn::GatherIndex(DI(), pages.table(), selectI(m, page, splatI(0)));
     // Entries are published with a release store after their page is written.
     std::atomic_thread_fence(std::memory_order_acquire);
@@ -337,9 +340,9 @@ struct HwyLanes {
     }
     cache.paged = m;
     const I low = splatI(P::kSide - 1), one = splatI(1);
-    const I o = selectI(m, slot, splatI(0)) + (hn::And(ix, low) + one) +
-                (hn::And(iy, low) + one) * splatI(P::kRow) +
-                (hn::And(iz, low) + one) * splatI(P::kSlice);
+    const I o = selectI(m, slot, splatI(0)) + (hn::And(jx, low) + one) +
+                (hn::And(jy, low) + one) * splatI(P::kRow) +
+                (hn::And(jz, low) + one) * splatI(P::kSlice);
     cache.pageAt = o;
     withPool(pages, [&](const auto* pool) { pageCorners(pages, pool, o, cache.c); });
     return Corners::blend(cache.c, x - toFloat(ix), y - toFloat(iy), z - toFloat(iz));
@@ -375,7 +378,9 @@ struct HwyLanes {
     // The sample's page: its slot and first voxel, from the sample's cell.
     const I ix = trunc(clampTo(p.x, v.maxX)), iy = trunc(clampTo(p.y, v.maxY)),
             iz = trunc(clampTo(p.z, v.maxZ));
-    const I lx = hn::And(ix, low), ly = hn::And(iy, low), lz = hn::And(iz, low);
+    const I lead = splatI(P::kLead);  // as pageSample cuts pages
+    const I lx = hn::And(ix + lead, low), ly = hn::And(iy + lead, low),
+            lz = hn::And(iz + lead, low);
     const I slot =
         cache.pageAt - (lx + one) - (ly + one) * splatI(P::kRow) - (lz + one) * splatI(P::kSlice);
     const I bx = ix - lx, by = iy - ly, bz = iz - lz;

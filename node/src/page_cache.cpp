@@ -14,8 +14,7 @@ PageCache::PageCache(const std::type_info& type, std::uint64_t id, int x, int y,
       bias_(scalar == codec::ScalarType::Int16 ? -32768.0f : 0.0f),
       readers_(std::max(1, readers)) {
   if (x <= 0 || y <= 0 || z <= 0) throw std::invalid_argument("decoded pages of an empty volume");
-  pagesX = (x + kSide - 1) / kSide, pagesY = (y + kSide - 1) / kSide;
-  pagesZ = (z + kSide - 1) / kSide;
+  pagesX = pages::pagesAlong(x), pagesY = pages::pagesAlong(y), pagesZ = pages::pagesAlong(z);
   const std::uint64_t pages = std::uint64_t(pagesX) * std::uint64_t(pagesY) * std::uint64_t(pagesZ);
   if (pages >= (std::uint64_t(1) << 31)) throw std::invalid_argument("too many decoded pages");
   capacity_ = std::int32_t(capacityFor(x, y, z, format_, budgetBytes, readers_));
@@ -36,9 +35,9 @@ PageCache::PageCache(const std::type_info& type, std::uint64_t id, int x, int y,
 
 std::uint64_t PageCache::capacityFor(int x, int y, int z, PageFormat format,
                                      std::uint64_t budgetBytes, int readers) {
-  const std::uint64_t pages = std::uint64_t((x + kSide - 1) / kSide) *
-                              std::uint64_t((y + kSide - 1) / kSide) *
-                              std::uint64_t((z + kSide - 1) / kSide);
+  const std::uint64_t pages = std::uint64_t(pages::pagesAlong(x)) *
+                              std::uint64_t(pages::pagesAlong(y)) *
+                              std::uint64_t(pages::pagesAlong(z));
   // Float pages are gathered by element index, narrow ones by byte offset.
   const std::uint64_t unit = format == PageFormat::Float32 ? 1 : valueBytes(format);
   const std::uint64_t slots = ((std::uint64_t(1) << 31) - 64) / (std::uint64_t(kVoxels) * unit);

@@ -30,6 +30,31 @@ struct Formula {
 
 }  // namespace
 
+// Where pages are cut: every cell of an axis has a page, which stores the cell's corners and the
+// voxels its gradient reads (one below, two above); every page holds a cell; a page's voxels
+// start on a multiple of 16, so that they lie over 3 bricks of 16 a side.
+TEST(PageCache, PagesAreCutSoThatTheirVoxelsStartOnAMultipleOf16) {
+  for (int dim = 1; dim <= 200; ++dim) {
+    const int n = pages::pagesAlong(dim);
+    std::vector<int> cells(std::size_t(n), 0);
+    for (int i = 0; i < dim; ++i) {
+      const int p = pages::pageOf(i);
+      ASSERT_GE(p, 0);
+      ASSERT_LT(p, n) << "dim " << dim << " cell " << i;
+      ++cells[std::size_t(p)];
+      EXPECT_GE(i - 1, pages::firstVoxel(p));
+      EXPECT_LE(i + 2, pages::firstVoxel(p) + pages::kRow - 1);
+    }
+    for (int p = 0; p < n; ++p) {
+      EXPECT_GT(cells[std::size_t(p)], 0) << "dim " << dim << " page " << p;
+      EXPECT_LE(cells[std::size_t(p)], pages::kSide);
+      EXPECT_EQ((pages::firstVoxel(p) + 32) % 16, 0);
+      const int first = pages::firstVoxel(p), last = first + pages::kRow - 1;
+      EXPECT_EQ(last / 16 - first / 16 + 1, 3) << "bricks of 16 under page " << p;
+    }
+  }
+}
+
 TEST(PageCache, ThreadsEvictingEachOtherNeverReadAnotherPagesVoxels) {
   const Formula level;
   const std::uint64_t page = std::uint64_t(PageCache::kVoxels);  // bytes of a uint8 page
@@ -58,7 +83,10 @@ TEST(PageCache, ThreadsEvictingEachOtherNeverReadAnotherPagesVoxels) {
           const int pz = asked[lane] / cache->pagesX / cache->pagesY;
           for (int probe = 0; probe < 16; ++probe) {
             const int x = int(rng() % 32), y = int(rng() % 32), z = int(rng() % 32);
-            const int gx = px * 32 + x, gy = py * 32 + y, gz = pz * 32 + z;
+            // Stored voxel x + 1 along an axis is the page's first voxel plus x + 1.
+            const int gx = pages::firstVoxel(px) + x + 1, gy = pages::firstVoxel(py) + y + 1,
+                      gz = pages::firstVoxel(pz) + z + 1;
+            if (gx < 0 || gy < 0 || gz < 0) continue;
             if (gx >= level.dimX || gy >= level.dimY || gz >= level.dimZ) continue;
             const std::uint8_t v =
                 pool[std::size_t(at[lane]) + std::size_t(x + 1) +
@@ -140,9 +168,9 @@ int expectPagesDecodeAlike(const RenderVolume& volume, const std::string& name) 
           const auto each = [&](auto zero, float bias) {
             using Stored = decltype(zero);
             std::vector<Stored> fast(pages::kVoxels), slow(pages::kVoxels);
-            for (int pz = 0; pz * pages::kSide < level.dimZ; ++pz)
-              for (int py = 0; py * pages::kSide < level.dimY; ++py)
-                for (int px = 0; px * pages::kSide < level.dimX; ++px) {
+            for (int pz = 0; pz < pages::pagesAlong(level.dimZ); ++pz)
+              for (int py = 0; py < pages::pagesAlong(level.dimY); ++py)
+                for (int px = 0; px < pages::pagesAlong(level.dimX); ++px) {
                   pages::decodePage(level, px, py, pz, bias, fast.data());
                   pages::decodePageByVoxel(level, px, py, pz, bias, slow.data());
                   ASSERT_EQ(fast, slow) << name << " page " << px << "," << py << "," << pz;
@@ -257,7 +285,8 @@ TEST(PageDecode, AThreadWaitingForAPageOfBigBricksDecodesItsBricksFromTheOtherEn
       return pages::BrickMemo(Level::kVoxels,
                               125 * pages::BrickMemo::kShards * std::uint64_t(Level::kVoxels));
     };
-    // The page in the middle of 3^3: its apron reaches 4^3 bricks of 16^3.
+    // The page in the middle of 3^3: its 35 voxels a side (16 .. 50) lie over 3^3 bricks of 16^3
+    // (pages cut at multiples of 32 would lie over 4^3).
     pages::BrickMemo stopped = memoOfRoom();
     int asked = 0;
     pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, stopped,
@@ -265,13 +294,13 @@ TEST(PageDecode, AThreadWaitingForAPageOfBigBricksDecodesItsBricksFromTheOtherEn
     EXPECT_EQ(stopped.counts().kept, 5u);  // the page was there after five bricks
     pages::BrickMemo memo = memoOfRoom();
     pages::helpDecodePage<Level, std::uint8_t>(level, 1, 1, 1, 0.0f, memo, [] { return false; });
-    EXPECT_EQ(memo.counts().kept, 64u);
+    EXPECT_EQ(memo.counts().kept, 27u);
     std::vector<std::uint8_t> fast(pages::kVoxels), slow(pages::kVoxels);
     pages::decodePage(level, 1, 1, 1, 0.0f, fast.data(), &memo);
     pages::decodePageByVoxel(level, 1, 1, 1, 0.0f, slow.data());
     EXPECT_EQ(fast, slow);
-    EXPECT_EQ(memo.counts().kept, 64u);  // nothing decoded again
-    EXPECT_EQ(memo.counts().found, 64u);
+    EXPECT_EQ(memo.counts().kept, 27u);  // nothing decoded again
+    EXPECT_EQ(memo.counts().found, 27u);
     // Helping and decoding at once, on two threads, over every page: the same pages.
     pages::BrickMemo shared = memoOfRoom();
     for (int p = 0; p < 27; ++p) {
@@ -294,7 +323,7 @@ TEST(PageDecode, AThreadWaitingForAPageOfBigBricksDecodesItsBricksFromTheOtherEn
 
 // Pages of big bricks decoded through a memo, in any order and from several threads at once, hold
 // the values of the reference decode; with room for every brick each is decoded once (zfp's 16^3
-// bricks: 64 under each page, 2^3 of them its own), and with room for one brick a shard, pages
+// bricks: up to 27 under a page, 2^3 of them its own), and with room for one brick a shard, pages
 // still decode alike while bricks are replaced.
 TEST(PageDecode, PagesOfBigBricksDecodeEachBrickOnceThroughTheMemo) {
   withZfpPagedLevel([&](const auto& level) {

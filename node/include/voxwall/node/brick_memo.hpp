@@ -1,12 +1,12 @@
 // Decoded bricks that the pages of one level share, for bricks of 16^3 (zfp's; see
 // pages::sharesBricks for why not smaller ones).
 //
-// A page holds 32^3 voxels and an apron of one voxel below and two above on every axis
-// (page_decode.hpp). With bricks of 16^3 the apron reaches into a ring of bricks around the page's
-// own 2^3: 64 bricks decoded for 8 bricks' worth of voxels, and each ring brick is a brick of a
-// page beside it, which decodes it again. The memo keeps what the page decoder decoded, in the
-// page's own storage type (the values the page stores: a byte a voxel for uint8 data), so that a
-// brick is decoded about once whichever thread and page meet it first.
+// A page stores 35 voxels a side: its cells' 32 and an apron of one voxel below and two above,
+// starting on a multiple of 16 (page_decode.hpp). With bricks of 16^3 that is 3 bricks a side,
+// 27 decoded for 8 bricks' worth of voxels, and the bricks on its faces lie under the pages
+// beside it too, which need them again. The memo keeps what the page decoder decoded, in
+// the page's own storage type (the values the page stores: a byte a voxel for uint8 data), so that
+// a brick is decoded about once whichever thread and page meet it first.
 //
 // It is shared by the threads that decode pages (the rays' and the pass ahead of them): 64
 // shards, each a mutex, a map from the brick's key to its slot and a ring of slots replaced

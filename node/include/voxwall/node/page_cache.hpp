@@ -82,7 +82,8 @@ class PageCache {
  public:
   static constexpr int kShift = pages::kShift;  // 32 voxels per page side
   static constexpr int kSide = pages::kSide;
-  static constexpr int kRow = pages::kRow;  // the apron: one voxel below, two above
+  static constexpr int kLead = pages::kLead;  // a cell's page along an axis: (x + kLead) >> kShift
+  static constexpr int kRow = pages::kRow;    // the apron: one voxel below, two above
   static constexpr int kSlice = kRow * kRow;
   static constexpr int kVoxels = pages::kVoxels;
   // A page's table entry: the element offset of its page in the pool, or one of these.

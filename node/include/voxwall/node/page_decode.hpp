@@ -39,6 +39,22 @@ inline constexpr int kSide = 1 << kShift;  // voxels per page side
 inline constexpr int kRow = kSide + 3;     // with the apron: one voxel below, two above
 inline constexpr int kVoxels = kRow * kRow * kRow;
 
+// Where pages are cut. Page p holds the cells whose lower corner x lies in [32p - 15, 32p + 16]
+// and stores voxels 32p - 16 .. 32p + 18 (its cells' corners and the apron a cell gradient
+// reads: one voxel below, two above), so that a page's 35 voxels start on a multiple of 16. They
+// then lie over 3 bricks of 16 a side (16, 16 and 3 voxels), 5 of 8 and 9 of 4, where pages cut
+// at multiples of 32 (storing 32p - 1 .. 32p + 33: a voxel of the brick below, two of the brick
+// above) lie over 4, 6 and 10. A brick codec decodes every brick under a page: 27 of zfp's bricks
+// for a page instead of 64, 729 of vq's instead of 1000. The first page holds 17 cells, as may
+// the last.
+inline constexpr int kLead = kSide / 2 - 1;
+// The page of a cell's lower corner along one axis (0 <= i < the axis's voxels).
+constexpr int pageOf(int i) { return (i + kLead) >> kShift; }
+// The page's first stored voxel along one axis (below 0 at the volume's first face: clamped).
+constexpr int firstVoxel(int page) { return page * kSide - kLead - 1; }
+// Pages along an axis of `dim` voxels (dim >= 1).
+constexpr int pagesAlong(int dim) { return pageOf(dim - 1) + 1; }
+
 // The level of `view` whose voxels pages hold: what its pagedLevel() names (ksvd's level 0), or
 // the view itself.
 template <class View>
@@ -67,10 +83,10 @@ void decodePageByVoxel(const Level& level, int px, int py, int pz, float bias, S
   typename Level::RayCache cache;
   for (int z = 0; z < kRow; ++z)
     for (int y = 0; y < kRow; ++y) {
-      const int gz = codec::kernels::clampIndex(pz * kSide + z - 1, level.dimZ);
-      const int gy = codec::kernels::clampIndex(py * kSide + y - 1, level.dimY);
+      const int gz = codec::kernels::clampIndex(firstVoxel(pz) + z, level.dimZ);
+      const int gy = codec::kernels::clampIndex(firstVoxel(py) + y, level.dimY);
       for (int x = 0; x < kRow; ++x) {
-        const int gx = codec::kernels::clampIndex(px * kSide + x - 1, level.dimX);
+        const int gx = codec::kernels::clampIndex(firstVoxel(px) + x, level.dimX);
         *out++ = store<Stored>(level.voxel(gx, gy, gz, cache), bias);
       }
     }
@@ -83,7 +99,7 @@ struct PageAxis {
   int brick[kRow], within[kRow];
   PageAxis(int page, int dim, int side) {
     for (int i = 0; i < kRow; ++i) {
-      const int g = codec::kernels::clampIndex(page * kSide + i - 1, dim);
+      const int g = codec::kernels::clampIndex(firstVoxel(page) + i, dim);
       brick[i] = g / side, within[i] = g % side;
     }
     first = brick[0], count = brick[kRow - 1] - first + 1;
@@ -137,11 +153,10 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
   constexpr int S = View::kSide, kBrick = View::kVoxels;
   using Value = typename View::Value;
   const PageAxis ax(px, view.dimX, S), ay(py, view.dimY, S), az(pz, view.dimZ, S);
-  // Big bricks (ksvd's 8^3; zfp's 16^3 where no memo is given): the apron reaches into the bricks
-  // around the page, half of which the page beside it decodes too; the bricks of the last page
-  // this thread decoded are kept and copied instead of decoded again (a ray's pages follow each
-  // other, and most of them share a face). [0]: the last page's, [1]: this one's; for zfp 1 MiB
-  // each a thread.
+  // Big bricks (ksvd's 8^3; zfp's 16^3 where no memo is given): the apron reaches into bricks
+  // the page beside it decodes too; the bricks of the last page this thread decoded are kept and
+  // copied instead of decoded again (a ray's pages follow each other, and most of them share a
+  // face). [0]: the last page's, [1]: this one's; for zfp 432 KiB each a thread.
   constexpr bool kKeep = kBrick >= 512;
   struct Kept {
     std::uint64_t id = 0;
@@ -203,8 +218,8 @@ void decodePageByBrick(const View& view, int px, int py, int pz, float bias, Sto
 }
 
 // Whether pages of `Level` decode through a BrickMemo (brick_memo.hpp): brick views of bricks of
-// 16^3 (zfp's), whose apron reaches into the 56 bricks around the page's 8, each of which the
-// pages beside it decode too. Smaller bricks decode in about what a lookup in the memo and a copy
+// 16^3 (zfp's): a page's 27 bricks hold 8 bricks' worth of its voxels, and the pages beside it
+// decode the rest too. Smaller bricks decode in about what a lookup in the memo and a copy
 // cost: with pages in a shuffled order, ksvd's 8^3 bricks gave 138 Mvox/s of pages without it
 // and 132 with it, zfp's 16^3 25 and 98 (voxwall_bench_pages on one core, the MRI template of
 // mricron-data as it is, compressed with --block 8 and zfp's defaults).
