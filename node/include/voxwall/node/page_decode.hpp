@@ -45,8 +45,8 @@ inline constexpr int kVoxels = kRow * kRow * kRow;
 // then lie over 3 bricks of 16 a side (16, 16 and 3 voxels), 5 of 8 and 9 of 4, where pages cut
 // at multiples of 32 (storing 32p - 1 .. 32p + 33: a voxel of the brick below, two of the brick
 // above) lie over 4, 6 and 10. A brick codec decodes every brick under a page: 27 of zfp's bricks
-// for a page instead of 64, 729 of vq's instead of 1000. The first page holds 17 cells, as may
-// the last.
+// for a page instead of 64, 729 of vq's instead of 1000. The first page holds 17 cells, the last
+// what remains.
 inline constexpr int kLead = kSide / 2 - 1;
 // The page of a cell's lower corner along one axis (0 <= i < the axis's voxels).
 constexpr int pageOf(int i) { return (i + kLead) >> kShift; }
