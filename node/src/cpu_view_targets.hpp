@@ -305,7 +305,7 @@ struct HwyLanes {
     reader.quiesce();  // the last step's page offsets are no longer used
     const F x = clampTo(p.x, v.maxX), y = clampTo(p.y, v.maxY), z = clampTo(p.z, v.maxZ);
     const I ix = trunc(x), iy = trunc(y), iz = trunc(z);
-    // Offset by kLead: pages are cut so that their stored voxels start on a multiple of 32.
+    // Offset by kLead: pages are cut so that their stored voxels start on a multiple of 16.
     const I lead = splatI(P::kLead);
     const I jx = ix + lead, jy = iy + lead, jz = iz + lead;
     const I page =
